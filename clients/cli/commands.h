@@ -1,0 +1,19 @@
+// The subcommands of `reenact`, one RunX() per command, grouped by topic in
+// their own files. BuildCommandTable() registers them all in one place.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "clients/cli/command.h"
+
+namespace reenact::cli {
+
+std::vector<Command> BuildCommandTable();
+
+// motion_commands.cc
+int RunMotionInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunMotionJoints(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+}  // namespace reenact::cli

@@ -1,0 +1,37 @@
+// A small flag parser for the `reenact` subcommands: `--name value`,
+// `--name=value`, boolean `--name`, and positional arguments.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+
+namespace reenact::cli {
+
+class Flags {
+ public:
+  // Parses `args`. `value_flags` take a value, `bool_flags` take none; any
+  // other `--x` is an error naming it.
+  static absl::StatusOr<Flags> Parse(const std::vector<std::string>& args,
+                                     const std::set<std::string>& value_flags,
+                                     const std::set<std::string>& bool_flags);
+
+  bool Has(const std::string& name) const { return values_.count(name) > 0; }
+  std::optional<std::string> Get(const std::string& name) const;
+  std::string GetOr(const std::string& name, const std::string& fallback) const;
+  // Errors name the flag when the value is missing or not a number.
+  absl::StatusOr<std::string> Required(const std::string& name) const;
+  absl::StatusOr<int> GetInt(const std::string& name, int fallback) const;
+  absl::StatusOr<double> GetDouble(const std::string& name, double fallback) const;
+  const std::vector<std::string>& positional() const { return positional_; }
+
+ private:
+  std::map<std::string, std::string> values_;
+  std::vector<std::string> positional_;
+};
+
+}  // namespace reenact::cli

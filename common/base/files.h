@@ -1,0 +1,23 @@
+// Whole-file reads and atomic writes with errors that name the file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace reenact {
+
+// Reads the whole file at `path`. NotFound when it does not exist.
+absl::StatusOr<std::string> ReadFileToString(const std::string& path);
+
+// Writes `contents` to `path` through a temporary file and a rename, so that a
+// reader never sees a half-written file.
+absl::Status WriteFileAtomically(const std::string& path, const std::string& contents);
+
+// Creates `path` and its parents if missing.
+absl::Status CreateDirectories(const std::string& path);
+
+}  // namespace reenact

@@ -16,4 +16,11 @@ std::vector<Command> BuildCommandTable();
 int RunMotionInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunMotionJoints(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// synth_command.cc
+int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// take_commands.cc
+int RunTakeInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 }  // namespace reenact::cli

@@ -1,16 +1,146 @@
+// `reenact motion info` and `reenact motion joints`: a BVH or ASF/AMC motion
+// as the tool sees it (frames, rate, joints, length unit) and the canonical
+// (Kinect v2) joint positions of one frame, in metres.
+#include <cctype>
+#include <filesystem>
+#include <iomanip>
+#include <optional>
 #include <ostream>
+#include <string>
 
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
 #include "clients/cli/commands.h"
+#include "clients/cli/flags.h"
+#include "common/body/motion.h"
 
 namespace reenact::cli {
+namespace {
 
-int RunMotionInfo(const std::vector<std::string>&, std::ostream&, std::ostream& err) {
-  err << "reenact: motion info is not built yet\n";
-  return kExitFailure;
+// FILE and --asf from parsed flags; a usage error when FILE is missing or an
+// AMC motion comes without its skeleton.
+absl::Status CheckMotionArgs(const Flags& flags) {
+  if (flags.positional().size() != 1) {
+    return absl::InvalidArgumentError("expected exactly one motion FILE (.bvh or .amc)");
+  }
+  const std::string& path = flags.positional()[0];
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".amc" && flags.GetOr("asf", "").empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": an AMC motion needs --asf SKELETON"));
+  }
+  if (extension != ".amc" && extension != ".bvh") {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": unknown motion format (expected .bvh, or .amc with --asf)"));
+  }
+  return absl::OkStatus();
 }
-int RunMotionJoints(const std::vector<std::string>&, std::ostream&, std::ostream& err) {
-  err << "reenact: motion joints is not built yet\n";
-  return kExitFailure;
+
+// Reads the motion named by the flags; prints the error and sets `exit_code`
+// (usage 2 or failure 1) when that fails.
+std::optional<body::Motion> LoadMotion(const Flags& flags, std::ostream& err, int& exit_code) {
+  if (absl::Status status = CheckMotionArgs(flags); !status.ok()) {
+    exit_code = ReportError(status, err);
+    return std::nullopt;
+  }
+  absl::StatusOr<body::Motion> motion =
+      body::ReadMotion(flags.positional()[0], flags.GetOr("asf", ""));
+  if (!motion.ok()) {
+    // A file that cannot be read or parsed is a failure, not a usage error.
+    err << "reenact: " << motion.status().message() << "\n";
+    exit_code = kExitFailure;
+    return std::nullopt;
+  }
+  return std::move(motion).value();
+}
+
+nlohmann::json InfoJson(const body::Motion& motion) {
+  const body::MotionInfo& info = motion.info();
+  nlohmann::json names = nlohmann::json::array();
+  for (const body::MotionJoint& joint : motion.joints()) names.push_back(joint.name);
+  return {
+      {"file", info.path},
+      {"format", info.format},
+      {"frames", info.num_frames},
+      {"fps", info.fps},
+      {"duration_s", info.fps > 0 ? info.num_frames / info.fps : 0.0},
+      {"joint_count", motion.joints().size()},
+      {"joints", names},
+      {"joint_set", std::string(body::JointSetName(info.joint_set))},
+      {"metres_per_unit", info.metres_per_unit},
+      {"unit_source", std::string(body::UnitSourceName(info.unit_source))},
+  };
+}
+
+void PrintInfoText(const nlohmann::json& info, std::ostream& out) {
+  out << "file:            " << info["file"].get<std::string>() << "\n"
+      << "format:          " << info["format"].get<std::string>() << "\n"
+      << "frames:          " << info["frames"].get<int>() << "\n"
+      << "fps:             " << info["fps"].get<double>() << "\n"
+      << "duration:        " << info["duration_s"].get<double>() << " s\n"
+      << "joint set:       " << info["joint_set"].get<std::string>() << "\n"
+      << "metres per unit: " << info["metres_per_unit"].get<double>() << " ("
+      << info["unit_source"].get<std::string>() << ")\n"
+      << "joints (" << info["joint_count"].get<int>() << "):";
+  for (const auto& name : info["joints"]) out << " " << name.get<std::string>();
+  out << "\n";
+}
+
+}  // namespace
+
+int RunMotionInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  absl::StatusOr<Flags> flags = Flags::Parse(args, {"asf"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  int exit_code = kExitOk;
+  const std::optional<body::Motion> motion = LoadMotion(*flags, err, exit_code);
+  if (!motion) return exit_code;
+  const nlohmann::json info = InfoJson(*motion);
+  if (flags->Has("json")) {
+    out << info.dump(2) << "\n";
+  } else {
+    PrintInfoText(info, out);
+  }
+  return kExitOk;
+}
+
+int RunMotionJoints(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  absl::StatusOr<Flags> flags = Flags::Parse(args, {"asf", "frame"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  if (!flags->Has("frame"))
+    return ReportError(absl::InvalidArgumentError("--frame N is required"), err);
+  absl::StatusOr<int> frame = flags->GetInt("frame", 0);
+  if (!frame.ok()) return ReportError(frame.status(), err);
+  int exit_code = kExitOk;
+  const std::optional<body::Motion> motion = LoadMotion(*flags, err, exit_code);
+  if (!motion) return exit_code;
+  if (*frame < 0 || *frame >= motion->num_frames()) {
+    return ReportError(absl::InvalidArgumentError(absl::StrCat(
+                           "--frame ", *frame, " is out of range: ", motion->info().path, " has ",
+                           motion->num_frames(), " frames (0 to ", motion->num_frames() - 1, ")")),
+                       err);
+  }
+  const body::SkeletonPose pose = motion->CanonicalPose(*frame);
+  nlohmann::json joints = nlohmann::json::object();
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    if (!pose.valid[static_cast<size_t>(j)]) continue;
+    const Eigen::Vector3d& p = pose.position_m[static_cast<size_t>(j)];
+    joints[std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j)))] = {
+        p.x(), p.y(), p.z()};
+  }
+  if (flags->Has("json")) {
+    const nlohmann::json result = {
+        {"file", motion->info().path}, {"frame", *frame}, {"units", "m"}, {"joints", joints}};
+    out << result.dump(2) << "\n";
+    return kExitOk;
+  }
+  out << "frame " << *frame << " of " << motion->info().path << " (metres, Kinect v2 joints)\n";
+  out << std::fixed << std::setprecision(4);
+  for (const auto& [name, xyz] : joints.items()) {
+    out << std::left << std::setw(15) << name << std::right << std::setw(10) << xyz[0].get<double>()
+        << std::setw(10) << xyz[1].get<double>() << std::setw(10) << xyz[2].get<double>() << "\n";
+  }
+  return kExitOk;
 }
 
 }  // namespace reenact::cli

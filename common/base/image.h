@@ -3,6 +3,7 @@
 // measurement" (Kinect convention).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 

@@ -71,8 +71,8 @@ struct BodyPose {
 };
 
 struct PosedBody {
-  Eigen::Matrix3Xd vertices_m;  // 3 x V, world frame.
-  std::array<Eigen::Vector3d, kNumKinectV2Joints> joints_m;  // World joint positions.
+  Eigen::Matrix3Xd vertices_m;                                         // 3 x V, world frame.
+  std::array<Eigen::Vector3d, kNumKinectV2Joints> joints_m;            // World joint positions.
   std::array<Eigen::Isometry3d, kNumKinectV2Joints> world_from_joint;  // G_j (rest-aligned axes).
 };
 
@@ -83,11 +83,20 @@ absl::Status ValidateBodyModel(const BodyModel& model);
 // Shaped rest vertices T_bar + B_S(beta). `shape` may be shorter than the
 // number of components (missing ones are 0); longer is InvalidArgument.
 absl::StatusOr<Eigen::Matrix3Xd> ShapedRestVertices(const BodyModel& model,
-                                                     const Eigen::VectorXd& shape);
+                                                    const Eigen::VectorXd& shape);
 
 // Poses the model: shape blend, joint regression, pose correctives, LBS.
 absl::StatusOr<PosedBody> PoseBody(const BodyModel& model, const BodyPose& pose,
                                    const Eigen::VectorXd& shape);
+
+// Canonical joint ids ordered so that every parent precedes its children
+// (SpineBase first), for forward kinematics over the Kinect v2 tree.
+const std::array<int, kNumKinectV2Joints>& KinectV2JointsParentsFirst();
+
+// Rest-pose joint positions J(beta) = R_J * (T_bar + B_S(beta)), metres, world
+// frame of the template. Errors as for ShapedRestVertices.
+absl::StatusOr<std::array<Eigen::Vector3d, kNumKinectV2Joints>> RestJointPositions(
+    const BodyModel& model, const Eigen::VectorXd& shape);
 
 // The model file format (".rbm": a small versioned binary); Load validates.
 absl::Status SaveBodyModel(const BodyModel& model, const std::string& path);

@@ -3,7 +3,9 @@
 // view of it.
 #pragma once
 
+#include <array>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
@@ -17,16 +19,24 @@ namespace reenact::body {
 // One joint of the source skeleton. Offsets are in metres (already scaled).
 struct MotionJoint {
   std::string name;
-  int parent = -1;                 // Index into Motion::joints(), -1 for the root.
+  int parent = -1;                    // Index into Motion::joints(), -1 for the root.
   Eigen::Vector3d offset_m{0, 0, 0};  // Rest offset from the parent, parent frame.
 };
 
 // How the file's length unit was established.
 enum class UnitSource { kGiven, kAsfHeader, kDetectedFromStature };
 
+// Short name of `source` for reports: "given", "asf_header" or
+// "detected_from_stature".
+std::string_view UnitSourceName(UnitSource source);
+
+// Stature (metres) that a BVH rest pose is scaled to when the file's length
+// unit is not given: the height of a standing adult.
+inline constexpr double kAssumedStatureM = 1.7;
+
 struct MotionInfo {
   std::string path;
-  std::string format;           // "bvh" or "asf/amc".
+  std::string format;  // "bvh" or "asf/amc".
   int num_frames = 0;
   double fps = 0.0;
   double metres_per_unit = 1.0;  // Scale applied to file lengths.
@@ -42,7 +52,8 @@ class Motion {
   double fps() const { return info_.fps; }
 
   // Local rotation of every joint relative to its parent's frame at `frame`
-  // (parent_from_joint rotation), and the root's translation in metres.
+  // (parent_from_joint rotation), and the root's translation in metres (BVH:
+  // the root's OFFSET plus its position channels).
   const std::vector<Eigen::Quaterniond>& local_rotations(int frame) const;
   const Eigen::Vector3d& root_translation_m(int frame) const;
 
@@ -70,7 +81,7 @@ class Motion {
   MotionInfo info_;
   std::vector<MotionJoint> joints_;
   std::vector<std::vector<Eigen::Quaterniond>> local_rotations_;  // [frame][joint]
-  std::vector<Eigen::Vector3d> root_translations_m_;             // [frame]
+  std::vector<Eigen::Vector3d> root_translations_m_;              // [frame]
   std::array<int, kNumKinectV2Joints> canonical_to_source_{};
 };
 
@@ -81,12 +92,25 @@ struct BvhOptions {
 };
 
 // Reads a BVH file. Errors name the file and line.
+// Unit rule when options.metres_per_unit <= 0: the rest pose's vertical extent
+// (highest joint or end site minus lowest) is taken as kAssumedStatureM.
+// End sites become joints named "<parent>_end". Fails when the joint names
+// match no known joint set (DetectJointSet).
 absl::StatusOr<Motion> ReadBvh(const std::string& path, const BvhOptions& options = {});
 
 // Reads a CMU ASF skeleton and an AMC motion. Length unit from the ASF
 // ":units length" (CMU: length 0.45 -> 1 unit = 1/0.45 inch = 0.05644 m).
 // Errors name the file and line.
 absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string& amc_path);
+
+struct AsfAmcOptions {
+  // Frame rate of the AMC motion, which the files do not state (CMU: 120).
+  double frames_per_second = 120.0;
+};
+
+// As above, with options (the two-argument form uses the defaults).
+absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string& amc_path,
+                                  const AsfAmcOptions& options);
 
 // Dispatches on the extension: .bvh, or .amc with `asf_path`.
 absl::StatusOr<Motion> ReadMotion(const std::string& path, const std::string& asf_path = "");

@@ -1,0 +1,271 @@
+#include "common/io/mcap_reader.h"
+#include "common/io/mcap_writer.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/base/files.h"
+#include "common/io/mcap_format.h"
+#include "common/testing/test_data.h"
+
+namespace reenact {
+namespace {
+
+struct WrittenMessage {
+  uint16_t channel_id;
+  uint64_t log_time_ns;
+  std::string data;
+};
+
+// What a test file holds: its messages in write order and how many of them
+// each chunk took, in file order.
+struct WrittenFile {
+  std::vector<WrittenMessage> messages;
+  std::vector<size_t> messages_per_chunk;
+};
+
+WrittenFile WriteTestFile(const std::string& path, const McapWriterOptions& options,
+                          int message_count, uint32_t seed) {
+  WrittenFile file;
+  auto writer = McapWriter::Open(path, options);
+  EXPECT_TRUE(writer.ok()) << writer.status();
+  auto schema = (*writer)->AddSchema("test.Blob", "raw", "schema bytes");
+  EXPECT_TRUE(schema.ok()) << schema.status();
+  std::vector<uint16_t> channels;
+  for (const char* topic : {"/a", "/b", "/c"}) {
+    auto channel = (*writer)->AddChannel(*schema, topic, "raw", {{"topic", topic}});
+    EXPECT_TRUE(channel.ok()) << channel.status();
+    channels.push_back(*channel);
+  }
+  std::mt19937 rng(seed);
+  size_t in_chunk = 0;
+  for (int i = 0; i < message_count; ++i) {
+    WrittenMessage m{channels[rng() % channels.size()], 1000 + 10 * static_cast<uint64_t>(i), ""};
+    m.data.resize(5 + rng() % 120);
+    for (char& c : m.data) c = static_cast<char>(rng() % 7);  // Compressible.
+    const uint64_t before = (*writer)->bytes_written();
+    EXPECT_TRUE((*writer)->WriteMessage(m.channel_id, m.log_time_ns, m.log_time_ns, m.data).ok());
+    file.messages.push_back(m);
+    ++in_chunk;
+    if ((*writer)->bytes_written() != before) {  // A chunk was flushed.
+      file.messages_per_chunk.push_back(in_chunk);
+      in_chunk = 0;
+    }
+  }
+  if (in_chunk > 0) file.messages_per_chunk.push_back(in_chunk);
+  EXPECT_TRUE((*writer)->Close().ok());
+  return file;
+}
+
+void ExpectMessagesEqual(const std::vector<WrittenMessage>& expected,
+                         const std::vector<McapMessage>& actual) {
+  ASSERT_EQ(actual.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(actual[i].channel_id, expected[i].channel_id) << "message " << i;
+    EXPECT_EQ(actual[i].log_time_ns, expected[i].log_time_ns) << "message " << i;
+    EXPECT_EQ(actual[i].data, expected[i].data) << "message " << i;
+  }
+}
+
+std::string SmallChunkFile(const std::string& name, const std::string& compression,
+                           WrittenFile* written, int message_count = 60) {
+  const std::string path = testing::MakeTempDir(name) + "/file.mcap";
+  McapWriterOptions options;
+  options.chunk_size_bytes = 600;
+  options.compression = compression;
+  *written = WriteTestFile(path, options, message_count, 7);
+  return path;
+}
+
+TEST(Crc32, MatchesStandardCheckValue) {
+  // The CRC-32/ISO-HDLC check value of "123456789" from the CRC catalogue.
+  EXPECT_EQ(mcap_format::Crc32("123456789"), 0xCBF43926u);
+  EXPECT_EQ(mcap_format::Crc32("6789", mcap_format::Crc32("12345")), 0xCBF43926u);
+}
+
+TEST(McapWriterOptions, RejectsUnknownCompression) {
+  McapWriterOptions options;
+  options.compression = "lz4";
+  EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);
+  options.compression = "zstd";
+  options.chunk_size_bytes = 0;
+  EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);
+}
+
+TEST(McapReader, RoundTripsThroughSummary) {
+  for (const std::string compression : {"zstd", ""}) {
+    WrittenFile written;
+    const std::string path = SmallChunkFile("mcap_roundtrip", compression, &written, 200);
+    auto reader = McapReader::Open(path);
+    ASSERT_TRUE(reader.ok()) << reader.status();
+    EXPECT_TRUE((*reader)->report().indexed) << (*reader)->report().Summary();
+    EXPECT_TRUE((*reader)->report().complete);
+    EXPECT_GT(written.messages_per_chunk.size(), 5u);
+    EXPECT_EQ((*reader)->chunks().size(), written.messages_per_chunk.size());
+    auto messages = (*reader)->ReadMessages();
+    ASSERT_TRUE(messages.ok()) << messages.status();
+    ExpectMessagesEqual(written.messages, *messages);
+
+    const McapStatistics& stats = (*reader)->statistics();
+    EXPECT_EQ(stats.message_count, written.messages.size());
+    EXPECT_EQ(stats.start_time_ns, written.messages.front().log_time_ns);
+    EXPECT_EQ(stats.end_time_ns, written.messages.back().log_time_ns);
+    ASSERT_EQ((*reader)->channels().size(), 3u);
+    ASSERT_EQ((*reader)->schemas().size(), 1u);
+    EXPECT_EQ((*reader)->schemas().begin()->second.data, "schema bytes");
+    for (const auto& [id, channel] : (*reader)->channels()) {
+      EXPECT_EQ(channel.metadata.at("topic"), channel.topic);
+      std::vector<WrittenMessage> on_topic;
+      for (const WrittenMessage& m : written.messages) {
+        if (m.channel_id == id) on_topic.push_back(m);
+      }
+      EXPECT_EQ(stats.channel_message_counts.at(id), on_topic.size());
+      auto filtered = (*reader)->ReadMessages(channel.topic);
+      ASSERT_TRUE(filtered.ok());
+      ExpectMessagesEqual(on_topic, *filtered);
+    }
+  }
+}
+
+TEST(McapReader, EveryTruncationYieldsTheCompleteChunks) {
+  WrittenFile written;
+  const std::string path = SmallChunkFile("mcap_truncate", "zstd", &written);
+  auto full = McapReader::Open(path);
+  ASSERT_TRUE(full.ok());
+  const std::vector<McapChunkInfo> chunks = (*full)->chunks();
+  ASSERT_EQ(chunks.size(), written.messages_per_chunk.size());
+  ASSERT_GT(chunks.size(), 3u);
+  auto bytes = ReadFileToString(path);
+  ASSERT_TRUE(bytes.ok());
+  // Shrink one copy from the full size down to 0 bytes, opening it at each size.
+  const std::string cut_path = path + ".cut";
+  ASSERT_TRUE(WriteFileAtomically(cut_path, *bytes).ok());
+  int recovered_files = 0;
+  for (size_t size = bytes->size() - 1; size != static_cast<size_t>(-1); --size) {
+    std::filesystem::resize_file(cut_path, size);
+    auto reader = McapReader::Open(cut_path);
+    if (size < mcap_format::kMagic.size()) {
+      ASSERT_FALSE(reader.ok()) << "size " << size;
+      EXPECT_EQ(reader.status().code(), absl::StatusCode::kDataLoss);
+      EXPECT_NE(reader.status().message().find("byte offset"), std::string::npos);
+      continue;
+    }
+    ASSERT_TRUE(reader.ok()) << "size " << size << ": " << reader.status();
+    const McapReadReport& report = (*reader)->report();
+    EXPECT_FALSE(report.indexed) << "size " << size;
+    EXPECT_FALSE(report.summary_problem.empty()) << "size " << size;
+    size_t expected_count = 0;
+    for (size_t c = 0; c < chunks.size(); ++c) {
+      if (chunks[c].chunk_offset + chunks[c].chunk_length <= size) {
+        expected_count += written.messages_per_chunk[c];
+      }
+    }
+    if (!report.complete) {
+      EXPECT_FALSE(report.stop_reason.empty());
+      EXPECT_LE(report.stop_offset, size);
+    }
+    auto messages = (*reader)->ReadMessages();
+    ASSERT_TRUE(messages.ok()) << "size " << size << ": " << messages.status();
+    const std::vector<WrittenMessage> expected(written.messages.begin(),
+                                               written.messages.begin() + expected_count);
+    ExpectMessagesEqual(expected, *messages);
+    EXPECT_EQ((*reader)->statistics().message_count, expected_count);
+    ++recovered_files;
+  }
+  EXPECT_EQ(recovered_files, static_cast<int>(bytes->size() - mcap_format::kMagic.size()));
+}
+
+TEST(McapReader, RefusesTruncatedFileWhenRecoveryIsOff) {
+  WrittenFile written;
+  const std::string path = SmallChunkFile("mcap_norecover", "zstd", &written);
+  auto bytes = ReadFileToString(path);
+  ASSERT_TRUE(bytes.ok());
+  ASSERT_TRUE(WriteFileAtomically(path, bytes->substr(0, bytes->size() / 2)).ok());
+  auto reader = McapReader::Open(path, McapReaderOptions{.allow_recovery = false});
+  EXPECT_EQ(reader.status().code(), absl::StatusCode::kDataLoss);
+}
+
+// Flips one byte in the middle of chunk `index`'s record.
+std::string CorruptChunk(const std::string& path, size_t index, uint64_t* chunk_offset) {
+  auto reader = McapReader::Open(path);
+  EXPECT_TRUE(reader.ok());
+  const McapChunkInfo chunk = (*reader)->chunks().at(index);
+  *chunk_offset = chunk.chunk_offset;
+  std::string bytes = *ReadFileToString(path);
+  bytes[chunk.chunk_offset + chunk.chunk_length - 20] ^= 0x5A;
+  return bytes;
+}
+
+TEST(McapReader, CorruptChunkIsDataLossNamingItsOffset) {
+  for (const std::string compression : {"zstd", ""}) {
+    WrittenFile written;
+    const std::string path = SmallChunkFile("mcap_corrupt", compression, &written);
+    uint64_t chunk_offset = 0;
+    const std::string bytes = CorruptChunk(path, 1, &chunk_offset);
+    ASSERT_TRUE(WriteFileAtomically(path, bytes).ok());
+    auto reader = McapReader::Open(path);
+    ASSERT_TRUE(reader.ok()) << reader.status();
+    auto messages = (*reader)->ReadMessages();
+    ASSERT_EQ(messages.status().code(), absl::StatusCode::kDataLoss) << compression;
+    EXPECT_NE(messages.status().message().find("byte offset " + std::to_string(chunk_offset)),
+              std::string::npos)
+        << messages.status();
+  }
+}
+
+TEST(McapReader, RecoverySkipsCorruptChunkAndReportsIt) {
+  WrittenFile written;
+  const std::string path = SmallChunkFile("mcap_corrupt_recover", "", &written);
+  uint64_t chunk_offset = 0;
+  const std::string bytes = CorruptChunk(path, 1, &chunk_offset);
+  ASSERT_TRUE(WriteFileAtomically(path, bytes.substr(0, bytes.size() - 30)).ok());
+  auto reader = McapReader::Open(path);
+  ASSERT_TRUE(reader.ok()) << reader.status();
+  const McapReadReport& report = (*reader)->report();
+  EXPECT_FALSE(report.complete);
+  ASSERT_EQ(report.skipped_chunks.size(), 1u) << report.Summary();
+  EXPECT_NE(report.skipped_chunks[0].find("byte offset " + std::to_string(chunk_offset)),
+            std::string::npos);
+  auto messages = (*reader)->ReadMessages();
+  ASSERT_TRUE(messages.ok());
+  std::vector<WrittenMessage> expected = written.messages;
+  const auto first = expected.begin() + written.messages_per_chunk[0];
+  expected.erase(first, first + written.messages_per_chunk[1]);
+  ExpectMessagesEqual(expected, *messages);
+}
+
+TEST(McapReader, RejectsFileThatIsNotMcap) {
+  const std::string path = testing::MakeTempDir("mcap_not") + "/not.mcap";
+  ASSERT_TRUE(WriteFileAtomically(path, "PK\x03\x04 this is a zip file, not MCAP").ok());
+  auto reader = McapReader::Open(path);
+  ASSERT_EQ(reader.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(reader.status().message().find(path), std::string::npos);
+  EXPECT_NE(reader.status().message().find("byte offset 0"), std::string::npos);
+  EXPECT_EQ(McapReader::Open(path + ".missing").status().code(), absl::StatusCode::kNotFound);
+}
+
+TEST(McapReader, SurvivesRandomGarbageAfterTheMagic) {
+  std::mt19937 rng(3);
+  const std::string path = testing::MakeTempDir("mcap_garbage") + "/g.mcap";
+  for (int trial = 0; trial < 200; ++trial) {
+    std::string bytes(mcap_format::kMagic);
+    const size_t n = rng() % 300;
+    for (size_t i = 0; i < n; ++i) bytes.push_back(static_cast<char>(rng()));
+    if (trial % 2 == 0 && n > 40) bytes.replace(bytes.size() - 8, 8, mcap_format::kMagic);
+    ASSERT_TRUE(WriteFileAtomically(path, bytes).ok());
+    auto reader = McapReader::Open(path);
+    if (!reader.ok()) continue;  // An error is fine; a crash is not.
+    auto messages = (*reader)->ReadMessages();
+    if (messages.ok() && !(*reader)->report().indexed) {
+      EXPECT_EQ(messages->size(), (*reader)->statistics().message_count);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace reenact

@@ -1,0 +1,594 @@
+#include "common/synth/synthesizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <future>
+#include <memory>
+#include <random>
+
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/base/thread_pool.h"
+#include "common/base/time.h"
+#include "common/body/body_model.h"
+#include "common/body/makehuman_importer.h"
+#include "common/body/procedural_body.h"
+#include "common/body/retarget.h"
+#include "common/io/depth_codec.h"
+#include "common/io/jpeg.h"
+#include "common/io/mask_codec.h"
+#include "common/io/proto_convert.h"
+#include "common/io/take.h"
+#include "common/render/offscreen_renderer.h"
+#include "common/synth/builtin_motions.h"
+#include "common/synth/clothing.h"
+#include "common/synth/scene.h"
+#include "common/synth/sensor_rig.h"
+
+namespace reenact::synth {
+namespace {
+
+constexpr int kActorLabel = 1;
+constexpr char kSkeletonSource[] =
+    "synthetic-sensor-skeleton (true joints seen by this sensor plus Kinect-like jitter; a "
+    "stand-in for a vendor SDK tracker)";
+
+// ---------------------------------------------------------------- the actor
+
+absl::StatusOr<body::BodyModel> LoadBody(const std::string& spec) {
+  if (spec == "procedural") return body::BuildProceduralBody();
+  if (absl::StartsWith(spec, "makehuman:")) return body::ImportMakeHuman(spec.substr(10));
+  return absl::InvalidArgumentError(
+      absl::StrCat("--body: expected 'procedural' or 'makehuman:DIR', got '", spec, "'"));
+}
+
+absl::StatusOr<body::Motion> LoadMotion(const SynthOptions& options) {
+  if (absl::StartsWith(options.motion, "builtin:")) {
+    return MakeBuiltinMotion(options.motion.substr(8), options.seconds, options.fps);
+  }
+  return body::ReadMotion(options.motion, options.asf_path);
+}
+
+absl::StatusOr<Eigen::VectorXd> MakeShape(const std::string& spec, const body::BodyModel& model,
+                                          uint64_t seed) {
+  Eigen::VectorXd shape = Eigen::VectorXd::Zero(model.num_shape_components());
+  if (spec == "mean") return shape;
+  if (spec == "random" || absl::StartsWith(spec, "random:")) {
+    uint64_t shape_seed = seed;
+    if (spec.size() > 7 && !absl::SimpleAtoi(spec.substr(7), &shape_seed)) {
+      return absl::InvalidArgumentError(absl::StrCat("--shape: bad seed in '", spec, "'"));
+    }
+    std::mt19937_64 rng(shape_seed);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    for (int k = 0; k < shape.size(); ++k) shape[k] = std::clamp(normal(rng), -2.0, 2.0);
+    // MakeHuman's directions are whole macro targets: keep them gentle.
+    if (model.name != "procedural") shape *= 0.3;
+    return shape;
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("--shape: expected 'mean', 'random' or 'random:SEED', got '", spec, "'"));
+}
+
+// The pose at time t_s (seconds from the first motion frame): slerp of the
+// neighbouring frames' rotations, linear root translation.
+body::BodyPose SamplePose(const body::RetargetedMotion& motion, double t_s) {
+  const int n = static_cast<int>(motion.poses.size());
+  const double position = std::clamp(t_s * motion.fps, 0.0, static_cast<double>(n - 1));
+  const int i0 = static_cast<int>(std::floor(position));
+  const int i1 = std::min(i0 + 1, n - 1);
+  const double u = position - i0;
+  body::BodyPose pose;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    pose.local_rotation[j] =
+        motion.poses[i0].local_rotation[j].slerp(u, motion.poses[i1].local_rotation[j]);
+  }
+  pose.root_translation_m =
+      (1 - u) * motion.poses[i0].root_translation_m + u * motion.poses[i1].root_translation_m;
+  return pose;
+}
+
+// Moves the motion so that its mean floor position is the origin.
+void CenterMotion(body::RetargetedMotion* motion, int used_frames) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  const int n = std::min<int>(used_frames, static_cast<int>(motion->poses.size()));
+  for (int i = 0; i < n; ++i) mean += motion->poses[i].root_translation_m;
+  mean /= std::max(n, 1);
+  mean.y() = 0;
+  for (auto& pose : motion->poses) pose.root_translation_m -= mean;
+}
+
+// --------------------------------------------------------- virtual sensors
+
+// The depth camera's lens distortion, applied to a pinhole render of a larger
+// canvas by a nearest-pixel lookup table (no depth mixing across edges).
+struct DistortionMap {
+  CameraIntrinsics canvas;        // Pinhole, covers every undistorted ray.
+  std::vector<int> canvas_index;  // Per output pixel, its canvas pixel (-1: none).
+};
+
+DistortionMap MakeDistortionMap(const CameraIntrinsics& k) {
+  DistortionMap map;
+  std::vector<Eigen::Vector2d> rays(static_cast<size_t>(k.width) * k.height);
+  double min_u = 0, max_u = k.width - 1, min_v = 0, max_v = k.height - 1;
+  for (int y = 0; y < k.height; ++y) {
+    for (int x = 0; x < k.width; ++x) {
+      const Eigen::Vector2d distorted((x - k.cx) / k.fx, (y - k.cy) / k.fy);
+      const auto n = k.Undistort(distorted).value_or(distorted);
+      rays[static_cast<size_t>(y) * k.width + x] = n;
+      min_u = std::min(min_u, k.fx * n.x() + k.cx);
+      max_u = std::max(max_u, k.fx * n.x() + k.cx);
+      min_v = std::min(min_v, k.fy * n.y() + k.cy);
+      max_v = std::max(max_v, k.fy * n.y() + k.cy);
+    }
+  }
+  const int left = static_cast<int>(std::ceil(-min_u)) + 1, top = static_cast<int>(std::ceil(-min_v)) + 1;
+  map.canvas = k;
+  map.canvas.k1 = map.canvas.k2 = map.canvas.k3 = map.canvas.p1 = map.canvas.p2 = 0;
+  map.canvas.cx = k.cx + left;
+  map.canvas.cy = k.cy + top;
+  map.canvas.width = static_cast<int>(std::ceil(max_u)) + left + 2;
+  map.canvas.height = static_cast<int>(std::ceil(max_v)) + top + 2;
+  map.canvas_index.resize(rays.size(), -1);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const int u = static_cast<int>(std::lround(map.canvas.fx * rays[i].x() + map.canvas.cx));
+    const int v = static_cast<int>(std::lround(map.canvas.fy * rays[i].y() + map.canvas.cy));
+    if (u >= 0 && v >= 0 && u < map.canvas.width && v < map.canvas.height) {
+      map.canvas_index[i] = v * map.canvas.width + u;
+    }
+  }
+  return map;
+}
+
+render::RenderCamera ToRenderCamera(const CameraIntrinsics& k, const Rigid3d& world_from_camera) {
+  render::RenderCamera camera;
+  camera.width = k.width;
+  camera.height = k.height;
+  camera.fx = k.fx;
+  camera.fy = k.fy;
+  // Our intrinsics put pixel centres on integers; the renderer's on +0.5.
+  camera.cx = k.cx + 0.5;
+  camera.cy = k.cy + 0.5;
+  camera.world_from_camera = Eigen::Isometry3d(world_from_camera.ToMatrix4());
+  camera.near_m = 0.2;
+  camera.far_m = 12.0;
+  return camera;
+}
+
+// What one sensor saw at one instant, before noise and encoding.
+struct SensorShot {
+  const VirtualSensor* sensor = nullptr;
+  int64_t frame_index = 0;
+  int64_t host_stamp_ns = 0;
+  int64_t device_stamp_ns = 0;
+  FloatImage ideal_depth_m;
+  MaskImage label;
+  RgbImage color;
+  std::array<Eigen::Vector3d, body::kNumKinectV2Joints> joints_in_world;
+};
+
+// The encoded messages of one sensor at one instant.
+struct SensorMessages {
+  v1::DepthImage depth, ground_truth_depth;
+  v1::ColorImage color;
+  v1::ActorMask mask;
+  v1::Skeleton skeleton;
+};
+
+template <typename Message>
+void SetStamps(const SensorShot& shot, Message* m) {
+  m->set_sensor_id(shot.sensor->sensor_id);
+  m->set_device_stamp_ns(shot.device_stamp_ns);
+  m->set_host_stamp_ns(shot.host_stamp_ns);
+  m->set_frame_index(shot.frame_index);
+}
+
+// Adds Gaussian sensor noise of `sigma` levels to every channel.
+void AddColorNoise(RgbImage* image, double sigma, uint64_t seed) {
+  if (sigma <= 0) return;
+  // A table of noise values read at a random offset per row keeps this cheap.
+  static const std::vector<int8_t> table = [] {
+    std::vector<int8_t> t(1 << 16);
+    std::mt19937 rng(12345);
+    std::normal_distribution<float> normal(0.0f, 1.0f);
+    for (auto& v : t) v = static_cast<int8_t>(std::clamp(std::lround(normal(rng) * 16.0f), -127L, 127L));
+    return t;
+  }();
+  std::mt19937_64 rng(seed);
+  const int row = image->width * 3;
+  const double scale = sigma / 16.0;
+  for (int y = 0; y < image->height; ++y) {
+    const size_t offset = rng() & 0xffff;
+    uint8_t* p = &image->data[static_cast<size_t>(y) * row];
+    for (int i = 0; i < row; ++i) {
+      const double v = p[i] + table[(offset + i) & 0xffff] * scale;
+      p[i] = static_cast<uint8_t>(std::clamp(v + 0.5, 0.0, 255.0));
+    }
+  }
+}
+
+v1::Skeleton MakeSensorSkeleton(const SensorShot& shot, double jitter_m, uint64_t seed) {
+  v1::Skeleton skeleton;
+  SetStamps(shot, &skeleton);
+  skeleton.set_body_index(kActorLabel);
+  skeleton.set_source(kSkeletonSource);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const Rigid3d depth_from_world = shot.sensor->world_from_depth.Inverse();
+  const CameraIntrinsics& k = shot.sensor->depth_intrinsics;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    const Eigen::Vector3d p = depth_from_world * shot.joints_in_world[j];
+    // Tracked where the joint is seen on the actor's surface; inferred (and
+    // noisier) where it is hidden; not tracked outside the view.
+    v1::TrackingState state = v1::TRACKING_STATE_NOT_TRACKED;
+    if (auto pixel = k.Project(p); pixel && k.IsInside(*pixel)) {
+      const int x = static_cast<int>(std::lround(pixel->x())), y = static_cast<int>(std::lround(pixel->y()));
+      const double z = shot.ideal_depth_m.at(x, y);
+      const bool visible = shot.label.at(x, y) == kActorLabel && z > 0 && p.z() - z < 0.15;
+      state = visible ? v1::TRACKING_STATE_TRACKED : v1::TRACKING_STATE_INFERRED;
+    }
+    const double sigma = jitter_m * (state == v1::TRACKING_STATE_TRACKED ? 1.0 : 3.0);
+    const Eigen::Vector3d noisy = p + sigma * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    auto* joint = skeleton.add_joints();
+    joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
+    *joint->mutable_position_in_depth_m() = ToProto(noisy);
+    joint->set_tracking_state(state);
+  }
+  return skeleton;
+}
+
+absl::StatusOr<v1::DepthImage> MakeDepthMessage(const SensorShot& shot, const DepthImageMm& depth) {
+  v1::DepthImage m;
+  SetStamps(shot, &m);
+  m.set_width_px(depth.width);
+  m.set_height_px(depth.height);
+  m.set_encoding("rvl+zstd");
+  ASSIGN_OR_RETURN(std::string data, EncodeDepth(depth, DepthCodecOptions{}));
+  m.set_data(std::move(data));
+  return m;
+}
+
+// Noise and encoding of one shot; runs on a worker thread.
+absl::StatusOr<SensorMessages> EncodeShot(SensorShot shot, const SynthOptions& options) {
+  SensorMessages out;
+  const uint64_t seed = options.seed * 1000003u + static_cast<uint64_t>(shot.frame_index) * 131u +
+                        std::hash<std::string>{}(shot.sensor->sensor_id);
+  const DepthImageMm noisy = ApplyKinectV2DepthNoise(
+      shot.ideal_depth_m, shot.sensor->depth_intrinsics, options.depth_noise, seed);
+  ASSIGN_OR_RETURN(out.depth, MakeDepthMessage(shot, noisy));
+  ASSIGN_OR_RETURN(out.ground_truth_depth,
+                   MakeDepthMessage(shot, QuantizeDepth(shot.ideal_depth_m, options.depth_noise)));
+  // The actor mask marks valid depth pixels on the actor, like Kinect's body index.
+  MaskImage mask(shot.label.width, shot.label.height);
+  for (size_t i = 0; i < mask.data.size(); ++i) {
+    mask.data[i] = (shot.label.data[i] == kActorLabel && noisy.data[i] != 0) ? kActorLabel : 0;
+  }
+  SetStamps(shot, &out.mask);
+  out.mask.set_width_px(mask.width);
+  out.mask.set_height_px(mask.height);
+  out.mask.set_encoding("rle");
+  out.mask.set_data(EncodeMaskRle(mask));
+  AddColorNoise(&shot.color, options.color_noise_sigma, seed ^ 0x9e3779b97f4a7c15ull);
+  SetStamps(shot, &out.color);
+  out.color.set_width_px(shot.color.width);
+  out.color.set_height_px(shot.color.height);
+  out.color.set_encoding("jpeg");
+  out.color.set_quality(options.jpeg_quality);
+  ASSIGN_OR_RETURN(std::string jpeg, EncodeJpeg(shot.color, options.jpeg_quality));
+  out.color.set_data(std::move(jpeg));
+  out.skeleton = MakeSensorSkeleton(shot, options.skeleton_jitter_m, seed + 7);
+  return out;
+}
+
+}  // namespace
+
+absl::Status SynthOptions::Validate() const {
+  if (motion.empty()) return absl::InvalidArgumentError("--motion is required");
+  if (!(seconds > 0 && seconds <= 3600)) {
+    return absl::InvalidArgumentError("--seconds must be in (0, 3600]");
+  }
+  if (!(fps > 0 && fps <= 120)) return absl::InvalidArgumentError("fps must be in (0, 120]");
+  if (num_sensors < 1 || num_sensors > 8) {
+    return absl::InvalidArgumentError("--sensors must be 1..8");
+  }
+  if (jpeg_quality < 1 || jpeg_quality > 100) {
+    return absl::InvalidArgumentError("jpeg quality must be 1..100");
+  }
+  if (color_width < 16 || color_height < 16 || color_width > 4096 || color_height > 4096) {
+    return absl::InvalidArgumentError("colour size must be within 16..4096 px");
+  }
+  if (color_noise_sigma < 0 || skeleton_jitter_m < 0) {
+    return absl::InvalidArgumentError("noise levels must be >= 0");
+  }
+  return depth_noise.Validate();
+}
+
+namespace {
+
+// ------------------------------------------------------------- the set-up
+
+struct Actor {
+  body::BodyModel model;
+  Eigen::VectorXd shape;
+  body::RetargetedMotion motion;
+  int num_frames = 0;  // Take frames to synthesise.
+};
+
+absl::StatusOr<Actor> PrepareActor(const SynthOptions& options) {
+  Actor actor;
+  ASSIGN_OR_RETURN(actor.model, LoadBody(options.body));
+  ASSIGN_OR_RETURN(actor.shape, MakeShape(options.shape, actor.model, options.seed));
+  ASSIGN_OR_RETURN(body::Motion motion, LoadMotion(options));
+  if (motion.num_frames() < 1 || !(motion.fps() > 0)) {
+    return absl::InvalidArgumentError(absl::StrCat(options.motion, ": motion has no frames"));
+  }
+  ASSIGN_OR_RETURN(actor.motion, body::RetargetMotion(motion, actor.model, actor.shape));
+  const double motion_seconds = (motion.num_frames() - 1) / motion.fps();
+  const double seconds = std::min(options.seconds, motion_seconds + 0.5 / options.fps);
+  actor.num_frames = std::max(1, static_cast<int>(std::floor(seconds * options.fps)));
+  if (options.center_motion) {
+    CenterMotion(&actor.motion, static_cast<int>(std::ceil(seconds * motion.fps())) + 1);
+  }
+  return actor;
+}
+
+struct Scene {
+  std::unique_ptr<render::OffscreenRenderer> renderer;
+  render::MeshId body_mesh;
+  std::vector<render::DrawItem> items;  // The room, then the body.
+};
+
+absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, int max_height) {
+  Scene scene;
+  render::RendererOptions renderer_options;
+  renderer_options.max_width = max_width;
+  renderer_options.max_height = max_height;
+  ASSIGN_OR_RETURN(scene.renderer, render::OffscreenRenderer::Create(renderer_options));
+  render::ShadingOptions shading;
+  shading.headlight = false;  // One room light, the same for every sensor.
+  shading.direction_to_light_in_world = {0.3, 1.0, 0.6};
+  shading.ambient = 0.45f;
+  shading.diffuse = 0.55f;
+  RETURN_IF_ERROR(scene.renderer->SetShading(shading));
+  for (RoomPart& part : MakeRoom()) {
+    render::DrawItem item;
+    ASSIGN_OR_RETURN(item.mesh, scene.renderer->UploadMesh(part.mesh));
+    ASSIGN_OR_RETURN(item.texture, scene.renderer->UploadTexture(part.texture));
+    item.label = 0;
+    scene.items.push_back(item);
+  }
+  ASSIGN_OR_RETURN(render::MeshData body_mesh,
+                   render::MeshFromCornerUvs(model.template_vertices_m.cast<float>(), model.triangles,
+                                             model.uvs, model.uv_triangles));
+  render::DrawItem actor;
+  ASSIGN_OR_RETURN(actor.mesh, scene.renderer->UploadMesh(body_mesh));
+  ASSIGN_OR_RETURN(actor.texture, scene.renderer->UploadTexture(PaintClothingTexture(model)));
+  actor.label = kActorLabel;
+  scene.body_mesh = actor.mesh;
+  scene.items.push_back(actor);
+  return scene;
+}
+
+// Renders what `sensor` sees of the posed body: depth and label through the
+// lens distortion of the depth camera, colour through the colour camera.
+absl::Status RenderShot(Scene& scene, const VirtualSensor& sensor, const DistortionMap& map,
+                        SensorShot* shot) {
+  render::RenderOutputs canvas;
+  canvas.requested = render::kRenderDepth | render::kRenderLabel;
+  RETURN_IF_ERROR(scene.renderer->Render(ToRenderCamera(map.canvas, sensor.world_from_depth),
+                                         scene.items, &canvas));
+  const CameraIntrinsics& k = sensor.depth_intrinsics;
+  shot->ideal_depth_m = FloatImage(k.width, k.height);
+  shot->label = MaskImage(k.width, k.height);
+  for (size_t i = 0; i < map.canvas_index.size(); ++i) {
+    if (map.canvas_index[i] < 0) continue;
+    shot->ideal_depth_m.data[i] = canvas.depth_m.data[map.canvas_index[i]];
+    shot->label.data[i] = canvas.label.data[map.canvas_index[i]];
+  }
+  render::RenderOutputs color;
+  color.requested = render::kRenderColour;
+  RETURN_IF_ERROR(scene.renderer->Render(
+      ToRenderCamera(sensor.color_intrinsics, sensor.world_from_color()), scene.items, &color));
+  shot->color = std::move(color.colour);
+  return absl::OkStatus();
+}
+
+v1::SensorCalibration MakeCalibration(const VirtualSensor& sensor, double fps) {
+  v1::SensorCalibration c;
+  c.set_sensor_id(sensor.sensor_id);
+  c.set_model("kinect_v2_synthetic");
+  c.set_serial(absl::StrCat("synthetic-", sensor.sensor_id));
+  *c.mutable_depth_intrinsics() = ToProto(sensor.depth_intrinsics);
+  *c.mutable_color_intrinsics() = ToProto(sensor.color_intrinsics);
+  *c.mutable_color_from_depth() = ToProto(sensor.color_from_depth);
+  *c.mutable_world_from_depth() = ToProto(sensor.world_from_depth);
+  c.set_clock_offset_ns(sensor.clock_offset_ns);
+  c.set_depth_scale_m_per_unit(0.001);
+  c.set_nominal_fps(fps);
+  return c;
+}
+
+v1::TakeInfo MakeTakeInfo(const SynthOptions& options, const std::string& out_path,
+                          int64_t start_stamp_ns) {
+  v1::TakeInfo info;
+  info.set_name(std::filesystem::path(out_path).stem().string());
+  info.set_created_unix_ns(WallNowNs());
+  info.set_generator("reenact synth");
+  info.set_motion_source(options.motion);
+  info.set_body_model(absl::StrCat(options.body, " shape=", options.shape));
+  info.set_sensor_count(options.num_sensors);
+  info.set_fps(options.fps);
+  info.set_start_stamp_ns(start_stamp_ns);
+  info.set_synthetic(true);
+  info.set_notes(
+      "Synthetic take: virtual Kinect v2 sensors; depth noise after Fankhauser et al. 2015 "
+      "(axial, lateral, flying pixels, range and incidence limits); colour with Gaussian sensor "
+      "noise; the skeleton channel is the true joints plus jitter, standing in for a vendor "
+      "tracker. Ground truth on /ground_truth/*.");
+  return info;
+}
+
+absl::Status WriteGroundTruth(TakeWriter* writer, const Actor& actor, int64_t frame,
+                              int64_t stamp_ns, const body::BodyPose& pose,
+                              const body::PosedBody& posed, bool with_mesh) {
+  v1::GroundTruthJoints joints;
+  joints.set_frame_index(frame);
+  joints.set_stamp_ns(stamp_ns);
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    joints.add_joint_names(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
+    *joints.add_positions_in_world_m() = ToProto(posed.joints_m[j]);
+  }
+  RETURN_IF_ERROR(writer->WriteGroundTruthJoints(joints));
+  v1::GroundTruthBody body;
+  body.set_frame_index(frame);
+  body.set_stamp_ns(stamp_ns);
+  body.set_model_name(actor.model.name);
+  for (const auto& q : pose.local_rotation) *body.add_local_rotations() = ToProto(q);
+  *body.mutable_root_translation_in_world_m() = ToProto(pose.root_translation_m);
+  for (int k = 0; k < actor.shape.size(); ++k) body.add_shape_coefficients(static_cast<float>(actor.shape[k]));
+  RETURN_IF_ERROR(writer->WriteGroundTruthBody(body));
+  if (!with_mesh) return absl::OkStatus();
+  v1::GroundTruthMesh mesh;
+  mesh.set_frame_index(frame);
+  mesh.set_stamp_ns(stamp_ns);
+  mesh.set_vertex_count(static_cast<int>(posed.vertices_m.cols()));
+  const Eigen::Matrix3Xf vertices = posed.vertices_m.cast<float>();
+  mesh.set_positions_in_world_m_f32(
+      std::string(reinterpret_cast<const char*>(vertices.data()), vertices.size() * sizeof(float)));
+  return writer->WriteGroundTruthMesh(mesh);
+}
+
+absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model) {
+  v1::GroundTruthTopology topology;
+  topology.set_model_name(model.name);
+  topology.set_vertex_count(model.num_vertices());
+  for (const auto& t : model.triangles) {
+    for (int k = 0; k < 3; ++k) topology.add_triangle_indices(static_cast<uint32_t>(t[k]));
+  }
+  return writer->WriteGroundTruthTopology(topology);
+}
+
+absl::Status WriteSensorMessages(TakeWriter* writer, const SensorMessages& m) {
+  RETURN_IF_ERROR(writer->WriteDepth(m.depth));
+  RETURN_IF_ERROR(writer->WriteColor(m.color));
+  RETURN_IF_ERROR(writer->WriteMask(m.mask));
+  RETURN_IF_ERROR(writer->WriteSkeleton(m.skeleton));
+  return writer->WriteGroundTruthDepth(m.ground_truth_depth);
+}
+
+using PendingShot = std::future<absl::StatusOr<SensorMessages>>;
+
+// Runs EncodeShot on the pool; the future holds its result.
+PendingShot ScheduleEncode(ThreadPool* pool, SensorShot shot, const SynthOptions& options) {
+  auto task = std::make_shared<std::packaged_task<absl::StatusOr<SensorMessages>()>>(
+      [shot = std::move(shot), &options]() mutable { return EncodeShot(std::move(shot), options); });
+  PendingShot future = task->get_future();
+  pool->Schedule([task] { (*task)(); });
+  return future;
+}
+
+absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path,
+                            const ProgressCallback& progress, SynthSummary* summary) {
+  ASSIGN_OR_RETURN(Actor actor, PrepareActor(options));
+  SensorRigOptions rig_options;
+  rig_options.num_sensors = options.num_sensors;
+  rig_options.distance_m = options.sensor_distance_m;
+  rig_options.color_width = options.color_width;
+  rig_options.color_height = options.color_height;
+  rig_options.fps = options.fps;
+  rig_options.seed = options.seed;
+  ASSIGN_OR_RETURN(std::vector<VirtualSensor> sensors, MakeSensorRig(rig_options));
+  const DistortionMap distortion = MakeDistortionMap(sensors[0].depth_intrinsics);
+  ASSIGN_OR_RETURN(Scene scene,
+                   BuildScene(actor.model, std::max(options.color_width, distortion.canvas.width),
+                              std::max(options.color_height, distortion.canvas.height)));
+  summary->renderer = scene.renderer->Description();
+
+  const int64_t start_ns = (WallNowNs() / kNanosPerSecond) * kNanosPerSecond;
+  ASSIGN_OR_RETURN(auto writer, TakeWriter::Open(path, MakeTakeInfo(options, path, start_ns)));
+  for (const VirtualSensor& sensor : sensors) {
+    RETURN_IF_ERROR(writer->AddSensor(MakeCalibration(sensor, options.fps)));
+  }
+  RETURN_IF_ERROR(WriteTopology(writer.get(), actor.model));
+
+  ThreadPool pool(2);
+  std::deque<PendingShot> pending;
+  auto drain = [&](size_t keep) -> absl::Status {
+    while (pending.size() > keep) {
+      ASSIGN_OR_RETURN(SensorMessages messages, pending.front().get());
+      pending.pop_front();
+      RETURN_IF_ERROR(WriteSensorMessages(writer.get(), messages));
+    }
+    return absl::OkStatus();
+  };
+  std::mt19937_64 latency_rng(options.seed + 99);
+  std::uniform_int_distribution<int64_t> latency_ns(20'000'000, 26'000'000);
+  const double period_s = 1.0 / options.fps;
+  for (int f = 0; f < actor.num_frames; ++f) {
+    const body::BodyPose pose = SamplePose(actor.motion, f * period_s);
+    ASSIGN_OR_RETURN(body::PosedBody posed, body::PoseBody(actor.model, pose, actor.shape));
+    const int64_t stamp_ns = start_ns + SecondsToNs(f * period_s);
+    RETURN_IF_ERROR(WriteGroundTruth(writer.get(), actor, f, stamp_ns, pose, posed,
+                                     options.ground_truth_mesh));
+    for (const VirtualSensor& sensor : sensors) {
+      // Each sensor exposes at its own phase and sees the body at that instant.
+      const double exposure_s = f * period_s + sensor.phase_ns * 1e-9;
+      ASSIGN_OR_RETURN(body::PosedBody seen,
+                       body::PoseBody(actor.model, SamplePose(actor.motion, exposure_s), actor.shape));
+      RETURN_IF_ERROR(scene.renderer->UpdateMeshPositions(scene.body_mesh, seen.vertices_m.cast<float>()));
+      SensorShot shot;
+      shot.sensor = &sensor;
+      shot.frame_index = f;
+      const int64_t exposure_ns = start_ns + SecondsToNs(exposure_s);
+      shot.device_stamp_ns = exposure_ns - sensor.clock_offset_ns;
+      shot.host_stamp_ns = exposure_ns + latency_ns(latency_rng);
+      shot.joints_in_world = seen.joints_m;
+      RETURN_IF_ERROR(RenderShot(scene, sensor, distortion, &shot));
+      pending.push_back(ScheduleEncode(&pool, std::move(shot), options));
+    }
+    RETURN_IF_ERROR(drain(2 * sensors.size()));
+    if (progress) {
+      Progress p{"synthesise", (f + 1.0) / actor.num_frames, f + 1, actor.num_frames};
+      if (!progress(p)) {
+        pool.Wait();
+        return absl::CancelledError("synthesis cancelled");
+      }
+    }
+  }
+  RETURN_IF_ERROR(drain(0));
+  RETURN_IF_ERROR(writer->Close());
+  summary->frames = actor.num_frames;
+  summary->sensors = static_cast<int>(sensors.size());
+  summary->body_vertices = actor.model.num_vertices();
+  summary->body_shape_components = actor.model.num_shape_components();
+  summary->motion_scale = actor.motion.scale;
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<SynthSummary> SynthesizeTake(const SynthOptions& options, const std::string& out_path,
+                                            const ProgressCallback& progress) {
+  RETURN_IF_ERROR(options.Validate());
+  const int64_t begin_ns = SteadyNowNs();
+  const std::string partial = out_path + ".partial";
+  SynthSummary summary;
+  absl::Status status = SynthesizeInto(options, partial, progress, &summary);
+  std::error_code ec;
+  if (!status.ok()) {
+    std::filesystem::remove(partial, ec);
+    return status;
+  }
+  std::filesystem::rename(partial, out_path, ec);
+  if (ec) {
+    return absl::PermissionDeniedError(absl::StrCat(out_path, ": cannot move the take in place: ", ec.message()));
+  }
+  summary.file_bytes = static_cast<int64_t>(std::filesystem::file_size(out_path, ec));
+  summary.elapsed_s = NsToSeconds(SteadyNowNs() - begin_ns);
+  return summary;
+}
+
+}  // namespace reenact::synth

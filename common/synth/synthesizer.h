@@ -1,0 +1,62 @@
+// Synthetic takes: a body model performing a motion, seen by virtual Kinect v2
+// sensors with a published noise model, written as an MCAP take with ground
+// truth. The built-in teacher of Reenact, and the source of every accuracy
+// figure measured against ground truth.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "common/base/progress.h"
+#include "common/synth/depth_noise.h"
+
+namespace reenact::synth {
+
+struct SynthOptions {
+  // "builtin:NAME" (see BuiltinMotionNames) or a .bvh / .amc file.
+  std::string motion = "builtin:arm-raise";
+  // The ASF skeleton of an .amc motion.
+  std::string asf_path;
+  // "procedural" (built by our code) or "makehuman:DIR" (MakeHuman assets).
+  std::string body = "procedural";
+  // "mean", or "random" / "random:SEED": shape coefficients drawn from the
+  // model's shape space (standard normal, clamped to +-2 sigma).
+  std::string shape = "mean";
+  int num_sensors = 2;            // 1..8, evenly spaced round the actor.
+  double sensor_distance_m = 2.5;  // From the actor's starting position.
+  double seconds = 10.0;          // Length of the take (clipped to a file motion's length).
+  double fps = 30.0;              // Frame rate of every sensor.
+  int color_width = 1920;         // Colour resolution (Kinect v2: 1920x1080).
+  int color_height = 1080;
+  int jpeg_quality = 90;          // 1..100.
+  double color_noise_sigma = 2.0;  // Sensor noise of colour, 8-bit levels.
+  DepthNoiseOptions depth_noise;  // Kinect v2 time-of-flight noise.
+  double skeleton_jitter_m = 0.01;  // Noise of the "sensor skeleton", per axis.
+  bool center_motion = true;      // Centre the motion's mean floor position on the origin.
+  bool ground_truth_mesh = true;  // Write the posed mesh of every frame.
+  uint64_t seed = 1;              // Every random draw follows from it.
+
+  absl::Status Validate() const;
+};
+
+struct SynthSummary {
+  int frames = 0;               // FrameSets (instants) written.
+  int sensors = 0;
+  int body_vertices = 0;
+  int body_shape_components = 0;
+  double motion_scale = 1.0;    // Retargeting scale (model / motion leg length).
+  int64_t file_bytes = 0;
+  double elapsed_s = 0.0;       // Wall time of the synthesis.
+  std::string renderer;         // GL_RENDERER / GL_VERSION of the context.
+};
+
+// Synthesises the take into `out_path` (replaced if present; written through
+// a temporary name so a failed run leaves no partial take behind).
+// `progress` may be empty; returning false from it cancels (Cancelled).
+absl::StatusOr<SynthSummary> SynthesizeTake(const SynthOptions& options,
+                                            const std::string& out_path,
+                                            const ProgressCallback& progress = {});
+
+}  // namespace reenact::synth

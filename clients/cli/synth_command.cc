@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/numbers.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/flags.h"
 #include "clients/cli/progress_bar.h"
@@ -25,11 +26,10 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto width = flags->GetInt("color-width", options.color_width);
   auto height = flags->GetInt("color-height", options.color_height);
   auto quality = flags->GetInt("jpeg-quality", options.jpeg_quality);
-  auto seed = flags->GetInt("seed", static_cast<int>(options.seed));
   auto distance = flags->GetDouble("distance", options.sensor_distance_m);
   for (const absl::Status& s : {out_path.status(), motion.status(), sensors.status(), seconds.status(),
                                 fps.status(), width.status(), height.status(), quality.status(),
-                                seed.status(), distance.status()}) {
+                                distance.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   options.motion = *motion;
@@ -42,7 +42,9 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   options.color_width = *width;
   options.color_height = *height;
   options.jpeg_quality = *quality;
-  options.seed = static_cast<uint64_t>(*seed);
+  if (auto seed = flags->Get("seed"); seed && !absl::SimpleAtoi(*seed, &options.seed)) {
+    return ReportError(absl::InvalidArgumentError("--seed: not an unsigned integer: " + *seed), err);
+  }
   options.sensor_distance_m = *distance;
   options.depth_noise.enabled = !flags->Has("no-depth-noise");
   options.ground_truth_mesh = !flags->Has("no-mesh");

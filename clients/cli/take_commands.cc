@@ -242,7 +242,10 @@ int RunTakeInfo(const std::vector<std::string>& args, std::ostream& out, std::os
   }
   const std::string& path = flags->positional()[0];
   auto take = TakeReader::Open(path);
-  if (!take.ok()) return ReportError(take.status(), err);
+  if (!take.ok()) {
+    ReportError(take.status(), err);  // Not a usage error: the file is unreadable.
+    return kExitFailure;
+  }
   const nlohmann::json j = TakeInfoJson(path, **take);
   if (flags->Has("json")) {
     out << j.dump(2) << "\n";
@@ -267,7 +270,10 @@ int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::o
     return ReportError(absl::InvalidArgumentError("take sheet needs one FILE and 1..32 --frames"), err);
   }
   auto take = TakeReader::Open(flags->positional()[0]);
-  if (!take.ok()) return ReportError(take.status(), err);
+  if (!take.ok()) {
+    ReportError(take.status(), err);
+    return kExitFailure;
+  }
   if (auto status = WriteSheet(**take, *frames, *out_path); !status.ok()) return ReportError(status, err);
   out << "wrote " << *out_path << "\n";
   return kExitOk;

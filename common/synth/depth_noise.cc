@@ -29,6 +29,11 @@ double IncidenceAngle(const FloatImage& depth, const CameraIntrinsics& k, int x,
   const double jump = 0.05;
   const int xa = std::abs(zr - z) < jump ? x + 1 : x, xb = std::abs(zl - z) < jump ? x - 1 : x;
   const int ya = std::abs(zd - z) < jump ? y + 1 : y, yb = std::abs(zu - z) < jump ? y - 1 : y;
+  // Steps on both sides in the same direction are a surface seen almost
+  // edge-on (depth changes faster than a pixel per pixel), not a silhouette.
+  const bool steep_x = xa == xb && (zr - z) * (z - zl) > 0;
+  const bool steep_y = ya == yb && (zd - z) * (z - zu) > 0;
+  if (steep_x || steep_y) return kHalfPi;
   if (xa == xb || ya == yb) return -1.0;
   const Eigen::Vector3d dx = PointAt(k, xa, y, depth.at(xa, y)) - PointAt(k, xb, y, depth.at(xb, y));
   const Eigen::Vector3d dy = PointAt(k, x, ya, depth.at(x, ya)) - PointAt(k, x, yb, depth.at(x, yb));

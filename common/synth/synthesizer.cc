@@ -584,6 +584,8 @@ absl::StatusOr<SynthSummary> SynthesizeTake(const SynthOptions& options, const s
   }
   std::filesystem::rename(partial, out_path, ec);
   if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
     return absl::PermissionDeniedError(absl::StrCat(out_path, ": cannot move the take in place: ", ec.message()));
   }
   summary.file_bytes = static_cast<int64_t>(std::filesystem::file_size(out_path, ec));

@@ -1,1 +1,540 @@
-// Tests to come.
+#include "common/synth/synthesizer.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <Eigen/Core>
+
+#include "common/body/joint_set.h"
+#include "common/geometry/camera.h"
+#include "common/io/depth_codec.h"
+#include "common/io/jpeg.h"
+#include "common/io/mask_codec.h"
+#include "common/io/proto_convert.h"
+#include "common/io/take.h"
+#include "common/testing/test_data.h"
+
+namespace reenact::synth {
+namespace {
+
+using body::KinectV2Joint;
+
+constexpr double kFps = 30.0;
+constexpr int kColorWidth = 480;
+constexpr int kColorHeight = 270;
+
+// A short two-sensor take at reduced colour resolution.
+SynthOptions ShortTakeOptions() {
+  SynthOptions options;
+  options.motion = "builtin:arm-raise";
+  options.num_sensors = 2;
+  options.seconds = 0.4;
+  options.fps = kFps;
+  options.color_width = kColorWidth;
+  options.color_height = kColorHeight;
+  return options;
+}
+
+struct SharedTake {
+  SynthSummary summary;
+  std::unique_ptr<TakeReader> reader;
+};
+
+// Synthesises the short take once per test process.
+const SharedTake& Take() {
+  static const SharedTake* take = [] {
+    auto* t = new SharedTake;
+    const std::string path = testing::MakeTempDir("synth_shared") + "/take.mcap";
+    auto summary = SynthesizeTake(ShortTakeOptions(), path);
+    if (!summary.ok()) {
+      ADD_FAILURE() << summary.status();
+      return t;
+    }
+    t->summary = *summary;
+    auto reader = TakeReader::Open(path);
+    if (!reader.ok()) {
+      ADD_FAILURE() << reader.status();
+      return t;
+    }
+    t->reader = std::move(*reader);
+    return t;
+  }();
+  return *take;
+}
+
+template <typename Message>
+Message MessageAt(const TakeReader& take, const std::string& topic, int64_t frame) {
+  Message found;
+  EXPECT_TRUE(take.ForEach<Message>(topic,
+                                    [&](const Message& m) {
+                                      if (m.frame_index() == frame) found = m;
+                                      return absl::OkStatus();
+                                    })
+                  .ok());
+  return found;
+}
+
+DepthImageMm DepthAt(const TakeReader& take, const std::string& topic, int64_t frame) {
+  auto depth = DecodeDepth(MessageAt<v1::DepthImage>(take, topic, frame).data());
+  EXPECT_TRUE(depth.ok()) << depth.status();
+  return depth.ok() ? *depth : DepthImageMm();
+}
+
+MaskImage MaskAt(const TakeReader& take, const std::string& sensor_id, int64_t frame) {
+  auto mask =
+      DecodeMaskRle(MessageAt<v1::ActorMask>(take, SensorTopic(sensor_id, "mask"), frame).data());
+  EXPECT_TRUE(mask.ok()) << mask.status();
+  return mask.ok() ? *mask : MaskImage();
+}
+
+struct SensorGeometry {
+  CameraIntrinsics depth, color;
+  Rigid3d world_from_depth, color_from_depth;
+};
+
+SensorGeometry GeometryOf(const v1::SensorCalibration& calibration) {
+  SensorGeometry g;
+  g.depth = *FromProto(calibration.depth_intrinsics());
+  g.color = *FromProto(calibration.color_intrinsics());
+  g.world_from_depth = *FromProto(calibration.world_from_depth());
+  g.color_from_depth = *FromProto(calibration.color_from_depth());
+  return g;
+}
+
+std::map<std::string, Eigen::Vector3d> JointsByName(const v1::GroundTruthJoints& joints) {
+  std::map<std::string, Eigen::Vector3d> by_name;
+  for (int j = 0; j < joints.joint_names_size(); ++j) {
+    by_name[joints.joint_names(j)] = FromProto(joints.positions_in_world_m(j));
+  }
+  return by_name;
+}
+
+std::string JointName(KinectV2Joint joint) { return std::string(body::KinectV2JointName(joint)); }
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  auto mid = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
+double Percentile(std::vector<double> values, double fraction) {
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(values.begin(), values.end());
+  return values[static_cast<size_t>(fraction * (values.size() - 1))];
+}
+
+// Closest point on triangle abc to p (Ericson, Real-Time Collision
+// Detection, 5.1.5), returned as the distance in metres.
+double PointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return (p - a).norm();
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return (p - b).norm();
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return (p - c).norm();
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  return (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
+}
+
+// The ground-truth surface of one frame, with the triangles round each vertex.
+struct Surface {
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  std::vector<std::vector<int>> triangles_of_vertex;
+};
+
+Surface SurfaceAt(const TakeReader& take, int64_t frame) {
+  Surface s;
+  const auto mesh = MessageAt<v1::GroundTruthMesh>(take, std::string(kGroundTruthMeshTopic), frame);
+  const std::string& bytes = mesh.positions_in_world_m_f32();
+  std::vector<float> xyz(bytes.size() / sizeof(float));
+  std::memcpy(xyz.data(), bytes.data(), xyz.size() * sizeof(float));
+  for (size_t i = 0; i + 2 < xyz.size(); i += 3)
+    s.vertices.emplace_back(xyz[i], xyz[i + 1], xyz[i + 2]);
+  auto topology = take.ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic);
+  EXPECT_TRUE(topology.ok() && topology->size() == 1u);
+  if (!topology.ok() || topology->empty()) return s;
+  const auto& indices = topology->front().triangle_indices();
+  s.triangles_of_vertex.resize(s.vertices.size());
+  for (int t = 0; t + 2 < indices.size(); t += 3) {
+    s.triangles.push_back({indices[t], indices[t + 1], indices[t + 2]});
+    for (int k = 0; k < 3; ++k) s.triangles_of_vertex[indices[t + k]].push_back(t / 3);
+  }
+  return s;
+}
+
+// Distance (metres) from p to the nearest vertex and to the triangles round it.
+std::pair<double, double> DistanceToSurface(const Surface& s, const Eigen::Vector3d& p) {
+  int nearest = 0;
+  double best = std::numeric_limits<double>::max();
+  for (size_t v = 0; v < s.vertices.size(); ++v) {
+    const double d = (s.vertices[v] - p).squaredNorm();
+    if (d < best) best = d, nearest = static_cast<int>(v);
+  }
+  double surface = std::sqrt(best);
+  for (int t : s.triangles_of_vertex[nearest]) {
+    const auto& tri = s.triangles[t];
+    surface = std::min(surface, PointTriangleDistance(p, s.vertices[tri[0]], s.vertices[tri[1]],
+                                                      s.vertices[tri[2]]));
+  }
+  return {std::sqrt(best), surface};
+}
+
+std::map<std::string, uint64_t> ChannelCounts(const TakeReader& take) {
+  std::map<std::string, uint64_t> counts;
+  for (const TakeChannel& c : take.channels()) counts[c.topic] = c.message_count;
+  return counts;
+}
+
+bool NothingAt(const std::string& path) {
+  return !std::filesystem::exists(path) && !std::filesystem::exists(path + ".partial");
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST(SynthesizeTake, WritesEveryChannelOncePerFrame) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  const int frames = take.summary.frames;
+  ASSERT_GE(frames, 10);
+  EXPECT_EQ(take.reader->frame_count(), frames);
+  ASSERT_EQ(take.reader->sensors().size(), 2u);
+  const auto counts = ChannelCounts(*take.reader);
+  for (const auto& [id, calibration] : take.reader->sensors()) {
+    for (const char* stream : {"color", "depth", "mask", "skeleton"}) {
+      EXPECT_EQ(counts.at(SensorTopic(id, stream)), static_cast<uint64_t>(frames)) << id << stream;
+    }
+    EXPECT_EQ(counts.at(GroundTruthDepthTopic(id)), static_cast<uint64_t>(frames)) << id;
+    EXPECT_EQ(counts.at(SensorTopic(id, "calibration")), 1u) << id;
+  }
+  for (std::string_view topic :
+       {kGroundTruthJointsTopic, kGroundTruthBodyTopic, kGroundTruthMeshTopic}) {
+    EXPECT_EQ(counts.at(std::string(topic)), static_cast<uint64_t>(frames)) << topic;
+  }
+  EXPECT_EQ(counts.at(std::string(kGroundTruthTopologyTopic)), 1u);
+  EXPECT_EQ(counts.at(std::string(kTakeInfoTopic)), 1u);
+}
+
+// Back-projects the noise-free depth of the actor through the calibrated lens
+// and pose, and measures how far those points lie from the ground-truth mesh.
+TEST(SynthesizeTake, GroundTruthDepthLiesOnGroundTruthMesh) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  const SensorGeometry g = GeometryOf(take.reader->sensors().at("k0"));
+  const DepthImageMm depth = DepthAt(*take.reader, GroundTruthDepthTopic("k0"), 0);
+  const MaskImage mask = MaskAt(*take.reader, "k0", 0);
+  const Surface surface = SurfaceAt(*take.reader, 0);
+  ASSERT_FALSE(surface.vertices.empty());
+  ASSERT_EQ(depth.width, mask.width);
+  std::vector<double> vertex_mm, surface_mm;
+  for (int y = 0; y < depth.height; y += 2) {
+    for (int x = 0; x < depth.width; x += 2) {
+      if (mask.at(x, y) == 0 || depth.at(x, y) == 0) continue;
+      auto p = g.depth.Unproject(Eigen::Vector2d(x, y), depth.at(x, y) * 1e-3);
+      if (!p) continue;
+      const auto [to_vertex, to_surface] = DistanceToSurface(surface, g.world_from_depth * *p);
+      vertex_mm.push_back(to_vertex * 1e3);
+      surface_mm.push_back(to_surface * 1e3);
+    }
+  }
+  ASSERT_GT(surface_mm.size(), 500u);
+  const double median_surface = Median(surface_mm);
+  std::cout << "actor pixels " << surface_mm.size() << ": distance to GT mesh surface median "
+            << median_surface << " mm, p90 " << Percentile(surface_mm, 0.9)
+            << " mm; to nearest vertex median " << Median(vertex_mm) << " mm\n";
+  EXPECT_LT(median_surface, 10.0);  // mm
+}
+
+TEST(SynthesizeTake, TorsoJointsProjectIntoActorMask) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  const SensorGeometry g = GeometryOf(take.reader->sensors().at("k0"));
+  auto joints = take.reader->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
+  ASSERT_TRUE(joints.ok()) << joints.status();
+  int inside = 0, total = 0;
+  for (const auto& frame_joints : *joints) {
+    const MaskImage mask = MaskAt(*take.reader, "k0", frame_joints.frame_index());
+    const auto by_name = JointsByName(frame_joints);
+    for (KinectV2Joint j : {KinectV2Joint::kSpineMid, KinectV2Joint::kSpineShoulder}) {
+      ++total;
+      auto pixel = g.depth.Project(g.world_from_depth.Inverse() * by_name.at(JointName(j)));
+      if (!pixel || !g.depth.IsInside(*pixel)) continue;
+      const int x = static_cast<int>(std::lround(pixel->x()));
+      const int y = static_cast<int>(std::lround(pixel->y()));
+      if (mask.at(x, y) > 0) ++inside;
+    }
+  }
+  ASSERT_GT(total, 0);
+  const double percent = 100.0 * inside / total;
+  std::cout << "torso joints inside the k0 actor mask: " << percent << " %\n";
+  EXPECT_GE(percent, 90.0);
+}
+
+TEST(SynthesizeTake, SensorSkeletonFollowsGroundTruthWithinJitter) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  auto joints = take.reader->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
+  ASSERT_TRUE(joints.ok()) << joints.status();
+  std::map<int64_t, std::map<std::string, Eigen::Vector3d>> truth;
+  for (const auto& j : *joints) truth[j.frame_index()] = JointsByName(j);
+  double sum_mm = 0.0;
+  int tracked = 0;
+  for (const auto& [id, calibration] : take.reader->sensors()) {
+    const SensorGeometry g = GeometryOf(calibration);
+    auto skeletons = take.reader->ReadAll<v1::Skeleton>(SensorTopic(id, "skeleton"));
+    ASSERT_TRUE(skeletons.ok()) << skeletons.status();
+    for (const auto& skeleton : *skeletons) {
+      EXPECT_EQ(skeleton.joints_size(), body::kNumKinectV2Joints);
+      for (const auto& joint : skeleton.joints()) {
+        EXPECT_TRUE(body::KinectV2JointFromName(joint.name()).has_value()) << joint.name();
+        if (joint.tracking_state() != v1::TRACKING_STATE_TRACKED) continue;
+        const Eigen::Vector3d p = g.world_from_depth * FromProto(joint.position_in_depth_m());
+        sum_mm += (p - truth.at(skeleton.frame_index()).at(joint.name())).norm() * 1e3;
+        ++tracked;
+      }
+    }
+  }
+  ASSERT_GT(tracked, 100);
+  const double mean_mm = sum_mm / tracked;
+  std::cout << "tracked sensor joints " << tracked << ": mean distance to GT " << mean_mm
+            << " mm (10 mm jitter per axis)\n";
+  EXPECT_GT(mean_mm, 5.0);   // mm
+  EXPECT_LT(mean_mm, 30.0);  // mm
+}
+
+TEST(SynthesizeTake, DepthNoiseMatchesKinectV2Model) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  const DepthImageMm noisy = DepthAt(*take.reader, SensorTopic("k0", "depth"), 0);
+  const DepthImageMm truth = DepthAt(*take.reader, GroundTruthDepthTopic("k0"), 0);
+  const MaskImage mask = MaskAt(*take.reader, "k0", 0);
+  ASSERT_EQ(noisy.num_pixels(), truth.num_pixels());
+  std::vector<double> errors_mm, depths_m;
+  for (int y = 2; y < truth.height - 2; ++y) {
+    for (int x = 2; x < truth.width - 2; ++x) {
+      if (mask.at(x, y) == 0 || noisy.at(x, y) == 0 || truth.at(x, y) == 0) continue;
+      // Smooth neighbourhood only: no edge, no steep slope (3 mm over 5x5 px).
+      int lo = 65535, hi = 0;
+      for (int dy = -2; dy <= 2; ++dy) {
+        for (int dx = -2; dx <= 2; ++dx) {
+          lo = std::min<int>(lo, truth.at(x + dx, y + dy));
+          hi = std::max<int>(hi, truth.at(x + dx, y + dy));
+        }
+      }
+      if (lo == 0 || hi - lo > 3) continue;
+      errors_mm.push_back(static_cast<double>(noisy.at(x, y)) - truth.at(x, y));
+      depths_m.push_back(truth.at(x, y) * 1e-3);
+    }
+  }
+  ASSERT_GT(errors_mm.size(), 100u);
+  double mean = 0.0, var = 0.0;
+  for (double e : errors_mm) mean += e / errors_mm.size();
+  for (double e : errors_mm) var += (e - mean) * (e - mean) / errors_mm.size();
+  const double z = Median(depths_m);
+  std::cout << errors_mm.size() << " smooth actor pixels at " << z << " m: noise std "
+            << std::sqrt(var) << " mm (model sigma " << KinectV2AxialSigmaMm(z, 0.0)
+            << " mm), mean " << mean << " mm\n";
+  EXPECT_GT(std::sqrt(var), 1.0);  // mm
+  EXPECT_LT(std::sqrt(var), 6.0);  // mm
+
+  int dropped = 0, valid = 0;
+  for (size_t i = 0; i < truth.data.size(); ++i) {
+    if (truth.data[i] == 0) continue;
+    ++valid;
+    if (noisy.data[i] == 0) ++dropped;
+  }
+  const double dropped_percent = 100.0 * dropped / valid;
+  std::cout << "valid in GT but invalid in noisy depth: " << dropped_percent << " %\n";
+  EXPECT_GT(dropped_percent, 0.0);
+  EXPECT_LT(dropped_percent, 20.0);
+}
+
+TEST(SynthesizeTake, DeviceClocksMapToTakeClock) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  auto joints = take.reader->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
+  ASSERT_TRUE(joints.ok()) << joints.status();
+  std::map<int64_t, int64_t> truth_stamp_ns;
+  for (const auto& j : *joints) truth_stamp_ns[j.frame_index()] = j.stamp_ns();
+  const double tolerance_ms = 20.0 + 1000.0 / kFps;
+  std::vector<int64_t> offsets;
+  for (const auto& [id, calibration] : take.reader->sensors()) {
+    offsets.push_back(calibration.clock_offset_ns());
+    auto depths = take.reader->ReadAll<v1::DepthImage>(SensorTopic(id, "depth"));
+    ASSERT_TRUE(depths.ok()) << depths.status();
+    double worst_ms = 0.0;
+    for (const auto& d : *depths) {
+      const int64_t host_ns = d.device_stamp_ns() + calibration.clock_offset_ns();
+      worst_ms = std::max(worst_ms, std::abs(host_ns - truth_stamp_ns.at(d.frame_index())) * 1e-6);
+    }
+    std::cout << id << ": clock offset " << calibration.clock_offset_ns() * 1e-6
+              << " ms, worst device-to-take gap " << worst_ms << " ms\n";
+    EXPECT_LE(worst_ms, tolerance_ms);
+  }
+  ASSERT_EQ(offsets.size(), 2u);
+  EXPECT_GT(std::abs(offsets[0] - offsets[1]) * 1e-6, 1.0);  // ms
+}
+
+TEST(SynthesizeTake, ColourShowsTheActor) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  const SensorGeometry g = GeometryOf(take.reader->sensors().at("k0"));
+  const auto message = MessageAt<v1::ColorImage>(*take.reader, SensorTopic("k0", "color"), 0);
+  auto rgb = DecodeJpeg(message.data());
+  ASSERT_TRUE(rgb.ok()) << rgb.status();
+  EXPECT_EQ(rgb->width, kColorWidth);
+  EXPECT_EQ(rgb->height, kColorHeight);
+  const auto by_name = JointsByName(
+      MessageAt<v1::GroundTruthJoints>(*take.reader, std::string(kGroundTruthJointsTopic), 0));
+  const Rigid3d color_from_world = g.color_from_depth * g.world_from_depth.Inverse();
+  for (KinectV2Joint j :
+       {KinectV2Joint::kSpineMid, KinectV2Joint::kSpineShoulder, KinectV2Joint::kSpineBase}) {
+    auto pixel = g.color.Project(color_from_world * by_name.at(JointName(j)));
+    ASSERT_TRUE(pixel && g.color.IsInside(*pixel)) << JointName(j);
+    double sum = 0.0;
+    int n = 0;
+    for (int dy = -2; dy <= 2; ++dy) {
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int x = std::clamp(static_cast<int>(std::lround(pixel->x())) + dx, 0, rgb->width - 1);
+        const int y =
+            std::clamp(static_cast<int>(std::lround(pixel->y())) + dy, 0, rgb->height - 1);
+        for (int c = 0; c < 3; ++c, ++n) sum += rgb->at(x, y, c);
+      }
+    }
+    std::cout << JointName(j) << " at colour pixel (" << pixel->x() << ", " << pixel->y()
+              << "): mean level " << sum / n << "\n";
+    EXPECT_GT(sum / n, 20.0);  // 8-bit levels
+  }
+}
+
+TEST(SynthesizeTake, MakeHumanBodyWalksWithPlausibleStature) {
+  const std::string makehuman = testing::TestDataPath("body/makehuman");
+  const std::string amc = testing::TestDataPath("mocap/cmu/07_05-walk.amc");
+  const std::string asf = testing::TestDataPath("mocap/cmu/07-walk.asf");
+  REENACT_REQUIRE_TEST_FILE(makehuman);
+  REENACT_REQUIRE_TEST_FILE(amc);
+  REENACT_REQUIRE_TEST_FILE(asf);
+  SynthOptions options = ShortTakeOptions();
+  options.body = "makehuman:" + makehuman;
+  options.motion = amc;
+  options.asf_path = asf;
+  options.num_sensors = 1;
+  options.seconds = 0.3;
+  options.ground_truth_mesh = false;
+  const std::string path = testing::MakeTempDir("synth_makehuman") + "/walk.mcap";
+  auto summary = SynthesizeTake(options, path);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  auto take = TakeReader::Open(path);
+  ASSERT_TRUE(take.ok()) << take.status();
+  auto joints = (*take)->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
+  ASSERT_TRUE(joints.ok()) << joints.status();
+  ASSERT_EQ(joints->size(), static_cast<size_t>(summary->frames));
+  for (const auto& frame_joints : *joints) {
+    const auto by_name = JointsByName(frame_joints);
+    const double foot_y = std::min(by_name.at(JointName(KinectV2Joint::kFootLeft)).y(),
+                                   by_name.at(JointName(KinectV2Joint::kFootRight)).y());
+    // Head is the base of the skull: a 1.6-1.9 m adult puts it 1.35-1.8 m up.
+    const double head_m = by_name.at(JointName(KinectV2Joint::kHead)).y() - foot_y;
+    if (frame_joints.frame_index() == 0) {
+      std::cout << "MakeHuman " << summary->body_vertices << " vertices, head above lowest foot "
+                << head_m << " m\n";
+    }
+    EXPECT_GT(head_m, 1.3);  // m
+    EXPECT_LT(head_m, 1.9);  // m
+  }
+}
+
+TEST(SynthesizeTake, UnknownBuiltinMotionIsNotFoundAndLeavesNoFile) {
+  const std::string path = testing::MakeTempDir("synth_bad_builtin") + "/take.mcap";
+  SynthOptions options = ShortTakeOptions();
+  options.motion = "builtin:moonwalk";
+  auto summary = SynthesizeTake(options, path);
+  EXPECT_EQ(summary.status().code(), absl::StatusCode::kNotFound) << summary.status();
+  EXPECT_TRUE(NothingAt(path));
+}
+
+TEST(SynthesizeTake, MissingMotionFileIsNamedAndLeavesNoFile) {
+  const std::string dir = testing::MakeTempDir("synth_missing_bvh");
+  const std::string path = dir + "/take.mcap";
+  SynthOptions options = ShortTakeOptions();
+  options.motion = dir + "/no_such_motion.bvh";
+  auto summary = SynthesizeTake(options, path);
+  ASSERT_FALSE(summary.ok());
+  EXPECT_NE(summary.status().message().find("no_such_motion.bvh"), std::string::npos)
+      << summary.status();
+  EXPECT_TRUE(NothingAt(path));
+}
+
+TEST(SynthesizeTake, BadBodySpecIsInvalidArgumentAndLeavesNoFile) {
+  const std::string path = testing::MakeTempDir("synth_bad_body") + "/take.mcap";
+  SynthOptions options = ShortTakeOptions();
+  options.body = "smpl:/nowhere";
+  auto summary = SynthesizeTake(options, path);
+  EXPECT_EQ(summary.status().code(), absl::StatusCode::kInvalidArgument) << summary.status();
+  EXPECT_TRUE(NothingAt(path));
+}
+
+TEST(SynthesizeTake, FailedRunKeepsExistingFile) {
+  const std::string path = testing::MakeTempDir("synth_keep") + "/take.mcap";
+  const std::string sentinel = "an earlier take that must survive\n";
+  std::ofstream(path, std::ios::binary) << sentinel;
+  SynthOptions options = ShortTakeOptions();
+  options.motion = "builtin:moonwalk";
+  EXPECT_FALSE(SynthesizeTake(options, path).ok());
+  EXPECT_EQ(ReadFile(path), sentinel);
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+}
+
+TEST(SynthesizeTake, SameSeedGivesSameDepth) {
+  const std::string dir = testing::MakeTempDir("synth_seed");
+  SynthOptions options = ShortTakeOptions();
+  options.num_sensors = 1;
+  options.seconds = 1.0 / kFps;
+  options.ground_truth_mesh = false;
+  auto depth_bytes = [&](uint64_t seed, const std::string& name) -> std::string {
+    options.seed = seed;
+    auto summary = SynthesizeTake(options, dir + "/" + name);
+    EXPECT_TRUE(summary.ok()) << summary.status();
+    auto take = TakeReader::Open(dir + "/" + name);
+    EXPECT_TRUE(take.ok()) << take.status();
+    if (!take.ok()) return "";
+    return MessageAt<v1::DepthImage>(**take, SensorTopic("k0", "depth"), 0).data();
+  };
+  const std::string a = depth_bytes(7, "a.mcap");
+  const std::string b = depth_bytes(7, "b.mcap");
+  const std::string c = depth_bytes(8, "c.mcap");
+  ASSERT_FALSE(a.empty());
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a, c);  // Another seed draws other noise.
+}
+
+}  // namespace
+}  // namespace reenact::synth

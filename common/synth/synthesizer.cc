@@ -48,7 +48,9 @@ absl::StatusOr<body::BodyModel> LoadBody(const std::string& spec) {
 
 absl::StatusOr<body::Motion> LoadMotion(const SynthOptions& options) {
   if (absl::StartsWith(options.motion, "builtin:")) {
-    return MakeBuiltinMotion(options.motion.substr(8), options.seconds, options.fps);
+    // One frame more than the take needs, so its last instant is covered.
+    return MakeBuiltinMotion(options.motion.substr(8), options.seconds + 1.0 / options.fps,
+                             options.fps);
   }
   return body::ReadMotion(options.motion, options.asf_path);
 }

@@ -12,7 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "clients/cli/commands.h"
-#include "clients/cli/flags.h"
+#include "common/base/flags.h"
 #include "common/body/motion.h"
 
 namespace reenact::cli {

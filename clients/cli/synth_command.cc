@@ -5,7 +5,7 @@
 
 #include "absl/strings/numbers.h"
 #include "clients/cli/commands.h"
-#include "clients/cli/flags.h"
+#include "common/base/flags.h"
 #include "clients/cli/progress_bar.h"
 #include "common/synth/synthesizer.h"
 

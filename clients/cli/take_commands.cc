@@ -12,7 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "clients/cli/commands.h"
-#include "clients/cli/flags.h"
+#include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
 #include "common/io/depth_codec.h"

@@ -1,4 +1,4 @@
-// A small flag parser for the `reenact` subcommands: `--name value`,
+// A small flag parser for the command-line programs: `--name value`,
 // `--name=value`, boolean `--name`, and positional arguments.
 #pragma once
 
@@ -10,7 +10,7 @@
 
 #include "absl/status/statusor.h"
 
-namespace reenact::cli {
+namespace reenact {
 
 class Flags {
  public:
@@ -34,4 +34,4 @@ class Flags {
   std::vector<std::string> positional_;
 };
 
-}  // namespace reenact::cli
+}  // namespace reenact

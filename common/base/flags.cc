@@ -1,9 +1,9 @@
-#include "clients/cli/flags.h"
+#include "common/base/flags.h"
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 
-namespace reenact::cli {
+namespace reenact {
 
 absl::StatusOr<Flags> Flags::Parse(const std::vector<std::string>& args,
                                    const std::set<std::string>& value_flags,
@@ -77,4 +77,4 @@ absl::StatusOr<double> Flags::GetDouble(const std::string& name, double fallback
   return out;
 }
 
-}  // namespace reenact::cli
+}  // namespace reenact

@@ -1,8 +1,8 @@
-#include "clients/cli/flags.h"
+#include "common/base/flags.h"
 
 #include <gtest/gtest.h>
 
-namespace reenact::cli {
+namespace reenact {
 namespace {
 
 TEST(Flags, ParsesValuesBooleansAndPositionals) {
@@ -24,4 +24,4 @@ TEST(Flags, RejectsUnknownFlagAndMissingValue) {
 }
 
 }  // namespace
-}  // namespace reenact::cli
+}  // namespace reenact

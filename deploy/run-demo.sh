@@ -1,18 +1,47 @@
 #!/usr/bin/env bash
-# Sets everything up on Debian 12 and runs the demo on the built-in teacher:
-# synthesises a 2-sensor take of a procedural body doing a front kick and
-# draws its contact sheet. Outputs go to ./out/demo.
+# Sets everything up on Debian 12 and runs the main job on the built-in
+# teacher: synthesises a 2-sensor take of a procedural body doing a front
+# kick, starts reenact-server, lets the capture daemon reenactd play the take
+# into it over gRPC at the recorded pace, lists and downloads the stored take
+# and draws its contact sheet. Outputs go to ./out/demo.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/setup-debian.sh
 bash deploy/build.sh
 out=out/demo
 mkdir -p "$out"
-reenact=build/bin/reenact
+bin=build/bin
+reenact=$bin/reenact
+
 "$reenact" synth --motion builtin:front-kick --body procedural --sensors 2 --seconds 3 \
-  --out "$out/take.mcap"
+  --out "$out/source.mcap"
+
+rm -rf "$out/server" "$out/spool" "$out/server.port"
+"$bin/reenact-server" --data "$out/server" --listen 127.0.0.1:0 --port-file "$out/server.port" \
+  2> "$out/server.log" &
+server_pid=$!
+trap 'kill $server_pid 2> /dev/null || true' EXIT
+for _ in $(seq 100); do [ -s "$out/server.port" ] && break; sleep 0.1; done
+server=$(cat "$out/server.port")
+echo "demo: reenact-server listening on $server (data in $out/server)"
+
+# The daemon records the take from its sensors (here: the synthetic take
+# played back in real time) and exits once the server has all of it on disk.
+"$bin/reenactd" --server "$server" --source "playback:$out/source.mcap" --once \
+  --take-name front-kick --spool "$out/spool" --control 127.0.0.1:0 \
+  --stats-json "$out/capture-stats.json"
+
+"$reenact" takes list --server "$server"
+take_id=$("$reenact" takes list --server "$server" --json | \
+  sed -n 's/.*"take_id": "\([^"]*\)".*/\1/p' | head -n 1)
+"$reenact" takes show "$take_id" --server "$server"
+"$reenact" takes download "$take_id" --server "$server" --out "$out/take.mcap" --quiet
 "$reenact" take info "$out/take.mcap"
 "$reenact" take sheet "$out/take.mcap" --out "$out/sheet.png"
+kill -TERM $server_pid && wait $server_pid || true
+trap - EXIT
 echo
-echo "demo: take          $PWD/$out/take.mcap"
+echo "demo: source take   $PWD/$out/source.mcap"
+echo "demo: stored take   $PWD/$out/take.mcap (as reenact-server stored it)"
+echo "demo: capture stats $PWD/$out/capture-stats.json"
 echo "demo: contact sheet $PWD/$out/sheet.png"

@@ -20,7 +20,7 @@ packages=(
   libabsl-dev libeigen3-dev libboost-dev libceres-dev libpcl-dev libopencv-dev
   libusb-1.0-0-dev libfreenect-dev libopenni2-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libsqlite3-dev libzstd-dev libturbojpeg0-dev libpng-dev
+  libsqlite3-dev libzstd-dev zlib1g-dev libturbojpeg0-dev libpng-dev
   libegl-dev libopengl-dev libgl1-mesa-dri libglfw3-dev
   libtinygltf-dev nlohmann-json3-dev
   libavformat-dev libavcodec-dev libswscale-dev

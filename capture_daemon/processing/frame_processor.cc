@@ -1,33 +1,297 @@
 #include "capture_daemon/processing/frame_processor.h"
 
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/base/time.h"
+#include "common/geometry/camera.h"
+#include "common/geometry/registration.h"
 #include "common/io/depth_codec.h"
+#include "common/io/jpeg.h"
+#include "common/io/mask_codec.h"
+#include "common/io/proto_convert.h"
 
 namespace reenact::capture {
 
-absl::Status ProcessingOptions::Validate() const { return absl::OkStatus(); }
+absl::Status ProcessingOptions::Validate() const {
+  if (!(background_seconds >= 0 && background_seconds <= 600)) {
+    return absl::InvalidArgumentError("background_seconds must be in [0, 600]");
+  }
+  if (jpeg_quality < 1 || jpeg_quality > 100) {
+    return absl::InvalidArgumentError("jpeg_quality must be in 1..100");
+  }
+  if (depth_encoding != "rvl" && depth_encoding != "rvl+zstd") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("depth_encoding must be 'rvl' or 'rvl+zstd', got '", depth_encoding, "'"));
+  }
+  if ((registered_width_px == 0) != (registered_height_px == 0) || registered_width_px < 0 ||
+      registered_height_px < 0 || registered_width_px > 8192 || registered_height_px > 8192) {
+    return absl::InvalidArgumentError(
+        "registered_width_px and registered_height_px must both be 0 or both in 1..8192");
+  }
+  SegmenterOptions tuning = segmentation_tuning;
+  tuning.background_seconds = background_seconds;
+  if (absl::Status s = tuning.Validate(); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("segmentation_tuning: ", s.message()));
+  }
+  return absl::OkStatus();
+}
 
-// Placeholder until registration and segmentation land: passes encoded
-// frames through.
 namespace {
-class PassThroughProcessor : public FrameProcessor {
+
+template <typename Message>
+void SetStamps(const v1::Frame& frame, Message* m) {
+  m->set_sensor_id(frame.sensor_id());
+  m->set_device_stamp_ns(frame.device_stamp_ns());
+  m->set_host_stamp_ns(frame.host_stamp_ns());
+  m->set_frame_index(frame.frame_index());
+}
+
+std::optional<CameraIntrinsics> ValidIntrinsics(const v1::SensorCalibration& c, bool color) {
+  const v1::CameraIntrinsics& proto = color ? c.color_intrinsics() : c.depth_intrinsics();
+  if (proto.width_px() <= 0) return std::nullopt;
+  auto k = FromProto(proto);
+  if (!k.ok() || !k->Validate().ok()) return std::nullopt;
+  return *k;
+}
+
+// The automatic registered grid: the colour size divided by the smallest
+// integer that brings its width to max(640, depth width) or less.
+std::pair<int, int> AutoRegisteredSize(const CameraIntrinsics& depth, const CameraIntrinsics& color) {
+  const int limit = std::max(640, depth.width);
+  const int factor = std::max(1, (color.width + limit - 1) / limit);
+  return {color.width / factor, color.height / factor};
+}
+
+class FrameProcessorImpl : public FrameProcessor {
  public:
-  explicit PassThroughProcessor(const v1::SensorInfo& info) : calibration_(info.calibration()) {}
-  absl::Status Process(CapturedFrame& frame) override {
-    if (frame.depth_mm.has_value() || frame.color.has_value()) {
-      return absl::UnimplementedError("raw frames need the full FrameProcessor");
+  FrameProcessorImpl(const v1::SensorInfo& info, const ProcessingOptions& options)
+      : info_(info), options_(options), calibration_(info.calibration()) {
+    if (calibration_.sensor_id().empty()) calibration_.set_sensor_id(info.sensor_id());
+  }
+
+  absl::Status Init() {
+    depth_k_ = ValidIntrinsics(info_.calibration(), false);
+    const std::optional<CameraIntrinsics> color_k = ValidIntrinsics(info_.calibration(), true);
+    using Mode = ProcessingOptions::Mode;
+    const bool wants_registration = options_.registration != Mode::kOff &&
+                                    !info_.provides_registration() && info_.backend() != "playback";
+    if (wants_registration) {
+      if (!depth_k_ || !color_k) {
+        if (options_.registration == Mode::kOn) {
+          return absl::InvalidArgumentError(absl::StrCat(
+              info_.sensor_id(), ": registration is on but the calibration lacks valid ",
+              depth_k_ ? "colour" : "depth", " intrinsics"));
+        }
+      } else {
+        RETURN_IF_ERROR(InitRegistration(*depth_k_, *color_k));
+      }
+    }
+    if (options_.segmentation != Mode::kOff) {
+      if (!depth_k_) {
+        if (options_.segmentation == Mode::kOn) {
+          return absl::InvalidArgumentError(absl::StrCat(
+              info_.sensor_id(), ": segmentation is on but the calibration lacks valid depth intrinsics"));
+        }
+      } else {
+        SegmenterOptions tuning = options_.segmentation_tuning;
+        tuning.background_seconds = options_.background_seconds;
+        tuning.noise_model = info_.model().empty() ? calibration_.model() : info_.model();
+        auto world_from_depth = FromProto(calibration_.world_from_depth());
+        ASSIGN_OR_RETURN(ActorSegmenter segmenter,
+                         ActorSegmenter::Create(*depth_k_, world_from_depth.value_or(Rigid3d()), tuning));
+        segmenter_.emplace(std::move(segmenter));
+      }
     }
     return absl::OkStatus();
   }
+
+  absl::Status Process(CapturedFrame& frame) override {
+    const int64_t begin_ns = SteadyNowNs();
+    v1::Frame& f = frame.frame;
+    if (f.sensor_id().empty()) f.set_sensor_id(info_.sensor_id());
+    if (f.sensor_id() != info_.sensor_id()) {
+      return absl::InvalidArgumentError(absl::StrCat("frame of sensor '", f.sensor_id(),
+                                                     "' given to the processor of '",
+                                                     info_.sensor_id(), "'"));
+    }
+    std::optional<DepthImageMm> depth_for_mask;
+    if (frame.depth_mm.has_value()) {
+      ASSIGN_OR_RETURN(depth_for_mask, ProcessRaw(frame));
+    } else {
+      RETURN_IF_ERROR(CheckEncoded(frame));
+    }
+    RETURN_IF_ERROR(MaybeSegment(frame, std::move(depth_for_mask)));
+    frame.depth_mm.reset();
+    frame.color.reset();
+    const double ms = (SteadyNowNs() - begin_ns) * 1e-6;
+    ++stats_.frames;
+    stats_.total_ms += ms;
+    stats_.max_ms = std::max(stats_.max_ms, ms);
+    return absl::OkStatus();
+  }
+
   const v1::SensorCalibration& calibration() const override { return calibration_; }
 
+  ProcessingStats stats() const override {
+    ProcessingStats s = stats_;
+    s.background_ready = segmenter_.has_value() && segmenter_->background_ready();
+    s.floor_found = segmenter_.has_value() && segmenter_->floor().has_value();
+    return s;
+  }
+
  private:
+  absl::Status InitRegistration(const CameraIntrinsics& depth_k, const CameraIntrinsics& color_k) {
+    auto color_from_depth = FromProto(calibration_.color_from_depth());
+    if (!color_from_depth.ok()) return color_from_depth.status();
+    RegistrationOptions reg_options;
+    if (options_.registered_width_px > 0) {
+      reg_options.color_width = options_.registered_width_px;
+      reg_options.color_height = options_.registered_height_px;
+    } else {
+      std::tie(reg_options.color_width, reg_options.color_height) = AutoRegisteredSize(depth_k, color_k);
+    }
+    ASSIGN_OR_RETURN(DepthToColorRegistration registration,
+                     DepthToColorRegistration::Create(depth_k, color_k, *color_from_depth, reg_options));
+    registration_.emplace(std::move(registration));
+    raw_depth_k_ = depth_k;
+    // The registered depth camera is the colour camera at the output size.
+    depth_k_ = registration_->output_intrinsics();
+    *calibration_.mutable_depth_intrinsics() = ToProto(*depth_k_);
+    auto world_from_depth = FromProto(calibration_.world_from_depth());
+    const Rigid3d world_from_color =
+        world_from_depth.value_or(Rigid3d()) * color_from_depth->Inverse();
+    *calibration_.mutable_world_from_depth() = ToProto(world_from_color);
+    *calibration_.mutable_color_from_depth() = ToProto(Rigid3d());
+    return absl::OkStatus();
+  }
+
+  // Registers and encodes a raw frame; returns the depth that the mask must
+  // follow.
+  absl::StatusOr<DepthImageMm> ProcessRaw(CapturedFrame& frame) {
+    v1::Frame& f = frame.frame;
+    DepthImageMm& depth = *frame.depth_mm;
+    if (depth.data.size() != depth.num_pixels() || depth.width <= 0) {
+      return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": raw depth holds ",
+                                                     depth.data.size(), " values for ", depth.width,
+                                                     "x", depth.height, " px"));
+    }
+    const CameraIntrinsics* expected = registration_ ? &raw_depth_k_ : (depth_k_ ? &*depth_k_ : nullptr);
+    if (expected != nullptr && (depth.width != expected->width || depth.height != expected->height)) {
+      return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": depth frame of ", depth.width,
+                                                     "x", depth.height, " px; the calibration says ",
+                                                     expected->width, "x", expected->height));
+    }
+    DepthImageMm out_depth;
+    if (registration_) {
+      ASSIGN_OR_RETURN(out_depth, registration_->Register(depth));
+      ++stats_.registered;
+    } else {
+      out_depth = std::move(depth);
+    }
+    DepthCodecOptions codec;
+    codec.zstd = options_.depth_encoding == "rvl+zstd";
+    ASSIGN_OR_RETURN(std::string depth_bytes, EncodeDepth(out_depth, codec));
+    v1::DepthImage* d = f.mutable_depth();
+    SetStamps(f, d);
+    d->set_width_px(out_depth.width);
+    d->set_height_px(out_depth.height);
+    d->set_encoding(options_.depth_encoding);
+    d->set_data(std::move(depth_bytes));
+
+    if (frame.color.has_value()) {
+      const RgbImage& color = *frame.color;
+      if (color.data.size() != color.num_pixels() * 3 || color.width <= 0) {
+        return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": raw colour holds ",
+                                                       color.data.size(), " bytes for ", color.width,
+                                                       "x", color.height, " px"));
+      }
+      if (info_.color_width_px() > 0 &&
+          (color.width != info_.color_width_px() || color.height != info_.color_height_px())) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            info_.sensor_id(), ": colour frame of ", color.width, "x", color.height,
+            " px; the sensor delivers ", info_.color_width_px(), "x", info_.color_height_px()));
+      }
+      ASSIGN_OR_RETURN(std::string jpeg, EncodeJpeg(color, options_.jpeg_quality));
+      v1::ColorImage* c = f.mutable_color();
+      SetStamps(f, c);
+      c->set_width_px(color.width);
+      c->set_height_px(color.height);
+      c->set_encoding("jpeg");
+      c->set_quality(options_.jpeg_quality);
+      c->set_data(std::move(jpeg));
+    }
+    return out_depth;
+  }
+
+  absl::Status CheckEncoded(const CapturedFrame& frame) const {
+    if (frame.color.has_value()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(info_.sensor_id(), ": raw colour without raw depth"));
+    }
+    if (!frame.frame.has_depth() || frame.frame.depth().data().empty()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(info_.sensor_id(), ": frame ", frame.frame.frame_index(), " has no depth"));
+    }
+    if (registration_) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          info_.sensor_id(), ": encoded frame from a sensor whose raw frames are registered"));
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status MaybeSegment(CapturedFrame& frame, std::optional<DepthImageMm> depth) {
+    using Mode = ProcessingOptions::Mode;
+    if (!segmenter_) return absl::OkStatus();
+    v1::Frame& f = frame.frame;
+    const bool has_mask = f.has_mask() && !f.mask().data().empty();
+    if (options_.segmentation == Mode::kAuto && has_mask) return absl::OkStatus();
+    if (!depth) {
+      auto decoded = DecodeDepth(f.depth().data());
+      if (!decoded.ok()) {
+        return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": frame ", f.frame_index(),
+                                                       ": ", decoded.status().message()));
+      }
+      depth = *std::move(decoded);
+    }
+    auto mask = segmenter_->Segment(*depth, f.host_stamp_ns());
+    if (!mask.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(info_.sensor_id(), ": frame ", f.frame_index(), ": ", mask.status().message()));
+    }
+    v1::ActorMask* m = f.mutable_mask();
+    SetStamps(f, m);
+    m->set_width_px(mask->width);
+    m->set_height_px(mask->height);
+    m->set_encoding("rle");
+    m->set_data(EncodeMaskRle(*mask));
+    ++stats_.segmented;
+    return absl::OkStatus();
+  }
+
+  v1::SensorInfo info_;
+  ProcessingOptions options_;
   v1::SensorCalibration calibration_;
+  std::optional<CameraIntrinsics> depth_k_;  // Of the output depth.
+  CameraIntrinsics raw_depth_k_;             // Of the raw depth, when registering.
+  std::optional<DepthToColorRegistration> registration_;
+  std::optional<ActorSegmenter> segmenter_;
+  ProcessingStats stats_;
 };
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<FrameProcessor>> FrameProcessor::Create(
     const v1::SensorInfo& info, const ProcessingOptions& options) {
-  return std::make_unique<PassThroughProcessor>(info);
+  RETURN_IF_ERROR(options.Validate());
+  if (info.sensor_id().empty()) return absl::InvalidArgumentError("SensorInfo has no sensor_id");
+  auto processor = std::make_unique<FrameProcessorImpl>(info, options);
+  RETURN_IF_ERROR(processor->Init());
+  return processor;
 }
 
 }  // namespace reenact::capture

@@ -2,12 +2,41 @@
 // depth-to-colour registration where the source lacks it, actor segmentation
 // where the source gives no mask, and encoding of raw pixels (depth to RVL,
 // colour to JPEG). The source's skeleton is passed through.
+//
+// Policy, frame by frame:
+// - Raw frames (CapturedFrame.depth_mm set; the hardware backends):
+//   * Registration runs when the mode is kAuto or kOn, the sensor does not
+//     register by itself (SensorInfo.provides_registration false), its
+//     backend is not "playback", and its calibration has valid depth and
+//     colour intrinsics. Depth is then re-expressed in the colour camera
+//     (common/geometry/registration.h, triangle fill with a z-buffer) on a
+//     grid of the colour camera scaled to registered_width/height_px (by
+//     default the colour size divided by the smallest integer that brings its
+//     width to max(640, depth width) or less: 640x480 for Kinect v1, 640x360
+//     for Kinect v2 colour). calibration() then has depth intrinsics equal to
+//     the colour intrinsics at that size, color_from_depth the identity and
+//     world_from_depth = world_from_colour. The colour image itself is not
+//     resampled. kOn fails at Create when registration is impossible.
+//   * Depth is encoded losslessly ("rvl" or "rvl+zstd"), colour as JPEG at
+//     jpeg_quality; the raw images are released.
+// - Encoded frames (playback: frame.depth already holds RVL bytes): passed
+//   through unchanged, registration included (calibration() is the source's).
+//   An encoded frame from a sensor whose raw frames are registered is
+//   rejected (InvalidArgument), since it would not follow calibration().
+// - Segmentation (capture_daemon/processing/actor_segmenter.h) runs when the
+//   mode is kOn, or kAuto and the frame carries no mask; encoded depth is
+//   decoded for it. The mask is in the pixels of the output depth ("rle",
+//   body index 1), empty during the first background_seconds. kOn replaces a
+//   source's mask. Segmentation needs valid depth intrinsics; without them
+//   kAuto skips it and kOn fails at Create.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 
 #include "absl/status/status.h"
+#include "capture_daemon/processing/actor_segmenter.h"
 #include "capture_daemon/sensors/sensor.h"
 #include "reenact/v1/frame.pb.h"
 
@@ -26,11 +55,30 @@ struct ProcessingOptions {
   int jpeg_quality = 90;
   // Encoding of raw depth: "rvl" or "rvl+zstd".
   std::string depth_encoding = "rvl";
+  // Size of the registered depth grid (both 0: automatic, see the file
+  // comment; else both positive).
+  int registered_width_px = 0;
+  int registered_height_px = 0;
+  // Tuning of the segmentation; its background_seconds is replaced by the
+  // field above and its noise_model by the sensor's model.
+  SegmenterOptions segmentation_tuning;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
 };
 
+// Figures of one processor since it was created.
+struct ProcessingStats {
+  int64_t frames = 0;       // Frames processed successfully.
+  int64_t registered = 0;   // Frames whose depth was registered.
+  int64_t segmented = 0;    // Frames that got a mask from segmentation.
+  double total_ms = 0.0;    // Wall time spent in Process.
+  double max_ms = 0.0;      // Longest Process call.
+  bool background_ready = false;
+  bool floor_found = false;
+};
+
+// One processor per sensor; not thread-safe (call Process from one thread).
 class FrameProcessor {
  public:
   // `info` of the sensor whose frames this processor will see.
@@ -47,6 +95,9 @@ class FrameProcessor {
   // The calibration the processed frames follow (registration makes the
   // depth camera coincide with the colour camera).
   virtual const v1::SensorCalibration& calibration() const = 0;
+
+  // Figures since Create.
+  virtual ProcessingStats stats() const { return {}; }
 };
 
 }  // namespace reenact::capture

@@ -23,4 +23,14 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
 int RunTakeInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// remote_commands.cc
+int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTakesDownload(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTakesDelete(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunCaptureSensors(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunCaptureStart(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunCaptureStop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 }  // namespace reenact::cli

@@ -1,19 +1,9 @@
 #include "common/io/mcap_format.h"
 
-#include <array>
+#include <zlib.h>
 
 namespace reenact::mcap_format {
 namespace {
-
-std::array<uint32_t, 256> MakeCrcTable() {
-  std::array<uint32_t, 256> table{};
-  for (uint32_t i = 0; i < 256; ++i) {
-    uint32_t c = i;
-    for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-    table[i] = c;
-  }
-  return table;
-}
 
 template <typename T>
 void PutLittleEndian(std::string* out, T v) {
@@ -22,11 +12,11 @@ void PutLittleEndian(std::string* out, T v) {
 
 }  // namespace
 
+// CRC-32 (ISO-HDLC polynomial, as the MCAP spec requires), computed by zlib,
+// whose crc32 is the same function with the running value passed through.
 uint32_t Crc32(std::string_view data, uint32_t crc) {
-  static const std::array<uint32_t, 256> kTable = MakeCrcTable();
-  uint32_t c = crc ^ 0xFFFFFFFFu;
-  for (unsigned char byte : data) c = kTable[(c ^ byte) & 0xFF] ^ (c >> 8);
-  return c ^ 0xFFFFFFFFu;
+  return static_cast<uint32_t>(
+      crc32_z(crc, reinterpret_cast<const Bytef*>(data.data()), data.size()));
 }
 
 void PutU8(std::string* out, uint8_t v) { out->push_back(static_cast<char>(v)); }

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
@@ -237,6 +238,194 @@ TEST(McapReader, RecoverySkipsCorruptChunkAndReportsIt) {
   const auto first = expected.begin() + written.messages_per_chunk[0];
   expected.erase(first, first + written.messages_per_chunk[1]);
   ExpectMessagesEqual(expected, *messages);
+}
+
+// Byte offset where the data section of a finished file ends (its DataEnd
+// record), from the footer's summary_start.
+uint64_t DataEndOffset(const std::string& bytes) {
+  const size_t footer_fields = bytes.size() - mcap_format::kMagic.size() - 20;
+  uint64_t summary_start = 0;
+  for (int i = 7; i >= 0; --i) {
+    summary_start = (summary_start << 8) | static_cast<uint8_t>(bytes[footer_fields + i]);
+  }
+  return summary_start - (mcap_format::kRecordPrefixBytes + 4);
+}
+
+// Appends `count` messages to `writer` on its channels in turn; returns them.
+std::vector<WrittenMessage> AppendMessages(McapWriter& writer, int count, uint64_t first_time_ns) {
+  std::vector<WrittenMessage> out;
+  if (writer.ChannelTopics().empty()) {  // The cut took every Channel record.
+    const McapSchemaId schema =
+        writer.SchemaNames().empty() ? *writer.AddSchema("test.Blob", "raw", "") : 1;
+    EXPECT_TRUE(writer.AddChannel(schema, "/new", "raw").ok());
+  }
+  const auto channels = writer.ChannelTopics();
+  for (int i = 0; i < count; ++i) {
+    WrittenMessage m{channels[i % channels.size()].first, first_time_ns + 10 * i,
+                     "appended " + std::to_string(i)};
+    EXPECT_TRUE(writer.WriteMessage(m.channel_id, m.log_time_ns, m.log_time_ns, m.data).ok());
+    out.push_back(m);
+  }
+  return out;
+}
+
+// Every channel's sequence numbers run 0, 1, 2, ... in file order.
+void ExpectDenseSequences(const std::vector<McapMessage>& messages) {
+  std::map<uint16_t, uint32_t> next;
+  for (const McapMessage& m : messages) {
+    EXPECT_EQ(m.sequence, next[m.channel_id]++) << "channel " << m.channel_id;
+  }
+}
+
+TEST(McapWriter, AppendsToFinishedFile) {
+  WrittenFile written;
+  const std::string path = SmallChunkFile("mcap_append", "zstd", &written, 120);
+  const uint64_t old_size = std::filesystem::file_size(path);
+  McapAppendReport report;
+  McapWriterOptions options;
+  options.compression = "";  // New chunks may differ from the old ones.
+  auto writer = McapWriter::OpenForAppend(path, options, &report);
+  ASSERT_TRUE(writer.ok()) << writer.status();
+  EXPECT_EQ(report.kept_chunks, written.messages_per_chunk.size());
+  EXPECT_EQ(report.kept_messages, written.messages.size());
+  EXPECT_EQ(report.kept_bytes + report.dropped_bytes, old_size);
+  EXPECT_NE(report.stop_reason.find("DataEnd"), std::string::npos) << report.stop_reason;
+  EXPECT_EQ((*writer)->bytes_written(), report.kept_bytes);
+  ASSERT_EQ((*writer)->ChannelTopics().size(), 3u);
+  ASSERT_EQ((*writer)->SchemaNames().size(), 1u);
+  const std::vector<WrittenMessage> more = AppendMessages(**writer, 40, 100000);
+  auto extra = (*writer)->AddChannel(1, "/d", "raw");
+  ASSERT_TRUE(extra.ok());
+  EXPECT_EQ(*extra, 3);
+  ASSERT_TRUE((*writer)->WriteMessage(*extra, 200000, 200000, "on a new channel").ok());
+  ASSERT_TRUE((*writer)->Close().ok());
+
+  auto reader = McapReader::Open(path);
+  ASSERT_TRUE(reader.ok()) << reader.status();
+  EXPECT_TRUE((*reader)->report().indexed) << (*reader)->report().Summary();
+  std::vector<WrittenMessage> expected = written.messages;
+  expected.insert(expected.end(), more.begin(), more.end());
+  expected.push_back({*extra, 200000, "on a new channel"});
+  auto messages = (*reader)->ReadMessages();
+  ASSERT_TRUE(messages.ok()) << messages.status();
+  ExpectMessagesEqual(expected, *messages);
+  ExpectDenseSequences(*messages);
+  const McapStatistics& stats = (*reader)->statistics();
+  EXPECT_EQ(stats.message_count, expected.size());
+  EXPECT_EQ(stats.start_time_ns, written.messages.front().log_time_ns);
+  EXPECT_EQ(stats.end_time_ns, 200000u);
+  EXPECT_EQ(stats.chunk_count, written.messages_per_chunk.size() + 1);
+}
+
+TEST(McapWriter, AppendAfterEveryTruncationKeepsWholeChunks) {
+  WrittenFile written;
+  const std::string path = SmallChunkFile("mcap_append_cut", "zstd", &written, 40);
+  auto full = McapReader::Open(path);
+  ASSERT_TRUE(full.ok());
+  const std::vector<McapChunkInfo> chunks = (*full)->chunks();
+  ASSERT_GT(chunks.size(), 2u);
+  const std::string bytes = *ReadFileToString(path);
+  // A chunk survives a cut when it and its Message Index records (which end
+  // where the next chunk or DataEnd starts) lie before the cut.
+  std::vector<uint64_t> chunk_ends;
+  for (size_t c = 0; c < chunks.size(); ++c) {
+    chunk_ends.push_back(c + 1 < chunks.size() ? chunks[c + 1].chunk_offset : DataEndOffset(bytes));
+  }
+  uint64_t header_end = 0;
+  for (int i = 7; i >= 0; --i) {
+    header_end =
+        (header_end << 8) | static_cast<uint8_t>(bytes[mcap_format::kMagic.size() + 1 + i]);
+  }
+  header_end += mcap_format::kMagic.size() + mcap_format::kRecordPrefixBytes;
+  const std::string cut_path = path + ".cut";
+  for (size_t size = mcap_format::kMagic.size(); size < bytes.size(); ++size) {
+    ASSERT_TRUE(WriteFileAtomically(cut_path, bytes.substr(0, size)).ok());
+    McapAppendReport report;
+    auto writer = McapWriter::OpenForAppend(cut_path, {}, &report);
+    if (size < header_end) {
+      EXPECT_EQ(writer.status().code(), absl::StatusCode::kDataLoss) << "size " << size;
+      continue;
+    }
+    ASSERT_TRUE(writer.ok()) << "size " << size << ": " << writer.status();
+    size_t kept = 0;
+    for (size_t c = 0; c < chunks.size() && chunk_ends[c] <= size; ++c) {
+      kept += written.messages_per_chunk[c];
+    }
+    EXPECT_EQ(report.kept_messages, kept) << "size " << size << ": " << report.stop_reason;
+    EXPECT_LE(report.kept_bytes, size);
+    const std::vector<WrittenMessage> more = AppendMessages(**writer, 3, 500000);
+    ASSERT_TRUE((*writer)->Close().ok());
+    auto reader = McapReader::Open(cut_path);
+    ASSERT_TRUE(reader.ok()) << "size " << size;
+    EXPECT_TRUE((*reader)->report().indexed) << "size " << size;
+    std::vector<WrittenMessage> expected(written.messages.begin(), written.messages.begin() + kept);
+    expected.insert(expected.end(), more.begin(), more.end());
+    auto messages = (*reader)->ReadMessages();
+    ASSERT_TRUE(messages.ok()) << "size " << size << ": " << messages.status();
+    ExpectMessagesEqual(expected, *messages);
+    ExpectDenseSequences(*messages);
+  }
+}
+
+TEST(McapWriter, AppendStopsAtDamagedChunk) {
+  WrittenFile written;
+  const std::string path = SmallChunkFile("mcap_append_damaged", "zstd", &written);
+  uint64_t chunk_offset = 0;
+  const std::string bytes = CorruptChunk(path, 1, &chunk_offset);
+  // Without its summary the file is scanned, and the scan finds the damage.
+  ASSERT_TRUE(WriteFileAtomically(path, bytes.substr(0, DataEndOffset(bytes))).ok());
+  McapAppendReport report;
+  auto writer = McapWriter::OpenForAppend(path, {}, &report);
+  ASSERT_TRUE(writer.ok()) << writer.status();
+  EXPECT_EQ(report.kept_bytes, chunk_offset);
+  EXPECT_EQ(report.kept_messages, written.messages_per_chunk[0]);
+  EXPECT_NE(report.stop_reason.find("byte offset " + std::to_string(chunk_offset)),
+            std::string::npos)
+      << report.stop_reason;
+  const std::vector<WrittenMessage> more = AppendMessages(**writer, 5, 500000);
+  ASSERT_TRUE((*writer)->Close().ok());
+  auto reader = McapReader::Open(path);
+  ASSERT_TRUE(reader.ok());
+  std::vector<WrittenMessage> expected(written.messages.begin(),
+                                       written.messages.begin() + written.messages_per_chunk[0]);
+  expected.insert(expected.end(), more.begin(), more.end());
+  auto messages = (*reader)->ReadMessages();
+  ASSERT_TRUE(messages.ok()) << messages.status();
+  ExpectMessagesEqual(expected, *messages);
+}
+
+TEST(McapWriter, AbortKeepsOnlyFlushedChunks) {
+  const std::string path = testing::MakeTempDir("mcap_abort") + "/file.mcap";
+  McapWriterOptions options;
+  options.chunk_size_bytes = uint64_t{1} << 30;  // Chunks end only when flushed.
+  auto writer = McapWriter::Open(path, options);
+  ASSERT_TRUE(writer.ok());
+  auto schema = (*writer)->AddSchema("test.Blob", "raw", "");
+  auto channel = (*writer)->AddChannel(*schema, "/a", "raw");
+  ASSERT_TRUE(channel.ok());
+  for (uint64_t t = 0; t < 10; ++t) ASSERT_TRUE((*writer)->WriteMessage(*channel, t, t, "x").ok());
+  ASSERT_TRUE((*writer)->Sync().ok());
+  EXPECT_EQ((*writer)->pending_chunk_bytes(), 0u);
+  for (uint64_t t = 10; t < 15; ++t) ASSERT_TRUE((*writer)->WriteMessage(*channel, t, t, "y").ok());
+  EXPECT_GT((*writer)->pending_chunk_bytes(), 0u);
+  ASSERT_TRUE((*writer)->Abort().ok());
+  EXPECT_EQ((*writer)->WriteMessage(*channel, 20, 20, "z").code(),
+            absl::StatusCode::kFailedPrecondition);
+  auto reader = McapReader::Open(path);
+  ASSERT_TRUE(reader.ok());
+  EXPECT_FALSE((*reader)->report().indexed);
+  EXPECT_EQ((*reader)->statistics().message_count, 10u);
+}
+
+TEST(McapWriter, OpenForAppendRejectsMissingAndForeignFiles) {
+  const std::string dir = testing::MakeTempDir("mcap_append_bad");
+  EXPECT_EQ(McapWriter::OpenForAppend(dir + "/missing.mcap").status().code(),
+            absl::StatusCode::kNotFound);
+  ASSERT_TRUE(WriteFileAtomically(dir + "/text.mcap", "not an MCAP file at all").ok());
+  EXPECT_EQ(McapWriter::OpenForAppend(dir + "/text.mcap").status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // The file is left as it was.
+  EXPECT_EQ(*ReadFileToString(dir + "/text.mcap"), "not an MCAP file at all");
 }
 
 TEST(McapReader, RejectsFileThatIsNotMcap) {

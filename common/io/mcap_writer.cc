@@ -1,8 +1,14 @@
 #include "common/io/mcap_writer.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <optional>
+#include <set>
 #include <utility>
 
 #include <zstd.h>
@@ -10,6 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/io/mcap_format.h"
+#include "common/io/mcap_reader.h"
 
 namespace reenact {
 
@@ -176,8 +183,9 @@ absl::Status McapWriter::FlushChunk() {
   std::string bytes;
   mf::PutRecord(&bytes, mf::kChunk, content);
 
-  ChunkIndexEntry entry{chunk_start_time_ns_, chunk_end_time_ns_,   offset_, bytes.size(), {}, 0,
-                        payload.size(),       chunk_records_.size()};
+  ChunkIndexEntry entry{
+      chunk_start_time_ns_,  chunk_end_time_ns_,  offset_, bytes.size(), {}, 0, payload.size(),
+      chunk_records_.size(), options_.compression};
   for (auto& [channel_id, index] : chunk_message_index_) {
     std::stable_sort(index.begin(), index.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -239,7 +247,7 @@ std::string McapWriter::ChunkIndexRecords() const {
     }
     mf::PutString(&content, offsets);
     mf::PutU64(&content, e.message_index_length);
-    mf::PutString(&content, options_.compression);
+    mf::PutString(&content, e.compression);
     mf::PutU64(&content, e.compressed_size);
     mf::PutU64(&content, e.uncompressed_size);
     mf::PutRecord(&records, mf::kChunkIndex, content);
@@ -247,15 +255,349 @@ std::string McapWriter::ChunkIndexRecords() const {
   return records;
 }
 
+absl::Status McapWriter::Sync() {
+  RETURN_IF_ERROR(FlushChunk());
+  if (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0) {
+    return absl::DataLossError(absl::StrCat("fsync of ", path_, " failed: ", std::strerror(errno)));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status McapWriter::CloseFile(bool sync) {
+  std::FILE* file = file_;
+  file_ = nullptr;
+  absl::Status status;
+  if (sync && (std::fflush(file) != 0 || ::fsync(::fileno(file)) != 0)) {
+    status =
+        absl::DataLossError(absl::StrCat("fsync of ", path_, " failed: ", std::strerror(errno)));
+  }
+  if (std::fclose(file) != 0 && status.ok()) {
+    status =
+        absl::DataLossError(absl::StrCat("closing ", path_, " failed: ", std::strerror(errno)));
+  }
+  return status;
+}
+
 absl::Status McapWriter::Close() {
   RETURN_IF_ERROR(CheckOpen());
   const absl::Status written = WriteTail();
-  std::FILE* file = file_;
-  file_ = nullptr;
-  if (std::fclose(file) != 0 && written.ok()) {
-    return absl::DataLossError(absl::StrCat("closing ", path_, " failed: ", std::strerror(errno)));
+  const absl::Status closed = CloseFile(written.ok() && options_.durable);
+  return written.ok() ? closed : written;
+}
+
+absl::Status McapWriter::Abort() {
+  RETURN_IF_ERROR(CheckOpen());
+  chunk_records_.clear();
+  chunk_message_index_.clear();
+  return CloseFile(/*sync=*/false);
+}
+
+std::vector<std::pair<McapSchemaId, std::string>> McapWriter::SchemaNames() const {
+  std::vector<std::pair<McapSchemaId, std::string>> out;
+  for (size_t i = 0; i < schemas_.size(); ++i) {
+    out.emplace_back(static_cast<McapSchemaId>(i + 1), schemas_[i].name);
   }
-  return written;
+  return out;
+}
+
+std::vector<std::pair<McapChannelId, std::string>> McapWriter::ChannelTopics() const {
+  std::vector<std::pair<McapChannelId, std::string>> out;
+  for (size_t i = 0; i < channels_.size(); ++i) {
+    out.emplace_back(static_cast<McapChannelId>(i), channels_[i].topic);
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------ appending
+
+// Walks the records of a file reopened for appending, rebuilds the writer's
+// schemas, channels, chunk indexes and counts from those it keeps, and finds
+// where the kept part ends. A chunk counts when McapReader read it without
+// damage (at Open: through the summary of a finished file, or by a recovery
+// scan that checks every chunk's CRC) and every Message Index record that
+// McapWriter writes after it is there too.
+class McapWriter::AppendScan {
+ public:
+  AppendScan(McapWriter* writer, int fd, uint64_t file_size, const McapReader& reader)
+      : w_(writer), fd_(fd), file_size_(file_size) {
+    for (const McapChunkInfo& chunk : reader.chunks())
+      good_chunks_.emplace(chunk.chunk_offset, chunk);
+  }
+
+  // Fills the writer's state; `report` gets the kept size and the reason.
+  absl::Status Run(McapAppendReport* report);
+
+ private:
+  struct PendingChunk {
+    ChunkIndexEntry entry;
+    uint64_t end = 0;  // End of its last Message Index record read so far.
+    std::set<McapChannelId> expected_channels;
+    std::map<McapChannelId, uint64_t> counts;
+  };
+
+  absl::StatusOr<std::string> ReadAt(uint64_t offset, uint64_t size) const;
+  // Handles the record at `pos`; false ends the kept part (`stop_` says why).
+  absl::StatusOr<bool> Visit(uint8_t opcode, uint64_t pos, uint64_t length);
+  absl::Status AddDefinition(uint8_t opcode, std::string_view content, uint64_t pos);
+  bool StartChunk(uint64_t pos, uint64_t length, std::string_view head);
+  bool AddMessageIndex(uint64_t pos, std::string_view content);
+  // Keeps the pending chunk when its Message Index records are complete.
+  bool FinishChunk();
+
+  McapWriter* w_;
+  int fd_;
+  uint64_t file_size_;
+  std::map<uint64_t, McapChunkInfo> good_chunks_;
+  std::optional<PendingChunk> pending_;
+  uint64_t keep_ = mf::kMagic.size();
+  uint64_t kept_messages_ = 0;
+  bool header_seen_ = false;
+  std::string stop_;
+};
+
+absl::StatusOr<std::string> McapWriter::AppendScan::ReadAt(uint64_t offset, uint64_t size) const {
+  std::string bytes(size, '\0');
+  uint64_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::pread(fd_, bytes.data() + done, size - done, offset + done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      return absl::DataLossError(absl::StrCat("read of ", w_->path_, " failed at byte offset ",
+                                              offset + done, ": ",
+                                              n < 0 ? std::strerror(errno) : "end of file"));
+    }
+    done += static_cast<uint64_t>(n);
+  }
+  return bytes;
+}
+
+absl::Status McapWriter::AppendScan::AddDefinition(uint8_t opcode, std::string_view content,
+                                                   uint64_t pos) {
+  mf::ByteCursor c(content);
+  if (opcode == mf::kSchema) {
+    const uint16_t id = c.U16();
+    SchemaEntry s{std::string(c.String()), std::string(c.String()), std::string(c.String())};
+    if (!c.ok()) return absl::DataLossError("malformed Schema record");
+    if (id != w_->schemas_.size() + 1) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          w_->path_, ": Schema id ", id, " at byte offset ", pos, " is not the next id (",
+          w_->schemas_.size() + 1, "); only files written by McapWriter can be appended to"));
+    }
+    w_->schemas_.push_back(std::move(s));
+    return absl::OkStatus();
+  }
+  const uint16_t id = c.U16();
+  ChannelEntry ch;
+  ch.schema_id = c.U16();
+  ch.topic = std::string(c.String());
+  ch.message_encoding = std::string(c.String());
+  mf::ByteCursor map(c.String());
+  while (c.ok() && map.ok() && map.remaining() > 0) {
+    std::string key(map.String());
+    ch.metadata[key] = std::string(map.String());
+  }
+  if (!c.ok() || !map.ok()) return absl::DataLossError("malformed Channel record");
+  if (id != w_->channels_.size() || ch.schema_id > w_->schemas_.size()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        w_->path_, ": Channel id ", id, " at byte offset ", pos,
+        " is not the next id or names an unknown schema; only files written by McapWriter can "
+        "be appended to"));
+  }
+  w_->channels_.push_back(std::move(ch));
+  w_->channel_message_counts_.push_back(0);
+  return absl::OkStatus();
+}
+
+bool McapWriter::AppendScan::StartChunk(uint64_t pos, uint64_t length, std::string_view head) {
+  const auto good = good_chunks_.find(pos);
+  if (good == good_chunks_.end() || good->second.chunk_length != mf::kRecordPrefixBytes + length) {
+    stop_ = absl::StrCat("chunk at byte offset ", pos, " is damaged");
+    return false;
+  }
+  mf::ByteCursor c(head);
+  PendingChunk chunk;
+  ChunkIndexEntry& e = chunk.entry;
+  e.start_time_ns = c.U64();
+  e.end_time_ns = c.U64();
+  e.uncompressed_size = c.U64();
+  c.U32();  // uncompressed_crc
+  e.compression = std::string(c.String());
+  e.compressed_size = c.U64();
+  if (!c.ok()) {
+    stop_ = absl::StrCat("chunk at byte offset ", pos, " has a malformed header");
+    return false;
+  }
+  e.chunk_offset = pos;
+  e.chunk_length = mf::kRecordPrefixBytes + length;
+  e.message_index_length = 0;
+  chunk.end = pos + e.chunk_length;
+  chunk.expected_channels.insert(good->second.channel_ids.begin(), good->second.channel_ids.end());
+  pending_ = std::move(chunk);
+  return true;
+}
+
+bool McapWriter::AppendScan::AddMessageIndex(uint64_t pos, std::string_view content) {
+  mf::ByteCursor c(content);
+  const McapChannelId channel = c.U16();
+  const std::string_view entries = c.String();
+  if (!c.ok() || entries.size() % 16 != 0 || channel >= w_->channels_.size()) {
+    stop_ = absl::StrCat("malformed Message Index record at byte offset ", pos);
+    return false;
+  }
+  pending_->entry.message_index_offsets[channel] = pos;
+  pending_->entry.message_index_length += mf::kRecordPrefixBytes + content.size();
+  pending_->counts[channel] += entries.size() / 16;
+  pending_->end = pos + mf::kRecordPrefixBytes + content.size();
+  return true;
+}
+
+bool McapWriter::AppendScan::FinishChunk() {
+  PendingChunk chunk = std::move(*pending_);
+  pending_.reset();
+  std::set<McapChannelId> indexed;
+  for (const auto& [channel, count] : chunk.counts) indexed.insert(channel);
+  if (indexed != chunk.expected_channels) {
+    stop_ = absl::StrCat("chunk at byte offset ", chunk.entry.chunk_offset,
+                         " lacks Message Index records (torn after the chunk)");
+    return false;
+  }
+  for (const auto& [channel, count] : chunk.counts) {
+    if (count == 0) continue;
+    w_->start_time_ns_ = w_->message_count_ == 0
+                             ? chunk.entry.start_time_ns
+                             : std::min(w_->start_time_ns_, chunk.entry.start_time_ns);
+    w_->end_time_ns_ = w_->message_count_ == 0
+                           ? chunk.entry.end_time_ns
+                           : std::max(w_->end_time_ns_, chunk.entry.end_time_ns);
+    w_->message_count_ += count;
+    w_->channel_message_counts_[channel] += count;
+    w_->channels_[channel].next_sequence += static_cast<uint32_t>(count);
+    kept_messages_ += count;
+  }
+  w_->chunk_indexes_.push_back(std::move(chunk.entry));
+  keep_ = chunk.end;
+  return true;
+}
+
+absl::StatusOr<bool> McapWriter::AppendScan::Visit(uint8_t opcode, uint64_t pos, uint64_t length) {
+  const uint64_t end = pos + mf::kRecordPrefixBytes + length;
+  if (pending_ && opcode != mf::kMessageIndex && !FinishChunk()) return false;
+  if (!header_seen_) {
+    if (opcode != mf::kHeader) {
+      return absl::DataLossError(
+          absl::StrCat(w_->path_, ": no Header record at byte offset ", pos));
+    }
+    header_seen_ = true;
+    keep_ = end;
+    return true;
+  }
+  switch (opcode) {
+    case mf::kSchema:
+    case mf::kChannel: {
+      ASSIGN_OR_RETURN(const std::string content, ReadAt(pos + mf::kRecordPrefixBytes, length));
+      if (absl::Status s = AddDefinition(opcode, content, pos); !s.ok()) {
+        if (s.code() == absl::StatusCode::kFailedPrecondition) return s;
+        stop_ = absl::StrCat(s.message(), " at byte offset ", pos);
+        return false;
+      }
+      keep_ = end;
+      return true;
+    }
+    case mf::kChunk: {
+      ASSIGN_OR_RETURN(const std::string head,
+                       ReadAt(pos + mf::kRecordPrefixBytes, std::min<uint64_t>(length, 256)));
+      return StartChunk(pos, length, head);
+    }
+    case mf::kMessageIndex: {
+      if (!pending_) {
+        stop_ = absl::StrCat("Message Index record at byte offset ", pos, " follows no chunk");
+        return false;
+      }
+      ASSIGN_OR_RETURN(const std::string content, ReadAt(pos + mf::kRecordPrefixBytes, length));
+      return AddMessageIndex(pos, content);
+    }
+    case mf::kMessage:
+      return absl::FailedPreconditionError(
+          absl::StrCat(w_->path_, ": message outside chunks at byte offset ", pos,
+                       "; only files written by McapWriter can be appended to"));
+    case mf::kDataEnd:
+      stop_ = absl::StrCat("DataEnd record at byte offset ", pos);
+      return false;
+    default:
+      stop_ = absl::StrCat("record with opcode ", static_cast<int>(opcode), " at byte offset ", pos,
+                           " ends the data section");
+      return false;
+  }
+}
+
+absl::Status McapWriter::AppendScan::Run(McapAppendReport* report) {
+  uint64_t pos = mf::kMagic.size();
+  while (true) {
+    if (file_size_ - pos < mf::kRecordPrefixBytes) {
+      stop_ = pos == file_size_ ? "end of file"
+                                : absl::StrCat("record header torn at byte offset ", pos);
+      break;
+    }
+    ASSIGN_OR_RETURN(const std::string prefix_bytes, ReadAt(pos, mf::kRecordPrefixBytes));
+    mf::ByteCursor prefix(prefix_bytes);
+    const uint8_t opcode = prefix.U8();
+    const uint64_t length = prefix.U64();
+    if (length > file_size_ - pos - mf::kRecordPrefixBytes) {
+      stop_ = absl::StrCat("record with opcode ", static_cast<int>(opcode), " at byte offset ", pos,
+                           " is torn (declares ", length, " bytes)");
+      break;
+    }
+    ASSIGN_OR_RETURN(const bool go_on, Visit(opcode, pos, length));
+    if (!go_on) break;
+    pos += mf::kRecordPrefixBytes + length;
+  }
+  if (pending_) FinishChunk();
+  if (!header_seen_) {
+    return absl::DataLossError(absl::StrCat(w_->path_, ": no whole Header record"));
+  }
+  report->kept_bytes = keep_;
+  report->dropped_bytes = file_size_ - keep_;
+  report->kept_chunks = w_->chunk_indexes_.size();
+  report->kept_messages = kept_messages_;
+  report->stop_reason = stop_;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<McapWriter>> McapWriter::OpenForAppend(
+    const std::string& path, const McapWriterOptions& options, McapAppendReport* report) {
+  RETURN_IF_ERROR(options.Validate());
+  ASSIGN_OR_RETURN(std::unique_ptr<McapReader> reader, McapReader::Open(path));
+  std::FILE* file = std::fopen(path.c_str(), "r+b");
+  if (file == nullptr) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot open MCAP file ", path, " for appending: ", std::strerror(errno)));
+  }
+  std::unique_ptr<McapWriter> writer(new McapWriter(path, options, file));
+  McapAppendReport local;
+  if (report == nullptr) report = &local;
+  *report = McapAppendReport{};
+  const int fd = ::fileno(file);
+  absl::Status status;
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    status = absl::UnavailableError(absl::StrCat("cannot stat ", path, ": ", std::strerror(errno)));
+  }
+  if (status.ok()) {
+    status = AppendScan(writer.get(), fd, static_cast<uint64_t>(st.st_size), *reader).Run(report);
+  }
+  reader.reset();
+  if (status.ok() && (::ftruncate(fd, static_cast<off_t>(report->kept_bytes)) != 0 ||
+                      (options.durable && ::fsync(fd) != 0) ||
+                      ::fseeko(file, static_cast<off_t>(report->kept_bytes), SEEK_SET) != 0)) {
+    status = absl::DataLossError(absl::StrCat("cannot cut ", path, " at byte offset ",
+                                              report->kept_bytes, ": ", std::strerror(errno)));
+  }
+  if (!status.ok()) {
+    writer->Abort().IgnoreError();  // Closing normally would write a tail at a wrong offset.
+    return status;
+  }
+  writer->offset_ = report->kept_bytes;
+  return writer;
 }
 
 absl::Status McapWriter::WriteTail() {

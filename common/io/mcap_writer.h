@@ -8,7 +8,14 @@
 // Durability: each finished chunk is written and flushed to the operating
 // system at once, and Schema/Channel records are written outside chunks
 // before the first chunk that uses them, so a writer that dies leaves a file
-// whose complete chunks McapReader recovers.
+// whose complete chunks McapReader recovers. Sync() also makes them survive a
+// crash of the machine (fsync).
+//
+// Appending: OpenForAppend reopens a file this writer wrote (finished, or cut
+// short by a crash), keeps its intact leading records and goes on writing
+// after them; Close() then writes a summary that covers old and new chunks.
+// Resuming a long recording therefore costs a scan of record headers, not a
+// copy of the file.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +24,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -36,6 +44,9 @@ struct McapWriterOptions {
   std::string profile;
   // Header.library: the program that wrote the file.
   std::string library = "reenact";
+  // Close() and the cut of OpenForAppend fsync the file, so that they
+  // survive a crash of the machine (Sync() always does).
+  bool durable = false;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -46,13 +57,42 @@ using McapSchemaId = uint16_t;
 // Identifies a channel within one file.
 using McapChannelId = uint16_t;
 
+// What McapWriter::OpenForAppend kept of an existing file.
+struct McapAppendReport {
+  // Bytes kept from the start of the file; new records follow them.
+  uint64_t kept_bytes = 0;
+  // Bytes cut off the end: a chunk torn by a crash, a damaged chunk and all
+  // after it, or the DataEnd record, summary and footer of a finished file.
+  uint64_t dropped_bytes = 0;
+  // Chunks and messages kept.
+  uint64_t kept_chunks = 0;
+  uint64_t kept_messages = 0;
+  // Why the kept part ends where it does, naming the byte offset.
+  std::string stop_reason;
+};
+
 // Streams messages into one MCAP file. Not thread-safe.
 class McapWriter {
  public:
   // Creates (truncates) `path` and writes the magic and Header.
   static absl::StatusOr<std::unique_ptr<McapWriter>> Open(const std::string& path,
                                                           const McapWriterOptions& options = {});
-  // Closes the file if Close() was not called (errors are lost then).
+  // Reopens `path`, written by McapWriter, to add to it. Keeps the leading
+  // records up to the first one that is not whole and intact (Header, Schema
+  // and Channel records, Chunks that McapReader reads without damage together
+  // with all their Message Index records), cuts off the rest (ftruncate;
+  // fsync with options.durable) and writes new records after it. Channel
+  // sequence numbers and statistics continue from the kept messages; new
+  // chunks use `options` (profile and library come from the kept Header).
+  // NotFound when `path` does not exist, InvalidArgument when it is not an
+  // MCAP file, DataLoss when not even its Header survived, FailedPrecondition
+  // when it holds what McapWriter never writes (sparse schema or channel ids,
+  // messages outside chunks).
+  static absl::StatusOr<std::unique_ptr<McapWriter>> OpenForAppend(
+      const std::string& path, const McapWriterOptions& options = {},
+      McapAppendReport* report = nullptr);
+  // Closes the file if Close() or Abort() was not called (errors are lost
+  // then).
   ~McapWriter();
   McapWriter(const McapWriter&) = delete;
   McapWriter& operator=(const McapWriter&) = delete;
@@ -77,19 +117,43 @@ class McapWriter {
   // Writes the chunk in progress (if any) and flushes it to the OS.
   absl::Status FlushChunk();
 
+  // FlushChunk(), then fsync: everything written so far survives a crash of
+  // the machine.
+  absl::Status Sync();
+
   // Writes the last chunk, DataEnd, the Summary section, the Footer and the
   // closing magic, then closes the file. Further calls fail.
   absl::Status Close();
 
-  // Bytes written to the file so far.
+  // Closes the file without writing the chunk in progress or anything after
+  // it: the file ends after the last flushed chunk, as if the writer had
+  // died (McapReader recovers it, OpenForAppend continues it). For writers
+  // whose last write failed half-way. Further calls fail.
+  absl::Status Abort();
+
+  // Bytes written to the file so far (after OpenForAppend: the kept bytes
+  // plus those written since).
   uint64_t bytes_written() const { return offset_; }
+  // Uncompressed record bytes of the chunk in progress (0 right after a
+  // flush).
+  uint64_t pending_chunk_bytes() const { return chunk_records_.size(); }
+  // Schemas (id, name) and channels (id, topic) registered so far, including
+  // those OpenForAppend kept, in id order.
+  std::vector<std::pair<McapSchemaId, std::string>> SchemaNames() const;
+  std::vector<std::pair<McapChannelId, std::string>> ChannelTopics() const;
+  // Messages per channel id so far (kept and new).
+  uint64_t channel_message_count(McapChannelId id) const {
+    return id < channel_message_counts_.size() ? channel_message_counts_[id] : 0;
+  }
 
  private:
   struct ChunkIndexEntry {
     uint64_t start_time_ns, end_time_ns, chunk_offset, chunk_length;
     std::map<McapChannelId, uint64_t> message_index_offsets;
     uint64_t message_index_length, compressed_size, uncompressed_size;
+    std::string compression;
   };
+  class AppendScan;
   struct SchemaEntry {
     std::string name, encoding, data;
   };
@@ -103,6 +167,9 @@ class McapWriter {
   McapWriter(std::string path, McapWriterOptions options, std::FILE* file);
   absl::Status Append(std::string_view bytes);
   absl::Status CheckOpen() const;
+  // Closes file_ (fsync first when `sync`); DataLoss naming the file on
+  // failure.
+  absl::Status CloseFile(bool sync);
   // Everything from the last chunk to the closing magic.
   absl::Status WriteTail();
   std::string ChunkIndexRecords() const;

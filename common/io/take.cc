@@ -30,8 +30,11 @@ std::string GroundTruthDepthTopic(std::string_view sensor_id) {
 
 // ---------------------------------------------------------------- TakeWriter
 
-TakeWriter::TakeWriter(std::string path, std::unique_ptr<McapWriter> mcap, int64_t start_stamp_ns)
-    : path_(std::move(path)), mcap_(std::move(mcap)), start_stamp_ns_(start_stamp_ns) {}
+TakeWriter::TakeWriter(std::string path, std::unique_ptr<McapWriter> mcap, v1::TakeInfo info)
+    : path_(std::move(path)),
+      mcap_(std::move(mcap)),
+      info_(std::move(info)),
+      start_stamp_ns_(info_.start_stamp_ns()) {}
 
 absl::StatusOr<std::unique_ptr<TakeWriter>> TakeWriter::Open(const std::string& path,
                                                              const v1::TakeInfo& info,
@@ -44,8 +47,34 @@ absl::StatusOr<std::unique_ptr<TakeWriter>> TakeWriter::Open(const std::string& 
   McapWriterOptions mcap_options = options.mcap;
   if (mcap_options.profile.empty()) mcap_options.profile = "reenact";
   ASSIGN_OR_RETURN(std::unique_ptr<McapWriter> mcap, McapWriter::Open(path, mcap_options));
-  std::unique_ptr<TakeWriter> writer(new TakeWriter(path, std::move(mcap), info.start_stamp_ns()));
+  std::unique_ptr<TakeWriter> writer(new TakeWriter(path, std::move(mcap), info));
   RETURN_IF_ERROR(writer->Write(kTakeInfoTopic, info, info.start_stamp_ns()));
+  return writer;
+}
+
+absl::StatusOr<std::unique_ptr<TakeWriter>> TakeWriter::OpenForAppend(
+    const std::string& path, const TakeWriterOptions& options, McapAppendReport* report) {
+  RETURN_IF_ERROR(options.Validate());
+  v1::TakeInfo info;
+  std::map<std::string, v1::SensorCalibration> sensors;
+  bool wrote_topology = false;
+  {
+    ASSIGN_OR_RETURN(std::unique_ptr<TakeReader> reader, TakeReader::Open(path));
+    info = reader->info();
+    sensors = reader->sensors();
+    for (const TakeChannel& c : reader->channels()) {
+      if (c.topic == kGroundTruthTopologyTopic && c.message_count > 0) wrote_topology = true;
+    }
+  }
+  ASSIGN_OR_RETURN(std::unique_ptr<McapWriter> mcap,
+                   McapWriter::OpenForAppend(path, options.mcap, report));
+  std::unique_ptr<TakeWriter> writer(new TakeWriter(path, std::move(mcap), std::move(info)));
+  for (const auto& [id, name] : writer->mcap_->SchemaNames()) writer->schema_ids_.emplace(name, id);
+  for (const auto& [id, topic] : writer->mcap_->ChannelTopics()) {
+    writer->channel_ids_.emplace(topic, id);
+  }
+  writer->sensors_ = std::move(sensors);
+  writer->wrote_topology_ = wrote_topology;
   return writer;
 }
 
@@ -145,6 +174,18 @@ absl::Status TakeWriter::WriteGroundTruthTopology(const v1::GroundTruthTopology&
   }
   wrote_topology_ = true;
   return Write(kGroundTruthTopologyTopic, topology, start_stamp_ns_);
+}
+
+absl::Status TakeWriter::WriteFrameSetRecord(const v1::FrameSetRecord& record) {
+  return Write(kIngestFrameSetTopic, record, record.stamp_ns());
+}
+
+absl::Status TakeWriter::WriteSensorLost(const v1::SensorLostRecord& record) {
+  if (!sensors_.contains(record.sensor_id())) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(path_, ": lost sensor \"", record.sensor_id(), "\" not added"));
+  }
+  return Write(kIngestSensorLostTopic, record, record.stamp_ns());
 }
 
 absl::Status TakeWriter::Close() { return mcap_->Close(); }

@@ -14,8 +14,18 @@
 //   /ground_truth/body          GroundTruthBody      per frame, synthetic takes
 //   /ground_truth/mesh          GroundTruthMesh      per frame, synthetic takes
 //   /ground_truth/topology      GroundTruthTopology  once, synthetic takes
+//   /ingest/frame_set           FrameSetRecord       per frame set, takes the server
+//                                                    ingested (after the set's frames,
+//                                                    in the same chunk)
+//   /ingest/sensor_lost         SensorLostRecord     when a sensor's stream ended early
 // Log time: per-frame sensor messages use host_stamp_ns, ground truth uses
-// stamp_ns, and the once-written messages use TakeInfo.start_stamp_ns.
+// stamp_ns, ingest records use their stamp_ns, and the once-written messages
+// use TakeInfo.start_stamp_ns.
+//
+// Durability: TakeWriter::Sync() ends the chunk in progress and fsyncs, so a
+// writer that closes chunks only between whole frame sets leaves, after any
+// crash, a file whose intact chunks hold whole frame sets;
+// TakeWriter::OpenForAppend continues such a file (or a finished one).
 #pragma once
 
 #include <cstdint>
@@ -46,6 +56,8 @@ inline constexpr std::string_view kGroundTruthJointsTopic = "/ground_truth/joint
 inline constexpr std::string_view kGroundTruthBodyTopic = "/ground_truth/body";
 inline constexpr std::string_view kGroundTruthMeshTopic = "/ground_truth/mesh";
 inline constexpr std::string_view kGroundTruthTopologyTopic = "/ground_truth/topology";
+inline constexpr std::string_view kIngestFrameSetTopic = "/ingest/frame_set";
+inline constexpr std::string_view kIngestSensorLostTopic = "/ingest/sensor_lost";
 // "/sensor/<sensor_id>/<stream>", stream one of calibration, color, depth,
 // mask, skeleton.
 std::string SensorTopic(std::string_view sensor_id, std::string_view stream);
@@ -70,6 +82,15 @@ class TakeWriter {
                                                           const v1::TakeInfo& info,
                                                           const TakeWriterOptions& options = {});
 
+  // Reopens a take written by TakeWriter to add to it: McapWriter::
+  // OpenForAppend keeps its intact leading part (everything of a finished
+  // file but its summary), and the writer goes on with the take's info and
+  // sensors as the file holds them. DataLoss when /take/info did not
+  // survive; the other errors as McapWriter::OpenForAppend.
+  static absl::StatusOr<std::unique_ptr<TakeWriter>> OpenForAppend(
+      const std::string& path, const TakeWriterOptions& options = {},
+      McapAppendReport* report = nullptr);
+
   // Declares a sensor: creates its channels and writes its calibration.
   // InvalidArgument when sensor_id is empty, has characters other than
   // [A-Za-z0-9_-], or was added before.
@@ -90,11 +111,31 @@ class TakeWriter {
   // Once per take; FailedPrecondition on a second call.
   absl::Status WriteGroundTruthTopology(const v1::GroundTruthTopology& topology);
 
+  // Ingest records (take.proto). FailedPrecondition when the sensor_id of a
+  // SensorLostRecord was not added; InvalidArgument for a negative stamp.
+  absl::Status WriteFrameSetRecord(const v1::FrameSetRecord& record);
+  absl::Status WriteSensorLost(const v1::SensorLostRecord& record);
+
+  // Ends the chunk in progress (written and flushed to the OS).
+  absl::Status FlushChunk() { return mcap_->FlushChunk(); }
+  // FlushChunk(), then fsync: what was written survives a crash.
+  absl::Status Sync() { return mcap_->Sync(); }
+
   // Finishes the file (summary, footer). Further writes fail.
   absl::Status Close();
+  // Closes the file as it stands after the last flushed chunk, dropping the
+  // chunk in progress (McapWriter::Abort). Further writes fail.
+  absl::Status Abort() { return mcap_->Abort(); }
+
+  const v1::TakeInfo& info() const { return info_; }
+  // Calibrations by sensor id.
+  const std::map<std::string, v1::SensorCalibration>& sensors() const { return sensors_; }
+  // File bytes written so far, and record bytes of the chunk in progress.
+  uint64_t bytes_written() const { return mcap_->bytes_written(); }
+  uint64_t pending_chunk_bytes() const { return mcap_->pending_chunk_bytes(); }
 
  private:
-  TakeWriter(std::string path, std::unique_ptr<McapWriter> mcap, int64_t start_stamp_ns);
+  TakeWriter(std::string path, std::unique_ptr<McapWriter> mcap, v1::TakeInfo info);
   absl::Status Write(std::string_view topic, const google::protobuf::Message& message,
                      int64_t stamp_ns);
   absl::Status WriteSensorFrame(std::string_view stream, const std::string& sensor_id,
@@ -104,6 +145,7 @@ class TakeWriter {
 
   std::string path_;
   std::unique_ptr<McapWriter> mcap_;
+  v1::TakeInfo info_;
   int64_t start_stamp_ns_ = 0;
   std::map<std::string, McapSchemaId> schema_ids_;                 // By full message name.
   std::map<std::string, McapChannelId, std::less<>> channel_ids_;  // By topic.

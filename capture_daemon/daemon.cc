@@ -1,0 +1,844 @@
+#include "capture_daemon/daemon.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <ostream>
+#include <set>
+#include <utility>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/server.h>
+#include <grpcpp/server_builder.h>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "capture_daemon/sensors/usb_hotplug.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
+#include "common/base/time.h"
+
+namespace reenact::capture {
+
+namespace {
+
+constexpr auto kTick = std::chrono::milliseconds(100);
+// A set whose sensors all stall is sent this long after its window.
+constexpr int64_t kStallNs = 1'000'000'000;
+constexpr char kGenerator[] = "reenactd 0.1.0";
+
+struct SensorEntry {
+  std::unique_ptr<Sensor> sensor;
+  std::unique_ptr<FrameProcessor> processor;
+  v1::SensorInfo info;  // As opened; state and counters below.
+  v1::SensorState state = v1::SENSOR_STATE_DETECTED;
+  std::string detail;
+  std::atomic<int64_t> frames{0};
+  std::atomic<int64_t> processing_errors{0};
+};
+
+double CpuSeconds(int64_t* user_us, int64_t* sys_us) {
+  struct rusage usage {};
+  getrusage(RUSAGE_SELF, &usage);
+  *user_us = usage.ru_utime.tv_sec * 1'000'000LL + usage.ru_utime.tv_usec;
+  *sys_us = usage.ru_stime.tv_sec * 1'000'000LL + usage.ru_stime.tv_usec;
+  return static_cast<double>(*user_us + *sys_us) * 1e-6;
+}
+
+double Ms(int64_t ns) { return static_cast<double>(ns) * 1e-6; }
+
+}  // namespace
+
+absl::Status DaemonOptions::Validate() const {
+  if (server_address.empty()) return absl::InvalidArgumentError("--server is empty");
+  if (sources.empty()) return absl::InvalidArgumentError("no --source given");
+  if (spool_dir.empty()) return absl::InvalidArgumentError("--spool is empty");
+  if (spool_max_mb < 1) return absl::InvalidArgumentError("--spool-max-mb must be at least 1");
+  if (max_seconds < 0) return absl::InvalidArgumentError("--max-seconds must not be negative");
+  if (!(drain_timeout_s >= 0)) return absl::InvalidArgumentError("--drain-timeout-s must not be negative");
+  RETURN_IF_ERROR(sync.Validate());
+  RETURN_IF_ERROR(processing.Validate());
+  return uplink.Validate();
+}
+
+std::string DefaultDaemonId(const std::string& spool_dir) {
+  char host[256] = {};
+  if (gethostname(host, sizeof(host) - 1) != 0) std::snprintf(host, sizeof(host), "host");
+  std::string clean;
+  for (const char* c = host; *c != '\0' && clean.size() < 32; ++c) {
+    clean.push_back(std::isalnum(static_cast<unsigned char>(*c)) || *c == '-' ? *c : '_');
+  }
+  // FNV-1a over the machine id and the spool folder.
+  std::string key = ReadFileToString("/etc/machine-id").value_or(host);
+  key += "|" + std::filesystem::absolute(spool_dir).lexically_normal().string();
+  uint64_t hash = 1469598103934665603ull;
+  for (unsigned char c : key) hash = (hash ^ c) * 1099511628211ull;
+  return absl::StrFormat("reenactd-%s-%08x", clean, static_cast<uint32_t>(hash ^ (hash >> 32)));
+}
+
+std::string DefaultSpoolDir() {
+  if (const char* state = std::getenv("STATE_DIRECTORY"); state != nullptr && *state != '\0') {
+    std::string first(state);
+    first = first.substr(0, first.find(':'));
+    return (std::filesystem::path(first) / "spool").string();
+  }
+  return absl::StrCat("/tmp/reenactd-", getuid(), "/spool");
+}
+
+struct Daemon::Impl {
+  DaemonOptions options;
+  std::string daemon_id;
+  std::shared_ptr<grpc::Channel> channel;
+  TakeRecorderOptions recorder_options;
+
+  boost::asio::io_context io;
+  boost::asio::signal_set signals{io, SIGINT, SIGTERM};
+  boost::asio::steady_timer timer{io};
+  std::unique_ptr<grpc::Service> control_service;
+  std::unique_ptr<grpc::Server> control_server;
+  std::string bound_control;
+  std::atomic<bool> stop_requested{false};
+  std::atomic<int> signals_received{0};
+  int64_t start_steady_ns = 0;
+  int64_t last_log_steady_ns = 0;
+
+  // Sensors, takes. Lock order: mutex before sync_mutex.
+  mutable std::mutex mutex;
+  std::vector<std::unique_ptr<SensorEntry>> sensors;
+  std::shared_ptr<TakeRecorder> take;  // Being recorded.
+  int64_t take_started_steady_ns = 0;
+  double take_max_seconds = 0.0;
+  std::shared_ptr<TakeRecorder> once_take;
+  std::vector<std::shared_ptr<TakeRecorder>> draining;  // Stopped or resumed, not done.
+  std::set<const TakeRecorder*> resumed;                // Found in the spool at start.
+  std::shared_ptr<TakeRecorder> last_take;
+  int64_t reconnects_finished = 0;
+
+  // The frame path.
+  std::mutex sync_mutex;
+  std::unique_ptr<SyncGroup> sync;
+  std::shared_ptr<TakeRecorder> recording;
+  int64_t refused_logged_steady_ns = 0;
+
+  // Copy of the sync figures for Status (the frame path may hold sync_mutex
+  // while it waits for spool space).
+  mutable std::mutex snapshot_mutex;
+  SyncSummary snapshot;
+  std::vector<v1::SensorSyncStats> snapshot_sensors;
+  int64_t snapshot_steady_ns = 0;
+
+  std::mutex log_mutex;
+
+  void Log(const std::string& line) {
+    if (options.log == nullptr) return;
+    std::lock_guard<std::mutex> lock(log_mutex);
+    *options.log << "reenactd: " << line << std::endl;
+  }
+  void Verbose(const std::string& line) {
+    if (options.verbose) Log(line);
+  }
+
+  // --- frame path (sensor threads) ---
+  void OnFrame(SensorEntry* entry, CapturedFrame frame);
+  void OnSensorEnd(SensorEntry* entry, const absl::Status& why);
+  void RecordLocked(std::vector<v1::FrameSet> sets);
+  void SnapshotLocked(bool force);
+
+  // --- control (gRPC threads, io thread) ---
+  absl::StatusOr<std::string> StartTake(const v1::StartTakeRequest& request);
+  absl::StatusOr<v1::StopTakeResponse> StopTake(const std::string& reason, bool flush);
+  v1::DaemonStatus Status();
+  std::vector<v1::SensorInfo> ListSensors();
+
+  // --- io thread ---
+  absl::Status AddSensors(SensorList opened);
+  absl::Status StartControl(CaptureController* controller);
+  void ResumeUnfinished();
+  void ArmSignals();
+  void ArmTimer();
+  void Tick();
+  void StopSensors();
+  bool AllSensorsGone();
+  void RescanHardware();
+  void WriteStats(const absl::Status& result);
+  std::optional<absl::Status> once_result;
+};
+
+// ---------------------------------------------------------------------------
+// Frame path
+
+void Daemon::Impl::OnFrame(SensorEntry* entry, CapturedFrame frame) {
+  if (absl::Status s = entry->processor->Process(frame); !s.ok()) {
+    if (entry->processing_errors++ == 0) {
+      Log(absl::StrCat("error: sensor ", entry->info.sensor_id(), ": ", s.message(),
+                       " (further processing errors of this sensor are counted, not logged)"));
+    }
+    return;
+  }
+  ++entry->frames;
+  std::lock_guard<std::mutex> lock(sync_mutex);
+  RecordLocked(sync->Add(std::move(frame.frame)));
+  SnapshotLocked(false);
+}
+
+void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
+  if (recording == nullptr) return;
+  for (v1::FrameSet& set : sets) {
+    const absl::Status added = recording->Add(std::move(set));
+    if (added.ok() || absl::IsFailedPrecondition(added)) continue;
+    const int64_t now = SteadyNowNs();
+    if (now - refused_logged_steady_ns > kNanosPerSecond) {
+      refused_logged_steady_ns = now;
+      Log(absl::StrCat("ERROR: take ", recording->take_id(), ": ", added.message(), " (",
+                       recording->Stats().frame_sets_refused,
+                       " frame sets refused so far; the server is not keeping up or is away)"));
+    }
+  }
+}
+
+void Daemon::Impl::SnapshotLocked(bool force) {
+  const int64_t now = SteadyNowNs();
+  if (!force && now - snapshot_steady_ns < 100'000'000) return;
+  snapshot_steady_ns = now;
+  SyncSummary summary = sync->Summary();
+  std::vector<v1::SensorSyncStats> sensor_stats = sync->SensorStats();
+  std::lock_guard<std::mutex> lock(snapshot_mutex);
+  snapshot = std::move(summary);
+  snapshot_sensors = std::move(sensor_stats);
+}
+
+void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
+  const std::string id = entry->info.sensor_id();
+  const std::string reason = why.ok() ? "end of recording" : std::string(why.message());
+  // The take is told of a lost sensor only while others stream on: the
+  // last sensor to end ends the take instead.
+  bool others_streaming = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    entry->state = v1::SENSOR_STATE_GONE;
+    entry->detail = reason;
+    for (const auto& other : sensors) {
+      if (other.get() != entry && other->state != v1::SENSOR_STATE_GONE) others_streaming = true;
+    }
+  }
+  if (!why.ok()) Log(absl::StrCat("sensor ", id, " lost: ", reason));
+  {
+    std::lock_guard<std::mutex> lock(sync_mutex);
+    RecordLocked(sync->SensorLost(id));
+    if (recording && others_streaming) recording->SensorLost(id, WallNowNs(), reason);
+    SnapshotLocked(true);
+  }
+  boost::asio::post(io, [this] {
+    if (!options.once || !AllSensorsGone()) return;
+    std::shared_ptr<TakeRecorder> current;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      current = take;
+    }
+    if (current) (void)StopTake("end of source", /*flush=*/true);
+  });
+}
+
+// ---------------------------------------------------------------------------
+// Control
+
+std::vector<v1::SensorInfo> Daemon::Impl::ListSensors() {
+  std::lock_guard<std::mutex> lock(mutex);
+  std::vector<v1::SensorInfo> out;
+  for (const auto& entry : sensors) {
+    v1::SensorInfo info = entry->info;
+    info.set_state(entry->state);
+    info.set_detail(entry->detail);
+    info.set_frames_delivered(entry->frames.load());
+    out.push_back(std::move(info));
+  }
+  return out;
+}
+
+absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& request) {
+  std::lock_guard<std::mutex> lock(mutex);
+  if (take) {
+    return absl::FailedPreconditionError(absl::StrCat("take ", take->take_id(), " is being recorded"));
+  }
+  if (stop_requested) return absl::FailedPreconditionError("reenactd is shutting down");
+  std::vector<v1::SensorCalibration> calibrations;
+  double fps = 0.0;
+  for (const auto& entry : sensors) {
+    if (entry->state != v1::SENSOR_STATE_STREAMING) continue;
+    v1::SensorCalibration calibration = entry->processor->calibration();
+    calibration.set_sensor_id(entry->info.sensor_id());
+    calibrations.push_back(std::move(calibration));
+    fps = std::max(fps, entry->info.nominal_fps());
+  }
+  if (calibrations.empty()) return absl::FailedPreconditionError("no sensor streams");
+  v1::TakeInfo info;
+  info.set_name(request.name().empty() ? options.take_name : request.name());
+  info.set_notes(request.notes());
+  info.set_created_unix_ns(WallNowNs());
+  info.set_generator(kGenerator);
+  info.set_fps(fps);
+  const std::string take_id = MakeTakeId(info.name());
+  ASSIGN_OR_RETURN(std::unique_ptr<TakeRecorder> recorder,
+                   TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info,
+                                       calibrations));
+  take = std::move(recorder);
+  take_started_steady_ns = SteadyNowNs();
+  take_max_seconds = request.max_seconds();
+  last_take = take;
+  {
+    std::lock_guard<std::mutex> sync_lock(sync_mutex);
+    recording = take;
+  }
+  Verbose(absl::StrCat("take ", take_id, " started with ", calibrations.size(), " sensors"));
+  return take_id;
+}
+
+absl::StatusOr<v1::StopTakeResponse> Daemon::Impl::StopTake(const std::string& reason, bool flush) {
+  std::lock_guard<std::mutex> lock(mutex);
+  if (!take) return absl::FailedPreconditionError("no take is being recorded");
+  std::shared_ptr<TakeRecorder> stopping = std::move(take);
+  take = nullptr;
+  stopping->StopWaiting();  // Frees the frame path if it waits for spool space.
+  {
+    std::lock_guard<std::mutex> sync_lock(sync_mutex);
+    if (flush) RecordLocked(sync->Flush());
+    recording = nullptr;
+    SnapshotLocked(true);
+  }
+  stopping->Stop(reason);
+  draining.push_back(stopping);
+  v1::StopTakeResponse response;
+  response.set_take_id(stopping->take_id());
+  response.set_frame_set_count(stopping->last_sequence());
+  Verbose(absl::StrCat("take ", stopping->take_id(), " stopped (", reason, ") after ",
+                       stopping->last_sequence(), " frame sets"));
+  return response;
+}
+
+v1::DaemonStatus Daemon::Impl::Status() {
+  v1::DaemonStatus status;
+  status.set_daemon_id(daemon_id);
+  status.set_server_address(options.server_address);
+  std::vector<std::shared_ptr<TakeRecorder>> takes;
+  std::shared_ptr<TakeRecorder> current;
+  std::shared_ptr<TakeRecorder> latest;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    current = take;
+    latest = last_take;
+    takes = draining;
+    if (take) takes.push_back(take);
+    status.set_reconnects(reconnects_finished);
+  }
+  std::map<std::string, int64_t> refused_frames;
+  for (const auto& recorder : takes) {
+    const TakeStats stats = recorder->Stats();
+    status.set_spool_frame_sets(status.spool_frame_sets() + stats.spool_frame_sets);
+    status.set_spool_bytes(status.spool_bytes() + stats.spool_bytes);
+    status.set_spool_refused_frame_sets(status.spool_refused_frame_sets() +
+                                        stats.frame_sets_refused);
+    status.set_reconnects(status.reconnects() + stats.uplink.reconnects);
+    if (recorder == current) {
+      status.set_take_id(stats.take_id);
+      status.set_server_connected(stats.uplink.connected);
+      status.set_last_sequence(static_cast<uint64_t>(stats.frame_sets));
+      status.set_durable_sequence(stats.durable_sequence);
+    }
+  }
+  if (!current && latest) {
+    const TakeStats stats = latest->Stats();
+    status.set_server_connected(stats.uplink.connected);
+    status.set_last_sequence(static_cast<uint64_t>(stats.frame_sets));
+    status.set_durable_sequence(stats.durable_sequence);
+  }
+  {
+    std::lock_guard<std::mutex> lock(snapshot_mutex);
+    status.set_frame_sets(snapshot.frame_sets);
+    status.set_skew_p50_ns(snapshot.skew_p50_ns);
+    status.set_skew_max_ns(snapshot.skew_max_ns);
+    for (const v1::SensorSyncStats& s : snapshot_sensors) *status.add_sync() = s;
+  }
+  for (v1::SensorInfo& info : ListSensors()) *status.add_sensors() = std::move(info);
+  return status;
+}
+
+// ---------------------------------------------------------------------------
+// Setup, housekeeping, shutdown
+
+absl::Status Daemon::Impl::AddSensors(SensorList opened) {
+  // Every sensor joins the sync group before any of them starts, so that no
+  // set leaves early for want of a sensor not yet known.
+  std::vector<SensorEntry*> added;
+  for (auto& sensor : opened) {
+    auto entry = std::make_unique<SensorEntry>();
+    entry->info = sensor->info();
+    ASSIGN_OR_RETURN(entry->processor, FrameProcessor::Create(entry->info, options.processing));
+    entry->sensor = std::move(sensor);
+    {
+      std::lock_guard<std::mutex> lock(sync_mutex);
+      RETURN_IF_ERROR(sync->AddSensor(entry->info.sensor_id(), entry->info.nominal_fps()));
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    entry->state = v1::SENSOR_STATE_STREAMING;
+    added.push_back(entry.get());
+    sensors.push_back(std::move(entry));
+  }
+  for (SensorEntry* raw : added) {
+    const absl::Status started = raw->sensor->Start(
+        [this, raw](CapturedFrame frame) { OnFrame(raw, std::move(frame)); },
+        [this, raw](const absl::Status& why) { OnSensorEnd(raw, why); });
+    if (started.ok()) continue;
+    Log(absl::StrCat("error: sensor ", raw->info.sensor_id(), " did not start: ", started.message()));
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      raw->state = v1::SENSOR_STATE_GONE;
+      raw->detail = std::string(started.message());
+    }
+    std::lock_guard<std::mutex> lock(sync_mutex);
+    (void)sync->SensorLost(raw->info.sensor_id());
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
+  if (options.control_address.empty()) return absl::OkStatus();
+  control_service = CreateCaptureControlService(controller);
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(options.control_address, grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(control_service.get());
+  control_server = builder.BuildAndStart();
+  if (!control_server || port == 0) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot listen on --control ", options.control_address));
+  }
+  const std::string host = options.control_address.substr(0, options.control_address.rfind(':'));
+  bound_control = absl::StrCat(host, ":", port);
+  Log(absl::StrCat("control service listening on ", bound_control));
+  if (!options.control_port_file.empty()) {
+    RETURN_IF_ERROR(WriteFileAtomically(options.control_port_file, bound_control + "\n"));
+  }
+  return absl::OkStatus();
+}
+
+void Daemon::Impl::ResumeUnfinished() {
+  for (const std::string& dir : ListUnfinishedTakes(options.spool_dir)) {
+    absl::StatusOr<std::unique_ptr<TakeRecorder>> opened =
+        TakeRecorder::ResumeUnfinished(channel, recorder_options, dir);
+    if (!opened.ok()) {
+      Log(absl::StrCat("error: cannot resume the spooled take in ", dir, ": ", opened.status().message()));
+      continue;
+    }
+    std::shared_ptr<TakeRecorder> resumed_take = std::move(*opened);
+    Log(absl::StrCat("resuming the upload of spooled take ", resumed_take->take_id()));
+    std::lock_guard<std::mutex> lock(mutex);
+    resumed.insert(resumed_take.get());
+    draining.push_back(std::move(resumed_take));
+  }
+}
+
+void Daemon::Impl::ArmSignals() {
+  signals.async_wait([this](const boost::system::error_code& error, int signal) {
+    if (error) return;
+    ++signals_received;
+    if (signals_received == 1) {
+      Log(absl::StrCat("signal ", signal, ": stopping (", options.drain_timeout_s,
+                       " s to make the take durable)"));
+    } else {
+      Log("second signal: giving up on the drain");
+    }
+    stop_requested = true;
+    io.stop();
+    ArmSignals();
+  });
+}
+
+void Daemon::Impl::ArmTimer() {
+  timer.expires_after(kTick);
+  timer.async_wait([this](const boost::system::error_code& error) {
+    if (error) return;
+    Tick();
+    ArmTimer();
+  });
+}
+
+bool Daemon::Impl::AllSensorsGone() {
+  std::lock_guard<std::mutex> lock(mutex);
+  return std::all_of(sensors.begin(), sensors.end(),
+                     [](const auto& e) { return e->state == v1::SENSOR_STATE_GONE; });
+}
+
+void Daemon::Impl::Tick() {
+  if (stop_requested) {
+    io.stop();
+    return;
+  }
+  {
+    std::unique_lock<std::mutex> lock(sync_mutex, std::try_to_lock);
+    if (lock.owns_lock()) {
+      RecordLocked(sync->Expire(WallNowNs(), kStallNs));
+      SnapshotLocked(false);
+    }
+  }
+  std::shared_ptr<TakeRecorder> current;
+  double max_seconds = 0;
+  int64_t started_ns = 0;
+  std::vector<std::shared_ptr<TakeRecorder>> finished;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    current = take;
+    max_seconds = take_max_seconds;
+    started_ns = take_started_steady_ns;
+    for (auto it = draining.begin(); it != draining.end();) {
+      if ((*it)->done()) {
+        finished.push_back(*it);
+        it = draining.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  if (current && current->done()) {  // The uplink failed while recording.
+    Log(absl::StrCat("error: take ", current->take_id(), ": ", current->result().message()));
+    (void)StopTake("uplink failed", /*flush=*/false);
+    finished.push_back(current);
+    std::lock_guard<std::mutex> lock(mutex);
+    draining.erase(std::remove(draining.begin(), draining.end(), current), draining.end());
+  } else if (current && max_seconds > 0 &&
+             NsToSeconds(SteadyNowNs() - started_ns) >= max_seconds) {
+    (void)StopTake("max seconds reached", /*flush=*/false);
+  }
+  for (const auto& recorder : finished) {
+    recorder->WaitDone(0);  // Removes the spool folder of a closed take.
+    const absl::Status result = recorder->result();
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      reconnects_finished += recorder->Stats().uplink.reconnects;
+    }
+    if (result.ok()) {
+      Verbose(absl::StrCat("take ", recorder->take_id(), " is durable on the server"));
+    } else {
+      Log(absl::StrCat("error: take ", recorder->take_id(), " failed: ", result.message(),
+                       "; its spool stays on disk"));
+    }
+    if (recorder == once_take) {
+      once_result = result;
+      io.stop();
+    }
+  }
+  if (options.verbose && SteadyNowNs() - last_log_steady_ns >= kNanosPerSecond) {
+    last_log_steady_ns = SteadyNowNs();
+    const v1::DaemonStatus status = Status();
+    std::string line = absl::StrCat("sets ", status.frame_sets(), " skew p50 ",
+                                    absl::StrFormat("%.1f", Ms(status.skew_p50_ns())), " ms");
+    for (const auto& s : status.sync()) {
+      absl::StrAppend(&line, " | ", s.sensor_id(), " in ", s.frames_in(), " drop ", s.frames_dropped(),
+                      " dup ", s.frames_duplicate());
+    }
+    absl::StrAppend(&line, " | take ", status.take_id().empty() ? "-" : status.take_id(), " sent ",
+                    status.last_sequence(), " durable ", status.durable_sequence(), " spool ",
+                    status.spool_frame_sets(), " sets ", status.spool_bytes() >> 20, " MiB",
+                    status.server_connected() ? " connected" : " not connected", " reconnects ",
+                    status.reconnects());
+    Verbose(line);
+  }
+}
+
+void Daemon::Impl::StopSensors() {
+  std::vector<Sensor*> all;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& entry : sensors) all.push_back(entry->sensor.get());
+  }
+  for (Sensor* sensor : all) sensor->Stop();
+}
+
+void Daemon::Impl::RescanHardware() {
+  std::vector<SourceSpec> hardware;
+  for (const SourceSpec& spec : options.sources) {
+    if (spec.backend != "playback") hardware.push_back(spec);
+  }
+  if (hardware.empty()) return;
+  std::set<std::string> streaming;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& entry : sensors) {
+      if (entry->state == v1::SENSOR_STATE_STREAMING) {
+        streaming.insert(entry->info.backend() + "|" + entry->info.serial() + "|" + entry->info.uri());
+      }
+    }
+  }
+  SourceOptions source_options;
+  source_options.fast = options.fast;
+  source_options.loop = options.loop;
+  for (const SourceSpec& spec : hardware) {
+    absl::StatusOr<SensorList> opened = OpenSources({spec}, source_options);
+    if (!opened.ok()) continue;  // Nothing new there (or the device is busy).
+    SensorList fresh;
+    for (auto& sensor : *opened) {
+      const v1::SensorInfo info = sensor->info();
+      if (!streaming.count(info.backend() + "|" + info.serial() + "|" + info.uri())) {
+        fresh.push_back(std::move(sensor));
+      }
+    }
+    if (absl::Status s = AddSensors(std::move(fresh)); !s.ok()) {
+      Log(absl::StrCat("error: hotplug: ", s.message()));
+    }
+  }
+}
+
+void Daemon::Impl::WriteStats(const absl::Status& result) {
+  if (options.stats_json.empty()) return;
+  int64_t user_us = 0;
+  int64_t sys_us = 0;
+  const double cpu_s = CpuSeconds(&user_us, &sys_us);
+  SyncSummary sync_summary;
+  {
+    std::lock_guard<std::mutex> lock(sync_mutex);
+    sync_summary = sync->Summary();
+  }
+  nlohmann::json j;
+  j["daemon_id"] = daemon_id;
+  j["result"] = result.ok() ? "ok" : std::string(result.message());
+  int64_t dropped = 0;
+  int64_t duplicates = 0;
+  nlohmann::json sync_sensors = nlohmann::json::object();
+  for (const SyncSensorStats& s : sync_summary.sensors) {
+    dropped += s.frames_dropped;
+    duplicates += s.frames_duplicate;
+    sync_sensors[s.sensor_id] = {{"frames_in", s.frames_in},
+                                 {"frames_dropped", s.frames_dropped},
+                                 {"frames_duplicate", s.frames_duplicate},
+                                 {"clock_offset_ms", Ms(s.clock_offset_ns)}};
+  }
+  j["sync"] = {{"frame_sets", sync_summary.frame_sets},
+               {"incomplete_sets", sync_summary.incomplete_sets},
+               {"skew_p50_ms", Ms(sync_summary.skew_p50_ns)},
+               {"skew_p99_ms", Ms(sync_summary.skew_p99_ns)},
+               {"skew_max_ms", Ms(sync_summary.skew_max_ns)},
+               {"sensors", sync_sensors}};
+  j["frames_dropped"] = dropped;
+  j["frames_duplicate"] = duplicates;
+  j["skew_p50_ms"] = Ms(sync_summary.skew_p50_ns);
+  j["skew_p99_ms"] = Ms(sync_summary.skew_p99_ns);
+  std::shared_ptr<TakeRecorder> recorder;
+  int64_t reconnects = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    recorder = last_take;
+    reconnects = reconnects_finished;
+    for (const auto& r : draining) reconnects += r->Stats().uplink.reconnects;
+    if (take) reconnects += take->Stats().uplink.reconnects;
+  }
+  if (recorder) {
+    const TakeStats stats = recorder->Stats();
+    j["take_id"] = stats.take_id;
+    j["frame_sets"] = stats.frame_sets;
+    j["frame_sets_durable"] = stats.durable_sequence;
+    j["frame_sets_refused"] = stats.frame_sets_refused;
+    j["frames_per_sensor"] = stats.frames_per_sensor;
+    j["frame_set_bytes_mean"] =
+        stats.frame_sets > 0 ? static_cast<double>(stats.bytes_total) / stats.frame_sets : 0.0;
+    j["latency_ms"] = {{"p50", Ms(stats.latency_p50_ns)},
+                       {"p99", Ms(stats.latency_p99_ns)},
+                       {"max", Ms(stats.latency_max_ns)},
+                       {"frame_sets", stats.acked_sets}};
+    j["frame_sets_sent"] = stats.uplink.frame_sets_sent;
+  } else {
+    j["take_id"] = "";
+    j["frame_sets"] = 0;
+  }
+  j["reconnects"] = reconnects;
+  j["cpu_s"] = cpu_s;
+  j["cpu_user_s"] = static_cast<double>(user_us) * 1e-6;
+  j["cpu_sys_s"] = static_cast<double>(sys_us) * 1e-6;
+  j["wall_s"] = NsToSeconds(SteadyNowNs() - start_steady_ns);
+  if (absl::Status s = WriteFileAtomically(options.stats_json, j.dump(2) + "\n"); !s.ok()) {
+    Log(absl::StrCat("error: --stats-json: ", s.message()));
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Daemon
+
+Daemon::Daemon(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Daemon::~Daemon() {
+  impl_->StopSensors();
+  if (impl_->control_server) impl_->control_server->Shutdown();
+}
+
+absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  impl->start_steady_ns = SteadyNowNs();
+  if (absl::Status s = CreateDirectories(options.spool_dir); !s.ok()) {
+    return absl::UnavailableError(absl::StrCat("--spool: ", s.message()));
+  }
+  impl->daemon_id = options.daemon_id.empty() ? DefaultDaemonId(options.spool_dir) : options.daemon_id;
+  impl->channel = MakeIngestChannel(options.server_address, options.uplink);
+  impl->recorder_options.spool_root = options.spool_dir;
+  impl->recorder_options.spool_max_bytes = options.spool_max_mb << 20;
+  impl->recorder_options.uplink = options.uplink;
+  // Recordings can wait for the server; live sensors cannot.
+  impl->recorder_options.wait_when_full =
+      std::all_of(options.sources.begin(), options.sources.end(),
+                  [](const SourceSpec& s) { return s.backend == "playback"; });
+  ASSIGN_OR_RETURN(impl->sync, SyncGroup::Create(options.sync));
+  return std::unique_ptr<Daemon>(new Daemon(std::move(impl)));
+}
+
+absl::Status Daemon::Run() {
+  Impl& d = *impl_;
+  SourceOptions source_options;
+  source_options.fast = d.options.fast;
+  source_options.loop = d.options.loop;
+  ASSIGN_OR_RETURN(SensorList opened, OpenSources(d.options.sources, source_options));
+  RETURN_IF_ERROR(d.AddSensors(std::move(opened)));
+  if (d.AllSensorsGone()) {
+    d.StopSensors();
+    return absl::FailedPreconditionError("no sensor streams");
+  }
+  // The control address (and its file) appear once the sensors stream.
+  if (absl::Status s = d.StartControl(this); !s.ok()) {
+    d.StopSensors();
+    return s;
+  }
+  d.ResumeUnfinished();
+  if (d.options.once) {
+    v1::StartTakeRequest request;
+    request.set_name(d.options.take_name);
+    request.set_max_seconds(d.options.max_seconds);
+    absl::StatusOr<std::string> take_id = d.StartTake(request);
+    if (!take_id.ok()) {
+      d.StopSensors();
+      return take_id.status();
+    }
+    std::lock_guard<std::mutex> lock(d.mutex);
+    d.once_take = d.take;
+  }
+  d.ArmSignals();
+  d.ArmTimer();
+  // USB hotplug for hardware sources: arrivals rescan the backends, and a
+  // departure is logged (the sensor's own stream ends by itself). Without
+  // USB access (e.g. a container without /dev/bus/usb) the daemon runs on.
+  std::unique_ptr<UsbHotplugMonitor> hotplug;
+  const bool hardware = std::any_of(d.options.sources.begin(), d.options.sources.end(),
+                                    [](const SourceSpec& s) { return s.backend != "playback"; });
+  if (hardware) {
+    auto monitor = UsbHotplugMonitor::Start([this](const UsbHotplugEvent& event) {
+      impl_->Log(absl::StrCat("usb: ", event.ToString()));
+      OnUsbEvent(UsbEvent{event.kind == UsbHotplugKind::kArrived, event.usb_id(), ""});
+    });
+    if (monitor.ok()) {
+      hotplug = std::move(*monitor);
+    } else {
+      d.Log(absl::StrCat("usb hotplug off: ", std::string(monitor.status().message())));
+    }
+  }
+  d.io.run();
+  hotplug.reset();
+
+  absl::Status result = absl::OkStatus();
+  if (d.once_result.has_value() && !d.stop_requested) {
+    result = *d.once_result;
+    d.StopSensors();
+  } else {
+    // Shut down: stop the sensors, put what the sync group holds in the
+    // take, close it, and wait for the server to make it durable.
+    {
+      std::lock_guard<std::mutex> lock(d.mutex);
+      if (d.take) d.take->StopWaiting();
+    }
+    d.StopSensors();
+    (void)d.StopTake("stopped", /*flush=*/true);
+    std::vector<std::shared_ptr<TakeRecorder>> ours;
+    {
+      std::lock_guard<std::mutex> lock(d.mutex);
+      for (const auto& r : d.draining) {
+        if (!d.resumed.count(r.get())) ours.push_back(r);
+      }
+    }
+    auto all_done = [&ours] {
+      return std::all_of(ours.begin(), ours.end(), [](const auto& r) { return r->done(); });
+    };
+    d.io.restart();
+    const int64_t deadline = SteadyNowNs() + SecondsToNs(d.options.drain_timeout_s);
+    while (!all_done() && d.signals_received < 2 && SteadyNowNs() < deadline) {
+      d.io.run_for(std::chrono::milliseconds(50));
+      d.io.restart();
+    }
+    for (const auto& r : ours) {
+      if (r->done()) {
+        r->WaitDone(0);
+        if (result.ok()) result = r->result();
+        if (!r->result().ok()) {
+          d.Log(absl::StrCat("error: take ", r->take_id(), " failed: ", r->result().message()));
+        }
+        continue;
+      }
+      const TakeStats stats = r->Stats();
+      const absl::Status timed_out = absl::DeadlineExceededError(absl::StrCat(
+          "the server did not make take ", r->take_id(), " durable within ",
+          d.options.drain_timeout_s, " s; ", stats.spool_frame_sets, " frame sets (",
+          stats.spool_bytes, " bytes) stay in the spool ", d.options.spool_dir, "/", r->take_id(),
+          " and are sent when reenactd starts again"));
+      if (result.ok()) {
+        result = timed_out;  // The caller reports it.
+      } else {
+        d.Log(std::string(timed_out.message()));
+      }
+    }
+  }
+  {
+    std::lock_guard<std::mutex> lock(d.mutex);
+    if (d.take) d.take->Abort();
+    for (const auto& r : d.draining) {
+      if (r->done()) {
+        r->WaitDone(0);  // Removes the spool folder of a closed take.
+      } else {
+        r->Abort();
+      }
+    }
+  }
+  d.WriteStats(result);
+  if (d.control_server) d.control_server->Shutdown(std::chrono::system_clock::now() +
+                                                   std::chrono::milliseconds(500));
+  return result;
+}
+
+void Daemon::RequestStop() {
+  impl_->stop_requested = true;
+  boost::asio::post(impl_->io, [this] { impl_->io.stop(); });
+}
+
+std::string Daemon::control_address() const { return impl_->bound_control; }
+
+std::vector<v1::SensorInfo> Daemon::ListSensors() { return impl_->ListSensors(); }
+
+absl::StatusOr<std::string> Daemon::StartTake(const v1::StartTakeRequest& request) {
+  return impl_->StartTake(request);
+}
+
+absl::StatusOr<v1::StopTakeResponse> Daemon::StopTake() {
+  return impl_->StopTake("stopped", /*flush=*/false);
+}
+
+v1::DaemonStatus Daemon::Status() { return impl_->Status(); }
+
+void Daemon::OnUsbEvent(const UsbEvent& event) {
+  if (!event.arrived) return;
+  boost::asio::post(impl_->io, [this] { impl_->RescanHardware(); });
+}
+
+}  // namespace reenact::capture

@@ -1,0 +1,124 @@
+// reenactd, the capture daemon: sensors -> per-sensor processing -> sync
+// group -> take recorder (disk spool + Ingest uplink), with the
+// CaptureControl service beside it. Runs on a Boost.Asio io_context that
+// handles SIGINT/SIGTERM and a 100 ms housekeeping timer (stalled sets,
+// --max-seconds, --once completion, per-second log lines with --verbose).
+//
+// Frame path: each sensor's thread runs its FrameProcessor, then adds the
+// frame to the sync group under one lock; the sets it completes go to the
+// take being recorded (if any), whose spool write is the only disk work on
+// that path. When a take is stopped the sensors keep streaming (daemon mode)
+// or are stopped (--once, shutdown); the take closes once the server holds
+// every set, and a shutdown waits up to drain_timeout_s for that.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <iosfwd>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "capture_daemon/capture_control_service.h"
+#include "capture_daemon/processing/frame_processor.h"
+#include "capture_daemon/sensor_factory.h"
+#include "capture_daemon/sensors/sensor.h"
+#include "capture_daemon/sync_group.h"
+#include "capture_daemon/take_recorder.h"
+#include "capture_daemon/uplink.h"
+
+namespace reenact::capture {
+
+struct DaemonOptions {
+  // Ingest service of reenact-server, "host:port".
+  std::string server_address = "127.0.0.1:50051";
+  std::vector<SourceSpec> sources;
+  // Playback pacing (SourceOptions.fast / loop).
+  bool fast = false;
+  bool loop = false;
+  // Start a take at once, end it when every source ended (or after
+  // max_seconds), and return when the server holds all of it.
+  bool once = false;
+  // Length limit of the --once take, seconds (0: none).
+  double max_seconds = 0.0;
+  // CaptureControl listening address ("host:0" picks a free port); empty
+  // disables the service.
+  std::string control_address = "127.0.0.1:50052";
+  // File that receives the bound control address ("host:port\n").
+  std::string control_port_file;
+  // Folder of the take spools; bound of each take's spool.
+  std::string spool_dir;
+  int64_t spool_max_mb = 1024;
+  // Name of the --once take (the take id derives from it).
+  std::string take_name = "take";
+  // Stable id of this daemon (DefaultDaemonId when empty).
+  std::string daemon_id;
+  SyncOptions sync;
+  ProcessingOptions processing;
+  UplinkOptions uplink;
+  // How long a shutdown waits for the take to become durable, seconds.
+  double drain_timeout_s = 10.0;
+  // Figures for the end-to-end benchmark, written at exit (JSON).
+  std::string stats_json;
+  // Per-second progress lines on `log`.
+  bool verbose = false;
+  // Where messages go (errors always, progress with verbose); nullptr: none.
+  std::ostream* log = nullptr;
+
+  // InvalidArgument naming the first bad field.
+  absl::Status Validate() const;
+};
+
+// A USB device came or went (from capture_daemon/sensors' hotplug monitor).
+struct UsbEvent {
+  bool arrived = true;
+  std::string usb_id;  // "vendor:product", e.g. "045e:02ae".
+  std::string serial;  // When known.
+};
+
+// "reenactd-<host>-<8 hex>": stable for one machine and spool folder.
+std::string DefaultDaemonId(const std::string& spool_dir);
+// The spool folder used when none is given: $STATE_DIRECTORY/spool under
+// systemd, else /tmp/reenactd-<uid>/spool.
+std::string DefaultSpoolDir();
+
+class Daemon : public CaptureController {
+ public:
+  // Validates the options and opens the sources (NotFound and friends from
+  // the backends, prefixed with the source spec).
+  static absl::StatusOr<std::unique_ptr<Daemon>> Create(const DaemonOptions& options);
+  ~Daemon() override;
+
+  // Runs until RequestStop() or a signal (or, with once, until the take is
+  // closed or failed). OK when every take ended durable on the server;
+  // otherwise the error (e.g. a non-retryable server status, or
+  // DeadlineExceeded when the drain timed out with the spool left on disk).
+  absl::Status Run();
+  // Makes Run() shut down as on SIGTERM. Thread-safe.
+  void RequestStop();
+
+  // Address the control service is bound to (after Run() started it).
+  std::string control_address() const;
+
+  // CaptureController.
+  std::vector<v1::SensorInfo> ListSensors() override;
+  absl::StatusOr<std::string> StartTake(const v1::StartTakeRequest& request) override;
+  absl::StatusOr<v1::StopTakeResponse> StopTake() override;
+  v1::DaemonStatus Status() override;
+
+  // Hotplug hook: an arrival rescans the hardware sources and starts the
+  // sensors that are new; a departure needs nothing (the sensor's stream
+  // ends by itself). Thread-safe; the work runs on the daemon's io_context.
+  void OnUsbEvent(const UsbEvent& event);
+
+ private:
+  struct Impl;
+  explicit Daemon(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace reenact::capture

@@ -1,0 +1,197 @@
+#include "capture_daemon/reenactd_cli.h"
+
+#include <cmath>
+#include <ostream>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/files.h"
+#include "common/base/flags.h"
+#include "common/base/status_macros.h"
+
+namespace reenact::capture {
+
+namespace {
+
+const std::set<std::string> kValueFlags = {
+    "server", "control", "control-port-file", "spool", "spool-max-mb", "take-name",
+    "daemon-id", "sync-tolerance-ms", "segmentation", "registration", "config", "stats-json",
+    "max-seconds", "drain-timeout-s"};
+const std::set<std::string> kBoolFlags = {"fast", "loop", "once", "verbose", "help"};
+
+// Pulls every --source out of `args` (Flags keeps only the last of a
+// repeated flag).
+absl::StatusOr<std::vector<std::string>> ExtractSources(std::vector<std::string>* args) {
+  std::vector<std::string> sources;
+  std::vector<std::string> rest;
+  for (size_t i = 0; i < args->size(); ++i) {
+    const std::string& arg = (*args)[i];
+    if (arg == "--source") {
+      if (i + 1 >= args->size()) return absl::InvalidArgumentError("--source needs a value");
+      sources.push_back((*args)[++i]);
+    } else if (arg.rfind("--source=", 0) == 0) {
+      sources.push_back(arg.substr(9));
+    } else {
+      rest.push_back(arg);
+    }
+  }
+  *args = std::move(rest);
+  return sources;
+}
+
+// Turns the config file into flag arguments (and sources).
+absl::Status ConfigToArgs(const std::string& path, std::vector<std::string>* args,
+                          std::vector<std::string>* sources) {
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object()) {
+    return absl::InvalidArgumentError(absl::StrCat("--config ", path, ": not a JSON object"));
+  }
+  for (const auto& [key, value] : j.items()) {
+    const std::string where = absl::StrCat("--config ", path, ": key \"", key, "\"");
+    if (key == "source") {
+      if (value.is_string()) {
+        sources->push_back(value.get<std::string>());
+      } else if (value.is_array()) {
+        for (const auto& item : value) {
+          if (!item.is_string()) return absl::InvalidArgumentError(where + ": sources are strings");
+          sources->push_back(item.get<std::string>());
+        }
+      } else {
+        return absl::InvalidArgumentError(where + ": a string or a list of strings");
+      }
+    } else if (kBoolFlags.count(key) && key != "help") {
+      if (!value.is_boolean()) return absl::InvalidArgumentError(where + ": true or false");
+      if (value.get<bool>()) args->push_back("--" + key);
+    } else if (kValueFlags.count(key) && key != "config") {
+      if (value.is_string()) {
+        args->push_back(absl::StrCat("--", key, "=", value.get<std::string>()));
+      } else if (value.is_number()) {
+        args->push_back(absl::StrCat("--", key, "=", value.dump()));
+      } else {
+        return absl::InvalidArgumentError(where + ": a string or a number");
+      }
+    } else {
+      return absl::InvalidArgumentError(where + ": unknown key");
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<ProcessingOptions::Mode> ParseMode(const Flags& flags, const std::string& name) {
+  const std::string value = flags.GetOr(name, "auto");
+  if (value == "auto") return ProcessingOptions::Mode::kAuto;
+  if (value == "on") return ProcessingOptions::Mode::kOn;
+  if (value == "off") return ProcessingOptions::Mode::kOff;
+  return absl::InvalidArgumentError(absl::StrCat("--", name, ": auto, on or off, not \"", value, "\""));
+}
+
+}  // namespace
+
+std::string ReenactdUsage() {
+  return "usage: reenactd --server HOST:PORT --source SPEC [--source SPEC ...] [flags]\n"
+         "  --source SPEC           playback:FILE | freenect:0|SERIAL|all | openni2:any|URI |\n"
+         "                          freenect2:any|SERIAL (repeat or separate with commas)\n"
+         "  --server HOST:PORT      Ingest service of reenact-server (default 127.0.0.1:50051)\n"
+         "  --fast                  playback: as fast as the pipeline takes frames\n"
+         "  --loop                  playback: start over at the end of the take\n"
+         "  --once                  record one take until the sources end, exit when durable\n"
+         "  --max-seconds S         end the --once take after S seconds\n"
+         "  --control HOST:PORT     CaptureControl service (default 127.0.0.1:50052; :0 any port)\n"
+         "  --control-port-file F   write the bound control address to F\n"
+         "  --spool DIR             spool folder (default $STATE_DIRECTORY/spool or /tmp)\n"
+         "  --spool-max-mb N        bound of a take's spool (default 1024)\n"
+         "  --take-name NAME        name of the --once take (default \"take\")\n"
+         "  --daemon-id ID          stable id of this daemon (default from host and spool)\n"
+         "  --sync-tolerance-ms X   sync tolerance (default half a frame period)\n"
+         "  --segmentation M        auto|on|off (default auto)\n"
+         "  --registration M        auto|on|off (default auto)\n"
+         "  --drain-timeout-s S     wait at shutdown for the take to be durable (default 10)\n"
+         "  --config FILE           JSON with the same keys; flags win\n"
+         "  --stats-json FILE       figures written at exit\n"
+         "  --verbose               a progress line per second\n";
+}
+
+absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>& args_in,
+                                                 bool* help) {
+  std::vector<std::string> args = args_in;
+  ASSIGN_OR_RETURN(std::vector<std::string> sources, ExtractSources(&args));
+  ASSIGN_OR_RETURN(const Flags cli, Flags::Parse(args, kValueFlags, kBoolFlags));
+  if (help != nullptr) *help = cli.Has("help");
+  if (!cli.positional().empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("unexpected argument \"", cli.positional()[0], "\""));
+  }
+  std::vector<std::string> merged;
+  std::vector<std::string> config_sources;
+  if (auto config = cli.Get("config")) RETURN_IF_ERROR(ConfigToArgs(*config, &merged, &config_sources));
+  merged.insert(merged.end(), args.begin(), args.end());
+  ASSIGN_OR_RETURN(const Flags flags, Flags::Parse(merged, kValueFlags, kBoolFlags));
+  if (sources.empty()) sources = config_sources;
+
+  DaemonOptions options;
+  if (help != nullptr && *help) return options;
+  options.server_address = flags.GetOr("server", options.server_address);
+  ASSIGN_OR_RETURN(options.sources, ParseSourceSpecs(sources));
+  options.fast = flags.Has("fast");
+  options.loop = flags.Has("loop");
+  options.once = flags.Has("once");
+  options.verbose = flags.Has("verbose");
+  ASSIGN_OR_RETURN(options.max_seconds, flags.GetDouble("max-seconds", 0.0));
+  options.control_address = flags.GetOr("control", options.control_address);
+  options.control_port_file = flags.GetOr("control-port-file", "");
+  options.spool_dir = flags.GetOr("spool", DefaultSpoolDir());
+  ASSIGN_OR_RETURN(const int spool_mb, flags.GetInt("spool-max-mb", 1024));
+  options.spool_max_mb = spool_mb;
+  options.take_name = flags.GetOr("take-name", options.take_name);
+  options.daemon_id = flags.GetOr("daemon-id", "");
+  ASSIGN_OR_RETURN(const double tolerance_ms, flags.GetDouble("sync-tolerance-ms", 0.0));
+  if (!std::isfinite(tolerance_ms) || tolerance_ms < 0) {
+    return absl::InvalidArgumentError("--sync-tolerance-ms must be a number >= 0");
+  }
+  options.sync.tolerance_ns = static_cast<int64_t>(tolerance_ms * 1e6);
+  ASSIGN_OR_RETURN(options.processing.segmentation, ParseMode(flags, "segmentation"));
+  ASSIGN_OR_RETURN(options.processing.registration, ParseMode(flags, "registration"));
+  ASSIGN_OR_RETURN(options.drain_timeout_s, flags.GetDouble("drain-timeout-s", 10.0));
+  options.stats_json = flags.GetOr("stats-json", "");
+  if (!std::isfinite(options.max_seconds) || !std::isfinite(options.drain_timeout_s)) {
+    return absl::InvalidArgumentError("--max-seconds and --drain-timeout-s must be finite");
+  }
+  for (const std::string& id : {options.daemon_id}) {
+    for (char c : id) {
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') {
+        return absl::InvalidArgumentError("--daemon-id: only [A-Za-z0-9_-]");
+      }
+    }
+  }
+  RETURN_IF_ERROR(options.Validate());
+  return options;
+}
+
+int RunReenactd(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  bool help = false;
+  absl::StatusOr<DaemonOptions> options = ParseReenactdFlags(args, &help);
+  if (help) {
+    out << ReenactdUsage();
+    return kExitOk;
+  }
+  if (!options.ok()) {
+    err << "reenactd: " << options.status().message() << "\n" << ReenactdUsage();
+    return kExitUsage;
+  }
+  options->log = &err;
+  absl::StatusOr<std::unique_ptr<Daemon>> daemon = Daemon::Create(*options);
+  if (!daemon.ok()) {
+    err << "reenactd: " << daemon.status().message() << "\n";
+    return absl::IsInvalidArgument(daemon.status()) ? kExitUsage : kExitFailure;
+  }
+  const absl::Status result = (*daemon)->Run();
+  if (!result.ok()) {
+    err << "reenactd: " << result.message() << "\n";
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+}  // namespace reenact::capture

@@ -1,0 +1,76 @@
+// Client side of the server's Takes service and the capture daemon's
+// CaptureControl service: what the `reenact` tool, the viewer and scripts use
+// to list, inspect, download and delete stored takes and to drive a daemon.
+// Every call has a deadline; errors carry the address they were sent to.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/channel.h>
+
+#include "absl/status/statusor.h"
+#include "common/base/progress.h"
+#include "reenact/v1/capture_control_service.grpc.pb.h"
+#include "reenact/v1/takes_service.grpc.pb.h"
+
+namespace reenact::client {
+
+struct ConnectionOptions {
+  // HOST:PORT of the server or daemon.
+  std::string address;
+  // Deadline of unary calls, seconds.
+  double timeout_s = 10.0;
+  // Largest message accepted, bytes.
+  int max_message_bytes = 64 << 20;
+};
+
+// An insecure channel (loopback and trusted studio networks).
+std::shared_ptr<grpc::Channel> MakeChannel(const ConnectionOptions& options);
+
+class TakesClient {
+ public:
+  explicit TakesClient(const ConnectionOptions& options);
+  TakesClient(std::shared_ptr<grpc::Channel> channel, const ConnectionOptions& options);
+
+  // Newest first; `state` UNSPECIFIED lists every take.
+  absl::StatusOr<std::vector<v1::Take>> List(
+      v1::TakeState state = v1::TAKE_STATE_UNSPECIFIED) const;
+  absl::StatusOr<v1::Take> Get(const std::string& take_id) const;
+  // Bytes freed on the server.
+  absl::StatusOr<int64_t> Delete(const std::string& take_id) const;
+  // Streams the take's MCAP file into `out_path` (through `out_path`.partial,
+  // renamed once every byte arrived in order), returns its size. DataLoss
+  // when chunks arrive out of order or the size does not add up.
+  absl::StatusOr<int64_t> Download(const std::string& take_id, const std::string& out_path,
+                                   const ProgressCallback& progress = {}) const;
+
+ private:
+  ConnectionOptions options_;
+  std::unique_ptr<v1::Takes::Stub> stub_;
+};
+
+class CaptureClient {
+ public:
+  explicit CaptureClient(const ConnectionOptions& options);
+
+  absl::StatusOr<std::vector<v1::SensorInfo>> ListSensors() const;
+  absl::StatusOr<std::string> StartTake(const std::string& name, const std::string& notes,
+                                        double max_seconds) const;
+  absl::StatusOr<v1::StopTakeResponse> StopTake() const;
+  absl::StatusOr<v1::DaemonStatus> Status() const;
+
+ private:
+  ConnectionOptions options_;
+  std::unique_ptr<v1::CaptureControl::Stub> stub_;
+};
+
+// "RECORDING" -> TAKE_STATE_RECORDING etc. (case-insensitive);
+// InvalidArgument for anything else.
+absl::StatusOr<v1::TakeState> ParseTakeState(const std::string& name);
+// "recording", "complete", "interrupted", "unspecified".
+std::string TakeStateName(v1::TakeState state);
+
+}  // namespace reenact::client

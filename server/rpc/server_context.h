@@ -1,0 +1,25 @@
+// What the RPC handlers reach the server's domain through. The server builds
+// one ServerContext and hands it to every service; handlers hold a reference
+// and touch nothing else, so tests drive them with stores of their own.
+// Later services (jobs, reenactments) add their stores here.
+#pragma once
+
+#include <cstdint>
+
+#include "common/base/thread_pool.h"
+#include "server/store/take_store.h"
+
+namespace reenact::server {
+
+struct ServerContext {
+  // The take store (Ingest, Takes).
+  TakeStore* takes = nullptr;
+  // Runs handler work that blocks (opening a take: file creation, fsync),
+  // keeping it off gRPC's callback threads.
+  ThreadPool* blocking = nullptr;
+  // An ingest stream stops reading while its take has more than this many
+  // bytes queued for the disk (flow control back to the daemon).
+  uint64_t ingest_queue_limit_bytes = uint64_t{64} << 20;
+};
+
+}  // namespace reenact::server

@@ -1,0 +1,123 @@
+#include "server/server.h"
+
+#include <chrono>
+#include <utility>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "server/rpc/ingest_service.h"
+#include "server/rpc/takes_service.h"
+
+namespace reenact::server {
+namespace {
+
+// Largest --max-message-mb: gRPC sizes are int bytes.
+constexpr int kMaxMessageMb = 2047;
+
+// "HOST:PORT" split at the last colon ("[::]:50051" keeps its brackets).
+absl::Status SplitAddress(const std::string& address, std::string* host, int* port) {
+  const size_t colon = address.rfind(':');
+  int value = -1;
+  if (colon == std::string::npos || colon == 0 ||
+      !absl::SimpleAtoi(address.substr(colon + 1), &value) || value < 0 || value > 65535) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("listen address \"", address, "\" is not HOST:PORT (port 0..65535)"));
+  }
+  *host = address.substr(0, colon);
+  *port = value;
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::Status ServerOptions::Validate() const {
+  if (data_dir.empty()) return absl::InvalidArgumentError("the data folder is not set");
+  if (max_message_mb < 1 || max_message_mb > kMaxMessageMb) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("max message size must be 1..", kMaxMessageMb, " MiB, got ", max_message_mb));
+  }
+  if (blocking_threads < 1) return absl::InvalidArgumentError("blocking_threads must be >= 1");
+  if (!listen_address.empty()) {
+    std::string host;
+    int port = 0;
+    RETURN_IF_ERROR(SplitAddress(listen_address, &host, &port));
+  }
+  TakeStoreOptions store_options = store;
+  store_options.data_dir = data_dir;
+  return store_options.Validate();
+}
+
+std::vector<std::unique_ptr<grpc::Service>> MakeServices(ServerContext& context) {
+  std::vector<std::unique_ptr<grpc::Service>> services;
+  services.push_back(std::make_unique<IngestService>(context));
+  services.push_back(std::make_unique<TakesService>(context));
+  return services;
+}
+
+absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
+  std::unique_ptr<Server> server(new Server());
+  server->options_ = options;
+  TakeStoreOptions store_options = options.store;
+  store_options.data_dir = options.data_dir;
+  ASSIGN_OR_RETURN(server->store_, TakeStore::Open(store_options, &server->recovered_));
+  server->blocking_ = std::make_unique<ThreadPool>(options.blocking_threads);
+  server->context_.takes = server->store_.get();
+  server->context_.blocking = server->blocking_.get();
+  server->context_.ingest_queue_limit_bytes = options.ingest_queue_limit_bytes;
+  server->services_ = MakeServices(server->context_);
+
+  grpc::ServerBuilder builder;
+  const int max_bytes = options.max_message_mb << 20;
+  builder.SetMaxReceiveMessageSize(max_bytes);
+  // Notice dead daemons within ~15 s, so that their takes are freed for a
+  // resume; accept the daemons' own keepalive pings.
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 10'000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 5'000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5'000);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  int port = 0;
+  std::string host;
+  if (!options.listen_address.empty()) {
+    RETURN_IF_ERROR(SplitAddress(options.listen_address, &host, &port));
+    builder.AddListeningPort(options.listen_address, grpc::InsecureServerCredentials(),
+                             &server->port_);
+  }
+  for (const auto& service : server->services_) builder.RegisterService(service.get());
+  server->grpc_server_ = builder.BuildAndStart();
+  if (server->grpc_server_ == nullptr || (!options.listen_address.empty() && server->port_ == 0)) {
+    return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen_address,
+                                               " (address in use, not local, or not permitted)"));
+  }
+  if (!options.listen_address.empty()) server->address_ = absl::StrCat(host, ":", server->port_);
+  return server;
+}
+
+Server::~Server() { Shutdown(); }
+
+std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(options_.max_message_mb << 20);
+  args.SetMaxSendMessageSize(-1);
+  return grpc_server_->InProcessChannel(args);
+}
+
+void Server::Shutdown() {
+  if (shut_down_ || grpc_server_ == nullptr) return;
+  shut_down_ = true;
+  store_->Shutdown(absl::UnavailableError(
+      "the server is shutting down; every acknowledged frame set is stored, resume the take "
+      "later"));
+  const auto grace = std::chrono::duration_cast<std::chrono::nanoseconds>(
+      std::chrono::duration<double>(options_.shutdown_grace_s));
+  grpc_server_->Shutdown(std::chrono::system_clock::now() + grace);
+  blocking_->Wait();
+}
+
+void Server::Wait() {
+  if (grpc_server_ != nullptr) grpc_server_->Wait();
+}
+
+}  // namespace reenact::server

@@ -1,0 +1,90 @@
+// reenact-server as a library: opens the take store (recovering takes a
+// crash left recording), registers the services and serves them on a TCP
+// address and in-process. server_main.cc is a thin wrapper; tests start a
+// Server on 127.0.0.1:0 or use InProcessChannel().
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "common/base/thread_pool.h"
+#include "server/rpc/server_context.h"
+#include "server/store/take_store.h"
+
+namespace reenact::server {
+
+struct ServerOptions {
+  // Folder of the catalog and the take files (TakeStoreOptions.data_dir).
+  std::string data_dir;
+  // "HOST:PORT" to listen on; port 0 picks a free one; empty: in-process
+  // only.
+  std::string listen_address = "127.0.0.1:0";
+  // Largest message the server accepts, MiB; bigger ones fail with
+  // RESOURCE_EXHAUSTED.
+  int max_message_mb = 64;
+  // Everything else about the take store (data_dir is taken from above).
+  TakeStoreOptions store;
+  // Threads for blocking handler work (opening takes).
+  int blocking_threads = 2;
+  // An ingest stream stops reading while this many bytes of its take wait
+  // for the disk.
+  uint64_t ingest_queue_limit_bytes = uint64_t{64} << 20;
+  // How long a shutdown lets streams deliver their last answers, seconds.
+  double shutdown_grace_s = 1.0;
+
+  // InvalidArgument naming the first bad field.
+  absl::Status Validate() const;
+};
+
+class Server {
+ public:
+  // Opens the store and starts serving. Unavailable when the address cannot
+  // be bound; the store's errors when the data folder is unusable.
+  static absl::StatusOr<std::unique_ptr<Server>> Start(const ServerOptions& options);
+  // Shutdown().
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // "HOST:PORT" actually bound (the port resolved when 0 was asked); empty
+  // without a listen address.
+  const std::string& address() const { return address_; }
+  int port() const { return port_; }
+  // A channel to this server that bypasses the network.
+  std::shared_ptr<grpc::Channel> InProcessChannel();
+  // Takes that Start() recovered after a crash.
+  const std::vector<RecoveredTake>& recovered() const { return recovered_; }
+  TakeStore& takes() { return *store_; }
+
+  // Graceful stop: refuses new takes, makes every received frame set
+  // durable and finishes recording takes as INTERRUPTED, ends their streams
+  // with UNAVAILABLE, then stops serving. Idempotent.
+  void Shutdown();
+  // Blocks until Shutdown() (from another thread) has stopped the server.
+  void Wait();
+
+ private:
+  Server() = default;
+
+  ServerOptions options_;
+  std::vector<RecoveredTake> recovered_;
+  std::unique_ptr<TakeStore> store_;
+  std::unique_ptr<ThreadPool> blocking_;
+  ServerContext context_;
+  std::vector<std::unique_ptr<grpc::Service>> services_;
+  std::unique_ptr<grpc::Server> grpc_server_;
+  std::string address_;
+  int port_ = 0;
+  bool shut_down_ = false;
+};
+
+// The services of the server, registered in this one place.
+std::vector<std::unique_ptr<grpc::Service>> MakeServices(ServerContext& context);
+
+}  // namespace reenact::server

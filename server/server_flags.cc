@@ -1,0 +1,46 @@
+#include "server/server_flags.h"
+
+#include "absl/strings/str_cat.h"
+#include "common/base/files.h"
+#include "common/base/flags.h"
+#include "common/base/status_macros.h"
+
+namespace reenact::server {
+
+absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::string>& args) {
+  ASSIGN_OR_RETURN(
+      const Flags flags,
+      Flags::Parse(args, {"data", "listen", "max-message-mb", "port-file", "depth-check"},
+                   {"help"}));
+  ServerCommandLine out;
+  if (flags.Has("help")) {
+    out.help = true;
+    return out;
+  }
+  if (!flags.positional().empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("unexpected argument \"", flags.positional().front(), "\""));
+  }
+  ASSIGN_OR_RETURN(out.options.data_dir, flags.Required("data"));
+  ASSIGN_OR_RETURN(out.options.listen_address, flags.Required("listen"));
+  if (out.options.data_dir.empty() || out.options.listen_address.empty()) {
+    return absl::InvalidArgumentError("--data and --listen must not be empty");
+  }
+  ASSIGN_OR_RETURN(out.options.max_message_mb, flags.GetInt("max-message-mb", 64));
+  out.port_file = flags.GetOr("port-file", "");
+  const std::string depth_check = flags.GetOr("depth-check", "decode");
+  if (depth_check != "decode" && depth_check != "header") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--depth-check must be decode or header, got \"", depth_check, "\""));
+  }
+  out.options.store.limits.depth_check =
+      depth_check == "decode" ? DepthCheck::kDecode : DepthCheck::kHeader;
+  RETURN_IF_ERROR(out.options.Validate());
+  return out;
+}
+
+absl::Status WritePortFile(const std::string& path, const std::string& address) {
+  return WriteFileAtomically(path, address + "\n");
+}
+
+}  // namespace reenact::server

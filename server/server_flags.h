@@ -1,0 +1,34 @@
+// The command line of reenact-server, parsed into ServerOptions.
+//   reenact-server --data DIR --listen HOST:PORT [--max-message-mb N]
+//                  [--port-file FILE] [--depth-check decode|header]
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "server/server.h"
+
+namespace reenact::server {
+
+inline constexpr char kServerUsage[] =
+    "usage: reenact-server --data DIR --listen HOST:PORT [--max-message-mb N (default 64)] "
+    "[--port-file FILE] [--depth-check decode|header (default decode)]";
+
+struct ServerCommandLine {
+  ServerOptions options;
+  // Where to write the bound "HOST:PORT\n" (empty: nowhere).
+  std::string port_file;
+  // --help was given.
+  bool help = false;
+};
+
+// Parses `args` (without the program name). InvalidArgument naming the flag
+// for unknown flags, missing --data or --listen, or bad values.
+absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::string>& args);
+
+// Writes "`address`\n" to `path` through a temporary file and a rename.
+absl::Status WritePortFile(const std::string& path, const std::string& address);
+
+}  // namespace reenact::server

@@ -1,0 +1,89 @@
+// The take catalog: an SQLite database in WAL mode beside the take files
+// (DATA/catalog.sqlite), indexing them for the Takes service. The files are
+// the source of truth: after a crash the take store rebuilds a recording
+// take's row from its file. Schema (version Catalog::kSchemaVersion, kept in
+// PRAGMA user_version):
+//   takes    take_id (key), name, state ('recording' | 'complete' |
+//            'interrupted'), daemon_id, created_unix_ns, updated_unix_ns,
+//            durable_sequence, frame_set_count, first_stamp_ns,
+//            last_stamp_ns, duration_ns, size_bytes, path (relative to the
+//            data folder), generator, synthetic, fps
+//   sensors  (take_id, sensor_id) key, model, frame_count, lost_stamp_ns,
+//            lost_reason; rows go with their take (ON DELETE CASCADE)
+// Every commit is fsync'ed (synchronous=FULL); the store writes a recording
+// take's progress about once a second and every state change at once.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "reenact/v1/takes_service.pb.h"
+
+struct sqlite3;
+
+namespace reenact::server {
+
+// One take as the catalog holds it.
+struct TakeRow {
+  // What the Takes service lists (ids, state, counts, sensors).
+  v1::Take take;
+  // The take file, relative to the data folder (e.g. "takes/<id>.mcap").
+  std::string path;
+  // Stamps of the first and last stored frame sets, host clock, ns (both 0
+  // while there are none).
+  int64_t first_stamp_ns = 0;
+  int64_t last_stamp_ns = 0;
+};
+
+// "recording", "complete", "interrupted" (the catalog's spelling of a state).
+std::string_view TakeStateName(v1::TakeState state);
+
+class Catalog {
+ public:
+  static constexpr int kSchemaVersion = 1;
+
+  // Opens (creating when missing) the catalog at `path` and brings its schema
+  // to kSchemaVersion. Unavailable when the file cannot be opened or WAL mode
+  // cannot be turned on; FailedPrecondition when the file's schema is newer
+  // than this build's; DataLoss when it is not a catalog.
+  static absl::StatusOr<std::unique_ptr<Catalog>> Open(const std::string& path);
+  ~Catalog();
+  Catalog(const Catalog&) = delete;
+  Catalog& operator=(const Catalog&) = delete;
+
+  // Inserts or replaces the take and its sensors in one transaction.
+  absl::Status Put(const TakeRow& row);
+  // NotFound when the catalog has no such take.
+  absl::StatusOr<TakeRow> Get(std::string_view take_id) const;
+  // Takes in `state` (UNSPECIFIED: all), newest first (created_unix_ns).
+  absl::StatusOr<std::vector<TakeRow>> List(v1::TakeState state) const;
+  // Removes the take and its sensors. NotFound when unknown.
+  absl::Status Delete(std::string_view take_id);
+
+  // PRAGMA user_version and journal_mode as the database reports them.
+  absl::StatusOr<int> SchemaVersion() const;
+  absl::StatusOr<std::string> JournalMode() const;
+
+ private:
+  Catalog(std::string path, sqlite3* db) : path_(std::move(path)), db_(db) {}
+  absl::Status Migrate();
+  absl::Status Exec(const std::string& sql) const;
+  absl::Status Error(const std::string& what) const;
+  // Rows matching `where` (binding ?1 to `arg`), newest first, with sensors.
+  absl::StatusOr<std::vector<TakeRow>> Query(const std::string& where,
+                                             std::optional<std::string_view> arg) const;
+  absl::Status LoadSensors(TakeRow* row) const;
+
+  std::string path_;
+  sqlite3* db_;
+  mutable std::mutex mu_;  // One connection, one statement at a time.
+};
+
+}  // namespace reenact::server

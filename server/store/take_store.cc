@@ -1,0 +1,484 @@
+#include "server/store/take_store.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
+#include "common/base/time.h"
+#include "server/store/take_file.h"
+
+namespace reenact::server {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr size_t kMaxDaemonIdLength = 128;
+
+std::string TakeRelativePath(const std::string& take_id) {
+  return absl::StrCat("takes/", take_id, ".mcap");
+}
+
+// fsync of a folder, so that a file created in it survives a crash.
+absl::Status SyncDirectory(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const std::string error = std::strerror(errno);
+    if (fd >= 0) ::close(fd);
+    return absl::UnavailableError(absl::StrCat("fsync of folder ", dir, " failed: ", error));
+  }
+  ::close(fd);
+  return absl::OkStatus();
+}
+
+std::set<std::string> SensorIds(const v1::Take& take) {
+  std::set<std::string> ids;
+  for (const v1::TakeSensor& s : take.sensors()) ids.insert(s.sensor_id());
+  return ids;
+}
+
+void ClearCounts(TakeRow& row) { ApplyTakeFileSummary(TakeFileSummary{}, row); }
+
+}  // namespace
+
+absl::Status TakeStoreOptions::Validate() const {
+  if (data_dir.empty()) return absl::InvalidArgumentError("TakeStoreOptions.data_dir is empty");
+  if (!chunk_compression.empty() && chunk_compression != "zstd") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("TakeStoreOptions.chunk_compression must be \"\" or \"zstd\", got \"",
+                     chunk_compression, "\""));
+  }
+  if (chunk_target_bytes == 0 || chunk_target_bytes > (uint64_t{1} << 30)) {
+    return absl::InvalidArgumentError("TakeStoreOptions.chunk_target_bytes must be in 1..1 GiB");
+  }
+  if (!(catalog_update_period_s > 0)) {
+    return absl::InvalidArgumentError("TakeStoreOptions.catalog_update_period_s must be > 0");
+  }
+  return limits.Validate();
+}
+
+TakeStore::TakeStore(TakeStoreOptions options, std::unique_ptr<Catalog> catalog, int lock_fd)
+    : options_(std::move(options)), catalog_(std::move(catalog)), lock_fd_(lock_fd) {}
+
+absl::StatusOr<std::unique_ptr<TakeStore>> TakeStore::Open(const TakeStoreOptions& options,
+                                                           std::vector<RecoveredTake>* recovered) {
+  RETURN_IF_ERROR(options.Validate());
+  if (absl::Status made = CreateDirectories((fs::path(options.data_dir) / "takes").string());
+      !made.ok()) {
+    return absl::PermissionDeniedError(
+        absl::StrCat("data folder ", options.data_dir, " is unusable: ", made.message()));
+  }
+  const std::string lock_path = (fs::path(options.data_dir) / "lock").string();
+  const int lock_fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock_fd < 0) {
+    return absl::PermissionDeniedError(absl::StrCat("data folder ", options.data_dir,
+                                                    " is not writable: ", lock_path, ": ",
+                                                    std::strerror(errno)));
+  }
+  if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(lock_fd);
+    return absl::FailedPreconditionError(absl::StrCat("data folder ", options.data_dir,
+                                                      " is in use by another reenact-server (",
+                                                      lock_path, ")"));
+  }
+  absl::StatusOr<std::unique_ptr<Catalog>> catalog =
+      Catalog::Open((fs::path(options.data_dir) / "catalog.sqlite").string());
+  if (!catalog.ok()) {
+    ::close(lock_fd);
+    return catalog.status();
+  }
+  std::unique_ptr<TakeStore> store(new TakeStore(options, std::move(*catalog), lock_fd));
+  std::vector<RecoveredTake> local;
+  RETURN_IF_ERROR(store->Recover(recovered != nullptr ? recovered : &local));
+  store->catalog_thread_ = std::thread([s = store.get()] { s->CatalogLoop(); });
+  return store;
+}
+
+TakeStore::~TakeStore() {
+  Shutdown(absl::UnavailableError("the take store closed"));
+  { std::lock_guard<std::mutex> wait_for_last_hook(catalog_write_mu_); }
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_catalog_ = true;
+  }
+  catalog_wake_.notify_all();
+  if (catalog_thread_.joinable()) catalog_thread_.join();
+  ::close(lock_fd_);
+}
+
+std::string TakeStore::AbsolutePath(const std::string& relative) const {
+  return (fs::path(options_.data_dir) / relative).string();
+}
+
+TakeWriterOptions TakeStore::WriterOptions() const {
+  TakeWriterOptions writer;
+  writer.mcap.compression = options_.chunk_compression;
+  writer.mcap.zstd_level = options_.zstd_level;
+  // Chunks end where the recorder says (between frame sets), never on size.
+  writer.mcap.chunk_size_bytes = uint64_t{2} << 30;
+  writer.mcap.durable = true;
+  writer.mcap.library = "reenact-server";
+  return writer;
+}
+
+// ------------------------------------------------------------------ recovery
+
+absl::Status TakeStore::Recover(std::vector<RecoveredTake>* recovered) {
+  ASSIGN_OR_RETURN(std::vector<TakeRow> rows, catalog_->List(v1::TAKE_STATE_RECORDING));
+  for (TakeRow& row : rows) recovered->push_back(RecoverTake(std::move(row)));
+  return absl::OkStatus();
+}
+
+RecoveredTake TakeStore::RecoverTake(TakeRow row) {
+  const int64_t start_ns = SteadyNowNs();
+  RecoveredTake out;
+  out.take_id = row.take.take_id();
+  const std::string path = AbsolutePath(row.path);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    out.problem = "the take file is missing";
+    ClearCounts(row);
+  } else {
+    McapAppendReport report;
+    absl::StatusOr<TakeFileSummary> summary = RecoverTakeFile(path, WriterOptions().mcap, &report);
+    out.dropped_bytes = report.dropped_bytes;
+    if (summary.ok()) {
+      ApplyTakeFileSummary(*summary, row);
+    } else {
+      // Keep the bytes for inspection; the take restarts from nothing.
+      const std::string aside = absl::StrCat(path, ".damaged-", WallNowNs());
+      fs::rename(path, aside, ec);
+      out.problem = absl::StrCat(summary.status().message(), "; file moved to ", aside);
+      ClearCounts(row);
+    }
+  }
+  row.take.set_state(v1::TAKE_STATE_INTERRUPTED);
+  row.take.set_updated_unix_ns(WallNowNs());
+  if (absl::Status put = catalog_->Put(row); !put.ok()) {
+    out.problem = absl::StrCat(out.problem, out.problem.empty() ? "" : "; ", put.message());
+  }
+  out.durable_sequence = row.take.durable_sequence();
+  out.size_bytes = row.take.size_bytes();
+  out.elapsed_s = NsToSeconds(SteadyNowNs() - start_ns);
+  return out;
+}
+
+// ------------------------------------------------------------------- opening
+
+absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& request,
+                                                   RecorderObserver* observer) {
+  RETURN_IF_ERROR(ValidateTakeId(request.take_id));
+  if (request.daemon_id.empty() || request.daemon_id.size() > kMaxDaemonIdLength) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("OpenTake.daemon_id must be 1..", kMaxDaemonIdLength, " characters"));
+  }
+  if (request.info.start_stamp_ns() < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("OpenTake.info.start_stamp_ns is negative: ", request.info.start_stamp_ns()));
+  }
+  const std::string& id = request.take_id;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (shutting_down_) return absl::UnavailableError("the server is shutting down");
+    if (const auto active = recording_.find(id); active != recording_.end()) {
+      const std::string owner = active->second->Snapshot().take.daemon_id();
+      if (owner != request.daemon_id) {
+        return absl::PermissionDeniedError(absl::StrCat(
+            "take ", id, " is being recorded by daemon \"", owner, "\"; only it may add to it"));
+      }
+    }
+    if (recording_.contains(id) || opening_.contains(id)) {
+      return absl::AbortedError(absl::StrCat("take ", id,
+                                             " is being recorded by another stream; retry once "
+                                             "that stream has ended"));
+    }
+    opening_.insert(id);
+  }
+  absl::StatusOr<TakeOpenResult> result = [&]() -> absl::StatusOr<TakeOpenResult> {
+    absl::StatusOr<TakeRow> row = catalog_->Get(id);
+    if (absl::IsNotFound(row.status())) return CreateTake(request, observer);
+    if (!row.ok()) return row.status();
+    if (row->take.daemon_id() != request.daemon_id) {
+      return absl::PermissionDeniedError(absl::StrCat("take ", id, " was recorded by daemon \"",
+                                                      row->take.daemon_id(),
+                                                      "\"; only that daemon may resume it"));
+    }
+    if (row->take.state() == v1::TAKE_STATE_COMPLETE) {
+      return TakeOpenResult{nullptr, row->take.durable_sequence(), true, *row};
+    }
+    if (row->take.state() == v1::TAKE_STATE_RECORDING) {  // Left by a failed catalog update.
+      RecoverTake(*row);
+      ASSIGN_OR_RETURN(*row, catalog_->Get(id));
+    }
+    return ResumeTake(request, std::move(*row), observer);
+  }();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    opening_.erase(id);
+    recordings_changed_.notify_all();
+  }
+  return result;
+}
+
+absl::StatusOr<TakeOpenResult> TakeStore::CreateTake(const TakeOpenRequest& request,
+                                                     RecorderObserver* observer) {
+  RETURN_IF_ERROR(ValidateSensors(request.sensors, options_.limits));
+  TakeRow row;
+  row.path = TakeRelativePath(request.take_id);
+  const std::string path = AbsolutePath(row.path);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    ++generations_[request.take_id];
+  }
+  auto writer = TakeWriter::Open(path, request.info, WriterOptions());
+  if (!writer.ok()) return absl::UnavailableError(writer.status().message());
+  absl::Status status;
+  for (const v1::SensorCalibration& sensor : request.sensors) {
+    if (status.ok()) status = (*writer)->AddSensor(sensor);
+  }
+  if (status.ok()) status = (*writer)->Sync();
+  if (status.ok()) status = SyncDirectory(AbsolutePath("takes"));
+  v1::Take& t = row.take;
+  t.set_take_id(request.take_id);
+  t.set_name(request.info.name());
+  t.set_state(v1::TAKE_STATE_RECORDING);
+  t.set_created_unix_ns(WallNowNs());
+  t.set_updated_unix_ns(t.created_unix_ns());
+  t.set_size_bytes(static_cast<int64_t>((*writer)->bytes_written()));
+  t.set_generator(request.info.generator());
+  t.set_synthetic(request.info.synthetic());
+  t.set_fps(request.info.fps());
+  t.set_daemon_id(request.daemon_id);
+  for (const v1::SensorCalibration& sensor : request.sensors) {
+    v1::TakeSensor* s = t.add_sensors();
+    s->set_sensor_id(sensor.sensor_id());
+    s->set_model(sensor.model());
+  }
+  if (status.ok()) status = catalog_->Put(row);
+  if (!status.ok()) {
+    (*writer)->Abort().IgnoreError();
+    std::error_code ec;
+    fs::remove(path, ec);
+    return status;
+  }
+  TakeOpenResult result;
+  result.row = row;
+  result.recorder = StartRecorder(std::move(*writer), std::move(row), observer);
+  return result;
+}
+
+absl::StatusOr<TakeOpenResult> TakeStore::ResumeTake(const TakeOpenRequest& request, TakeRow row,
+                                                     RecorderObserver* observer) {
+  const std::string& id = request.take_id;
+  if (!request.sensors.empty()) {
+    std::set<std::string> asked;
+    for (const v1::SensorCalibration& s : request.sensors) asked.insert(s.sensor_id());
+    if (asked != SensorIds(row.take)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("take ", id, " has sensors {", absl::StrJoin(SensorIds(row.take), ", "),
+                       "}; the resuming OpenTake names {", absl::StrJoin(asked, ", "), "}"));
+    }
+  }
+  const std::string path = AbsolutePath(row.path);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    if (row.take.durable_sequence() != 0) {
+      return absl::DataLossError(absl::StrCat("take ", id, " held ", row.take.durable_sequence(),
+                                              " frame sets but its file is gone"));
+    }
+    // Nothing durable was lost with the file: start the take over.
+    RETURN_IF_ERROR(catalog_->Delete(id));
+    return CreateTake(request, observer);
+  }
+  const TakeRow interrupted = row;
+  row.take.set_state(v1::TAKE_STATE_RECORDING);
+  row.take.set_updated_unix_ns(WallNowNs());
+  RETURN_IF_ERROR(catalog_->Put(row));  // Before the file changes: a crash now is recovered.
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    ++generations_[id];
+  }
+  auto writer = TakeWriter::OpenForAppend(path, WriterOptions());
+  if (!writer.ok()) {
+    catalog_->Put(interrupted).IgnoreError();
+    return absl::DataLossError(
+        absl::StrCat("take ", id, " cannot be continued: ", writer.status().message()));
+  }
+  TakeOpenResult result;
+  result.durable_sequence = row.take.durable_sequence();
+  result.resumed = true;
+  result.row = row;
+  result.recorder = StartRecorder(std::move(*writer), std::move(row), observer);
+  return result;
+}
+
+std::shared_ptr<TakeRecorder> TakeStore::StartRecorder(std::unique_ptr<TakeWriter> writer,
+                                                       TakeRow row, RecorderObserver* observer) {
+  const std::string id = row.take.take_id();
+  const std::string path = AbsolutePath(row.path);
+  const int64_t updated_ns = row.take.updated_unix_ns();
+  auto recorder = std::make_shared<TakeRecorder>(
+      std::move(writer), path, std::move(row), TakeRecorder::Options{options_.chunk_target_bytes},
+      observer, [this](RecordingResult& result) { OnRecordingFinished(result); });
+  bool shutting_down = false;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    recording_[id] = recorder;
+    catalog_updated_ns_[id] = updated_ns;
+    shutting_down = shutting_down_;
+  }
+  recorder->Start();
+  if (shutting_down)
+    recorder->Finish(false, 0, absl::UnavailableError("the server is shutting down"));
+  return recorder;
+}
+
+void TakeStore::OnRecordingFinished(RecordingResult& result) {
+  std::lock_guard<std::mutex> write_lock(catalog_write_mu_);
+  if (absl::Status put = catalog_->Put(result.row); !put.ok()) {
+    // The file is finished; the row stays RECORDING and is recovered from
+    // the file at the next start or resume.
+    result.row.take.set_state(v1::TAKE_STATE_INTERRUPTED);
+    if (result.reason.ok()) result.reason = put;
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  recording_.erase(result.row.take.take_id());
+  catalog_updated_ns_.erase(result.row.take.take_id());
+  recordings_changed_.notify_all();
+}
+
+// ------------------------------------------------------------------- catalog
+
+void TakeStore::UpdateCatalog() {
+  std::lock_guard<std::mutex> write_lock(catalog_write_mu_);
+  std::vector<std::shared_ptr<TakeRecorder>> active;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const auto& [id, recorder] : recording_) active.push_back(recorder);
+  }
+  for (const auto& recorder : active) {
+    const TakeRow row = recorder->Snapshot();
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      int64_t& last = catalog_updated_ns_[recorder->take_id()];
+      if (last == row.take.updated_unix_ns()) continue;
+      last = row.take.updated_unix_ns();
+    }
+    catalog_->Put(row).IgnoreError();  // Retried with the next change.
+  }
+}
+
+void TakeStore::CatalogLoop() {
+  const auto period = std::chrono::duration<double>(options_.catalog_update_period_s);
+  std::unique_lock<std::mutex> lock(mu_);
+  while (!stop_catalog_) {
+    catalog_wake_.wait_for(lock, period, [this] { return stop_catalog_; });
+    if (stop_catalog_) break;
+    lock.unlock();
+    UpdateCatalog();
+    lock.lock();
+  }
+}
+
+// ------------------------------------------------------------------- reading
+
+v1::Take TakeStore::Live(TakeRow row) const {
+  std::shared_ptr<TakeRecorder> recorder;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto it = recording_.find(row.take.take_id()); it != recording_.end()) {
+      recorder = it->second;
+    }
+  }
+  return recorder ? recorder->Snapshot().take : std::move(row.take);
+}
+
+absl::StatusOr<v1::Take> TakeStore::GetTake(const std::string& take_id) const {
+  ASSIGN_OR_RETURN(TakeRow row, catalog_->Get(take_id));
+  return Live(std::move(row));
+}
+
+absl::StatusOr<std::vector<v1::Take>> TakeStore::ListTakes(v1::TakeState state) const {
+  ASSIGN_OR_RETURN(std::vector<TakeRow> rows, catalog_->List(state));
+  std::vector<v1::Take> takes;
+  takes.reserve(rows.size());
+  for (TakeRow& row : rows) takes.push_back(Live(std::move(row)));
+  return takes;
+}
+
+absl::StatusOr<int64_t> TakeStore::DeleteTake(const std::string& take_id) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (recording_.contains(take_id) || opening_.contains(take_id)) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("take ", take_id, " is being recorded; it can be deleted once it ends"));
+    }
+    opening_.insert(take_id);  // Keeps OpenTake away while the take goes.
+  }
+  absl::StatusOr<int64_t> freed = [&]() -> absl::StatusOr<int64_t> {
+    ASSIGN_OR_RETURN(const TakeRow row, catalog_->Get(take_id));
+    RETURN_IF_ERROR(catalog_->Delete(take_id));
+    const std::string path = AbsolutePath(row.path);
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    const int64_t bytes = ec ? 0 : static_cast<int64_t>(size);
+    fs::remove(path, ec);
+    if (ec) {
+      return absl::UnavailableError(absl::StrCat("take ", take_id,
+                                                 " left the catalog but its file ", path,
+                                                 " could not be removed: ", ec.message()));
+    }
+    return bytes;
+  }();
+  std::lock_guard<std::mutex> lock(mu_);
+  opening_.erase(take_id);
+  recordings_changed_.notify_all();
+  return freed;
+}
+
+absl::StatusOr<std::string> TakeStore::TakeFileForReading(const std::string& take_id) const {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (recording_.contains(take_id) || opening_.contains(take_id)) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("take ", take_id, " is being recorded; its file is not finished"));
+    }
+  }
+  ASSIGN_OR_RETURN(const TakeRow row, catalog_->Get(take_id));
+  if (row.take.state() == v1::TAKE_STATE_RECORDING) {
+    return absl::FailedPreconditionError(absl::StrCat("take ", take_id, " is being recorded"));
+  }
+  return AbsolutePath(row.path);
+}
+
+uint64_t TakeStore::FileGeneration(const std::string& take_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  const auto it = generations_.find(take_id);
+  return it == generations_.end() ? 0 : it->second;
+}
+
+// ------------------------------------------------------------------ shutdown
+
+void TakeStore::Shutdown(const absl::Status& reason) {
+  std::vector<std::shared_ptr<TakeRecorder>> active;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    shutting_down_ = true;
+    for (const auto& [id, recorder] : recording_) active.push_back(recorder);
+  }
+  for (const auto& recorder : active) recorder->Finish(false, 0, reason);
+  active.clear();
+  std::unique_lock<std::mutex> lock(mu_);
+  recordings_changed_.wait(lock, [this] { return recording_.empty() && opening_.empty(); });
+}
+
+}  // namespace reenact::server

@@ -5,6 +5,8 @@
 #include <signal.h>
 
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -15,6 +17,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/fakenect_recording.h"
@@ -171,6 +174,32 @@ void CutSensor(const std::string& in, const std::string& out, const std::string&
   ASSERT_TRUE((*writer)->Close().ok());
 }
 
+// Opens `path` with @mcap/core (tests/js/check_take.mjs), an MCAP reader
+// written independently of ours, and compares its per-topic message counts
+// with ours. Skipped (loudly) without node and the npm packages.
+void ExpectIndependentReaderAgrees(const std::string& path, const TakeReader& ours) {
+  const std::string js = std::string(REENACT_SOURCE_DIR) + "/tests/js";
+  if (std::system("node --version > /dev/null 2>&1") != 0 ||
+      !fs::exists(js + "/node_modules/@mcap/core")) {
+    std::printf("*** SKIPPED: node or tests/js/node_modules missing; the @mcap/core check of %s "
+                "did not run ***\n", path.c_str());
+    return;
+  }
+  const std::string out = path + ".check.json";
+  const std::string command =
+      "node '" + js + "/check_take.mjs' '" + path + "' > '" + out + "' 2>&1";
+  const int rc = std::system(command.c_str());
+  const std::string text = ReadText(out);
+  EXPECT_EQ(rc, 0) << text;
+  const nlohmann::json result = nlohmann::json::parse(text, nullptr, false);
+  ASSERT_FALSE(result.is_discarded()) << text;
+  EXPECT_TRUE(result["problems"].empty()) << result["problems"].dump(2);
+  std::map<std::string, uint64_t> theirs, mine;
+  for (const auto& [topic, n] : result["counts"].items()) theirs[topic] = n.get<uint64_t>();
+  for (const TakeChannel& c : ours.channels()) mine[c.topic] = c.message_count;
+  EXPECT_EQ(theirs, mine);
+}
+
 class CaptureIngestTest : public ::testing::Test {
  protected:
   // One 2-sensor synthetic take shared by the tests (1.5 s at 30 fps).
@@ -195,6 +224,10 @@ class CaptureIngestTest : public ::testing::Test {
 
   void SetUp() override {
     dir_ = testing::MakeTempDir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
+  // A failed test keeps its folder (logs, takes) for a look.
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
   }
 
   // The single take on the server, downloaded and opened.
@@ -359,6 +392,9 @@ TEST_F(CaptureIngestTest, ServerKilledMidTakeAndRestartedStoresEveryFrameOnce) {
     mismatched += (it == expected.end() || it->second != bytes);
   }
   EXPECT_EQ(mismatched, 0);
+  // The server appended to the file after the crash; any MCAP reader must
+  // still open it.
+  ExpectIndependentReaderAgrees(dir_ + "/downloaded.mcap", *stored);
   for (const auto& [id, count] : per_sensor) {
     EXPECT_EQ(count, static_cast<int64_t>(sequences.size())) << id;
     EXPECT_EQ(got.count({id, count - 1}), 1u) << id << ": frame indices are not 0.." << count - 1;

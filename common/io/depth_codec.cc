@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "common/base/status_macros.h"
 
 namespace reenact {
 namespace {
@@ -269,7 +270,7 @@ absl::StatusOr<std::string> EncodeDepth(const DepthImageMm& depth_mm,
   return encoded;
 }
 
-absl::StatusOr<DepthImageMm> DecodeDepth(std::string_view bytes) {
+absl::StatusOr<DepthHeader> InspectDepth(std::string_view bytes) {
   if (bytes.size() < kHeaderSize) {
     return HeaderError(bytes.size(),
                        absl::StrCat("input of ", bytes.size(), " bytes ends inside the ",
@@ -282,31 +283,44 @@ absl::StatusOr<DepthImageMm> DecodeDepth(std::string_view bytes) {
   const uint8_t flags = static_cast<uint8_t>(bytes[5]);
   if ((flags & ~kFlagZstd) != 0) return HeaderError(5, "unknown flags");
   if (bytes[6] != 0 || bytes[7] != 0) return HeaderError(6, "reserved bytes not zero");
-  const uint32_t width = LoadLe32(bytes.data() + 8);
-  const uint32_t height = LoadLe32(bytes.data() + 12);
-  if (width > kMaxSidePx) return HeaderError(8, absl::StrCat("width ", width, " too large"));
-  if (height > kMaxSidePx) return HeaderError(12, absl::StrCat("height ", height, " too large"));
-  const uint64_t num_pixels = static_cast<uint64_t>(width) * height;
-  const uint32_t rvl_size = LoadLe32(bytes.data() + 16);
-  if (rvl_size % 4 != 0 || rvl_size > MaxRvlBytes(num_pixels)) {
-    return HeaderError(16, absl::StrCat("implausible RVL size ", rvl_size));
+  DepthHeader header;
+  header.width = LoadLe32(bytes.data() + 8);
+  header.height = LoadLe32(bytes.data() + 12);
+  if (header.width > kMaxSidePx) {
+    return HeaderError(8, absl::StrCat("width ", header.width, " too large"));
   }
-  const uint32_t payload_size = LoadLe32(bytes.data() + 20);
+  if (header.height > kMaxSidePx) {
+    return HeaderError(12, absl::StrCat("height ", header.height, " too large"));
+  }
+  const uint64_t num_pixels = static_cast<uint64_t>(header.width) * header.height;
+  header.rvl_bytes = LoadLe32(bytes.data() + 16);
+  if (header.rvl_bytes % 4 != 0 || header.rvl_bytes > MaxRvlBytes(num_pixels)) {
+    return HeaderError(16, absl::StrCat("implausible RVL size ", header.rvl_bytes));
+  }
+  header.payload_bytes = LoadLe32(bytes.data() + 20);
   const std::string_view payload = bytes.substr(kHeaderSize);
-  if (payload.size() != payload_size) {
-    return HeaderError(
-        std::min<size_t>(bytes.size(), kHeaderSize + payload_size),
-        absl::StrCat("payload is ", payload.size(), " bytes but the header says ", payload_size));
+  if (payload.size() != header.payload_bytes) {
+    return HeaderError(std::min<size_t>(bytes.size(), kHeaderSize + header.payload_bytes),
+                       absl::StrCat("payload is ", payload.size(), " bytes but the header says ",
+                                    header.payload_bytes));
   }
-  const bool zstd = (flags & kFlagZstd) != 0;
-  if (!zstd && payload_size != rvl_size) {
+  header.zstd = (flags & kFlagZstd) != 0;
+  if (!header.zstd && header.payload_bytes != header.rvl_bytes) {
     return HeaderError(20, "payload and RVL sizes differ without zstd");
   }
   if (HeaderAndPayloadCrc(bytes.substr(0, kHeaderSize), payload) !=
       LoadLe32(bytes.data() + kChecksumOffset)) {
     return HeaderError(kChecksumOffset, "checksum mismatch (corrupt header or payload)");
   }
+  return header;
+}
 
+absl::StatusOr<DepthImageMm> DecodeDepth(std::string_view bytes) {
+  ASSIGN_OR_RETURN(const DepthHeader header, InspectDepth(bytes));
+  const uint32_t width = header.width, height = header.height;
+  const uint32_t rvl_size = header.rvl_bytes;
+  const bool zstd = header.zstd;
+  const std::string_view payload = bytes.substr(kHeaderSize);
   std::string rvl_buffer;
   std::string_view rvl = payload;
   if (zstd) {

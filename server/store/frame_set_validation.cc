@@ -17,10 +17,6 @@ namespace {
 
 constexpr size_t kMaxIdLength = 64;
 constexpr size_t kMaxSensors = 16;
-// The RVLD header of common/io/depth_codec.h.
-constexpr size_t kRvldHeaderBytes = 28;
-constexpr uint8_t kRvldVersion = 1;
-constexpr uint8_t kRvldFlagZstd = 0x1;
 
 bool IsIdChar(char c) {
   return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
@@ -68,37 +64,20 @@ absl::Status CheckIntrinsics(const std::string& where, const v1::CameraIntrinsic
   return absl::OkStatus();
 }
 
-// The RVLD header (common/io/depth_codec.h) agrees with the message.
+// Encoded depth (common/io/depth_codec.h) is intact (header, sizes and
+// checksum) and agrees with the message.
 absl::Status CheckRvldHeader(const std::string& where, std::string_view bytes, bool zstd,
                              int32_t width_px, int32_t height_px) {
-  if (bytes.size() < kRvldHeaderBytes) {
-    return Invalid(where, absl::StrCat(bytes.size(), " bytes, shorter than the ", kRvldHeaderBytes,
-                                       "-byte RVLD header"));
-  }
-  if (std::memcmp(bytes.data(), "RVLD", 4) != 0) return Invalid(where, "no RVLD magic");
-  if (static_cast<uint8_t>(bytes[4]) != kRvldVersion) {
-    return Invalid(where, absl::StrCat("RVLD version ", static_cast<int>(bytes[4]), " unknown"));
-  }
-  const auto flags = static_cast<uint8_t>(bytes[5]);
-  if ((flags & ~kRvldFlagZstd) != 0 || bytes[6] != 0 || bytes[7] != 0) {
-    return Invalid(where, "RVLD header has unknown flags or reserved bytes set");
-  }
-  if (((flags & kRvldFlagZstd) != 0) != zstd) {
+  absl::StatusOr<DepthHeader> header = InspectDepth(bytes);
+  if (!header.ok()) return Invalid(where, std::string(header.status().message()));
+  if (header->zstd != zstd) {
     return Invalid(where, absl::StrCat("encoding says ", zstd ? "" : "no ",
                                        "zstd but the RVLD header says otherwise"));
   }
-  const uint32_t width = LoadLe32(bytes.data() + 8), height = LoadLe32(bytes.data() + 12);
-  if (width != static_cast<uint32_t>(width_px) || height != static_cast<uint32_t>(height_px)) {
-    return Invalid(where, absl::StrCat("RVLD header says ", width, "x", height, " px, the message ",
-                                       width_px, "x", height_px, " px"));
-  }
-  const uint64_t rvl_bytes = LoadLe32(bytes.data() + 16);
-  const uint64_t payload_bytes = LoadLe32(bytes.data() + 20);
-  const uint64_t max_rvl_bytes = 4 * uint64_t{width} * height + 16;
-  if (payload_bytes != bytes.size() - kRvldHeaderBytes || rvl_bytes % 4 != 0 ||
-      rvl_bytes > max_rvl_bytes || (!zstd && rvl_bytes != payload_bytes)) {
-    return Invalid(where, absl::StrCat("RVLD sizes (RVL ", rvl_bytes, ", payload ", payload_bytes,
-                                       " bytes) do not fit its ", bytes.size(), " bytes"));
+  if (header->width != static_cast<uint32_t>(width_px) ||
+      header->height != static_cast<uint32_t>(height_px)) {
+    return Invalid(where, absl::StrCat("RVLD header says ", header->width, "x", header->height,
+                                       " px, the message ", width_px, "x", height_px, " px"));
   }
   return absl::OkStatus();
 }

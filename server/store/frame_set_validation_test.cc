@@ -74,7 +74,7 @@ TEST(ValidateFrameSet, RefusesEachKindOfBadSet) {
          std::string* d = s.mutable_frames(0)->mutable_depth()->mutable_data();
          d->resize(d->size() - 4);
        },
-       "do not fit"},
+       "but the header says"},
       {"foreign depth",
        [](v1::FrameSet& s) {
          s.mutable_frames(0)->mutable_depth()->set_data(std::string(200, 'x'));
@@ -199,7 +199,9 @@ TEST(ValidateFrameSet, DepthCheckCostAndCoverage) {
     (*data)[data->size() / 2] ^= 0x01;
     FrameSetLimits header_only;
     header_only.depth_check = DepthCheck::kHeader;
-    EXPECT_TRUE(ValidateFrameSet(flipped, sensors, header_only).ok());
+    // The checksum catches a flipped payload bit without decoding.
+    EXPECT_EQ(ValidateFrameSet(flipped, sensors, header_only).code(),
+              absl::StatusCode::kInvalidArgument);
     EXPECT_EQ(ValidateFrameSet(flipped, sensors, FrameSetLimits{}).code(),
               absl::StatusCode::kInvalidArgument);
   }

@@ -44,6 +44,18 @@ struct SensorEntry {
   std::string detail;
   std::atomic<int64_t> frames{0};
   std::atomic<int64_t> processing_errors{0};
+  std::atomic<int64_t> last_host_stamp_ns{0};
+};
+
+// A sensor whose recording ended while others may still stream. The sensors
+// of one recording end within a frame of each other, so the end is reported
+// to the take (SensorLost) only once another sensor delivers a frame clearly
+// later than this one's last: in real time and in --fast playback alike.
+struct PendingEnd {
+  std::string sensor_id;
+  int64_t last_host_stamp_ns = 0;
+  int64_t noticed_ns = 0;
+  std::string reason;
 };
 
 double CpuSeconds(int64_t* user_us, int64_t* sys_us) {
@@ -149,6 +161,8 @@ struct Daemon::Impl {
 
   // --- frame path (sensor threads) ---
   void OnFrame(SensorEntry* entry, CapturedFrame frame);
+  // Ends of recordings not yet reported to the take (guarded by sync_mutex).
+  std::vector<PendingEnd> pending_ends;
   void OnSensorEnd(SensorEntry* entry, const absl::Status& why);
   void RecordLocked(std::vector<v1::FrameSet> sets);
   void SnapshotLocked(bool force);
@@ -185,8 +199,22 @@ void Daemon::Impl::OnFrame(SensorEntry* entry, CapturedFrame frame) {
     return;
   }
   ++entry->frames;
+  const int64_t host_stamp_ns = frame.frame.host_stamp_ns();
+  entry->last_host_stamp_ns = host_stamp_ns;
   std::lock_guard<std::mutex> lock(sync_mutex);
   RecordLocked(sync->Add(std::move(frame.frame)));
+  if (!pending_ends.empty()) {
+    const double fps = entry->info.nominal_fps() > 0 ? entry->info.nominal_fps() : 30.0;
+    const int64_t margin_ns = static_cast<int64_t>(2e9 / fps);
+    for (auto it = pending_ends.begin(); it != pending_ends.end();) {
+      if (host_stamp_ns <= it->last_host_stamp_ns + margin_ns) {
+        ++it;
+        continue;
+      }
+      if (recording) recording->SensorLost(it->sensor_id, it->noticed_ns, it->reason);
+      it = pending_ends.erase(it);
+    }
+  }
   SnapshotLocked(false);
 }
 
@@ -234,7 +262,13 @@ void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
   {
     std::lock_guard<std::mutex> lock(sync_mutex);
     RecordLocked(sync->SensorLost(id));
-    if (recording && others_streaming) recording->SensorLost(id, WallNowNs(), reason);
+    if (recording && others_streaming) {
+      if (why.ok()) {
+        pending_ends.push_back({id, entry->last_host_stamp_ns.load(), WallNowNs(), reason});
+      } else {
+        recording->SensorLost(id, WallNowNs(), reason);
+      }
+    }
     SnapshotLocked(true);
   }
   boost::asio::post(io, [this] {
@@ -297,6 +331,7 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
   {
     std::lock_guard<std::mutex> sync_lock(sync_mutex);
     recording = take;
+    pending_ends.clear();
   }
   Verbose(absl::StrCat("take ", take_id, " started with ", calibrations.size(), " sensors"));
   return take_id;
@@ -312,6 +347,7 @@ absl::StatusOr<v1::StopTakeResponse> Daemon::Impl::StopTake(const std::string& r
     std::lock_guard<std::mutex> sync_lock(sync_mutex);
     if (flush) RecordLocked(sync->Flush());
     recording = nullptr;
+    pending_ends.clear();
     SnapshotLocked(true);
   }
   stopping->Stop(reason);

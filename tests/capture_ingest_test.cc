@@ -125,6 +125,15 @@ DepthFrames ReadDepth(const TakeReader& take) {
   return frames;
 }
 
+// Parses `data` as a `Message` and writes it with `write`.
+template <typename Message>
+absl::Status Rewrite(const std::string& data, TakeWriter& writer,
+                     absl::Status (TakeWriter::*write)(const Message&)) {
+  Message message;
+  if (!message.ParseFromString(data)) return absl::DataLossError("message does not parse");
+  return (writer.*write)(message);
+}
+
 // Copies `in` to `out` with every message of `sensor_id` after host-clock
 // offset `cut_s` from the start left out: a sensor whose cable is pulled.
 void CutSensor(const std::string& in, const std::string& out, const std::string& sensor_id,
@@ -148,26 +157,11 @@ void CutSensor(const std::string& in, const std::string& out, const std::string&
           return absl::OkStatus();
         }
         const std::string stream = topic.substr(topic.rfind('/') + 1);
-        if (stream == "color") {
-          v1::ColorImage m;
-          m.ParseFromString(message.data);
-          return (*writer)->WriteColor(m);
-        }
-        if (stream == "depth") {
-          v1::DepthImage m;
-          m.ParseFromString(message.data);
-          return (*writer)->WriteDepth(m);
-        }
-        if (stream == "mask") {
-          v1::ActorMask m;
-          m.ParseFromString(message.data);
-          return (*writer)->WriteMask(m);
-        }
-        if (stream == "skeleton") {
-          v1::Skeleton m;
-          m.ParseFromString(message.data);
-          return (*writer)->WriteSkeleton(m);
-        }
+        TakeWriter& w = **writer;
+        if (stream == "color") return Rewrite(message.data, w, &TakeWriter::WriteColor);
+        if (stream == "depth") return Rewrite(message.data, w, &TakeWriter::WriteDepth);
+        if (stream == "mask") return Rewrite(message.data, w, &TakeWriter::WriteMask);
+        if (stream == "skeleton") return Rewrite(message.data, w, &TakeWriter::WriteSkeleton);
         return absl::OkStatus();  // Calibration: written by AddSensor.
       });
   ASSERT_TRUE(status.ok()) << status;

@@ -5,6 +5,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string_view>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -64,6 +65,10 @@ class IngestStream final : public Reactor, public RecorderObserver {
     std::lock_guard<std::mutex> lock(mu_);
     return phase_;
   }
+  // The phase and recorder for a `what` message (e.g. "FrameSet"). Fails the
+  // stream (FailedPrecondition) when no take was opened yet and returns
+  // kAwaitOpen then.
+  std::pair<Phase, std::shared_ptr<TakeRecorder>> PhaseFor(std::string_view what);
 
   ServerContext& context_;
   v1::IngestRequest request_;  // Target of the one outstanding read.
@@ -177,18 +182,25 @@ void IngestStream::OpenDone(absl::StatusOr<TakeOpenResult> result) {
   ReadNext();
 }
 
-void IngestStream::HandleFrameSet(v1::FrameSet set) {
-  std::shared_ptr<TakeRecorder> recorder;
+std::pair<IngestStream::Phase, std::shared_ptr<TakeRecorder>> IngestStream::PhaseFor(
+    std::string_view what) {
   Phase p;
+  std::shared_ptr<TakeRecorder> recorder;
   {
     std::lock_guard<std::mutex> lock(mu_);
     p = phase_;
     recorder = recorder_;
   }
   if (p == Phase::kAwaitOpen) {
-    Fail(absl::FailedPreconditionError("FrameSet before OpenTake: open the take first"));
-    return;
+    Fail(absl::FailedPreconditionError(
+        absl::StrCat(std::string(what), " before OpenTake: open the take first")));
   }
+  return {p, std::move(recorder)};
+}
+
+void IngestStream::HandleFrameSet(v1::FrameSet set) {
+  auto [p, recorder] = PhaseFor("FrameSet");
+  if (p == Phase::kAwaitOpen) return;
   if (p == Phase::kComplete) {
     Fail(absl::AlreadyExistsError(
         absl::StrCat("take ", take_id_, " is complete; it takes no more frame sets")));
@@ -206,17 +218,8 @@ void IngestStream::HandleFrameSet(v1::FrameSet set) {
 }
 
 void IngestStream::HandleSensorLost(const v1::SensorLost& lost) {
-  std::shared_ptr<TakeRecorder> recorder;
-  Phase p;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    p = phase_;
-    recorder = recorder_;
-  }
-  if (p == Phase::kAwaitOpen) {
-    Fail(absl::FailedPreconditionError("SensorLost before OpenTake: open the take first"));
-    return;
-  }
+  auto [p, recorder] = PhaseFor("SensorLost");
+  if (p == Phase::kAwaitOpen) return;
   if (p == Phase::kComplete) {
     Fail(absl::AlreadyExistsError(absl::StrCat("take ", take_id_, " is complete")));
     return;
@@ -234,17 +237,8 @@ void IngestStream::HandleSensorLost(const v1::SensorLost& lost) {
 }
 
 void IngestStream::HandleClose(const v1::CloseTake& close) {
-  std::shared_ptr<TakeRecorder> recorder;
-  Phase p;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    p = phase_;
-    recorder = recorder_;
-  }
-  if (p == Phase::kAwaitOpen) {
-    Fail(absl::FailedPreconditionError("CloseTake before OpenTake: open the take first"));
-    return;
-  }
+  auto [p, recorder] = PhaseFor("CloseTake");
+  if (p == Phase::kAwaitOpen) return;
   if (p == Phase::kComplete) {
     if (close.last_sequence() != complete_take_.durable_sequence()) {
       Fail(absl::AlreadyExistsError(absl::StrCat(

@@ -60,8 +60,9 @@ class FakeIngestService final : public v1::Ingest::Service {
         take.sets.push_back(request.frame_set());
         ++total_sets_;
         if (kill_after_sets_ > 0 && total_sets_ == kill_after_sets_) {
-          // Forget the sets not yet acknowledged: they were never durable.
-          take.sets.resize(take.sets.size() - since_ack);
+          // Forget the sets not yet acknowledged (those since the last Ack
+          // and this one): they were never durable.
+          take.sets.resize(take.sets.size() - since_ack - 1);
           return grpc::Status(grpc::StatusCode::UNAVAILABLE, "stream killed by the test");
         }
         if (++since_ack < ack_every_) continue;
@@ -98,6 +99,11 @@ class FakeIngestService final : public v1::Ingest::Service {
   void set_refuse_open(grpc::Status status) {
     std::lock_guard<std::mutex> lock(mutex_);
     refuse_open_ = std::move(status);
+  }
+  // FrameSets received over every stream, resends included.
+  uint64_t sets_received() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return total_sets_;
   }
   std::map<std::string, FakeTake> takes() {
     std::lock_guard<std::mutex> lock(mutex_);

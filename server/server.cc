@@ -7,6 +7,8 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "server/rpc/ingest_service.h"
+#include "server/rpc/jobs_service.h"
+#include "server/rpc/reenactments_service.h"
 #include "server/rpc/takes_service.h"
 
 namespace reenact::server {
@@ -45,6 +47,7 @@ absl::Status ServerOptions::Validate() const {
   }
   TakeStoreOptions store_options = store;
   store_options.data_dir = data_dir;
+  RETURN_IF_ERROR(jobs.Validate());
   return store_options.Validate();
 }
 
@@ -52,6 +55,8 @@ std::vector<std::unique_ptr<grpc::Service>> MakeServices(ServerContext& context)
   std::vector<std::unique_ptr<grpc::Service>> services;
   services.push_back(std::make_unique<IngestService>(context));
   services.push_back(std::make_unique<TakesService>(context));
+  services.push_back(std::make_unique<JobsService>(context));
+  services.push_back(std::make_unique<ReenactmentsService>(context));
   return services;
 }
 
@@ -62,10 +67,20 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   TakeStoreOptions store_options = options.store;
   store_options.data_dir = options.data_dir;
   ASSIGN_OR_RETURN(server->store_, TakeStore::Open(store_options, &server->recovered_));
+  ASSIGN_OR_RETURN(server->reenactments_,
+                   ReenactmentStore::Open(options.data_dir + "/reenactments"));
+  ASSIGN_OR_RETURN(server->job_store_,
+                   JobStore::Open(&server->store_->catalog(), options.jobs.store));
+  ASSIGN_OR_RETURN(
+      server->jobs_,
+      JobScheduler::Start(options.jobs, options.data_dir + "/jobs", server->job_store_.get(),
+                          server->store_.get(), server->reenactments_.get()));
   server->blocking_ = std::make_unique<ThreadPool>(options.blocking_threads);
   server->context_.takes = server->store_.get();
   server->context_.blocking = server->blocking_.get();
   server->context_.ingest_queue_limit_bytes = options.ingest_queue_limit_bytes;
+  server->context_.jobs = server->jobs_.get();
+  server->context_.reenactments = server->reenactments_.get();
   server->services_ = MakeServices(server->context_);
 
   grpc::ServerBuilder builder;
@@ -107,6 +122,9 @@ std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
 void Server::Shutdown() {
   if (shut_down_ || grpc_server_ == nullptr) return;
   shut_down_ = true;
+  // Workers first: their jobs stay RUNNING and run again after a restart;
+  // watch streams end with UNAVAILABLE.
+  jobs_->Shutdown();
   store_->Shutdown(absl::UnavailableError(
       "the server is shutting down; every acknowledged frame set is stored, resume the take "
       "later"));

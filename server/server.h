@@ -14,7 +14,10 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/base/thread_pool.h"
+#include "server/jobs/job_scheduler.h"
+#include "server/jobs/job_store.h"
 #include "server/rpc/server_context.h"
+#include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
@@ -37,6 +40,10 @@ struct ServerOptions {
   uint64_t ingest_queue_limit_bytes = uint64_t{64} << 20;
   // How long a shutdown lets streams deliver their last answers, seconds.
   double shutdown_grace_s = 1.0;
+  // The job queue: worker program, concurrency, grace periods, methods
+  // (server/jobs/job_scheduler.h). Jobs live in the catalog, their worker
+  // output in DATA/jobs/<job_id>/, reenactments in DATA/reenactments/.
+  JobSchedulerOptions jobs;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -61,6 +68,8 @@ class Server {
   // Takes that Start() recovered after a crash.
   const std::vector<RecoveredTake>& recovered() const { return recovered_; }
   TakeStore& takes() { return *store_; }
+  JobScheduler& jobs() { return *jobs_; }
+  ReenactmentStore& reenactments() { return *reenactments_; }
 
   // Graceful stop: refuses new takes, makes every received frame set
   // durable and finishes recording takes as INTERRUPTED, ends their streams
@@ -75,6 +84,11 @@ class Server {
   ServerOptions options_;
   std::vector<RecoveredTake> recovered_;
   std::unique_ptr<TakeStore> store_;
+  // Declared after the take store (whose catalog holds the jobs) and before
+  // the gRPC server, so that they outlive every handler.
+  std::unique_ptr<ReenactmentStore> reenactments_;
+  std::unique_ptr<JobStore> job_store_;
+  std::unique_ptr<JobScheduler> jobs_;
   std::unique_ptr<ThreadPool> blocking_;
   ServerContext context_;
   std::vector<std::unique_ptr<grpc::Service>> services_;

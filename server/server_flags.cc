@@ -8,10 +8,10 @@
 namespace reenact::server {
 
 absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::string>& args) {
-  ASSIGN_OR_RETURN(
-      const Flags flags,
-      Flags::Parse(args, {"data", "listen", "max-message-mb", "port-file", "depth-check"},
-                   {"help"}));
+  ASSIGN_OR_RETURN(const Flags flags, Flags::Parse(args,
+                                                   {"data", "listen", "max-message-mb", "port-file",
+                                                    "depth-check", "jobs", "worker"},
+                                                   {"help"}));
   ServerCommandLine out;
   if (flags.Has("help")) {
     out.help = true;
@@ -35,6 +35,11 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   }
   out.options.store.limits.depth_check =
       depth_check == "decode" ? DepthCheck::kDecode : DepthCheck::kHeader;
+  ASSIGN_OR_RETURN(out.options.jobs.concurrency, flags.GetInt("jobs", 0));
+  if (out.options.jobs.concurrency < 0) {
+    return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");
+  }
+  out.options.jobs.worker_path = flags.GetOr("worker", "");
   RETURN_IF_ERROR(out.options.Validate());
   return out;
 }

@@ -1,6 +1,7 @@
 // The command line of reenact-server, parsed into ServerOptions.
 //   reenact-server --data DIR --listen HOST:PORT [--max-message-mb N]
 //                  [--port-file FILE] [--depth-check decode|header]
+//                  [--jobs N] [--worker PATH]
 #pragma once
 
 #include <string>
@@ -14,7 +15,9 @@ namespace reenact::server {
 
 inline constexpr char kServerUsage[] =
     "usage: reenact-server --data DIR --listen HOST:PORT [--max-message-mb N (default 64)] "
-    "[--port-file FILE] [--depth-check decode|header (default decode)]";
+    "[--port-file FILE] [--depth-check decode|header (default decode)] "
+    "[--jobs N (workers at a time; default one per hardware thread)] "
+    "[--worker PATH (default reenact-worker beside reenact-server)]";
 
 struct ServerCommandLine {
   ServerOptions options;

@@ -33,6 +33,43 @@ std::vector<Command> BuildCommandTable() {
        "start recording a take; prints its id", RunCaptureStart},
       {{"capture", "stop"}, "[--daemon HOST:PORT]", "stop the take being recorded",
        RunCaptureStop},
+      {{"jobs", "submit"},
+       "--take ID --method rigid-cylinders|rigid-carved [--option KEY=VALUE ...] "
+       "[--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
+       "queue a reconstruction of a stored take; --wait follows it with a progress bar",
+       RunJobsSubmit},
+      {{"jobs", "list"},
+       "[--server HOST:PORT] [--state queued|running|succeeded|failed|cancelled|all] "
+       "[--take ID] [--json]",
+       "jobs of a reenact-server, newest first", RunJobsList},
+      {{"jobs", "show"}, "--job ID [--server HOST:PORT] [--json]",
+       "one job: state, progress, times, result or error", RunJobsShow},
+      {{"jobs", "watch"}, "--job ID [--server HOST:PORT] [--logs] [--json]",
+       "follow a job to its end (progress bar, or one JSON object per event)", RunJobsWatch},
+      {{"jobs", "cancel"}, "--job ID [--server HOST:PORT] [--json]",
+       "stop a queued or running job", RunJobsCancel},
+      {{"reenactments", "list"}, "[--server HOST:PORT] [--take ID] [--json]",
+       "reenactments stored on a reenact-server, newest first", RunReenactmentsList},
+      {{"reenactments", "show"}, "ID|--reenactment ID [--server HOST:PORT] [--json]",
+       "one reenactment: take, method, frames, parts, keyframes, figures", RunReenactmentsShow},
+      {{"reenactments", "delete"}, "ID|--reenactment ID [--server HOST:PORT]",
+       "delete a stored reenactment", RunReenactmentsDelete},
+      {{"export"},
+       "(--server HOST:PORT --reenactment ID | --in FILE.reen) --format glb --out FILE.glb "
+       "[--no-textures] [--quiet] [--json]",
+       "export a reenactment as glTF 2.0 (.glb): textured part nodes with their animation",
+       RunExport},
+      {{"render"},
+       "(--server HOST:PORT --reenactment ID | --in FILE.reen) --camera orbit:DEG|sensor:N "
+       "--out DIR [--width W --height H] [--frames A:B] [--mode vdtm|baked] [--quiet]",
+       "render a reenactment's frames as PNGs from any viewpoint (view-dependent textures)",
+       RunRender},
+      {{"eval"},
+       "(--server HOST:PORT --reenactment ID | --in FILE.reen) [--take FILE.mcap] [--every K] "
+       "[--angle DEG] [--mode vdtm|baked] [--images DIR] [--json]",
+       "measure a reenactment against its synthetic take's ground truth (surface, PSNR and "
+       "IoU of a novel view --angle degrees (default 90) from sensor 0, MPJPE)",
+       RunEval},
   };
 }
 

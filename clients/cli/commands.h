@@ -33,4 +33,24 @@ int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, st
 int RunCaptureStart(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunCaptureStop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// job_commands.cc
+int RunJobsSubmit(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunJobsWatch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunJobsCancel(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// reenactment_commands.cc
+int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out,
+                        std::ostream& err);
+int RunReenactmentsShow(const std::vector<std::string>& args, std::ostream& out,
+                        std::ostream& err);
+int RunReenactmentsDelete(const std::vector<std::string>& args, std::ostream& out,
+                          std::ostream& err);
+int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// view_commands.cc
+int RunRender(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunEval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 }  // namespace reenact::cli

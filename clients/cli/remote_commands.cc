@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "clients/cli/commands.h"
+#include "clients/cli/remote_flags.h"
 #include "clients/cli/progress_bar.h"
 #include "clients/sdk/takes_client.h"
 #include "common/base/flags.h"
@@ -19,30 +20,9 @@
 namespace reenact::cli {
 namespace {
 
-constexpr char kDefaultServer[] = "127.0.0.1:50051";
-constexpr char kDefaultDaemon[] = "127.0.0.1:50052";
 
-// A failed RPC is a failure (exit 1), not a usage error, whatever its code.
-int ReportRemoteError(const absl::Status& status, std::ostream& err) {
-  ReportError(status, err);
-  return kExitFailure;
-}
 
-std::string HumanBytes(int64_t bytes) {
-  if (bytes >= (int64_t{1} << 30)) return absl::StrFormat("%.2f GiB", bytes / 1073741824.0);
-  if (bytes >= (int64_t{1} << 20)) return absl::StrFormat("%.1f MiB", bytes / 1048576.0);
-  if (bytes >= 1024) return absl::StrFormat("%.1f KiB", bytes / 1024.0);
-  return absl::StrCat(bytes, " B");
-}
 
-std::string UtcTime(int64_t unix_ns) {
-  const std::time_t seconds = static_cast<std::time_t>(unix_ns / kNanosPerSecond);
-  std::tm tm{};
-  gmtime_r(&seconds, &tm);
-  char buffer[32];
-  std::strftime(buffer, sizeof(buffer), "%Y-%m-%d %H:%M:%SZ", &tm);
-  return buffer;
-}
 
 nlohmann::json TakeJson(const v1::Take& take) {
   nlohmann::json sensors = nlohmann::json::array();
@@ -71,16 +51,6 @@ nlohmann::json TakeJson(const v1::Take& take) {
           {"sensors", sensors}};
 }
 
-absl::StatusOr<client::ConnectionOptions> Connection(const Flags& flags, const char* flag,
-                                                     const char* fallback) {
-  client::ConnectionOptions options;
-  options.address = flags.GetOr(flag, fallback);
-  auto timeout = flags.GetDouble("timeout", 10.0);
-  if (!timeout.ok()) return timeout.status();
-  if (!(*timeout > 0)) return absl::InvalidArgumentError("--timeout must be > 0 seconds");
-  options.timeout_s = *timeout;
-  return options;
-}
 
 }  // namespace
 
@@ -90,7 +60,7 @@ int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::o
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("takes list takes no arguments"), err);
   }
-  auto connection = Connection(*flags, "server", kDefaultServer);
+  auto connection = ConnectionFromFlags(*flags, "server", kDefaultServer);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto state = client::ParseTakeState(flags->GetOr("state", "all"));
   if (!state.ok()) return ReportError(state.status(), err);
@@ -120,7 +90,7 @@ int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::o
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("takes show needs exactly one TAKE_ID"), err);
   }
-  auto connection = Connection(*flags, "server", kDefaultServer);
+  auto connection = ConnectionFromFlags(*flags, "server", kDefaultServer);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto take = client::TakesClient(*connection).Get(flags->positional()[0]);
   if (!take.ok()) return ReportRemoteError(take.status(), err);
@@ -156,7 +126,7 @@ int RunTakesDownload(const std::vector<std::string>& args, std::ostream& out, st
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("takes download needs exactly one TAKE_ID"), err);
   }
-  auto connection = Connection(*flags, "server", kDefaultServer);
+  auto connection = ConnectionFromFlags(*flags, "server", kDefaultServer);
   if (!connection.ok()) return ReportError(connection.status(), err);
   ProgressBar bar(err, !flags->Has("quiet"));
   auto bytes = client::TakesClient(*connection)
@@ -174,7 +144,7 @@ int RunTakesDelete(const std::vector<std::string>& args, std::ostream& out, std:
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("takes delete needs exactly one TAKE_ID"), err);
   }
-  auto connection = Connection(*flags, "server", kDefaultServer);
+  auto connection = ConnectionFromFlags(*flags, "server", kDefaultServer);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto freed = client::TakesClient(*connection).Delete(flags->positional()[0]);
   if (!freed.ok()) return ReportRemoteError(freed.status(), err);
@@ -199,7 +169,7 @@ nlohmann::json SensorJson(const v1::SensorInfo& s) {
 int RunCaptureSensors(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args, {"daemon", "timeout"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
-  auto connection = Connection(*flags, "daemon", kDefaultDaemon);
+  auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto sensors = client::CaptureClient(*connection).ListSensors();
   if (!sensors.ok()) return ReportRemoteError(sensors.status(), err);
@@ -222,7 +192,7 @@ int RunCaptureSensors(const std::vector<std::string>& args, std::ostream& out, s
 int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args, {"daemon", "timeout"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
-  auto connection = Connection(*flags, "daemon", kDefaultDaemon);
+  auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto status = client::CaptureClient(*connection).Status();
   if (!status.ok()) return ReportRemoteError(status.status(), err);
@@ -282,7 +252,7 @@ int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, st
 int RunCaptureStart(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args, {"daemon", "timeout", "name", "notes", "max-seconds"}, {});
   if (!flags.ok()) return ReportError(flags.status(), err);
-  auto connection = Connection(*flags, "daemon", kDefaultDaemon);
+  auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto max_seconds = flags->GetDouble("max-seconds", 0.0);
   if (!max_seconds.ok()) return ReportError(max_seconds.status(), err);
@@ -299,7 +269,7 @@ int RunCaptureStart(const std::vector<std::string>& args, std::ostream& out, std
 int RunCaptureStop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args, {"daemon", "timeout"}, {});
   if (!flags.ok()) return ReportError(flags.status(), err);
-  auto connection = Connection(*flags, "daemon", kDefaultDaemon);
+  auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto stopped = client::CaptureClient(*connection).StopTake();
   if (!stopped.ok()) return ReportRemoteError(stopped.status(), err);

@@ -77,6 +77,11 @@ absl::StatusOr<std::unique_ptr<Subprocess>> Subprocess::Start(
   const pid_t pid = ::fork();
   if (pid < 0) return absl::InternalError(absl::StrCat("fork: ", std::strerror(errno)));
   if (pid == 0) {
+    // The child starts with no blocked signals: a parent that blocks SIGTERM
+    // for a signal-handling thread must not pass that on to its children.
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
     ::close(exec_pipe[0]);
     if (*out_fd >= 0) ::dup2(*out_fd, STDOUT_FILENO);
     if (*err_fd >= 0) ::dup2(*err_fd, STDERR_FILENO);

@@ -76,7 +76,11 @@ void main() {
   vec3 albedo = u_colour_linear;
   if (u_mode == 1) albedo = v_colour_linear;
   // Textures are stored top row first, so t = 1 - v.
-  if (u_mode == 2) albedo = texture(u_texture, vec2(v_uv.x, 1.0 - v_uv.y)).rgb;
+  if (u_mode == 2) {
+    vec4 texel = texture(u_texture, vec2(v_uv.x, 1.0 - v_uv.y));
+    if (texel.a < 0.5) discard;  // Alpha-tested textures (RGB ones have alpha 1).
+    albedo = texel.rgb;
+  }
   float shade = 1.0;
   if (u_lit) {
     vec3 light = u_headlight ? to_camera : u_direction_to_light_world;

@@ -314,6 +314,8 @@ struct OffscreenRenderer::Impl {
   absl::Status MakeCurrent();
   absl::Status InitGl();
   absl::StatusOr<MeshRecord*> FindMesh(MeshId id);
+  absl::StatusOr<TextureId> UploadTexture(int width, int height, int channels,
+                                          const std::vector<uint8_t>& data);
   absl::Status CheckItems(const std::vector<DrawItem>& items);
   void SetFrameUniforms(const RenderCamera& camera);
   void DrawItems(const RenderCamera& camera, const std::vector<DrawItem>& items);
@@ -555,8 +557,15 @@ absl::StatusOr<MeshId> OffscreenRenderer::UploadMesh(const MeshData& mesh) {
                                    mesh.triangles.size() * sizeof(Eigen::Vector3i), GL_STATIC_DRAW);
   glBindVertexArray(0);
   RETURN_IF_ERROR(CheckGl("UploadMesh"));
-  impl_->meshes.push_back(std::move(record));
-  return MeshId{static_cast<int>(impl_->meshes.size()) - 1};
+  // Reuse a freed slot, so that transient meshes do not grow the table.
+  std::vector<MeshRecord>& meshes = impl_->meshes;
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    if (meshes[i].alive) continue;
+    meshes[i] = std::move(record);
+    return MeshId{static_cast<int>(i)};
+  }
+  meshes.push_back(std::move(record));
+  return MeshId{static_cast<int>(meshes.size()) - 1};
 }
 
 absl::Status OffscreenRenderer::UpdateMeshPositions(MeshId id, const Eigen::Matrix3Xf& positions_m,
@@ -598,20 +607,31 @@ absl::Status OffscreenRenderer::UpdateMeshPositions(MeshId id, const Eigen::Matr
 }
 
 absl::StatusOr<TextureId> OffscreenRenderer::UploadTexture(const RgbImage& image_srgb) {
-  RETURN_IF_ERROR(impl_->MakeCurrent());
+  return impl_->UploadTexture(image_srgb.width, image_srgb.height, 3, image_srgb.data);
+}
+
+absl::StatusOr<TextureId> OffscreenRenderer::UploadTexture(const RgbaImage& image_srgb_alpha) {
+  return impl_->UploadTexture(image_srgb_alpha.width, image_srgb_alpha.height, 4,
+                              image_srgb_alpha.data);
+}
+
+absl::StatusOr<TextureId> OffscreenRenderer::Impl::UploadTexture(int width, int height,
+                                                                 int channels,
+                                                                 const std::vector<uint8_t>& data) {
+  RETURN_IF_ERROR(MakeCurrent());
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
-  if (image_srgb.empty() || image_srgb.width > max_size || image_srgb.height > max_size ||
-      image_srgb.data.size() != image_srgb.num_pixels() * 3) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("UploadTexture: image of ", image_srgb.width, "x", image_srgb.height,
-                     " is empty, inconsistent or larger than ", max_size));
+  if (width <= 0 || height <= 0 || width > max_size || height > max_size ||
+      data.size() != static_cast<size_t>(width) * height * channels) {
+    return absl::InvalidArgumentError(absl::StrCat("UploadTexture: image of ", width, "x", height,
+                                                   " is empty, inconsistent or larger than ",
+                                                   max_size));
   }
   GLuint texture = 0;
   glGenTextures(1, &texture);
   glBindTexture(GL_TEXTURE_2D, texture);
-  glTexImage2D(GL_TEXTURE_2D, 0, GL_SRGB8, image_srgb.width, image_srgb.height, 0, GL_RGB,
-               GL_UNSIGNED_BYTE, image_srgb.data.data());
+  glTexImage2D(GL_TEXTURE_2D, 0, channels == 4 ? GL_SRGB8_ALPHA8 : GL_SRGB8, width, height, 0,
+               channels == 4 ? GL_RGBA : GL_RGB, GL_UNSIGNED_BYTE, data.data());
   glGenerateMipmap(GL_TEXTURE_2D);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
@@ -622,8 +642,15 @@ absl::StatusOr<TextureId> OffscreenRenderer::UploadTexture(const RgbImage& image
     glDeleteTextures(1, &texture);
     return status;
   }
-  impl_->textures.push_back(texture);
-  return TextureId{static_cast<int>(impl_->textures.size()) - 1};
+  // Reuse a freed slot, so that uploading and releasing textures frame after
+  // frame does not grow the table.
+  for (size_t i = 0; i < textures.size(); ++i) {
+    if (textures[i] != 0) continue;
+    textures[i] = texture;
+    return TextureId{static_cast<int>(i)};
+  }
+  textures.push_back(texture);
+  return TextureId{static_cast<int>(textures.size()) - 1};
 }
 
 absl::Status OffscreenRenderer::ReleaseMesh(MeshId id) {

@@ -60,8 +60,13 @@ class OffscreenRenderer {
   // filtering and mipmaps; uv (0,0) is its bottom-left corner.
   // InvalidArgument for an empty image or one larger than the GL limit.
   absl::StatusOr<TextureId> UploadTexture(const RgbImage& image_srgb);
+  // The same for an alpha-tested texture: fragments where the filtered alpha
+  // (linear, 0..255 -> 0..1) is below 0.5 are discarded, so they write no
+  // colour, depth, label or normal (e.g. texels that are not the actor).
+  absl::StatusOr<TextureId> UploadTexture(const RgbaImage& image_srgb_alpha);
 
-  // Frees a mesh or a texture; NotFound for an unknown id.
+  // Frees a mesh or a texture; NotFound for an unknown id. A later upload
+  // may reuse a freed id.
   absl::Status ReleaseMesh(MeshId mesh);
   absl::Status ReleaseTexture(TextureId texture);
 

@@ -207,6 +207,66 @@ TEST(OffscreenRendererTexture, CheckerboardShowsExpectedColours) {
   }
 }
 
+TEST(OffscreenRendererTexture, AlphaBelowHalfIsDiscardedAndShowsWhatIsBehind) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  // Left half of the texture transparent (alpha 0), right half opaque red.
+  RgbaImage texture(64, 64);
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      texture.at(x, y, 0) = 220;
+      texture.at(x, y, 3) = x < 32 ? 0 : 255;
+    }
+  }
+  auto texture_id = renderer->UploadTexture(texture);
+  ASSERT_TRUE(texture_id.ok()) << texture_id.status();
+  auto front = renderer->UploadMesh(MakeRectangle(-0.5, -0.5, 0.5, 0.5, 2.0));
+  auto back = renderer->UploadMesh(MakeRectangle(-1.0, -1.0, 1.0, 1.0, 3.0));
+  ASSERT_TRUE(front.ok() && back.ok());
+  DrawItem front_item;
+  front_item.mesh = *front;
+  front_item.texture = *texture_id;
+  front_item.lit = false;
+  front_item.label = 1;
+  DrawItem back_item;
+  back_item.mesh = *back;
+  back_item.colour_srgb = Eigen::Vector3f(0.0f, 0.0f, 1.0f);
+  back_item.lit = false;
+  back_item.label = 2;
+  const RenderCamera camera = TestCamera();
+  RenderOutputs out;
+  ASSERT_TRUE(renderer->Render(camera, {front_item, back_item}, &out).ok());
+  const Eigen::Vector2d left = Project(camera, {-0.25, 0.0, 2.0});
+  const Eigen::Vector2d right = Project(camera, {0.25, 0.0, 2.0});
+  const int v = static_cast<int>(left.y());
+  // Discarded: the back rectangle shows through, with its label and depth.
+  EXPECT_EQ(out.label.at(static_cast<int>(left.x()), v), 2);
+  EXPECT_NEAR(out.depth_m.at(static_cast<int>(left.x()), v), 3.0, 1e-3);
+  EXPECT_NEAR(out.colour.at(static_cast<int>(left.x()), v, 2), 255, 1);
+  EXPECT_EQ(out.label.at(static_cast<int>(right.x()), v), 1);
+  EXPECT_NEAR(out.colour.at(static_cast<int>(right.x()), v, 0), 220, 2);
+  EXPECT_NEAR(out.depth_m.at(static_cast<int>(right.x()), v), 2.0, 1e-3);
+}
+
+TEST(OffscreenRendererIds, ReleasedSlotsAreReused) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  auto first = renderer->UploadMesh(MakeRectangle(-0.1, -0.1, 0.1, 0.1, 2.0));
+  auto second = renderer->UploadMesh(MakeRectangle(-0.1, -0.1, 0.1, 0.1, 2.0));
+  ASSERT_TRUE(first.ok() && second.ok());
+  ASSERT_TRUE(renderer->ReleaseMesh(*first).ok());
+  EXPECT_EQ(renderer->ReleaseMesh(*first).code(), absl::StatusCode::kNotFound);
+  auto third = renderer->UploadMesh(MakeRectangle(-0.1, -0.1, 0.1, 0.1, 2.0));
+  ASSERT_TRUE(third.ok());
+  EXPECT_EQ(third->value, first->value);
+  auto texture = renderer->UploadTexture(RgbImage(4, 4, 100));
+  ASSERT_TRUE(texture.ok());
+  ASSERT_TRUE(renderer->ReleaseTexture(*texture).ok());
+  auto again = renderer->UploadTexture(RgbaImage(4, 4, 100));
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->value, texture->value);
+}
+
 TEST(OffscreenRendererColour, FlatAndHeadlitColoursAndBackground) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);

@@ -30,6 +30,10 @@ struct TextureId {
 // Per-pixel 3-vectors (x y z interleaved), e.g. unit normals in the world frame.
 using Vec3Image = Image<float, 3>;
 
+// sRGB colour with a linear alpha (R G B A), e.g. a texture whose alpha marks
+// the texels to draw (OffscreenRenderer::UploadTexture).
+using RgbaImage = Image<uint8_t, 4>;
+
 // A pinhole camera, OpenCV convention: x right, y down, z forward (optical
 // axis). A point (X, Y, Z) in the camera frame lands at the continuous image
 // position (fx X / Z + cx, fy Y / Z + cy), pixels. Pixel (u, v) covers
@@ -68,7 +72,8 @@ struct DrawItem {
   Eigen::Isometry3d world_from_model = Eigen::Isometry3d::Identity();
   // Surface colour, in order of precedence: the texture when valid (the mesh
   // must have uvs); else the mesh's vertex colours when it has them; else
-  // colour_srgb (components in [0,1]).
+  // colour_srgb (components in [0,1]). Fragments whose texture alpha is below
+  // 0.5 are discarded (only RGBA textures have alpha below 1).
   TextureId texture;
   Eigen::Vector3f colour_srgb{0.8f, 0.8f, 0.8f};
   // Written to the label image where this item is visible: 1..255 (e.g. body

@@ -2,11 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <future>
 #include <memory>
 #include <random>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
@@ -341,7 +346,20 @@ struct Scene {
   std::unique_ptr<render::OffscreenRenderer> renderer;
   render::MeshId body_mesh;
   std::vector<render::DrawItem> items;  // The room, then the body.
+  RgbImage body_texture;                // The clothing (albedo) of the actor.
 };
+
+// The room light every sensor's colour image is rendered under; written to
+// the ground truth (WriteTopology) so that a novel view of the truth can be
+// rendered under the same light.
+render::ShadingOptions SceneShading() {
+  render::ShadingOptions shading;
+  shading.headlight = false;  // One room light, the same for every sensor.
+  shading.direction_to_light_in_world = {0.3, 1.0, 0.6};
+  shading.ambient = 0.45f;
+  shading.diffuse = 0.55f;
+  return shading;
+}
 
 absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, int max_height) {
   Scene scene;
@@ -349,12 +367,7 @@ absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, in
   renderer_options.max_width = max_width;
   renderer_options.max_height = max_height;
   ASSIGN_OR_RETURN(scene.renderer, render::OffscreenRenderer::Create(renderer_options));
-  render::ShadingOptions shading;
-  shading.headlight = false;  // One room light, the same for every sensor.
-  shading.direction_to_light_in_world = {0.3, 1.0, 0.6};
-  shading.ambient = 0.45f;
-  shading.diffuse = 0.55f;
-  RETURN_IF_ERROR(scene.renderer->SetShading(shading));
+  RETURN_IF_ERROR(scene.renderer->SetShading(SceneShading()));
   for (RoomPart& part : MakeRoom()) {
     render::DrawItem item;
     ASSIGN_OR_RETURN(item.mesh, scene.renderer->UploadMesh(part.mesh));
@@ -367,7 +380,8 @@ absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, in
                                              model.uvs, model.uv_triangles));
   render::DrawItem actor;
   ASSIGN_OR_RETURN(actor.mesh, scene.renderer->UploadMesh(body_mesh));
-  ASSIGN_OR_RETURN(actor.texture, scene.renderer->UploadTexture(PaintClothingTexture(model)));
+  scene.body_texture = PaintClothingTexture(model);
+  ASSIGN_OR_RETURN(actor.texture, scene.renderer->UploadTexture(scene.body_texture));
   actor.label = kActorLabel;
   scene.body_mesh = actor.mesh;
   scene.items.push_back(actor);
@@ -463,13 +477,45 @@ absl::Status WriteGroundTruth(TakeWriter* writer, const Actor& actor, int64_t fr
   return writer->WriteGroundTruthMesh(mesh);
 }
 
-absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model) {
+// PNG bytes of an sRGB image (lossless, so the truth's albedo is exact).
+absl::StatusOr<std::string> EncodePng(const RgbImage& image) {
+  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<uint8_t*>(image.data.data()));
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  std::vector<uint8_t> png;
+  if (!cv::imencode(".png", bgr, png)) {
+    return absl::InternalError("ground truth: the albedo texture could not be encoded as PNG");
+  }
+  return std::string(png.begin(), png.end());
+}
+
+// The truth's triangles and its appearance: uvs per triangle corner, the
+// clothing texture (albedo) and the room light of SceneShading, so that a
+// novel view of the truth renders as the sensors saw it.
+absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model,
+                           const RgbImage& albedo) {
   v1::GroundTruthTopology topology;
   topology.set_model_name(model.name);
   topology.set_vertex_count(model.num_vertices());
   for (const auto& t : model.triangles) {
     for (int k = 0; k < 3; ++k) topology.add_triangle_indices(static_cast<uint32_t>(t[k]));
   }
+  std::string uvs;
+  uvs.resize(model.uvs.size() * 2 * sizeof(float));
+  for (size_t i = 0; i < model.uvs.size(); ++i) {
+    std::memcpy(&uvs[i * 2 * sizeof(float)], model.uvs[i].data(), 2 * sizeof(float));
+  }
+  topology.set_uvs_f32(std::move(uvs));
+  for (const auto& t : model.uv_triangles) {
+    for (int k = 0; k < 3; ++k) topology.add_uv_triangle_indices(static_cast<uint32_t>(t[k]));
+  }
+  ASSIGN_OR_RETURN(std::string png, EncodePng(albedo));
+  topology.set_albedo_png(std::move(png));
+  const render::ShadingOptions shading = SceneShading();
+  *topology.mutable_direction_to_light_in_world() =
+      ToProto(Eigen::Vector3d(shading.direction_to_light_in_world.normalized()));
+  topology.set_ambient(shading.ambient);
+  topology.set_diffuse(shading.diffuse);
   return writer->WriteGroundTruthTopology(topology);
 }
 
@@ -514,7 +560,7 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
   for (const VirtualSensor& sensor : sensors) {
     RETURN_IF_ERROR(writer->AddSensor(MakeCalibration(sensor, options.fps)));
   }
-  RETURN_IF_ERROR(WriteTopology(writer.get(), actor.model));
+  RETURN_IF_ERROR(WriteTopology(writer.get(), actor.model, scene.body_texture));
 
   ThreadPool pool(2);
   std::deque<PendingShot> pending;

@@ -435,6 +435,44 @@ TEST(SynthesizeTake, ColourShowsTheActor) {
   }
 }
 
+TEST(SynthesizeTake, TopologyCarriesTheTruthsAppearance) {
+  const SharedTake& shared = Take();
+  ASSERT_NE(shared.reader, nullptr);
+  auto topologies = shared.reader->ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic);
+  ASSERT_TRUE(topologies.ok() && topologies->size() == 1u);
+  const v1::GroundTruthTopology& topology = topologies->front();
+  // One uv triangle per triangle, indices into whole (u, v) pairs in [0, 1].
+  ASSERT_EQ(topology.uv_triangle_indices_size(), topology.triangle_indices_size());
+  ASSERT_EQ(topology.uvs_f32().size() % (2 * sizeof(float)), 0u);
+  const size_t num_uvs = topology.uvs_f32().size() / (2 * sizeof(float));
+  ASSERT_GT(num_uvs, 0u);
+  std::vector<float> uvs(2 * num_uvs);
+  std::memcpy(uvs.data(), topology.uvs_f32().data(), topology.uvs_f32().size());
+  for (float value : uvs) {
+    EXPECT_GE(value, 0.0f);
+    EXPECT_LE(value, 1.0f);
+  }
+  for (uint32_t index : topology.uv_triangle_indices()) EXPECT_LT(index, num_uvs);
+  // The albedo is a PNG (signature and IHDR of a 1024 x 1024 image).
+  const std::string& png = topology.albedo_png();
+  ASSERT_GT(png.size(), 24u);
+  EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  auto be32 = [&](size_t at) {
+    return (static_cast<uint32_t>(static_cast<uint8_t>(png[at])) << 24) |
+           (static_cast<uint32_t>(static_cast<uint8_t>(png[at + 1])) << 16) |
+           (static_cast<uint32_t>(static_cast<uint8_t>(png[at + 2])) << 8) |
+           static_cast<uint32_t>(static_cast<uint8_t>(png[at + 3]));
+  };
+  EXPECT_EQ(be32(16), 1024u);
+  EXPECT_EQ(be32(20), 1024u);
+  // The room light of the colour images: unit direction, upward, 0.45 + 0.55.
+  const Eigen::Vector3d light = FromProto(topology.direction_to_light_in_world());
+  EXPECT_NEAR(light.norm(), 1.0, 1e-9);
+  EXPECT_GT(light.y(), 0.5);
+  EXPECT_NEAR(topology.ambient(), 0.45, 1e-6);
+  EXPECT_NEAR(topology.diffuse(), 0.55, 1e-6);
+}
+
 TEST(SynthesizeTake, MakeHumanBodyWalksWithPlausibleStature) {
   const std::string makehuman = testing::TestDataPath("body/makehuman");
   const std::string amc = testing::TestDataPath("mocap/cmu/07_05-walk.amc");

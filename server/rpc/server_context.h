@@ -10,6 +10,11 @@
 #include "server/store/take_store.h"
 
 namespace reenact::server {
+class JobScheduler;
+class ReenactmentStore;
+}  // namespace reenact::server
+
+namespace reenact::server {
 
 struct ServerContext {
   // The take store (Ingest, Takes).
@@ -20,6 +25,10 @@ struct ServerContext {
   // An ingest stream stops reading while its take has more than this many
   // bytes queued for the disk (flow control back to the daemon).
   uint64_t ingest_queue_limit_bytes = uint64_t{64} << 20;
+  // The job queue and its worker processes (Jobs).
+  JobScheduler* jobs = nullptr;
+  // The reenactments finished jobs made (Jobs, Reenactments).
+  ReenactmentStore* reenactments = nullptr;
 };
 
 }  // namespace reenact::server

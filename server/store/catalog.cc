@@ -6,6 +6,8 @@
 #include <optional>
 #include <utility>
 
+#include <nlohmann/json.hpp>
+
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 
@@ -43,6 +45,29 @@ CREATE TABLE sensors (
   lost_reason TEXT NOT NULL,
   PRIMARY KEY (take_id, sensor_id));
 )sql",
+    // Version 2: the job queue (server/jobs/job_store.h).
+    R"sql(
+CREATE TABLE jobs (
+  job_id TEXT PRIMARY KEY NOT NULL,
+  take_id TEXT NOT NULL,
+  method TEXT NOT NULL,
+  options_json TEXT NOT NULL,
+  state TEXT NOT NULL
+    CHECK (state IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')),
+  stage TEXT NOT NULL,
+  fraction REAL NOT NULL,
+  frames_done INTEGER NOT NULL,
+  frames_total INTEGER NOT NULL,
+  eta_s REAL NOT NULL,
+  submitted_unix_ns INTEGER NOT NULL,
+  started_unix_ns INTEGER NOT NULL,
+  finished_unix_ns INTEGER NOT NULL,
+  reenactment_id TEXT NOT NULL,
+  error TEXT NOT NULL,
+  attempts INTEGER NOT NULL);
+CREATE INDEX jobs_by_submitted ON jobs (submitted_unix_ns);
+CREATE INDEX jobs_by_state ON jobs (state);
+)sql",
 };
 static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 
@@ -51,6 +76,32 @@ v1::TakeState StateFromName(std::string_view name) {
   if (name == "complete") return v1::TAKE_STATE_COMPLETE;
   if (name == "interrupted") return v1::TAKE_STATE_INTERRUPTED;
   return v1::TAKE_STATE_UNSPECIFIED;
+}
+
+v1::JobState JobStateFromName(std::string_view name) {
+  if (name == "queued") return v1::JOB_STATE_QUEUED;
+  if (name == "running") return v1::JOB_STATE_RUNNING;
+  if (name == "succeeded") return v1::JOB_STATE_SUCCEEDED;
+  if (name == "failed") return v1::JOB_STATE_FAILED;
+  if (name == "cancelled") return v1::JOB_STATE_CANCELLED;
+  return v1::JOB_STATE_UNSPECIFIED;
+}
+
+// A job's options as a JSON object of strings, and back (a malformed text
+// gives no options rather than failing the whole listing).
+std::string OptionsToJson(const google::protobuf::Map<std::string, std::string>& options) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [key, value] : options) j[key] = value;
+  return j.dump();
+}
+
+void OptionsFromJson(const std::string& text,
+                     google::protobuf::Map<std::string, std::string>* out) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object()) return;
+  for (const auto& [key, value] : j.items()) {
+    (*out)[key] = value.is_string() ? value.get<std::string>() : value.dump();
+  }
 }
 
 // A prepared statement, finalized on destruction.
@@ -127,7 +178,50 @@ TakeRow RowFromStatement(const Statement& s) {
   return row;
 }
 
+constexpr const char* kJobColumns =
+    "job_id, take_id, method, options_json, state, stage, fraction, frames_done, frames_total, "
+    "eta_s, submitted_unix_ns, started_unix_ns, finished_unix_ns, reenactment_id, error, attempts";
+
+v1::Job JobFromStatement(const Statement& s) {
+  v1::Job job;
+  job.set_job_id(s.Text(0));
+  job.set_take_id(s.Text(1));
+  job.set_method(s.Text(2));
+  OptionsFromJson(s.Text(3), job.mutable_options());
+  job.set_state(JobStateFromName(s.Text(4)));
+  v1::JobProgress* p = job.mutable_progress();
+  p->set_stage(s.Text(5));
+  p->set_fraction(s.Double(6));
+  p->set_frames_done(s.Int(7));
+  p->set_frames_total(s.Int(8));
+  p->set_eta_s(s.Double(9));
+  job.set_submitted_unix_ns(s.Int(10));
+  job.set_started_unix_ns(s.Int(11));
+  job.set_finished_unix_ns(s.Int(12));
+  job.set_reenactment_id(s.Text(13));
+  job.set_error(s.Text(14));
+  job.set_attempts(static_cast<int32_t>(s.Int(15)));
+  return job;
+}
+
 }  // namespace
+
+std::string_view JobStateName(v1::JobState state) {
+  switch (state) {
+    case v1::JOB_STATE_QUEUED:
+      return "queued";
+    case v1::JOB_STATE_RUNNING:
+      return "running";
+    case v1::JOB_STATE_SUCCEEDED:
+      return "succeeded";
+    case v1::JOB_STATE_FAILED:
+      return "failed";
+    case v1::JOB_STATE_CANCELLED:
+      return "cancelled";
+    default:
+      return "unspecified";
+  }
+}
 
 std::string_view TakeStateName(v1::TakeState state) {
   switch (state) {
@@ -325,6 +419,61 @@ absl::Status Catalog::Delete(std::string_view take_id) {
     return absl::NotFoundError(absl::StrCat("no take \"", std::string(take_id), "\""));
   }
   return absl::OkStatus();
+}
+
+absl::Status Catalog::PutJob(const v1::Job& job) {
+  if (JobStateName(job.state()) == "unspecified") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("job ", job.job_id(), " has no valid state (", job.state(), ")"));
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  const v1::JobProgress& p = job.progress();
+  Statement s(db_, absl::StrCat("INSERT OR REPLACE INTO jobs (", kJobColumns,
+                                ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
+                                "?13, ?14, ?15, ?16)"));
+  s.Bind(1, job.job_id())
+      .Bind(2, job.take_id())
+      .Bind(3, job.method())
+      .Bind(4, OptionsToJson(job.options()))
+      .Bind(5, JobStateName(job.state()))
+      .Bind(6, p.stage())
+      .Bind(7, p.fraction())
+      .Bind(8, p.frames_done())
+      .Bind(9, p.frames_total())
+      .Bind(10, p.eta_s())
+      .Bind(11, job.submitted_unix_ns())
+      .Bind(12, job.started_unix_ns())
+      .Bind(13, job.finished_unix_ns())
+      .Bind(14, job.reenactment_id())
+      .Bind(15, job.error())
+      .Bind(16, int64_t{job.attempts()});
+  s.Step();
+  if (!s.ok()) return Error("storing job " + job.job_id());
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<v1::Job>> Catalog::QueryJobs(const std::string& where,
+                                                        std::optional<std::string_view> arg) const {
+  std::vector<v1::Job> jobs;
+  Statement s(db_, absl::StrCat("SELECT ", kJobColumns, " FROM jobs ", where,
+                                " ORDER BY submitted_unix_ns DESC, job_id DESC"));
+  if (arg) s.Bind(1, *arg);
+  while (s.Step()) jobs.push_back(JobFromStatement(s));
+  if (!s.ok()) return Error("listing jobs");
+  return jobs;
+}
+
+absl::StatusOr<v1::Job> Catalog::GetJob(std::string_view job_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  ASSIGN_OR_RETURN(std::vector<v1::Job> jobs, QueryJobs("WHERE job_id = ?1", job_id));
+  if (jobs.empty())
+    return absl::NotFoundError(absl::StrCat("no job \"", std::string(job_id), "\""));
+  return std::move(jobs.front());
+}
+
+absl::StatusOr<std::vector<v1::Job>> Catalog::ListJobs() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return QueryJobs("", std::nullopt);
 }
 
 }  // namespace reenact::server

@@ -10,6 +10,12 @@
 //            data folder), generator, synthetic, fps
 //   sensors  (take_id, sensor_id) key, model, frame_count, lost_stamp_ns,
 //            lost_reason; rows go with their take (ON DELETE CASCADE)
+//   jobs     job_id (key), take_id, method, options_json (a JSON object of
+//            strings), state ('queued' | 'running' | 'succeeded' | 'failed' |
+//            'cancelled'), stage, fraction, frames_done, frames_total, eta_s,
+//            submitted_unix_ns, started_unix_ns, finished_unix_ns,
+//            reenactment_id, error, attempts (version 2; no foreign key: a
+//            job's history outlives a deleted take)
 // Every commit is fsync'ed (synchronous=FULL); the store writes a recording
 // take's progress about once a second and every state change at once.
 #pragma once
@@ -24,6 +30,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "reenact/v1/jobs_service.pb.h"
 #include "reenact/v1/takes_service.pb.h"
 
 struct sqlite3;
@@ -44,10 +51,13 @@ struct TakeRow {
 
 // "recording", "complete", "interrupted" (the catalog's spelling of a state).
 std::string_view TakeStateName(v1::TakeState state);
+// "queued", "running", "succeeded", "failed", "cancelled" (the catalog's
+// spelling of a job state; "unspecified" otherwise).
+std::string_view JobStateName(v1::JobState state);
 
 class Catalog {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
 
   // Opens (creating when missing) the catalog at `path` and brings its schema
   // to kSchemaVersion. Unavailable when the file cannot be opened or WAL mode
@@ -67,6 +77,13 @@ class Catalog {
   // Removes the take and its sensors. NotFound when unknown.
   absl::Status Delete(std::string_view take_id);
 
+  // Inserts or replaces a job (server/jobs/job_store.h writes through here).
+  absl::Status PutJob(const v1::Job& job);
+  // NotFound when the catalog has no such job.
+  absl::StatusOr<v1::Job> GetJob(std::string_view job_id) const;
+  // Every job, newest first (submitted_unix_ns).
+  absl::StatusOr<std::vector<v1::Job>> ListJobs() const;
+
   // PRAGMA user_version and journal_mode as the database reports them.
   absl::StatusOr<int> SchemaVersion() const;
   absl::StatusOr<std::string> JournalMode() const;
@@ -80,6 +97,9 @@ class Catalog {
   absl::StatusOr<std::vector<TakeRow>> Query(const std::string& where,
                                              std::optional<std::string_view> arg) const;
   absl::Status LoadSensors(TakeRow* row) const;
+  // Jobs matching `where` (binding ?1 to `arg`), newest first.
+  absl::StatusOr<std::vector<v1::Job>> QueryJobs(const std::string& where,
+                                                 std::optional<std::string_view> arg) const;
 
   std::string path_;
   sqlite3* db_;

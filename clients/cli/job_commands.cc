@@ -1,0 +1,338 @@
+// `reenact jobs ...`: the server's Jobs service. Submit a reconstruction of a
+// stored take, follow it with a progress bar, list, watch, cancel.
+//
+// Exit codes of the commands that wait for a job (submit --wait, watch): 0
+// when it SUCCEEDED, 1 when it FAILED or was CANCELLED (the reason on
+// stderr) or the server went away, 2 for usage errors.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <map>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "clients/cli/commands.h"
+#include "clients/cli/remote_flags.h"
+#include "clients/sdk/jobs_client.h"
+#include "common/base/flags.h"
+#include "common/base/time.h"
+
+namespace reenact::cli {
+namespace {
+
+// "1h02m", "3m05s", "42s"; "?" when negative (unknown).
+std::string Duration(double seconds) {
+  if (!(seconds >= 0) || !std::isfinite(seconds)) return "?";
+  const int64_t s = static_cast<int64_t>(std::llround(seconds));
+  if (s >= 3600) return absl::StrFormat("%dh%02dm", s / 3600, (s % 3600) / 60);
+  if (s >= 60) return absl::StrFormat("%dm%02ds", s / 60, s % 60);
+  return absl::StrFormat("%ds", s);
+}
+
+nlohmann::json JobJson(const v1::Job& job) {
+  nlohmann::json options = nlohmann::json::object();
+  for (const auto& [key, value] : job.options()) options[key] = value;
+  const v1::JobProgress& p = job.progress();
+  return {{"job_id", job.job_id()},
+          {"take_id", job.take_id()},
+          {"method", job.method()},
+          {"options", options},
+          {"state", client::JobStateName(job.state())},
+          {"progress",
+           {{"stage", p.stage()},
+            {"fraction", p.fraction()},
+            {"frames_done", p.frames_done()},
+            {"frames_total", p.frames_total()},
+            {"eta_s", p.eta_s()}}},
+          {"submitted_unix_ns", job.submitted_unix_ns()},
+          {"started_unix_ns", job.started_unix_ns()},
+          {"finished_unix_ns", job.finished_unix_ns()},
+          {"reenactment_id", job.reenactment_id()},
+          {"error", job.error()},
+          {"attempts", job.attempts()}};
+}
+
+// The job's id from --job or the one positional argument.
+absl::StatusOr<std::string> JobIdArgument(const Flags& flags, const std::string& command) {
+  const std::string from_flag = flags.GetOr("job", "");
+  if (!from_flag.empty() && flags.positional().empty()) return from_flag;
+  if (from_flag.empty() && flags.positional().size() == 1) return flags.positional()[0];
+  return absl::InvalidArgumentError(absl::StrCat(command, " needs exactly one job: --job ID"));
+}
+
+// One redrawn line on stderr: stage, bar, percentage, frames, ETA (the
+// server's estimate). Log lines, when shown, go above it.
+class JobProgressLine {
+ public:
+  JobProgressLine(std::ostream& err, bool enabled) : err_(err), enabled_(enabled) {}
+
+  void Update(const v1::JobEvent& event, bool show_logs) {
+    if (!enabled_) return;
+    if (show_logs) {
+      for (const std::string& line : event.log_lines()) {
+        EndLine();
+        err_ << "  " << line << "\n";
+      }
+    }
+    const v1::Job& job = event.job();
+    const v1::JobProgress& p = job.progress();
+    std::string text;
+    if (job.state() == v1::JOB_STATE_QUEUED) {
+      text = absl::StrCat("job ", job.job_id(), " queued");
+    } else {
+      constexpr int kWidth = 30;
+      const double fraction = std::clamp(p.fraction(), 0.0, 1.0);
+      const int filled = static_cast<int>(fraction * kWidth + 0.5);
+      text = absl::StrFormat("%-12s [%s%s] %5.1f%%", p.stage().empty() ? "starting" : p.stage(),
+                             std::string(filled, '#'), std::string(kWidth - filled, '.'),
+                             fraction * 100.0);
+      if (p.frames_total() > 0) {
+        absl::StrAppend(&text,
+                        absl::StrFormat("  %d/%d frames", p.frames_done(), p.frames_total()));
+      }
+      if (job.state() == v1::JOB_STATE_RUNNING)
+        absl::StrAppend(&text, "  ETA ", Duration(p.eta_s()));
+    }
+    if (text == last_) return;
+    // Pad over a longer previous line.
+    const size_t width = std::max(text.size(), last_.size());
+    last_ = text;
+    text.resize(width, ' ');
+    err_ << "\r" << text << std::flush;
+    drawn_ = true;
+  }
+  void EndLine() {
+    if (enabled_ && drawn_) err_ << "\n";
+    drawn_ = false;
+    last_.clear();
+  }
+
+ private:
+  std::ostream& err_;
+  bool enabled_;
+  bool drawn_ = false;
+  std::string last_;
+};
+
+// Ends a waited-for job: exit 0 when it succeeded; the reason on stderr
+// otherwise.
+int JobExit(const v1::Job& job, std::ostream& err) {
+  if (job.state() == v1::JOB_STATE_SUCCEEDED) return kExitOk;
+  err << "reenact: job " << job.job_id() << " " << client::JobStateName(job.state())
+      << (job.error().empty() ? "" : ": ") << job.error() << "\n";
+  return kExitFailure;
+}
+
+std::string Summary(const v1::Job& job) {
+  const double seconds = job.finished_unix_ns() > job.started_unix_ns() && job.started_unix_ns() > 0
+                             ? NsToSeconds(job.finished_unix_ns() - job.started_unix_ns())
+                             : 0.0;
+  if (job.state() == v1::JOB_STATE_SUCCEEDED) {
+    return absl::StrFormat("job %s succeeded in %.1f s: reenactment %s", job.job_id(), seconds,
+                           job.reenactment_id());
+  }
+  return absl::StrCat("job ", job.job_id(), " ", client::JobStateName(job.state()));
+}
+
+// Follows the job to its end with the progress line (or, with `json_lines`,
+// one JSON object per event on `out`).
+absl::StatusOr<v1::Job> Follow(const client::JobsClient& jobs, const std::string& job_id, bool bar,
+                               bool show_logs, bool json_lines, std::ostream& out,
+                               std::ostream& err) {
+  JobProgressLine line(err, bar);
+  absl::StatusOr<v1::Job> job = jobs.Watch(job_id, [&](const v1::JobEvent& event) {
+    if (json_lines) {
+      nlohmann::json logs = nlohmann::json::array();
+      for (const std::string& l : event.log_lines()) logs.push_back(l);
+      out << nlohmann::json{{"job", JobJson(event.job())}, {"log_lines", logs}}.dump() << "\n"
+          << std::flush;
+    }
+    line.Update(event, show_logs);
+    return true;
+  });
+  line.EndLine();
+  return job;
+}
+
+// Pulls every "--option KEY=VALUE" (or "--option=KEY=VALUE") out of `args`.
+absl::StatusOr<std::map<std::string, std::string>> TakeOptions(std::vector<std::string>* args) {
+  std::map<std::string, std::string> options;
+  std::vector<std::string> rest;
+  for (size_t i = 0; i < args->size(); ++i) {
+    const std::string& arg = (*args)[i];
+    std::string pair;
+    if (arg == "--option") {
+      if (i + 1 >= args->size()) return absl::InvalidArgumentError("--option needs KEY=VALUE");
+      pair = (*args)[++i];
+    } else if (arg.rfind("--option=", 0) == 0) {
+      pair = arg.substr(9);
+    } else {
+      rest.push_back(arg);
+      continue;
+    }
+    const size_t eq = pair.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--option takes KEY=VALUE, got \"", pair, "\""));
+    }
+    options[pair.substr(0, eq)] = pair.substr(eq + 1);
+  }
+  *args = std::move(rest);
+  return options;
+}
+
+}  // namespace
+
+int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> args = raw_args;
+  auto options = TakeOptions(&args);
+  if (!options.ok()) return ReportError(options.status(), err);
+  auto flags = Flags::Parse(args, {"server", "timeout", "take", "method"},
+                            {"wait", "json", "logs", "quiet"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  if (!flags->positional().empty()) {
+    return ReportError(absl::InvalidArgumentError(
+                           absl::StrCat("unexpected argument \"", flags->positional()[0], "\"")),
+                       err);
+  }
+  auto take = flags->Required("take");
+  if (!take.ok()) return ReportError(take.status(), err);
+  auto method = flags->Required("method");
+  if (!method.ok()) return ReportError(method.status(), err);
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  const client::JobsClient jobs(*connection);
+  auto job = jobs.Submit(*take, *method, *options);
+  if (!job.ok()) return ReportRemoteError(job.status(), err);
+  const bool json = flags->Has("json");
+  if (!flags->Has("wait")) {
+    if (json) {
+      out << JobJson(*job).dump(2) << "\n";
+    } else {
+      out << job->job_id() << "\n";
+    }
+    return kExitOk;
+  }
+  if (!json && !flags->Has("quiet")) err << "job " << job->job_id() << " submitted\n";
+  auto end = Follow(jobs, job->job_id(), !flags->Has("quiet"), flags->Has("logs"),
+                    /*json_lines=*/false, out, err);
+  if (!end.ok()) return ReportRemoteError(end.status(), err);
+  if (json) {
+    nlohmann::json result = {{"job", JobJson(*end)}, {"reenactment", nullptr}};
+    if (end->state() == v1::JOB_STATE_SUCCEEDED) result["reenactment"] = end->reenactment_id();
+    out << result.dump(2) << "\n";
+  } else if (end->state() == v1::JOB_STATE_SUCCEEDED) {
+    out << Summary(*end) << "\n";
+  }
+  return JobExit(*end, err);
+}
+
+int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(args, {"server", "timeout", "state", "take"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  if (!flags->positional().empty()) {
+    return ReportError(absl::InvalidArgumentError("jobs list takes no arguments"), err);
+  }
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  auto state = client::ParseJobState(flags->GetOr("state", "all"));
+  if (!state.ok()) return ReportError(state.status(), err);
+  auto jobs = client::JobsClient(*connection).List(*state, flags->GetOr("take", ""));
+  if (!jobs.ok()) return ReportRemoteError(jobs.status(), err);
+  if (flags->Has("json")) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const auto& job : *jobs) j.push_back(JobJson(job));
+    out << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  out << absl::StrFormat("%-24s %-24s %-16s %-10s %8s  %-20s  %s\n", "JOB", "TAKE", "METHOD",
+                         "STATE", "PROGRESS", "SUBMITTED (UTC)", "RESULT");
+  for (const auto& job : *jobs) {
+    const std::string result =
+        job.state() == v1::JOB_STATE_SUCCEEDED ? job.reenactment_id() : job.error();
+    out << absl::StrFormat("%-24s %-24s %-16s %-10s %7.1f%%  %-20s  %s\n", job.job_id(),
+                           job.take_id(), job.method(), client::JobStateName(job.state()),
+                           job.progress().fraction() * 100.0, UtcTime(job.submitted_unix_ns()),
+                           result);
+  }
+  if (jobs->empty()) out << "(no jobs)\n";
+  return kExitOk;
+}
+
+int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  auto job_id = JobIdArgument(*flags, "jobs show");
+  if (!job_id.ok()) return ReportError(job_id.status(), err);
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  auto job = client::JobsClient(*connection).Get(*job_id);
+  if (!job.ok()) return ReportRemoteError(job.status(), err);
+  if (flags->Has("json")) {
+    out << JobJson(*job).dump(2) << "\n";
+    return kExitOk;
+  }
+  const v1::JobProgress& p = job->progress();
+  out << "job          " << job->job_id() << "\n"
+      << "take         " << job->take_id() << "\n"
+      << "method       " << job->method() << "\n";
+  for (const auto& [key, value] : job->options()) {
+    out << "option       " << key << "=" << value << "\n";
+  }
+  out << "state        " << client::JobStateName(job->state()) << "\n"
+      << "progress     " << (p.stage().empty() ? "-" : p.stage())
+      << absl::StrFormat(" %.1f%%", p.fraction() * 100.0);
+  if (p.frames_total() > 0) out << " (" << p.frames_done() << "/" << p.frames_total() << " frames)";
+  if (job->state() == v1::JOB_STATE_RUNNING) out << ", ETA " << Duration(p.eta_s());
+  out << "\n"
+      << "submitted    " << UtcTime(job->submitted_unix_ns()) << "\n"
+      << "started      " << UtcTime(job->started_unix_ns()) << "\n"
+      << "finished     " << UtcTime(job->finished_unix_ns()) << "\n"
+      << "attempts     " << job->attempts() << "\n";
+  if (!job->reenactment_id().empty()) out << "reenactment  " << job->reenactment_id() << "\n";
+  if (!job->error().empty()) out << "error        " << job->error() << "\n";
+  return kExitOk;
+}
+
+int RunJobsWatch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json", "logs", "quiet"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  auto job_id = JobIdArgument(*flags, "jobs watch");
+  if (!job_id.ok()) return ReportError(job_id.status(), err);
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  const bool json = flags->Has("json");
+  auto end = Follow(client::JobsClient(*connection), *job_id, !json && !flags->Has("quiet"),
+                    flags->Has("logs"), json, out, err);
+  if (!end.ok()) return ReportRemoteError(end.status(), err);
+  if (!json && end->state() == v1::JOB_STATE_SUCCEEDED) out << Summary(*end) << "\n";
+  return JobExit(*end, err);
+}
+
+int RunJobsCancel(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  auto job_id = JobIdArgument(*flags, "jobs cancel");
+  if (!job_id.ok()) return ReportError(job_id.status(), err);
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  auto job = client::JobsClient(*connection).Cancel(*job_id);
+  if (!job.ok()) return ReportRemoteError(job.status(), err);
+  if (flags->Has("json")) {
+    out << JobJson(*job).dump(2) << "\n";
+  } else if (job->state() == v1::JOB_STATE_CANCELLED) {
+    out << "job " << job->job_id() << " cancelled\n";
+  } else {
+    out << "job " << job->job_id() << " had already ended: " << client::JobStateName(job->state())
+        << "\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace reenact::cli

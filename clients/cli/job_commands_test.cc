@@ -1,0 +1,225 @@
+// `reenact jobs ...` against a fake Jobs service on 127.0.0.1:0: flags,
+// options, progress bar, JSON output and exit codes.
+#include <map>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "clients/cli/commands.h"
+#include "reenact/v1/jobs_service.grpc.pb.h"
+
+namespace reenact::cli {
+namespace {
+
+// Jobs of take "good" succeed, of "bad" fail, "missing" is unknown.
+class FakeJobs final : public v1::Jobs::Service {
+ public:
+  grpc::Status Submit(grpc::ServerContext*, const v1::SubmitJobRequest* request,
+                      v1::Job* job) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (request->take_id() == "missing") {
+      return grpc::Status(grpc::StatusCode::NOT_FOUND, "no take \"missing\"");
+    }
+    if (request->method() != "rigid-carved" && request->method() != "rigid-cylinders") {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "unknown method");
+    }
+    last_submit = *request;
+    job->set_job_id("j-" + request->take_id());
+    job->set_take_id(request->take_id());
+    job->set_method(request->method());
+    *job->mutable_options() = request->options();
+    job->set_state(v1::JOB_STATE_QUEUED);
+    return grpc::Status::OK;
+  }
+  grpc::Status Watch(grpc::ServerContext*, const v1::WatchJobRequest* request,
+                     grpc::ServerWriter<v1::JobEvent>* writer) override {
+    const std::string take = request->job_id().substr(2);
+    v1::JobEvent event;
+    v1::Job* job = event.mutable_job();
+    job->set_job_id(request->job_id());
+    job->set_take_id(take);
+    job->set_state(v1::JOB_STATE_QUEUED);
+    writer->Write(event);
+    job->set_state(v1::JOB_STATE_RUNNING);
+    job->set_started_unix_ns(1'000'000'000);
+    for (int i = 1; i <= 4; ++i) {
+      v1::JobProgress* p = job->mutable_progress();
+      p->set_stage(i <= 2 ? "load" : "register");
+      p->set_fraction(0.25 * i);
+      p->set_frames_done(30 * i);
+      p->set_frames_total(120);
+      p->set_eta_s(4.0 - i);
+      event.clear_log_lines();
+      event.add_log_lines("step " + std::to_string(i));
+      writer->Write(event);
+    }
+    event.clear_log_lines();
+    job->set_finished_unix_ns(3'500'000'000);
+    if (take == "good") {
+      job->set_state(v1::JOB_STATE_SUCCEEDED);
+      job->set_reenactment_id("r-20260101-000000-abcd");
+    } else {
+      job->set_state(v1::JOB_STATE_FAILED);
+      job->set_error("worker killed by signal 11 (SIGSEGV); last log: boom");
+    }
+    writer->Write(event);
+    return grpc::Status::OK;
+  }
+  grpc::Status Cancel(grpc::ServerContext*, const v1::CancelJobRequest* request,
+                      v1::Job* job) override {
+    job->set_job_id(request->job_id());
+    job->set_state(v1::JOB_STATE_CANCELLED);
+    job->set_error("cancelled by a client");
+    return grpc::Status::OK;
+  }
+  grpc::Status List(grpc::ServerContext*, const v1::ListJobsRequest* request,
+                    v1::ListJobsResponse* response) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    last_list = *request;
+    v1::Job* job = response->add_jobs();
+    job->set_job_id("j-good");
+    job->set_take_id("good");
+    job->set_method("rigid-carved");
+    job->set_state(v1::JOB_STATE_SUCCEEDED);
+    job->mutable_progress()->set_fraction(1.0);
+    job->set_reenactment_id("r-1");
+    return grpc::Status::OK;
+  }
+  grpc::Status Get(grpc::ServerContext*, const v1::GetJobRequest* request, v1::Job* job) override {
+    if (request->job_id() != "j-good") return grpc::Status(grpc::StatusCode::NOT_FOUND, "no job");
+    job->set_job_id("j-good");
+    job->set_state(v1::JOB_STATE_RUNNING);
+    job->mutable_progress()->set_stage("register");
+    job->mutable_progress()->set_fraction(0.5);
+    job->mutable_progress()->set_eta_s(65);
+    return grpc::Status::OK;
+  }
+
+  std::mutex mu_;
+  v1::SubmitJobRequest last_submit;
+  v1::ListJobsRequest last_list;
+};
+
+class JobCommands : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    grpc::ServerBuilder builder;
+    int port = 0;
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+    builder.RegisterService(&service_);
+    server_ = builder.BuildAndStart();
+    ASSERT_NE(server_, nullptr);
+    address_ = "127.0.0.1:" + std::to_string(port);
+  }
+  void TearDown() override { server_->Shutdown(); }
+
+  int Run(const std::vector<std::string>& argv) {
+    out_.str("");
+    err_.str("");
+    std::vector<std::string> args = argv;
+    args.insert(args.begin() + 2, {"--server", address_});
+    return Dispatch(args, out_, err_);
+  }
+
+  FakeJobs service_;
+  std::unique_ptr<grpc::Server> server_;
+  std::string address_;
+  std::ostringstream out_, err_;
+};
+
+TEST_F(JobCommands, SubmitWaitJsonPrintsTheJobAndTheReenactment) {
+  ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved", "--option",
+                 "voxel_mm=8", "--option=mu_mm=20", "--option", "note=a=b", "--wait", "--json"}),
+            kExitOk)
+      << err_.str();
+  EXPECT_EQ(service_.last_submit.options().at("voxel_mm"), "8");
+  EXPECT_EQ(service_.last_submit.options().at("mu_mm"), "20");
+  EXPECT_EQ(service_.last_submit.options().at("note"), "a=b");
+  const auto result = nlohmann::json::parse(out_.str(), nullptr, false);
+  ASSERT_FALSE(result.is_discarded()) << out_.str();
+  EXPECT_EQ(result["reenactment"], "r-20260101-000000-abcd");
+  EXPECT_EQ(result["job"]["state"], "succeeded");
+  EXPECT_EQ(result["job"]["job_id"], "j-good");
+  // The progress bar on stderr: stage, percentage, frames, ETA.
+  const std::string err = err_.str();
+  EXPECT_NE(err.find("register"), std::string::npos) << err;
+  EXPECT_NE(err.find("100.0%"), std::string::npos) << err;
+  EXPECT_NE(err.find("90/120 frames"), std::string::npos) << err;
+  EXPECT_NE(err.find("ETA 1s"), std::string::npos) << err;
+}
+
+TEST_F(JobCommands, SubmitWaitReportsAFailedJob) {
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "bad", "--method", "rigid-cylinders", "--wait"}),
+            kExitFailure);
+  EXPECT_NE(err_.str().find("reenact: job j-bad failed: worker killed by signal 11 (SIGSEGV)"),
+            std::string::npos)
+      << err_.str();
+  EXPECT_EQ(
+      Run({"jobs", "submit", "--take", "bad", "--method", "rigid-cylinders", "--wait", "--json"}),
+      kExitFailure);
+  const auto result = nlohmann::json::parse(out_.str(), nullptr, false);
+  ASSERT_FALSE(result.is_discarded()) << out_.str();
+  EXPECT_TRUE(result["reenactment"].is_null());
+  EXPECT_EQ(result["job"]["state"], "failed");
+}
+
+TEST_F(JobCommands, SubmitWithoutWaitPrintsTheJobId) {
+  ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved"}), kExitOk);
+  EXPECT_EQ(out_.str(), "j-good\n");
+}
+
+TEST_F(JobCommands, SubmitErrors) {
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "missing", "--method", "rigid-carved"}), kExitFailure);
+  EXPECT_NE(err_.str().find("no take \"missing\""), std::string::npos) << err_.str();
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "nope"}), kExitFailure);
+  EXPECT_EQ(
+      Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved", "--option", "novalue"}),
+      kExitUsage);
+  EXPECT_EQ(Run({"jobs", "submit", "--method", "rigid-carved"}), kExitUsage);
+}
+
+TEST_F(JobCommands, ListFiltersAndPrints) {
+  ASSERT_EQ(Run({"jobs", "list", "--state", "succeeded", "--take", "good", "--json"}), kExitOk);
+  EXPECT_EQ(service_.last_list.state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(service_.last_list.take_id(), "good");
+  const auto list = nlohmann::json::parse(out_.str(), nullptr, false);
+  ASSERT_TRUE(list.is_array()) << out_.str();
+  ASSERT_EQ(list.size(), 1u);
+  EXPECT_EQ(list[0]["reenactment_id"], "r-1");
+  ASSERT_EQ(Run({"jobs", "list"}), kExitOk);
+  EXPECT_NE(out_.str().find("j-good"), std::string::npos);
+  EXPECT_NE(out_.str().find("100.0%"), std::string::npos);
+  EXPECT_EQ(Run({"jobs", "list", "--state", "sleeping"}), kExitUsage);
+}
+
+TEST_F(JobCommands, WatchShowAndCancel) {
+  ASSERT_EQ(Run({"jobs", "watch", "--job", "j-good", "--json"}), kExitOk) << err_.str();
+  std::istringstream lines(out_.str());
+  std::string line;
+  int events = 0, log_lines = 0;
+  while (std::getline(lines, line)) {
+    const auto event = nlohmann::json::parse(line, nullptr, false);
+    ASSERT_FALSE(event.is_discarded()) << line;
+    ++events;
+    log_lines += static_cast<int>(event["log_lines"].size());
+  }
+  EXPECT_EQ(events, 6);
+  EXPECT_EQ(log_lines, 4);
+  EXPECT_EQ(Run({"jobs", "watch", "--job", "j-bad"}), kExitFailure);
+  ASSERT_EQ(Run({"jobs", "show", "--job", "j-good"}), kExitOk);
+  EXPECT_NE(out_.str().find("register 50.0%"), std::string::npos) << out_.str();
+  EXPECT_NE(out_.str().find("ETA 1m05s"), std::string::npos) << out_.str();
+  EXPECT_EQ(Run({"jobs", "show", "--job", "j-nope"}), kExitFailure);
+  ASSERT_EQ(Run({"jobs", "cancel", "--job", "j-good"}), kExitOk);
+  EXPECT_EQ(out_.str(), "job j-good cancelled\n");
+  EXPECT_EQ(Run({"jobs", "cancel"}), kExitUsage);
+}
+
+}  // namespace
+}  // namespace reenact::cli

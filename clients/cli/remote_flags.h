@@ -1,0 +1,38 @@
+// What the commands that talk to a reenact-server or a reenactd share: the
+// default addresses, the connection from --server/--daemon and --timeout,
+// how a failed RPC is reported, and how sizes and times are printed.
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "clients/sdk/takes_client.h"
+#include "common/base/flags.h"
+
+namespace reenact::cli {
+
+inline constexpr char kDefaultServer[] = "127.0.0.1:50051";
+inline constexpr char kDefaultDaemon[] = "127.0.0.1:50052";
+
+// The address from `--<address_flag>` (else `fallback`) and the RPC deadline
+// from --timeout seconds (else `default_timeout_s`). InvalidArgument for a
+// timeout that is not a positive number.
+absl::StatusOr<client::ConnectionOptions> ConnectionFromFlags(const Flags& flags,
+                                                              const char* address_flag = "server",
+                                                              const char* fallback = kDefaultServer,
+                                                              double default_timeout_s = 10.0);
+
+// Prints the error and returns kExitFailure: a failed RPC is a failure, not
+// a usage error, whatever its code.
+int ReportRemoteError(const absl::Status& status, std::ostream& err);
+
+// "512 B", "3.2 KiB", "4.0 MiB", "1.25 GiB".
+std::string HumanBytes(int64_t bytes);
+
+// "2026-03-01 12:00:05Z"; "-" for 0 (not set).
+std::string UtcTime(int64_t unix_ns);
+
+}  // namespace reenact::cli

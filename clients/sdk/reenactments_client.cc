@@ -1,0 +1,154 @@
+#include "clients/sdk/reenactments_client.h"
+
+#include <algorithm>
+#include <chrono>
+#include <utility>
+
+#include <grpcpp/client_context.h>
+
+#include "absl/strings/str_cat.h"
+#include "proto/grpc_status.h"
+
+namespace reenact::client {
+namespace {
+
+void SetDeadline(grpc::ClientContext& context, double timeout_s) {
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
+}
+
+absl::Status WithAddress(const absl::Status& s, const std::string& address) {
+  if (s.ok()) return s;
+  return absl::Status(s.code(), absl::StrCat(address, ": ", std::string(s.message())));
+}
+
+absl::Status WithAddress(const grpc::Status& status, const std::string& address) {
+  return WithAddress(FromGrpcStatus(status), address);
+}
+
+// Puts one streamed message into `data`, checking the order the service
+// promises: info, part meshes, frame batches, keyframes.
+absl::Status Accept(v1::FetchReenactmentChunk& chunk, ReenactmentData* data, int* stage) {
+  const int kind = static_cast<int>(chunk.chunk_case());
+  if (kind == 0) return absl::DataLossError("the server sent an empty Fetch message");
+  if (kind < *stage || (kind != v1::FetchReenactmentChunk::kInfo && *stage == 0) ||
+      (kind == v1::FetchReenactmentChunk::kInfo && *stage != 0)) {
+    return absl::DataLossError(
+        absl::StrCat("the server sent Fetch message kind ", kind, " after kind ", *stage));
+  }
+  *stage = kind;
+  switch (chunk.chunk_case()) {
+    case v1::FetchReenactmentChunk::kInfo:
+      data->info = std::move(*chunk.mutable_info());
+      break;
+    case v1::FetchReenactmentChunk::kPartMesh:
+      data->parts.push_back(std::move(*chunk.mutable_part_mesh()));
+      break;
+    case v1::FetchReenactmentChunk::kFrames:
+      for (v1::PartFrame& frame : *chunk.mutable_frames()->mutable_frames()) {
+        data->frames.push_back(std::move(frame));
+      }
+      break;
+    case v1::FetchReenactmentChunk::kKeyframe:
+      data->keyframes.push_back(std::move(*chunk.mutable_keyframe()));
+      break;
+    default:
+      break;
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+ReenactmentsClient::ReenactmentsClient(const ConnectionOptions& options)
+    : ReenactmentsClient(MakeChannel(options), options) {}
+
+ReenactmentsClient::ReenactmentsClient(std::shared_ptr<grpc::Channel> channel,
+                                       const ConnectionOptions& options)
+    : options_(options), stub_(v1::Reenactments::NewStub(std::move(channel))) {}
+
+absl::StatusOr<std::vector<v1::ReenactmentSummary>> ReenactmentsClient::List(
+    const std::string& take_id) const {
+  grpc::ClientContext context;
+  SetDeadline(context, options_.timeout_s);
+  v1::ListReenactmentsRequest request;
+  request.set_take_id(take_id);
+  v1::ListReenactmentsResponse response;
+  const grpc::Status status = stub_->List(&context, request, &response);
+  if (!status.ok()) return WithAddress(status, options_.address);
+  return std::vector<v1::ReenactmentSummary>(response.reenactments().begin(),
+                                             response.reenactments().end());
+}
+
+absl::StatusOr<v1::ReenactmentSummary> ReenactmentsClient::Get(
+    const std::string& reenactment_id) const {
+  grpc::ClientContext context;
+  SetDeadline(context, options_.timeout_s);
+  v1::GetReenactmentRequest request;
+  request.set_reenactment_id(reenactment_id);
+  v1::ReenactmentSummary response;
+  const grpc::Status status = stub_->Get(&context, request, &response);
+  if (!status.ok()) return WithAddress(status, options_.address);
+  return response;
+}
+
+absl::StatusOr<ReenactmentData> ReenactmentsClient::Fetch(const std::string& reenactment_id,
+                                                          bool skip_keyframes,
+                                                          const ProgressCallback& progress) const {
+  int64_t total = 0;
+  if (progress) {
+    // The counts make the progress exact.
+    absl::StatusOr<v1::ReenactmentSummary> summary = Get(reenactment_id);
+    if (!summary.ok()) return summary.status();
+    total = summary->part_count() + summary->info().frame_count() +
+            (skip_keyframes ? 0 : summary->keyframe_count());
+  }
+  grpc::ClientContext context;
+  v1::FetchReenactmentRequest request;
+  request.set_reenactment_id(reenactment_id);
+  request.set_skip_keyframes(skip_keyframes);
+  auto reader = stub_->Fetch(&context, request);
+  ReenactmentData data;
+  v1::FetchReenactmentChunk chunk;
+  int stage = 0;
+  absl::Status failure;
+  while (reader->Read(&chunk)) {
+    failure = Accept(chunk, &data, &stage);
+    if (failure.ok() && progress) {
+      Progress p;
+      p.stage = "fetch";
+      p.items_done =
+          static_cast<int64_t>(data.parts.size() + data.frames.size() + data.keyframes.size());
+      p.items_total = std::max(total, p.items_done);
+      p.fraction = p.items_total > 0
+                       ? static_cast<double>(p.items_done) / static_cast<double>(p.items_total)
+                       : 0.0;
+      if (!progress(p)) failure = absl::CancelledError("fetch cancelled");
+    }
+    if (!failure.ok()) {
+      context.TryCancel();
+      break;
+    }
+  }
+  const grpc::Status status = reader->Finish();
+  if (!failure.ok()) return WithAddress(failure, options_.address);
+  if (!status.ok()) return WithAddress(status, options_.address);
+  if (const absl::Status valid = ValidateReenactment(data); !valid.ok()) {
+    return absl::DataLossError(
+        absl::StrCat(options_.address, ": reenactment ", reenactment_id,
+                     " arrived incomplete or inconsistent: ", std::string(valid.message())));
+  }
+  return data;
+}
+
+absl::Status ReenactmentsClient::Delete(const std::string& reenactment_id) const {
+  grpc::ClientContext context;
+  SetDeadline(context, options_.timeout_s);
+  v1::DeleteReenactmentRequest request;
+  request.set_reenactment_id(reenactment_id);
+  v1::DeleteReenactmentResponse response;
+  const grpc::Status status = stub_->Delete(&context, request, &response);
+  return WithAddress(status, options_.address);
+}
+
+}  // namespace reenact::client

@@ -1,0 +1,49 @@
+// Client side of the server's Reenactments service: what the `reenact` tool
+// and the viewer use to list, inspect, fetch and delete the reenactments that
+// jobs made. Unary calls have a deadline (ConnectionOptions.timeout_s); Fetch
+// has none, it streams for as long as the reenactment takes. Errors carry the
+// address they were sent to.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/channel.h>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "clients/sdk/takes_client.h"
+#include "common/base/progress.h"
+#include "common/io/reenactment_file.h"
+#include "reenact/v1/reenactments_service.grpc.pb.h"
+
+namespace reenact::client {
+
+class ReenactmentsClient {
+ public:
+  explicit ReenactmentsClient(const ConnectionOptions& options);
+  ReenactmentsClient(std::shared_ptr<grpc::Channel> channel, const ConnectionOptions& options);
+
+  // Newest first; only those of `take_id` when it is not empty.
+  absl::StatusOr<std::vector<v1::ReenactmentSummary>> List(const std::string& take_id = "") const;
+  // NotFound for an unknown id.
+  absl::StatusOr<v1::ReenactmentSummary> Get(const std::string& reenactment_id) const;
+  // The whole reenactment, reassembled from the stream and checked with
+  // ValidateReenactment; `skip_keyframes` leaves the texture keyframes on
+  // the server (most of the bytes). `progress` sees the parts, frames and
+  // keyframes arrive (items: messages' parts + frames + keyframes); returning
+  // false cancels (Cancelled). DataLoss when the stream is out of order or
+  // what arrived is not a valid reenactment.
+  absl::StatusOr<ReenactmentData> Fetch(const std::string& reenactment_id,
+                                        bool skip_keyframes = false,
+                                        const ProgressCallback& progress = {}) const;
+  // NotFound for an unknown id.
+  absl::Status Delete(const std::string& reenactment_id) const;
+
+ private:
+  ConnectionOptions options_;
+  std::unique_ptr<v1::Reenactments::Stub> stub_;
+};
+
+}  // namespace reenact::client

@@ -1,0 +1,392 @@
+#include "clients/view/evaluation.h"
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <set>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "clients/view/surface_distance.h"
+#include "common/base/status_macros.h"
+#include "common/io/proto_convert.h"
+#include "common/render/mesh_data.h"
+#include "common/render/offscreen_renderer.h"
+
+namespace reenact::view {
+namespace {
+
+using Joints = std::array<Eigen::Vector3d, kNumSkeletonJoints>;
+
+struct GroundTruth {
+  v1::GroundTruthTopology topology;
+  std::vector<Eigen::Vector3i> triangles;
+  std::map<int64_t, Eigen::Matrix3Xd> meshes;  // By frame_index; evaluated instants only.
+  std::map<int64_t, Joints> joints;            // By frame_index.
+};
+
+absl::Status LoadTopology(const TakeReader& take, GroundTruth* truth) {
+  ASSIGN_OR_RETURN(auto topologies,
+                   take.ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic));
+  if (topologies.empty()) {
+    return absl::FailedPreconditionError(
+        "the take has no ground truth (/ground_truth/topology); evaluate against a synthetic take");
+  }
+  truth->topology = std::move(topologies.front());
+  const auto& indices = truth->topology.triangle_indices();
+  if (indices.size() % 3 != 0) {
+    return absl::DataLossError("ground truth topology: triangle indices not a multiple of 3");
+  }
+  for (int i = 0; i < indices.size(); i += 3) {
+    const Eigen::Vector3i t(indices[i], indices[i + 1], indices[i + 2]);
+    if ((t.array() < 0).any() || (t.array() >= truth->topology.vertex_count()).any()) {
+      return absl::DataLossError("ground truth topology: triangle index out of range");
+    }
+    truth->triangles.push_back(t);
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<GroundTruth> LoadGroundTruth(const TakeReader& take, const std::set<int64_t>& wanted,
+                                            bool meshes) {
+  GroundTruth truth;
+  RETURN_IF_ERROR(LoadTopology(take, &truth));
+  const int vertex_count = truth.topology.vertex_count();
+  if (meshes) {
+    RETURN_IF_ERROR(take.ForEach<v1::GroundTruthMesh>(
+        kGroundTruthMeshTopic, [&](const v1::GroundTruthMesh& mesh) -> absl::Status {
+          if (!wanted.count(mesh.frame_index())) return absl::OkStatus();
+          const std::string& bytes = mesh.positions_in_world_m_f32();
+          if (mesh.vertex_count() != vertex_count ||
+              bytes.size() != static_cast<size_t>(vertex_count) * 3 * sizeof(float)) {
+            return absl::DataLossError(absl::StrCat("ground truth mesh of frame ",
+                                                    mesh.frame_index(), " has the wrong size"));
+          }
+          Eigen::Matrix3Xf positions(3, vertex_count);
+          std::memcpy(positions.data(), bytes.data(), bytes.size());
+          truth.meshes[mesh.frame_index()] = positions.cast<double>();
+          return absl::OkStatus();
+        }));
+  }
+  RETURN_IF_ERROR(take.ForEach<v1::GroundTruthJoints>(
+      kGroundTruthJointsTopic, [&](const v1::GroundTruthJoints& joints) -> absl::Status {
+        if (joints.positions_in_world_m_size() != kNumSkeletonJoints) return absl::OkStatus();
+        Joints& out = truth.joints[joints.frame_index()];
+        for (int j = 0; j < kNumSkeletonJoints; ++j) {
+          out[j] = FromProto(joints.positions_in_world_m(j));
+        }
+        return absl::OkStatus();
+      }));
+  return truth;
+}
+
+// The reconstructed surface at `frame`: every valid part posed in the world.
+void PosedReconstruction(const VdtmModel& model, int frame, Eigen::Matrix3Xd* vertices,
+                         std::vector<Eigen::Vector3i>* triangles) {
+  int total = 0;
+  for (int b = 0; b < model.num_parts(); ++b) {
+    if (model.pose(frame, b).valid)
+      total += static_cast<int>(model.part(b).positions_in_part_m.cols());
+  }
+  vertices->resize(3, total);
+  triangles->clear();
+  int offset = 0;
+  for (int b = 0; b < model.num_parts(); ++b) {
+    if (!model.pose(frame, b).valid) continue;
+    const PartGeometry& part = model.part(b);
+    const Eigen::Affine3d world_from_part = model.pose(frame, b).WorldFromPartScaled();
+    const int n = static_cast<int>(part.positions_in_part_m.cols());
+    vertices->middleCols(offset, n) = world_from_part * part.positions_in_part_m.cast<double>();
+    for (const Eigen::Vector3i& t : part.triangles) {
+      triangles->push_back(t + Eigen::Vector3i::Constant(offset));
+    }
+    offset += n;
+  }
+}
+
+struct SurfaceSums {
+  double accuracy_m = 0, completeness_m = 0;
+  int64_t accuracy_count = 0, completeness_count = 0;
+  int frames = 0;
+};
+
+absl::Status AddSurfaceFrame(const VdtmModel& model, int frame, const Eigen::Matrix3Xd& truth,
+                             const std::vector<Eigen::Vector3i>& truth_triangles, double cell_m,
+                             SurfaceSums* sums) {
+  Eigen::Matrix3Xd recon;
+  std::vector<Eigen::Vector3i> recon_triangles;
+  PosedReconstruction(model, frame, &recon, &recon_triangles);
+  if (recon_triangles.empty()) return absl::OkStatus();  // Nothing posed: no surface.
+  ASSIGN_OR_RETURN(auto truth_index, TriangleSurfaceIndex::Build(truth, truth_triangles, cell_m));
+  ASSIGN_OR_RETURN(auto recon_index, TriangleSurfaceIndex::Build(recon, recon_triangles, cell_m));
+  for (int i = 0; i < recon.cols(); ++i) sums->accuracy_m += truth_index.Distance(recon.col(i));
+  for (int i = 0; i < truth.cols(); ++i) sums->completeness_m += recon_index.Distance(truth.col(i));
+  sums->accuracy_count += recon.cols();
+  sums->completeness_count += truth.cols();
+  ++sums->frames;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<RgbImage> DecodePng(const std::string& bytes) {
+  if (bytes.empty()) return RgbImage();
+  const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1,
+                        const_cast<char*>(bytes.data()));
+  const cv::Mat bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
+  if (bgr.empty()) return absl::DataLossError("ground truth albedo is not a decodable PNG");
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  RgbImage image(rgb.cols, rgb.rows);
+  for (int y = 0; y < rgb.rows; ++y) {
+    std::memcpy(&image.at(0, y), rgb.ptr(y), static_cast<size_t>(rgb.cols) * 3);
+  }
+  return image;
+}
+
+// Renders the reenactment and the truth from the novel viewpoint and pools
+// the colour error and silhouette overlap.
+class NovelViewScorer {
+ public:
+  static absl::StatusOr<std::unique_ptr<NovelViewScorer>> Create(
+      const ReenactmentData& data, const GroundTruth& truth, const v1::SensorCalibration& sensor,
+      const Eigen::Vector3d& pivot, const EvaluationOptions& options) {
+    auto scorer = std::unique_ptr<NovelViewScorer>(new NovelViewScorer(options));
+    render::RendererOptions renderer_options;
+    renderer_options.max_width = options.novel_width;
+    renderer_options.max_height = options.novel_height;
+    ASSIGN_OR_RETURN(scorer->renderer_, render::OffscreenRenderer::Create(renderer_options));
+    ASSIGN_OR_RETURN(render::RenderCamera base,
+                     SensorRenderCamera(sensor, options.novel_width, options.novel_height));
+    scorer->camera_ = OrbitCamera(base, pivot, options.novel_angle_deg);
+    ReenactmentRendererOptions reenactment_options;
+    reenactment_options.mode = options.mode;
+    ASSIGN_OR_RETURN(scorer->reenactment_, ReenactmentRenderer::Create(
+                                               data, scorer->renderer_.get(), reenactment_options));
+    RETURN_IF_ERROR(scorer->SetUpTruth(truth));
+    return scorer;
+  }
+
+  absl::Status AddFrame(int frame, const Eigen::Matrix3Xd& truth_positions) {
+    render::RenderOutputs recon;
+    recon.requested = render::kRenderColour | render::kRenderLabel;
+    RETURN_IF_ERROR(reenactment_->Render(frame, camera_, &recon));
+    RETURN_IF_ERROR(
+        renderer_->UpdateMeshPositions(truth_item_.mesh, truth_positions.cast<float>()));
+    render::RenderOutputs truth;
+    truth.requested = render::kRenderColour | render::kRenderLabel;
+    RETURN_IF_ERROR(renderer_->Render(camera_, {truth_item_}, &truth));
+    int64_t both = 0, either = 0;
+    for (size_t i = 0; i < recon.label.data.size(); ++i) {
+      const bool a = recon.label.data[i] > 0, b = truth.label.data[i] > 0;
+      either += a || b;
+      if (!(a && b)) continue;
+      ++both;
+      for (int c = 0; c < 3; ++c) {
+        const double d =
+            static_cast<double>(recon.colour.data[3 * i + c]) - truth.colour.data[3 * i + c];
+        squared_error_ += d * d;
+      }
+    }
+    if (has_albedo_) samples_ += 3 * both;
+    if (either > 0) {
+      iou_sum_ += static_cast<double>(both) / either;
+      ++frames_;
+    }
+    if (!options_.image_dir.empty()) RETURN_IF_ERROR(WriteSideBySide(frame, recon, truth));
+    return absl::OkStatus();
+  }
+
+  void Finish(EvaluationResult* result) const {
+    result->novel_view_frames = frames_;
+    if (frames_ > 0) result->iou_90 = iou_sum_ / frames_;
+    result->psnr_pixels = samples_ / 3;
+    if (has_albedo_) result->psnr_db_90 = PsnrDb(squared_error_, samples_);
+  }
+
+ private:
+  explicit NovelViewScorer(const EvaluationOptions& options) : options_(options) {}
+
+  absl::Status SetUpTruth(const GroundTruth& truth) {
+    const v1::GroundTruthTopology& topology = truth.topology;
+    const Eigen::Matrix3Xf rest = truth.meshes.begin()->second.cast<float>();
+    ASSIGN_OR_RETURN(std::vector<float> uv_values, UnpackFloats(topology.uvs_f32()));
+    ASSIGN_OR_RETURN(RgbImage albedo, DecodePng(topology.albedo_png()));
+    has_albedo_ = !albedo.empty() && !uv_values.empty() &&
+                  topology.uv_triangle_indices_size() == topology.triangle_indices_size();
+    render::MeshData mesh;
+    if (has_albedo_) {
+      std::vector<Eigen::Vector2f> uvs(uv_values.size() / 2);
+      for (size_t i = 0; i < uvs.size(); ++i) uvs[i] = {uv_values[2 * i], uv_values[2 * i + 1]};
+      std::vector<Eigen::Vector3i> uv_triangles;
+      for (int i = 0; i + 2 < topology.uv_triangle_indices_size(); i += 3) {
+        uv_triangles.emplace_back(topology.uv_triangle_indices(i),
+                                  topology.uv_triangle_indices(i + 1),
+                                  topology.uv_triangle_indices(i + 2));
+      }
+      ASSIGN_OR_RETURN(mesh, render::MeshFromCornerUvs(rest, truth.triangles, uvs, uv_triangles));
+      ASSIGN_OR_RETURN(truth_item_.texture, renderer_->UploadTexture(albedo));
+    } else {
+      mesh.positions_m = rest;
+      mesh.triangles = truth.triangles;
+      mesh.normals = render::ComputeVertexNormals(rest, truth.triangles);
+    }
+    ASSIGN_OR_RETURN(truth_item_.mesh, renderer_->UploadMesh(mesh));
+    truth_item_.lit = true;
+    truth_item_.label = 1;
+    render::ShadingOptions shading;  // The light the take's colour was rendered under.
+    if (topology.has_direction_to_light_in_world()) {
+      const Eigen::Vector3d light = FromProto(topology.direction_to_light_in_world());
+      if (light.norm() > 0) {
+        shading.headlight = false;
+        shading.direction_to_light_in_world = light;
+        shading.ambient = topology.ambient();
+        shading.diffuse = topology.diffuse();
+      }
+    }
+    return renderer_->SetShading(shading);
+  }
+
+  absl::Status WriteSideBySide(int frame, const render::RenderOutputs& recon,
+                               const render::RenderOutputs& truth) const {
+    const int w = recon.colour.width, h = recon.colour.height;
+    cv::Mat image(h, 2 * w, CV_8UC3);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        for (int c = 0; c < 3; ++c) {
+          image.at<cv::Vec3b>(y, x)[2 - c] = recon.colour.at(x, y, c);
+          image.at<cv::Vec3b>(y, w + x)[2 - c] = truth.colour.at(x, y, c);
+        }
+      }
+    }
+    std::error_code ec;
+    std::filesystem::create_directories(options_.image_dir, ec);
+    const std::string path =
+        (std::filesystem::path(options_.image_dir) / absl::StrFormat("novel_%05d.png", frame))
+            .string();
+    if (!cv::imwrite(path, image))
+      return absl::PermissionDeniedError(absl::StrCat(path, ": cannot write"));
+    return absl::OkStatus();
+  }
+
+  EvaluationOptions options_;
+  std::unique_ptr<render::OffscreenRenderer> renderer_;
+  std::unique_ptr<ReenactmentRenderer> reenactment_;
+  render::RenderCamera camera_;
+  render::DrawItem truth_item_;
+  bool has_albedo_ = false;
+  double squared_error_ = 0.0;
+  int64_t samples_ = 0;
+  double iou_sum_ = 0.0;
+  int frames_ = 0;
+};
+
+// Sensor 0 of the reenactment (else the take's first sensor).
+absl::StatusOr<v1::SensorCalibration> FirstSensor(const ReenactmentData& data,
+                                                  const TakeReader& take) {
+  if (data.info.sensors_size() > 0) return data.info.sensors(0);
+  if (!take.sensors().empty()) return take.sensors().begin()->second;
+  return absl::FailedPreconditionError("neither the reenactment nor the take has a sensor");
+}
+
+}  // namespace
+
+absl::Status EvaluationOptions::Validate() const {
+  if (every < 1) return absl::InvalidArgumentError("--every must be >= 1");
+  if (novel_width < 16 || novel_height < 16 || novel_width > 8192 || novel_height > 8192) {
+    return absl::InvalidArgumentError("the novel view must be 16..8192 pixels wide and high");
+  }
+  if (!std::isfinite(novel_angle_deg)) return absl::InvalidArgumentError("bad novel view angle");
+  if (!(grid_cell_m > 0) || !std::isfinite(grid_cell_m)) {
+    return absl::InvalidArgumentError("grid_cell_m must be > 0");
+  }
+  return absl::OkStatus();
+}
+
+std::map<std::string, double> EvaluationResult::Figures() const {
+  return {{"frames_evaluated", frames_evaluated},
+          {"surface_mm", surface_mm},
+          {"surface_accuracy_mm", surface_accuracy_mm},
+          {"surface_completeness_mm", surface_completeness_mm},
+          {"surface_frames", surface_frames},
+          {"psnr_db_90", psnr_db_90},
+          {"iou_90", iou_90},
+          {"psnr_pixels", static_cast<double>(psnr_pixels)},
+          {"novel_view_frames", novel_view_frames},
+          {"mpjpe_mm", mpjpe_mm},
+          {"mpjpe_joints", static_cast<double>(mpjpe_joints)}};
+}
+
+double PsnrDb(double sum_squared_error, int64_t count) {
+  if (count <= 0) return EvaluationResult::kNaN;
+  const double mse = sum_squared_error / static_cast<double>(count);
+  if (mse <= 0) return std::numeric_limits<double>::infinity();
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data,
+                                                     const TakeReader& take,
+                                                     const EvaluationOptions& options,
+                                                     const ProgressCallback& progress) {
+  RETURN_IF_ERROR(options.Validate());
+  ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
+  std::set<int64_t> wanted;
+  for (int f = 0; f < model.num_frames(); f += options.every) wanted.insert(f);
+  const bool need_mesh = options.surface || options.novel_view;
+  ASSIGN_OR_RETURN(GroundTruth truth, LoadGroundTruth(take, wanted, need_mesh));
+  std::vector<int> frames;  // Evaluated instants: every k-th with ground truth.
+  for (int64_t f : wanted) {
+    if (truth.joints.count(f) && (!need_mesh || truth.meshes.count(f)))
+      frames.push_back(static_cast<int>(f));
+  }
+  if (frames.empty()) {
+    return absl::FailedPreconditionError(
+        "the reenactment and the take's ground truth share no instant");
+  }
+  EvaluationResult result;
+  result.frames_evaluated = static_cast<int>(frames.size());
+  std::unique_ptr<NovelViewScorer> scorer;
+  if (options.novel_view) {
+    Eigen::Vector3d pivot = Eigen::Vector3d::Zero();  // Mean true root (SpineBase).
+    for (int f : frames) pivot += truth.joints[f][0];
+    pivot /= static_cast<double>(frames.size());
+    ASSIGN_OR_RETURN(v1::SensorCalibration sensor, FirstSensor(data, take));
+    ASSIGN_OR_RETURN(scorer, NovelViewScorer::Create(data, truth, sensor, pivot, options));
+  }
+  SurfaceSums surface;
+  double joint_error_m = 0.0;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const int f = frames[i];
+    if (options.surface) {
+      RETURN_IF_ERROR(AddSurfaceFrame(model, f, truth.meshes[f], truth.triangles,
+                                      options.grid_cell_m, &surface));
+    }
+    if (scorer != nullptr) RETURN_IF_ERROR(scorer->AddFrame(f, truth.meshes[f]));
+    if (options.joints) {
+      for (int j = 0; j < kNumSkeletonJoints; ++j) {
+        if (!model.joints_valid(f)[j]) continue;
+        joint_error_m += (model.joints(f)[j] - truth.joints[f][j]).norm();
+        ++result.mpjpe_joints;
+      }
+    }
+    if (progress && !progress({"evaluate", (i + 1.0) / frames.size(), static_cast<int64_t>(i + 1),
+                               static_cast<int64_t>(frames.size())})) {
+      return absl::CancelledError("evaluation cancelled");
+    }
+  }
+  if (surface.accuracy_count > 0 && surface.completeness_count > 0) {
+    result.surface_accuracy_mm = 1e3 * surface.accuracy_m / surface.accuracy_count;
+    result.surface_completeness_mm = 1e3 * surface.completeness_m / surface.completeness_count;
+    result.surface_mm = 0.5 * (result.surface_accuracy_mm + result.surface_completeness_mm);
+  }
+  result.surface_frames = surface.frames;
+  if (scorer != nullptr) scorer->Finish(&result);
+  if (result.mpjpe_joints > 0) result.mpjpe_mm = 1e3 * joint_error_m / result.mpjpe_joints;
+  return result;
+}
+
+}  // namespace reenact::view

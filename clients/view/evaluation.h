@@ -1,0 +1,105 @@
+// Accuracy of a rigid-part reenactment against the ground truth of the
+// synthetic take it was made from (common/synth: /ground_truth/mesh,
+// /ground_truth/topology with the truth's appearance, /ground_truth/joints):
+//
+//  * Surface: per evaluated instant, the reconstructed surface (the posed
+//    meshes of the valid parts) against the true posed mesh, both ways,
+//    vertex to surface (point-to-triangle, TriangleSurfaceIndex):
+//      surface_accuracy_mm      mean distance of reconstructed vertices to
+//                               the true surface (recon -> truth);
+//      surface_completeness_mm  mean distance of true vertices to the
+//                               reconstructed surface (truth -> recon);
+//      surface_mm               their mean (a symmetric surface distance).
+//    Means are pooled over the vertices of all evaluated instants.
+//  * Novel view 90 degrees from the capture sensors: sensor 0's colour
+//    camera turned +90 degrees about the vertical (+Y) axis through the
+//    actor's mean true root (SpineBase) position over the evaluated
+//    instants; with two facing sensors this is the view farthest from both.
+//    Rendered at 960 x 540 (the colour intrinsics scaled, distortion left
+//    out) twice by the same renderer: the reenactment (VDTM, or baked) and
+//    the truth (true posed mesh with its albedo texture under the take's
+//    light, lit).
+//      psnr_db_90  PSNR (8-bit, peak 255) over the pixels where both show
+//                  the person, MSE pooled over RGB and all evaluated instants;
+//      iou_90      mean over instants of the silhouette IoU.
+//  * mpjpe_mm: mean distance of PartFrame.joints_in_world_m to the true
+//    joints, over the 25 Kinect v2 joints and the evaluated instants
+//    (joints the reenactment lacks are left out).
+//
+// Instants are matched by index: PartFrame.frame_index is the ground truth's
+// frame_index (a synthetic take has one instant per ground-truth frame).
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "clients/view/reenactment_renderer.h"
+#include "common/base/progress.h"
+#include "common/io/reenactment_file.h"
+#include "common/io/take.h"
+
+namespace reenact::view {
+
+struct EvaluationOptions {
+  // Evaluate every k-th instant (0, k, 2k, ...), k >= 1.
+  int every = 1;
+  // Which figures to measure.
+  bool surface = true;
+  bool novel_view = true;
+  bool joints = true;
+  // Novel view: size (pixels) and turn about the vertical, degrees.
+  int novel_width = 960;
+  int novel_height = 540;
+  double novel_angle_deg = 90.0;
+  // Texturing of the reenactment in the novel view.
+  TextureMode mode = TextureMode::kVdtm;
+  // Cell of the surface-distance grid, metres.
+  double grid_cell_m = 0.02;
+  // When not empty, each evaluated novel view is written there as a PNG,
+  // reenactment left and truth right ("novel_<frame>.png").
+  std::string image_dir;
+
+  // InvalidArgument naming the first bad field.
+  absl::Status Validate() const;
+};
+
+struct EvaluationResult {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  int frames_evaluated = 0;  // Instants visited (every k-th).
+  // Surface (NaN when not measured).
+  double surface_mm = kNaN;
+  double surface_accuracy_mm = kNaN;
+  double surface_completeness_mm = kNaN;
+  int surface_frames = 0;
+  // Novel view (NaN when not measured; PSNR NaN also when no pixel overlaps
+  // or the take has no albedo).
+  double psnr_db_90 = kNaN;
+  double iou_90 = kNaN;
+  int64_t psnr_pixels = 0;
+  int novel_view_frames = 0;
+  // Joints.
+  double mpjpe_mm = kNaN;
+  int64_t mpjpe_joints = 0;
+
+  // Every figure by name (the names above), for JSON output.
+  std::map<std::string, double> Figures() const;
+};
+
+// Measures `data` against the ground truth in `take` (see the file comment).
+// FailedPrecondition when the take has no ground truth (not synthetic) or no
+// instant is shared; InvalidArgument for bad options or a reenactment that
+// does not validate; Unavailable when no GL context can be had for the
+// novel view; Cancelled when `progress` returns false.
+absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data,
+                                                     const TakeReader& take,
+                                                     const EvaluationOptions& options = {},
+                                                     const ProgressCallback& progress = {});
+
+// The pooled PSNR of 8-bit images from a sum of squared differences over
+// `count` samples, dB (infinity for zero error, NaN for no samples).
+double PsnrDb(double sum_squared_error, int64_t count);
+
+}  // namespace reenact::view

@@ -1,0 +1,174 @@
+#include "clients/view/evaluation.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include <gtest/gtest.h>
+
+#include "clients/view/truth_reenactment.h"
+#include "common/body/procedural_body.h"
+#include "common/synth/synthesizer.h"
+#include "common/testing/test_data.h"
+
+namespace reenact::view {
+namespace {
+
+struct SharedTake {
+  std::unique_ptr<TakeReader> reader;
+  body::BodyModel model;
+  ReenactmentData truth;  // The hand-made reenactment from the ground truth.
+};
+
+// A short two-sensor synthetic take (an arm raise, 0.5 s at 30 fps, colour
+// 640 x 360) and its truth reenactment, made once per test process.
+const SharedTake& Take() {
+  static const SharedTake* take = [] {
+    auto* t = new SharedTake;
+    synth::SynthOptions options;
+    options.motion = "builtin:arm-raise";
+    options.num_sensors = 2;
+    options.seconds = 0.5;
+    options.color_width = 640;
+    options.color_height = 360;
+    const std::string path = reenact::testing::MakeTempDir("view_eval") + "/take.mcap";
+    auto summary = synth::SynthesizeTake(options, path);
+    if (!summary.ok()) {
+      ADD_FAILURE() << summary.status();
+      return t;
+    }
+    auto reader = TakeReader::Open(path);
+    auto model = body::BuildProceduralBody();
+    if (!reader.ok() || !model.ok()) {
+      ADD_FAILURE() << reader.status() << " " << model.status();
+      return t;
+    }
+    t->reader = std::move(*reader);
+    t->model = std::move(*model);
+    auto truth = testing::MakeTruthReenactment(*t->reader, t->model);
+    if (!truth.ok()) {
+      ADD_FAILURE() << truth.status();
+      return t;
+    }
+    t->truth = std::move(*truth);
+    return t;
+  }();
+  return *take;
+}
+
+void Print(const std::string& what, const EvaluationResult& r) {
+  std::printf(
+      "%s: surface %.2f mm (accuracy %.2f, completeness %.2f), PSNR90 %.2f dB over %lld px, "
+      "IoU90 %.3f, MPJPE %.2f mm, %d frames\n",
+      what.c_str(), r.surface_mm, r.surface_accuracy_mm, r.surface_completeness_mm, r.psnr_db_90,
+      static_cast<long long>(r.psnr_pixels), r.iou_90, r.mpjpe_mm, r.frames_evaluated);
+}
+
+TEST(EvaluateReenactment, TruthReenactmentScoresWellAndAPerturbedOneWorse) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  ASSERT_FALSE(take.truth.frames.empty());
+  EvaluationOptions options;
+  options.every = 2;
+  auto truth = EvaluateReenactment(take.truth, *take.reader, options);
+  ASSERT_TRUE(truth.ok()) << truth.status();
+  Print("truth reenactment", *truth);
+  EXPECT_EQ(truth->frames_evaluated, 8);  // Instants 0, 2, ..., 14.
+  // Rigid parts cut from the truth: exact at instant 0, off only where the
+  // skinning blends joints.
+  EXPECT_LT(truth->surface_mm, 2.0);
+  EXPECT_LT(truth->surface_accuracy_mm, 2.0);
+  EXPECT_LT(truth->surface_completeness_mm, 2.0);
+  // The side view: both sensors (front, back) saw it at grazing angles.
+  EXPECT_GT(truth->psnr_db_90, 19.0);
+  EXPECT_GT(truth->iou_90, 0.97);
+  EXPECT_LT(truth->mpjpe_mm, 1e-3);
+
+  ReenactmentData perturbed = take.truth;
+  testing::PerturbPoses(&perturbed, Eigen::Vector3d(0.03, 0.0, 0.02), 8.0);
+  for (v1::PartFrame& frame : perturbed.frames) {
+    for (v1::Vector3& joint : *frame.mutable_joints_in_world_m()) joint.set_x(joint.x() + 0.03);
+  }
+  auto worse = EvaluateReenactment(perturbed, *take.reader, options);
+  ASSERT_TRUE(worse.ok()) << worse.status();
+  Print("perturbed (3.6 cm, 8 deg)", *worse);
+  EXPECT_GT(worse->surface_mm, truth->surface_mm + 10.0);
+  EXPECT_LT(worse->psnr_db_90, truth->psnr_db_90 - 1.0);
+  EXPECT_LT(worse->iou_90, truth->iou_90 - 0.05);
+  EXPECT_NEAR(worse->mpjpe_mm, 30.0, 1e-3);
+}
+
+TEST(EvaluateReenactment, FromSensor0sOwnViewTheTruthReenactmentMatchesTheTruth) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  EvaluationOptions options;
+  options.every = 7;
+  options.surface = false;
+  options.novel_angle_deg = 0.0;  // Sensor 0's colour camera, at its own size.
+  options.novel_width = 640;
+  options.novel_height = 360;
+  options.image_dir = reenact::testing::MakeTempDir("view_eval_images");
+  auto result = EvaluateReenactment(take.truth, *take.reader, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  Print("truth reenactment from sensor 0", *result);
+  // What is left is the take's colour noise (2 levels), JPEG and the
+  // silhouette's edge pixels.
+  EXPECT_GT(result->psnr_db_90, 28.0);
+  EXPECT_GT(result->iou_90, 0.97);
+  for (const char* name : {"novel_00000.png", "novel_00007.png", "novel_00014.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(options.image_dir) / name)) << name;
+  }
+  // The same by Eq. 3.6 (rigid-cylinders): the pose-closest keyframe from
+  // sensor 0's place is the instant's own image.
+  ReenactmentData cylinders = take.truth;
+  cylinders.info.set_method("rigid-cylinders");
+  options.image_dir.clear();
+  auto by_pose = EvaluateReenactment(cylinders, *take.reader, options);
+  ASSERT_TRUE(by_pose.ok()) << by_pose.status();
+  Print("truth reenactment from sensor 0, Eq. 3.6", *by_pose);
+  EXPECT_GT(by_pose->psnr_db_90, 28.0);
+}
+
+TEST(EvaluateReenactment, BakedFallbackAndOptions) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  EvaluationOptions options;
+  options.every = 5;
+  options.surface = false;
+  options.novel_width = 320;
+  options.novel_height = 180;
+  options.mode = TextureMode::kBaked;  // No baked texture: flat grey, lit.
+  auto result = EvaluateReenactment(take.truth, *take.reader, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(result->frames_evaluated, 3);
+  EXPECT_TRUE(std::isnan(result->surface_mm));
+  EXPECT_GT(result->iou_90, 0.9);  // The shape is the truth's whatever the texture.
+  options.every = 0;
+  EXPECT_EQ(EvaluateReenactment(take.truth, *take.reader, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(EvaluateReenactment, TakeWithoutGroundTruthIsFailedPrecondition) {
+  const SharedTake& take = Take();
+  ASSERT_NE(take.reader, nullptr);
+  const std::string path = reenact::testing::MakeTempDir("view_eval_nogt") + "/take.mcap";
+  v1::TakeInfo info;
+  info.set_name("plain");
+  auto writer = TakeWriter::Open(path, info);
+  ASSERT_TRUE(writer.ok());
+  ASSERT_TRUE((*writer)->Close().ok());
+  auto plain = TakeReader::Open(path);
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_EQ(EvaluateReenactment(take.truth, **plain).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
+TEST(PsnrDb, OfKnownErrors) {
+  EXPECT_NEAR(PsnrDb(100.0 * 100, 100), 20.0 * std::log10(255.0 / 10.0), 1e-9);
+  EXPECT_TRUE(std::isinf(PsnrDb(0.0, 10)));
+  EXPECT_TRUE(std::isnan(PsnrDb(0.0, 0)));
+}
+
+}  // namespace
+}  // namespace reenact::view

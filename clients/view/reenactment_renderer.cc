@@ -1,0 +1,406 @@
+#include "clients/view/reenactment_renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/geometry/camera.h"
+#include "common/io/jpeg.h"
+#include "common/io/mask_codec.h"
+#include "common/io/proto_convert.h"
+
+namespace reenact::view {
+namespace {
+
+// Spreads the colours of opaque texels into the transparent texels next to
+// them, `rings` texels deep, so that bilinear filtering at the mask's edge
+// does not blend in the background's colour (the alpha test still cuts there).
+void BleedColours(render::RgbaImage* image, int rings) {
+  const int w = image->width, h = image->height;
+  std::vector<uint8_t> filled(static_cast<size_t>(w) * h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) filled[static_cast<size_t>(y) * w + x] = image->at(x, y, 3) >= 128;
+  }
+  for (int ring = 0; ring < rings; ++ring) {
+    std::vector<uint8_t> next = filled;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        if (filled[static_cast<size_t>(y) * w + x]) continue;
+        int sum[3] = {0, 0, 0}, count = 0;
+        const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+        for (int n = 0; n < 4; ++n) {
+          const int nx = x + dx[n], ny = y + dy[n];
+          if (nx < 0 || ny < 0 || nx >= w || ny >= h || !filled[static_cast<size_t>(ny) * w + nx]) {
+            continue;
+          }
+          for (int c = 0; c < 3; ++c) sum[c] += image->at(nx, ny, c);
+          ++count;
+        }
+        if (count == 0) continue;
+        for (int c = 0; c < 3; ++c) image->at(x, y, c) = static_cast<uint8_t>(sum[c] / count);
+        next[static_cast<size_t>(y) * w + x] = 1;
+      }
+    }
+    filled = std::move(next);
+  }
+}
+
+// The keyframe's crop with its actor mask as alpha (the mask resampled to the
+// crop image's size when they differ; no mask: all opaque).
+absl::StatusOr<render::RgbaImage> DecodeKeyframe(const v1::TextureKeyframe& keyframe) {
+  auto colour = DecodeJpeg(keyframe.color_jpeg());
+  if (!colour.ok()) {
+    return absl::DataLossError(absl::StrCat("keyframe of frame ", keyframe.frame_index(),
+                                            ", sensor ", keyframe.sensor_id(),
+                                            ": colour: ", colour.status().message()));
+  }
+  MaskImage mask;
+  if (!keyframe.mask_rle().empty()) {
+    auto decoded = DecodeMaskRle(keyframe.mask_rle());
+    if (!decoded.ok()) {
+      return absl::DataLossError(absl::StrCat("keyframe of frame ", keyframe.frame_index(),
+                                              ", sensor ", keyframe.sensor_id(),
+                                              ": mask: ", decoded.status().message()));
+    }
+    mask = std::move(*decoded);
+  }
+  render::RgbaImage image(colour->width, colour->height);
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) {
+      for (int c = 0; c < 3; ++c) image.at(x, y, c) = colour->at(x, y, c);
+      bool actor = true;
+      if (!mask.empty()) {
+        const int mx = std::min(mask.width - 1, x * mask.width / image.width);
+        const int my = std::min(mask.height - 1, y * mask.height / image.height);
+        actor = mask.at(mx, my) > 0;
+      }
+      image.at(x, y, 3) = actor ? 255 : 0;
+    }
+  }
+  if (!mask.empty()) BleedColours(&image, 3);
+  return image;
+}
+
+}  // namespace
+
+// The triangles of one part drawn with one texture.
+struct ReenactmentRenderer::Group {
+  int part = 0;
+  int keyframe = -1;          // Texture source; -1: baked or untextured.
+  bool baked = false;         // Baked texture and the mesh's own uvs.
+  render::TextureId texture;  // Invalid: untextured (lit flat colour).
+  int texture_width = 0, texture_height = 0;
+  std::vector<int> triangles;  // Indices into the part's triangles.
+};
+
+absl::StatusOr<TextureMode> ParseTextureMode(const std::string& name) {
+  if (name == "vdtm") return TextureMode::kVdtm;
+  if (name == "baked") return TextureMode::kBaked;
+  return absl::InvalidArgumentError(
+      absl::StrCat("texture mode must be 'vdtm' or 'baked', got '", name, "'"));
+}
+
+absl::Status ReenactmentRendererOptions::Validate() const {
+  if (texture_cache_bytes < 0) {
+    return absl::InvalidArgumentError("texture_cache_bytes must be >= 0");
+  }
+  if (!(untextured_srgb.array() >= 0.0f).all() || !(untextured_srgb.array() <= 1.0f).all()) {
+    return absl::InvalidArgumentError("untextured_srgb must lie in [0, 1]");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<ReenactmentRenderer>> ReenactmentRenderer::Create(
+    const ReenactmentData& data, render::OffscreenRenderer* renderer,
+    const ReenactmentRendererOptions& options) {
+  if (renderer == nullptr) return absl::InvalidArgumentError("ReenactmentRenderer: no renderer");
+  RETURN_IF_ERROR(options.Validate());
+  ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
+  return std::unique_ptr<ReenactmentRenderer>(
+      new ReenactmentRenderer(data, renderer, options, std::move(model)));
+}
+
+ReenactmentRenderer::ReenactmentRenderer(const ReenactmentData& data,
+                                         render::OffscreenRenderer* renderer,
+                                         const ReenactmentRendererOptions& options, VdtmModel model)
+    : data_(data),
+      renderer_(renderer),
+      options_(options),
+      selection_(options.selection_from_method ? SelectionForMethod(data.info.method())
+                                               : options.selection),
+      model_(std::move(model)),
+      baked_(model_.num_parts()),
+      baked_tried_(model_.num_parts(), false) {}
+
+ReenactmentRenderer::~ReenactmentRenderer() {
+  for (auto& [keyframe, texture] : textures_) renderer_->ReleaseTexture(texture.id).IgnoreError();
+  for (render::TextureId id : baked_) {
+    if (id.valid()) renderer_->ReleaseTexture(id).IgnoreError();
+  }
+}
+
+absl::StatusOr<const ReenactmentRenderer::CachedTexture*> ReenactmentRenderer::KeyframeTexture(
+    int keyframe, int* uploaded) {
+  if (auto it = textures_.find(keyframe); it != textures_.end()) {
+    lru_.splice(lru_.begin(), lru_, it->second.lru);  // Most recently used.
+    return &it->second;
+  }
+  ASSIGN_OR_RETURN(render::RgbaImage image, DecodeKeyframe(data_.keyframes[keyframe]));
+  CachedTexture texture;
+  ASSIGN_OR_RETURN(texture.id, renderer_->UploadTexture(image));
+  texture.width = image.width;
+  texture.height = image.height;
+  texture.bytes = static_cast<int64_t>(image.width) * image.height * 4 * 4 / 3;  // With mipmaps.
+  lru_.push_front(keyframe);
+  texture.lru = lru_.begin();
+  cache_bytes_ += texture.bytes;
+  ++*uploaded;
+  return &(textures_[keyframe] = texture);
+}
+
+absl::StatusOr<render::TextureId> ReenactmentRenderer::BakedTexture(int part) {
+  if (baked_tried_[part]) return baked_[part];
+  baked_tried_[part] = true;
+  const v1::PartMesh& mesh = data_.parts[part];
+  if (mesh.baked_texture_jpeg().empty() || model_.part(part).uvs.cols() == 0) {
+    return render::TextureId();
+  }
+  auto image = DecodeJpeg(mesh.baked_texture_jpeg());
+  if (!image.ok()) {
+    return absl::DataLossError(
+        absl::StrCat("baked texture of part ", part, ": ", image.status().message()));
+  }
+  ASSIGN_OR_RETURN(baked_[part], renderer_->UploadTexture(*image));
+  return baked_[part];
+}
+
+void ReenactmentRenderer::EvictTextures() {
+  // Least recently used first; runs after a frame is drawn, so the frame's
+  // own textures (the most recent) go last.
+  while (cache_bytes_ > options_.texture_cache_bytes && !lru_.empty()) {
+    auto texture = textures_.find(lru_.back());
+    renderer_->ReleaseTexture(texture->second.id).IgnoreError();
+    cache_bytes_ -= texture->second.bytes;
+    textures_.erase(texture);
+    lru_.pop_back();
+  }
+}
+
+absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
+                                                  const Eigen::Isometry3d& camera_from_world,
+                                                  std::vector<Group>* groups, FrameStats* stats) {
+  std::vector<int> pose_ranking;
+  if (selection_ == TextureSelection::kPose) {
+    pose_ranking = model_.RankByPose(frame, camera_from_world);  // Eq. 3.6, all parts.
+  }
+  for (int b = 0; b < model_.num_parts(); ++b) {
+    if (!model_.pose(frame, b).valid || model_.part(b).triangles.empty()) continue;
+    ++stats->parts_drawn;
+    const std::vector<int> ranking = selection_ == TextureSelection::kPose
+                                         ? pose_ranking
+                                         : model_.RankByRotation(frame, b, camera_from_world);
+    int best = -1;
+    for (int k : ranking) {
+      if (model_.pose(model_.keyframe(k).frame, b).valid) {
+        best = k;
+        break;
+      }
+    }
+    stats->best_keyframe[b] = best;
+    int next_best = 0;
+    const std::vector<int> chosen = model_.AssignTriangles(b, ranking, &next_best);
+    stats->triangles_next_best += next_best;
+    ASSIGN_OR_RETURN(render::TextureId baked, BakedTexture(b));
+    std::map<int, Group> by_keyframe;  // Keyframe -> group; -2: baked; -1: untextured.
+    for (size_t t = 0; t < chosen.size(); ++t) {
+      int source = chosen[t];
+      if (source < 0) {
+        ++stats->triangles_unseen;
+        source = baked.valid() ? -2 : best;
+      }
+      Group& group = by_keyframe[source];
+      group.part = b;
+      group.triangles.push_back(static_cast<int>(t));
+    }
+    for (auto& [source, group] : by_keyframe) {
+      if (source >= 0) {
+        ASSIGN_OR_RETURN(const CachedTexture* texture,
+                         KeyframeTexture(source, &stats->textures_uploaded));
+        group.keyframe = source;
+        group.texture = texture->id;
+        group.texture_width = texture->width;
+        group.texture_height = texture->height;
+      } else if (source == -2) {
+        group.baked = true;
+        group.texture = baked;
+      }
+      groups->push_back(std::move(group));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ReenactmentRenderer::BuildBakedGroups(int frame, std::vector<Group>* groups,
+                                                   FrameStats* stats) {
+  for (int b = 0; b < model_.num_parts(); ++b) {
+    const PartGeometry& part = model_.part(b);
+    if (!model_.pose(frame, b).valid || part.triangles.empty()) continue;
+    ++stats->parts_drawn;
+    Group group;
+    group.part = b;
+    ASSIGN_OR_RETURN(group.texture, BakedTexture(b));
+    group.baked = group.texture.valid();
+    group.triangles.resize(part.triangles.size());
+    for (size_t t = 0; t < part.triangles.size(); ++t) group.triangles[t] = static_cast<int>(t);
+    groups->push_back(std::move(group));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<render::MeshData> ReenactmentRenderer::GroupMesh(int frame,
+                                                                const Group& group) const {
+  const PartGeometry& part = model_.part(group.part);
+  const double scale = model_.pose(frame, group.part).scale;
+  std::vector<int> new_index(part.positions_in_part_m.cols(), -1);
+  std::vector<int> used;
+  render::MeshData mesh;
+  for (int t : group.triangles) {
+    Eigen::Vector3i triangle;
+    for (int c = 0; c < 3; ++c) {
+      int& index = new_index[part.triangles[t][c]];
+      if (index < 0) {
+        index = static_cast<int>(used.size());
+        used.push_back(part.triangles[t][c]);
+      }
+      triangle[c] = index;
+    }
+    mesh.triangles.push_back(triangle);
+  }
+  const int n = static_cast<int>(used.size());
+  mesh.positions_m.resize(3, n);
+  if (part.normals_in_part.cols() > 0) mesh.normals.resize(3, n);
+  if (group.texture.valid()) mesh.uvs.resize(2, n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f x = part.positions_in_part_m.col(used[i]);
+    // Cylinders scale with the segment (PartPose.scale); the draw item's
+    // pose is the rigid rest of world_from_part.
+    mesh.positions_m.col(i) = static_cast<float>(scale) * x;
+    if (mesh.normals.cols() > 0) mesh.normals.col(i) = part.normals_in_part.col(used[i]);
+    if (group.baked) {
+      mesh.uvs.col(i) = part.uvs.col(used[i]);
+    } else if (group.keyframe >= 0) {
+      // Eq. 3.14-3.15 through the part's pose at the keyframe's instant.
+      mesh.uvs.col(i) = model_.KeyframeUv(group.keyframe, group.part, x, group.texture_width,
+                                          group.texture_height);
+    }
+  }
+  return mesh;
+}
+
+absl::Status ReenactmentRenderer::Render(int frame_index, const render::RenderCamera& camera,
+                                         render::RenderOutputs* out, FrameStats* stats) {
+  if (frame_index < 0 || frame_index >= model_.num_frames()) {
+    return absl::NotFoundError(absl::StrCat("frame ", frame_index, " is not in the reenactment (",
+                                            model_.num_frames(), " frames)"));
+  }
+  RETURN_IF_ERROR(camera.Validate());
+  FrameStats local;
+  FrameStats& s = stats != nullptr ? *stats : local;
+  s = FrameStats();
+  s.best_keyframe.assign(model_.num_parts(), -1);
+  const Eigen::Isometry3d camera_from_world = camera.world_from_camera.inverse();
+  std::vector<Group> groups;
+  if (options_.mode == TextureMode::kVdtm) {
+    RETURN_IF_ERROR(BuildVdtmGroups(frame_index, camera_from_world, &groups, &s));
+  } else {
+    RETURN_IF_ERROR(BuildBakedGroups(frame_index, &groups, &s));
+  }
+  std::vector<render::DrawItem> items;
+  absl::Status status;
+  for (const Group& group : groups) {
+    auto mesh = GroupMesh(frame_index, group);
+    if (!mesh.ok()) {
+      status = mesh.status();
+      break;
+    }
+    auto id = renderer_->UploadMesh(*mesh);
+    if (!id.ok()) {
+      status = id.status();
+      break;
+    }
+    render::DrawItem item;
+    item.mesh = *id;
+    item.world_from_model = model_.pose(frame_index, group.part).world_from_part;
+    item.texture = group.texture;
+    item.lit = !group.texture.valid();  // Keyframe colours already carry the light.
+    item.colour_srgb = options_.untextured_srgb;
+    item.label = group.part + 1;
+    items.push_back(item);
+    s.triangles += static_cast<int>(group.triangles.size());
+  }
+  s.draw_items = static_cast<int>(items.size());
+  if (status.ok()) status = renderer_->Render(camera, items, out);
+  for (const render::DrawItem& item : items) renderer_->ReleaseMesh(item.mesh).IgnoreError();
+  EvictTextures();
+  return status;
+}
+
+absl::StatusOr<render::RenderCamera> SensorRenderCamera(const v1::SensorCalibration& calibration,
+                                                        int width, int height) {
+  ASSIGN_OR_RETURN(CameraIntrinsics full, FromProto(calibration.color_intrinsics()));
+  ASSIGN_OR_RETURN(CameraIntrinsics k, ScaledIntrinsics(full, width, height));
+  ASSIGN_OR_RETURN(Rigid3d color_from_depth, FromProto(calibration.color_from_depth()));
+  ASSIGN_OR_RETURN(Rigid3d world_from_depth, FromProto(calibration.world_from_depth()));
+  const Rigid3d world_from_color = world_from_depth * color_from_depth.Inverse();
+  render::RenderCamera camera;
+  camera.width = width;
+  camera.height = height;
+  camera.fx = k.fx;
+  camera.fy = k.fy;
+  // CameraIntrinsics put pixel centres on integers; the renderer on +0.5.
+  camera.cx = k.cx + 0.5;
+  camera.cy = k.cy + 0.5;
+  camera.world_from_camera = Eigen::Isometry3d(world_from_color.ToMatrix4());
+  camera.near_m = 0.1;
+  camera.far_m = 30.0;
+  RETURN_IF_ERROR(camera.Validate());
+  return camera;
+}
+
+render::RenderCamera OrbitCamera(const render::RenderCamera& camera,
+                                 const Eigen::Vector3d& pivot_in_world, double angle_deg) {
+  const double angle_rad = angle_deg * std::numbers::pi / 180.0;
+  const Eigen::Isometry3d turn = Eigen::Translation3d(pivot_in_world) *
+                                 Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitY()) *
+                                 Eigen::Translation3d(-pivot_in_world);
+  render::RenderCamera turned = camera;
+  turned.world_from_camera = turn * camera.world_from_camera;
+  return turned;
+}
+
+absl::StatusOr<Eigen::Vector3d> MeanActorPosition(const ReenactmentData& data) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (const v1::PartFrame& frame : data.frames) {
+    if (frame.joints_in_world_m_size() != kNumSkeletonJoints) continue;
+    const Eigen::Vector3d root = FromProto(frame.joints_in_world_m(0));  // SpineBase.
+    if (!root.allFinite()) continue;
+    sum += root;
+    ++count;
+  }
+  if (count > 0) return Eigen::Vector3d(sum / count);
+  for (const v1::PartFrame& frame : data.frames) {
+    for (const v1::PartPose& pose : frame.parts()) {
+      if (!pose.valid()) continue;
+      sum += FromProto(pose.world_from_part().translation_m());
+      ++count;
+    }
+  }
+  if (count == 0) return absl::NotFoundError("the reenactment has no joints and no posed part");
+  return Eigen::Vector3d(sum / count);
+}
+
+}  // namespace reenact::view

@@ -1,0 +1,421 @@
+// The only translation unit that compiles tinygltf (see tinygltf_config.h).
+#define TINYGLTF_IMPLEMENTATION
+#include "common/io/tinygltf_config.h"
+
+#include "common/io/gltf_export.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
+
+namespace reenact {
+
+bool KeepEncodedImage(tinygltf::Image* image, int image_index, std::string* err, std::string* warn,
+                      int req_width, int req_height, const unsigned char* bytes, int size,
+                      void* user_data) {
+  image->image.assign(bytes, bytes + size);
+  image->as_is = true;
+  return true;
+}
+
+namespace {
+
+// Key of a part's animation: time, translation, rotation (x, y, z, w as
+// glTF orders it), uniform scale.
+struct Key {
+  double time_s = 0;
+  std::array<float, 3> translation{};
+  std::array<float, 4> rotation{0, 0, 0, 1};
+  float scale = 0;
+};
+
+// Where a part appears or disappears, the extra key sits this long before
+// the frame (at most a quarter of the frame interval).
+constexpr double kStepLeadS = 1e-3;
+
+// Collects the model and its one binary buffer.
+class GlbBuilder {
+ public:
+  GlbBuilder() { model_.buffers.emplace_back(); }
+  tinygltf::Model& model() { return model_; }
+
+  // A bufferView over `bytes`, 4-byte aligned.
+  int AddView(const void* bytes, size_t size, int target) {
+    std::vector<unsigned char>& data = model_.buffers[0].data;
+    data.resize((data.size() + 3) / 4 * 4, 0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = data.size();
+    view.byteLength = size;
+    view.target = target;
+    const auto* begin = static_cast<const unsigned char*>(bytes);
+    data.insert(data.end(), begin, begin + size);
+    model_.bufferViews.push_back(std::move(view));
+    return static_cast<int>(model_.bufferViews.size()) - 1;
+  }
+
+  // A float accessor of `components` per element (type TINYGLTF_TYPE_*), with
+  // per-component min/max when `bounds`.
+  int AddFloats(const std::vector<float>& values, int components, int type, int target,
+                bool bounds) {
+    tinygltf::Accessor accessor;
+    accessor.bufferView = AddView(values.data(), values.size() * sizeof(float), target);
+    accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    accessor.count = values.size() / components;
+    accessor.type = type;
+    if (bounds) {
+      accessor.minValues.assign(components, std::numeric_limits<double>::infinity());
+      accessor.maxValues.assign(components, -std::numeric_limits<double>::infinity());
+      for (size_t i = 0; i < values.size(); ++i) {
+        const size_t c = i % components;
+        accessor.minValues[c] = std::min<double>(accessor.minValues[c], values[i]);
+        accessor.maxValues[c] = std::max<double>(accessor.maxValues[c], values[i]);
+      }
+    }
+    model_.accessors.push_back(std::move(accessor));
+    return static_cast<int>(model_.accessors.size()) - 1;
+  }
+
+  int AddIndices(const std::vector<uint32_t>& indices) {
+    tinygltf::Accessor accessor;
+    accessor.bufferView = AddView(indices.data(), indices.size() * sizeof(uint32_t),
+                                  TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    accessor.count = indices.size();
+    accessor.type = TINYGLTF_TYPE_SCALAR;
+    model_.accessors.push_back(std::move(accessor));
+    return static_cast<int>(model_.accessors.size()) - 1;
+  }
+
+ private:
+  tinygltf::Model model_;
+};
+
+bool IsJpeg(const std::string& bytes) {
+  return bytes.size() > 3 && static_cast<uint8_t>(bytes[0]) == 0xFF &&
+         static_cast<uint8_t>(bytes[1]) == 0xD8 && static_cast<uint8_t>(bytes[2]) == 0xFF;
+}
+
+// Unit normals (zero ones become +Y, which glTF requires to be unit too).
+std::vector<float> UnitNormals(std::vector<float> normals) {
+  for (size_t i = 0; i + 2 < normals.size(); i += 3) {
+    const double n =
+        std::sqrt(double{normals[i]} * normals[i] + double{normals[i + 1]} * normals[i + 1] +
+                  double{normals[i + 2]} * normals[i + 2]);
+    if (n < 1e-12) {
+      normals[i] = 0, normals[i + 1] = 1, normals[i + 2] = 0;
+      continue;
+    }
+    for (int c = 0; c < 3; ++c) normals[i + c] = static_cast<float>(normals[i + c] / n);
+  }
+  return normals;
+}
+
+// The material of `mesh`: its baked JPEG as base colour, or plain grey.
+int AddMaterial(GlbBuilder& b, const v1::PartMesh& mesh, const GltfExportOptions& options,
+                GltfExportSummary* summary) {
+  tinygltf::Model& model = b.model();
+  tinygltf::Material material;
+  material.name = mesh.name();
+  material.pbrMetallicRoughness.metallicFactor = 0.0;
+  material.pbrMetallicRoughness.roughnessFactor = 1.0;
+  if (options.unlit) material.extensions["KHR_materials_unlit"] = tinygltf::Value();
+  if (options.textures && IsJpeg(mesh.baked_texture_jpeg())) {
+    if (model.samplers.empty()) {
+      tinygltf::Sampler sampler;
+      sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+      sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+      sampler.wrapS = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+      sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+      model.samplers.push_back(sampler);
+    }
+    tinygltf::Image image;
+    image.name = mesh.name();
+    image.mimeType = "image/jpeg";
+    image.bufferView =
+        b.AddView(mesh.baked_texture_jpeg().data(), mesh.baked_texture_jpeg().size(), 0);
+    model.images.push_back(std::move(image));
+    tinygltf::Texture texture;
+    texture.name = mesh.name();
+    texture.sampler = 0;
+    texture.source = static_cast<int>(model.images.size()) - 1;
+    model.textures.push_back(std::move(texture));
+    material.pbrMetallicRoughness.baseColorTexture.index =
+        static_cast<int>(model.textures.size()) - 1;
+    ++summary->textures;
+  } else {
+    material.pbrMetallicRoughness.baseColorFactor = {0.6, 0.6, 0.6, 1.0};
+  }
+  model.materials.push_back(std::move(material));
+  return static_cast<int>(model.materials.size()) - 1;
+}
+
+// The mesh of one part, or -1 when it has no triangles.
+absl::StatusOr<int> AddMesh(GlbBuilder& b, const v1::PartMesh& part,
+                            const GltfExportOptions& options, GltfExportSummary* summary) {
+  if (part.triangle_indices_size() == 0) return -1;
+  ASSIGN_OR_RETURN(const std::vector<float> positions,
+                   UnpackFloats(part.positions_in_part_m_f32()));
+  ASSIGN_OR_RETURN(std::vector<float> normals, UnpackFloats(part.normals_in_part_f32()));
+  ASSIGN_OR_RETURN(std::vector<float> uvs, UnpackFloats(part.uvs_f32()));
+  // glTF's texture origin is the top-left corner, the reenactment's the
+  // bottom-left.
+  for (size_t i = 1; i < uvs.size(); i += 2) uvs[i] = 1.0f - uvs[i];
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] =
+      b.AddFloats(positions, 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
+  primitive.attributes["NORMAL"] = b.AddFloats(
+      UnitNormals(std::move(normals)), 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  primitive.material = AddMaterial(b, part, options, summary);
+  // Texture coordinates only where a texture uses them.
+  if (b.model().materials[primitive.material].pbrMetallicRoughness.baseColorTexture.index >= 0) {
+    primitive.attributes["TEXCOORD_0"] =
+        b.AddFloats(uvs, 2, TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  primitive.indices = b.AddIndices(
+      std::vector<uint32_t>(part.triangle_indices().begin(), part.triangle_indices().end()));
+  tinygltf::Mesh mesh;
+  mesh.name = part.name();
+  mesh.primitives.push_back(std::move(primitive));
+  b.model().meshes.push_back(std::move(mesh));
+  ++summary->meshes;
+  return static_cast<int>(b.model().meshes.size()) - 1;
+}
+
+// Seconds of every frame from the first one's stamp; frame_index / fps when
+// the stamps (as float32, what the file stores) do not strictly increase.
+std::vector<double> KeyTimes(const ReenactmentData& data, const GltfExportOptions& options,
+                             bool* fell_back) {
+  std::vector<double> times(data.frames.size());
+  *fell_back = false;
+  for (size_t i = 0; i < data.frames.size(); ++i) {
+    times[i] = static_cast<double>(data.frames[i].stamp_ns() - data.frames[0].stamp_ns()) * 1e-9;
+    if (i > 0 && !(static_cast<float>(times[i]) > static_cast<float>(times[i - 1]))) {
+      *fell_back = true;
+    }
+  }
+  if (!*fell_back) return times;
+  double fps = options.fallback_fps > 0 ? options.fallback_fps : data.info.fps();
+  if (!(fps > 0)) fps = 30.0;
+  for (size_t i = 0; i < times.size(); ++i) times[i] = static_cast<double>(i) / fps;
+  return times;
+}
+
+Key KeyOf(const v1::PartPose& pose, double time_s, bool visible) {
+  Key key;
+  key.time_s = time_s;
+  const v1::Vector3& t = pose.world_from_part().translation_m();
+  key.translation = {static_cast<float>(t.x()), static_cast<float>(t.y()),
+                     static_cast<float>(t.z())};
+  const v1::Quaternion& q = pose.world_from_part().rotation();
+  const double n = std::sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
+  if (n > 1e-12) {
+    key.rotation = {static_cast<float>(q.x() / n), static_cast<float>(q.y() / n),
+                    static_cast<float>(q.z() / n), static_cast<float>(q.w() / n)};
+  }
+  key.scale = visible ? pose.scale() : 0.0f;
+  return key;
+}
+
+// The keys of part `p`: one per frame, plus a step key where it appears or
+// disappears. Invalid poses hold the last (or else the next) valid pose,
+// hidden by scale 0.
+std::vector<Key> PartKeys(const ReenactmentData& data, int p, const std::vector<double>& times) {
+  const size_t n = data.frames.size();
+  std::vector<const v1::PartPose*> held(n, nullptr);
+  const v1::PartPose* last = nullptr;
+  for (size_t i = 0; i < n; ++i) {
+    const v1::PartPose& pose = data.frames[i].parts(p);
+    if (pose.valid()) last = &pose;
+    held[i] = last;
+  }
+  const v1::PartPose* next = nullptr;
+  for (size_t i = n; i-- > 0;) {
+    const v1::PartPose& pose = data.frames[i].parts(p);
+    if (pose.valid()) next = &pose;
+    if (held[i] == nullptr) held[i] = next;
+  }
+  v1::PartPose identity;
+  identity.mutable_world_from_part()->mutable_rotation()->set_w(1.0);
+  std::vector<Key> keys;
+  keys.reserve(n + 8);
+  for (size_t i = 0; i < n; ++i) {
+    const bool valid = data.frames[i].parts(p).valid();
+    const v1::PartPose& pose = held[i] != nullptr ? *held[i] : identity;
+    if (i > 0 && valid != data.frames[i - 1].parts(p).valid()) {
+      const double lead = std::min(kStepLeadS, (times[i] - times[i - 1]) / 4);
+      const double t = times[i] - lead;
+      if (static_cast<float>(t) > static_cast<float>(times[i - 1]) &&
+          static_cast<float>(t) < static_cast<float>(times[i])) {
+        // Appearing: already at the new pose, still hidden. Disappearing:
+        // still at the old pose, still shown.
+        keys.push_back(valid ? KeyOf(pose, t, false) : KeyOf(*held[i - 1], t, true));
+      }
+    }
+    keys.push_back(KeyOf(pose, times[i], valid));
+  }
+  // Consecutive quaternions in one hemisphere.
+  for (size_t k = 1; k < keys.size(); ++k) {
+    const auto& a = keys[k - 1].rotation;
+    auto& b = keys[k].rotation;
+    if (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0) {
+      for (float& c : b) c = -c;
+    }
+  }
+  return keys;
+}
+
+// The animation channels of part node `node` from `keys`; `shared_input` is
+// the accessor of the frame times, used when the keys are exactly the
+// frames.
+void AddPartChannels(GlbBuilder& b, tinygltf::Animation& animation, int node,
+                     const std::vector<Key>& keys, size_t frame_count, int shared_input) {
+  int input = shared_input;
+  if (keys.size() != frame_count) {
+    std::vector<float> times;
+    for (const Key& k : keys) times.push_back(static_cast<float>(k.time_s));
+    input = b.AddFloats(times, 1, TINYGLTF_TYPE_SCALAR, 0, true);
+  }
+  std::vector<float> translation, rotation, scale;
+  for (const Key& k : keys) {
+    translation.insert(translation.end(), k.translation.begin(), k.translation.end());
+    rotation.insert(rotation.end(), k.rotation.begin(), k.rotation.end());
+    scale.insert(scale.end(), {k.scale, k.scale, k.scale});
+  }
+  const std::pair<const char*, int> outputs[] = {
+      {"translation", b.AddFloats(translation, 3, TINYGLTF_TYPE_VEC3, 0, false)},
+      {"rotation", b.AddFloats(rotation, 4, TINYGLTF_TYPE_VEC4, 0, false)},
+      {"scale", b.AddFloats(scale, 3, TINYGLTF_TYPE_VEC3, 0, false)}};
+  for (const auto& [path, output] : outputs) {
+    tinygltf::AnimationSampler sampler;
+    sampler.input = input;
+    sampler.output = output;
+    sampler.interpolation = "LINEAR";
+    animation.samplers.push_back(std::move(sampler));
+    tinygltf::AnimationChannel channel;
+    channel.sampler = static_cast<int>(animation.samplers.size()) - 1;
+    channel.target_node = node;
+    channel.target_path = path;
+    animation.channels.push_back(std::move(channel));
+  }
+}
+
+// The node's rest transform: its first key.
+void SetRestTransform(tinygltf::Node& node, const Key& key) {
+  node.translation.assign(key.translation.begin(), key.translation.end());
+  node.rotation.assign(key.rotation.begin(), key.rotation.end());
+  node.scale.assign(3, key.scale);
+}
+
+tinygltf::Value InfoExtras(const v1::ReenactmentInfo& info) {
+  tinygltf::Value::Object extras;
+  extras["reenactment_id"] = tinygltf::Value(info.reenactment_id());
+  extras["take_id"] = tinygltf::Value(info.take_id());
+  extras["method"] = tinygltf::Value(info.method());
+  extras["fps"] = tinygltf::Value(info.fps());
+  extras["frame_count"] = tinygltf::Value(info.frame_count());
+  return tinygltf::Value(std::move(extras));
+}
+
+}  // namespace
+
+absl::Status GltfExportOptions::Validate() const {
+  if (!std::isfinite(fallback_fps) || fallback_fps < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("GltfExportOptions.fallback_fps must be >= 0, got ", fallback_fps));
+  }
+  return absl::OkStatus();
+}
+
+std::string GltfExportSummary::BriefReport() const {
+  return absl::StrFormat(
+      "glb: %d nodes, %d meshes, %d textures, %d animation channels, %d keys over %.3f s%s, "
+      "%d bytes",
+      nodes, meshes, textures, animation_channels, keys, duration_s,
+      stamps_fell_back ? " (times from frame index / fps)" : "", bytes);
+}
+
+absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
+                                                 const GltfExportOptions& options,
+                                                 GltfExportSummary* summary) {
+  RETURN_IF_ERROR(options.Validate());
+  RETURN_IF_ERROR(ValidateReenactment(data));
+  GltfExportSummary local;
+  GltfExportSummary& s = summary != nullptr ? *summary : local;
+  s = GltfExportSummary();
+  GlbBuilder b;
+  tinygltf::Model& model = b.model();
+  model.asset.version = "2.0";
+  model.asset.generator = "reenact gltf_export (tinygltf)";
+
+  tinygltf::Node root;
+  root.name = data.info.reenactment_id().empty() ? "reenactment" : data.info.reenactment_id();
+  root.extras = InfoExtras(data.info);
+  model.nodes.push_back(std::move(root));
+
+  const std::vector<double> times = KeyTimes(data, options, &s.stamps_fell_back);
+  s.duration_s = times.empty() ? 0.0 : times.back();
+  int shared_input = -1;
+  if (!times.empty()) {
+    std::vector<float> seconds(times.begin(), times.end());
+    shared_input = b.AddFloats(seconds, 1, TINYGLTF_TYPE_SCALAR, 0, true);
+  }
+  tinygltf::Animation animation;
+  animation.name = model.nodes[0].name;
+  for (int p = 0; p < static_cast<int>(data.parts.size()); ++p) {
+    tinygltf::Node node;
+    node.name = data.parts[p].name();
+    ASSIGN_OR_RETURN(node.mesh, AddMesh(b, data.parts[p], options, &s));
+    if (!times.empty()) {
+      const std::vector<Key> keys = PartKeys(data, p, times);
+      SetRestTransform(node, keys.front());
+      const int index = static_cast<int>(model.nodes.size());
+      AddPartChannels(b, animation, index, keys, times.size(), shared_input);
+      s.keys += static_cast<int>(keys.size());
+    }
+    model.nodes.push_back(std::move(node));
+    model.nodes[0].children.push_back(static_cast<int>(model.nodes.size()) - 1);
+  }
+  s.animation_channels = static_cast<int>(animation.channels.size());
+  if (!animation.channels.empty()) model.animations.push_back(std::move(animation));
+  s.nodes = static_cast<int>(model.nodes.size());
+  if (options.unlit && !model.materials.empty()) {
+    model.extensionsUsed.push_back("KHR_materials_unlit");
+  }
+
+  tinygltf::Scene scene;
+  scene.name = model.nodes[0].name;
+  scene.nodes.push_back(0);
+  model.scenes.push_back(std::move(scene));
+  model.defaultScene = 0;
+  model.buffers[0].data.resize((model.buffers[0].data.size() + 3) / 4 * 4, 0);
+  if (model.buffers[0].data.empty()) model.buffers.clear();
+
+  tinygltf::TinyGLTF writer;
+  std::ostringstream out;
+  if (!writer.WriteGltfSceneToStream(&model, out, /*prettyPrint=*/false, /*writeBinary=*/true)) {
+    return absl::InternalError("tinygltf failed to write the .glb");
+  }
+  std::string bytes = std::move(out).str();
+  s.bytes = static_cast<int64_t>(bytes.size());
+  return bytes;
+}
+
+absl::Status WriteReenactmentGlb(const ReenactmentData& data, const std::string& path,
+                                 const GltfExportOptions& options, GltfExportSummary* summary) {
+  ASSIGN_OR_RETURN(const std::string bytes, ExportReenactmentGlb(data, options, summary));
+  return WriteFileAtomically(path, bytes);
+}
+
+}  // namespace reenact

@@ -1,0 +1,95 @@
+// The persistent half of the job queue: every job of the server, held in
+// memory and written through to the catalog's jobs table
+// (server/store/catalog.h, schema version 2). A state change is written at
+// once (fsync'ed like every catalog commit); a running job's progress at most
+// once per `progress_write_period_s`, so that a worker reporting ten times a
+// second costs the disk about one commit a second. Get and List answer from
+// memory, with the live progress.
+//
+// Restarts: RequeueUnfinished() (called once when the server starts) makes
+// every job a stopped or crashed server left RUNNING QUEUED again, keeping
+// its attempts count; a job that already had `max_attempts` workers is
+// FAILED instead, so that a job that brings its machine down is not retried
+// for ever.
+//
+// Thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "reenact/v1/jobs_service.pb.h"
+#include "server/store/catalog.h"
+
+namespace reenact::server {
+
+struct JobStoreOptions {
+  // Longest time a running job's progress stays in memory only, seconds.
+  double progress_write_period_s = 1.0;
+  // Worker starts a job may have; RequeueUnfinished fails it beyond that.
+  int max_attempts = 3;
+
+  // InvalidArgument naming the first bad field.
+  absl::Status Validate() const;
+};
+
+// [A-Za-z0-9_-], 1..64 characters; InvalidArgument otherwise, quoting the id.
+absl::Status ValidateJobId(std::string_view job_id);
+
+// True for SUCCEEDED, FAILED and CANCELLED.
+bool IsFinished(v1::JobState state);
+
+class JobStore {
+ public:
+  // Loads the jobs of `catalog`, which must outlive the store. The catalog's
+  // errors when it cannot be read.
+  static absl::StatusOr<std::unique_ptr<JobStore>> Open(Catalog* catalog,
+                                                        const JobStoreOptions& options = {});
+
+  // Stores `job` as a new QUEUED job: assigns job_id ("j-YYYYMMDD-HHMMSS-xxxx",
+  // UTC and 4 random hex digits), submitted_unix_ns (now) and clears what a
+  // new job cannot have (progress, times, result, attempts). Returns it.
+  absl::StatusOr<v1::Job> Insert(v1::Job job);
+  // Applies `change` to the stored job atomically and writes the result.
+  // NotFound for an unknown id; the catalog's errors leave the job as it was.
+  absl::StatusOr<v1::Job> Mutate(const std::string& job_id,
+                                 const std::function<void(v1::Job&)>& change);
+  // Sets the progress of a job; written to the catalog when the last write
+  // of this job is older than the period. NotFound for an unknown id.
+  absl::StatusOr<v1::Job> UpdateProgress(const std::string& job_id,
+                                         const v1::JobProgress& progress);
+
+  // NotFound for an unknown id.
+  absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
+  // Newest first (submitted_unix_ns); `state` UNSPECIFIED and an empty
+  // `take_id` do not filter.
+  std::vector<v1::Job> List(v1::JobState state = v1::JOB_STATE_UNSPECIFIED,
+                            const std::string& take_id = "") const;
+  // QUEUED jobs in the order they run: oldest first.
+  std::vector<v1::Job> Queued() const;
+  // RUNNING -> QUEUED (attempts kept), or FAILED past max_attempts. Returns
+  // the ids queued again, oldest first.
+  absl::StatusOr<std::vector<std::string>> RequeueUnfinished();
+
+ private:
+  JobStore(Catalog* catalog, const JobStoreOptions& options)
+      : catalog_(catalog), options_(options) {}
+  std::string NewIdLocked() const;
+
+  Catalog* const catalog_;
+  const JobStoreOptions options_;
+  mutable std::mutex mu_;
+  std::map<std::string, v1::Job> jobs_;
+  // Steady-clock time of the last catalog write, per job.
+  std::map<std::string, int64_t> written_ns_;
+};
+
+}  // namespace reenact::server

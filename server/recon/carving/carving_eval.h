@@ -1,0 +1,245 @@
+// Test helpers: accuracy of a carved reenactment against the ground truth of
+// a synthetic take (common/synth): distances between the posed part meshes
+// and the true body surface, and between the registered part frames and the
+// true joints.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "absl/status/statusor.h"
+#include "common/body/joint_set.h"
+#include "common/io/proto_convert.h"
+#include "common/io/reenactment_file.h"
+#include "common/io/take.h"
+#include "server/recon/body_parts.h"
+#include "server/recon/take_frames.h"
+#include "server/recon/texturing.h"
+
+namespace reenact::recon::carving::testing {
+
+// Exact point-to-triangle-mesh distance with a uniform grid of triangles.
+class SurfaceDistance {
+ public:
+  SurfaceDistance(std::vector<Eigen::Vector3d> vertices, std::vector<Eigen::Vector3i> triangles,
+                  double cell_m = 0.04)
+      : vertices_(std::move(vertices)), triangles_(std::move(triangles)), cell_m_(cell_m) {
+    for (size_t t = 0; t < triangles_.size(); ++t) {
+      Eigen::Vector3d lo = vertices_[triangles_[t][0]];
+      Eigen::Vector3d hi = lo;
+      for (int k = 1; k < 3; ++k) {
+        lo = lo.cwiseMin(vertices_[triangles_[t][k]]);
+        hi = hi.cwiseMax(vertices_[triangles_[t][k]]);
+      }
+      const Eigen::Vector3i a = CellOf(lo);
+      const Eigen::Vector3i b = CellOf(hi);
+      for (int z = a.z(); z <= b.z(); ++z) {
+        for (int y = a.y(); y <= b.y(); ++y) {
+          for (int x = a.x(); x <= b.x(); ++x) grid_[Key({x, y, z})].push_back(static_cast<int>(t));
+        }
+      }
+    }
+  }
+
+  // Distance from `p` to the nearest triangle, metres (searched up to 4
+  // cells away; farther points report the search radius).
+  double Distance(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3i centre = CellOf(p);
+    double best = std::numeric_limits<double>::infinity();
+    for (int radius = 1; radius <= 4; ++radius) {
+      for (int z = -radius; z <= radius; ++z) {
+        for (int y = -radius; y <= radius; ++y) {
+          for (int x = -radius; x <= radius; ++x) {
+            if (std::max({std::abs(x), std::abs(y), std::abs(z)}) < radius && radius > 1) continue;
+            auto it = grid_.find(Key(centre + Eigen::Vector3i(x, y, z)));
+            if (it == grid_.end()) continue;
+            for (int t : it->second) best = std::min(best, TriangleDistance(p, t));
+          }
+        }
+      }
+      if (best <= radius * cell_m_) return best;
+    }
+    return std::min(best, 4 * cell_m_);
+  }
+
+ private:
+  Eigen::Vector3i CellOf(const Eigen::Vector3d& p) const {
+    return (p / cell_m_).array().floor().cast<int>();
+  }
+  static int64_t Key(const Eigen::Vector3i& c) {
+    return ((static_cast<int64_t>(c.x()) + 4096) << 26) |
+           ((static_cast<int64_t>(c.y()) + 4096) << 13) | (static_cast<int64_t>(c.z()) + 4096);
+  }
+  // Ericson, "Real-Time Collision Detection", 5.1.5: closest point on a triangle.
+  double TriangleDistance(const Eigen::Vector3d& p, int t) const {
+    const Eigen::Vector3d& a = vertices_[triangles_[t][0]];
+    const Eigen::Vector3d& b = vertices_[triangles_[t][1]];
+    const Eigen::Vector3d& c = vertices_[triangles_[t][2]];
+    const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0 && d2 <= 0) return (p - a).norm();
+    const Eigen::Vector3d bp = p - b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0 && d4 <= d3) return (p - b).norm();
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
+    const Eigen::Vector3d cp = p - c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0 && d5 <= d6) return (p - c).norm();
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+      return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
+    }
+    const double denominator = 1.0 / (va + vb + vc);
+    return (p - (a + ab * (vb * denominator) + ac * (vc * denominator))).norm();
+  }
+
+  std::vector<Eigen::Vector3d> vertices_;
+  std::vector<Eigen::Vector3i> triangles_;
+  double cell_m_;
+  std::unordered_map<int64_t, std::vector<int>> grid_;
+};
+
+// Ground truth of a synthetic take, by frame index (synthetic takes group
+// their instants by frame index, so it is also the instant index).
+struct Truth {
+  std::vector<Eigen::Vector3i> triangles;
+  std::map<int64_t, std::vector<Eigen::Vector3d>> mesh_by_frame;
+  std::map<int64_t, JointArray> joints_by_frame;
+};
+
+inline absl::StatusOr<Truth> ReadTruth(const std::string& path) {
+  ASSIGN_OR_RETURN(std::unique_ptr<TakeReader> reader, TakeReader::Open(path));
+  Truth truth;
+  ASSIGN_OR_RETURN(auto topology,
+                   reader->ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic));
+  if (topology.empty()) return absl::NotFoundError("no ground-truth topology");
+  for (int i = 0; i + 2 < topology[0].triangle_indices_size(); i += 3) {
+    truth.triangles.emplace_back(topology[0].triangle_indices(i),
+                                 topology[0].triangle_indices(i + 1),
+                                 topology[0].triangle_indices(i + 2));
+  }
+  ASSIGN_OR_RETURN(auto meshes, reader->ReadAll<v1::GroundTruthMesh>(kGroundTruthMeshTopic));
+  for (const v1::GroundTruthMesh& mesh : meshes) {
+    ASSIGN_OR_RETURN(std::vector<float> values, UnpackFloats(mesh.positions_in_world_m_f32()));
+    std::vector<Eigen::Vector3d>& vertices = truth.mesh_by_frame[mesh.frame_index()];
+    for (size_t v = 0; v + 2 < values.size(); v += 3) {
+      vertices.emplace_back(values[v], values[v + 1], values[v + 2]);
+    }
+  }
+  ASSIGN_OR_RETURN(auto joints, reader->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic));
+  for (const v1::GroundTruthJoints& g : joints) {
+    JointArray array = MissingJoints();
+    for (int i = 0; i < g.joint_names_size() && i < g.positions_in_world_m_size(); ++i) {
+      if (auto joint = body::KinectV2JointFromName(g.joint_names(i))) {
+        array[body::Index(*joint)] = FromProto(g.positions_in_world_m(i));
+      }
+    }
+    truth.joints_by_frame[g.frame_index()] = array;
+  }
+  return truth;
+}
+
+struct CarvedAccuracy {
+  int frames = 0;
+  // Posed carved vertices to the true surface, mm: mean and 90th percentile.
+  double mean_mm = 0.0;
+  double p90_mm = 0.0;
+  std::array<double, kNumBodyParts> part_mean_mm{};
+  // True vertices to the posed carved surface (completeness), mm.
+  double truth_to_carved_mm = 0.0;
+  // Registered part frames against the true joints: the frame origin vs the
+  // proximal joint and (0, L, 0) vs the distal joint, mm; the same for the
+  // fused sensor skeleton the method starts from.
+  double joint_error_mm = 0.0;
+  double skeleton_joint_error_mm = 0.0;
+};
+
+// Compares every `stride`-th frame of `data` with the truth.
+inline absl::StatusOr<CarvedAccuracy> Evaluate(const ReenactmentData& data, const Truth& truth,
+                                               int stride) {
+  CarvedAccuracy accuracy;
+  std::vector<PartGeometry> parts;
+  for (const v1::PartMesh& mesh : data.parts) {
+    ASSIGN_OR_RETURN(PartGeometry geometry, PartGeometryFromProto(mesh));
+    parts.push_back(std::move(geometry));
+  }
+  std::vector<double> distances;
+  std::array<double, kNumBodyParts> part_sum{};
+  std::array<int64_t, kNumBodyParts> part_count{};
+  double completeness_sum = 0.0;
+  int64_t completeness_count = 0;
+  double joint_sum = 0.0, skeleton_sum = 0.0;
+  int64_t joint_count = 0;
+  for (size_t f = 0; f < data.frames.size(); f += stride) {
+    const v1::PartFrame& frame = data.frames[f];
+    auto mesh = truth.mesh_by_frame.find(frame.frame_index());
+    auto joints = truth.joints_by_frame.find(frame.frame_index());
+    if (mesh == truth.mesh_by_frame.end() || joints == truth.joints_by_frame.end()) continue;
+    ++accuracy.frames;
+    const SurfaceDistance truth_surface(mesh->second, truth.triangles);
+    ASSIGN_OR_RETURN(std::vector<PartPoseInWorld> poses, PartPosesFromProto(frame));
+    std::vector<Eigen::Vector3d> carved_vertices;
+    std::vector<Eigen::Vector3i> carved_triangles;
+    JointArray fused = MissingJoints();
+    for (int j = 0; j < frame.joints_in_world_m_size(); ++j) {
+      fused[j] = FromProto(frame.joints_in_world_m(j));
+    }
+    for (int p = 0; p < kNumBodyParts; ++p) {
+      if (!poses[p].valid) continue;
+      const int base = static_cast<int>(carved_vertices.size());
+      for (Eigen::Index v = 0; v < parts[p].positions_in_part_m.cols(); ++v) {
+        const Eigen::Vector3d world =
+            poses[p].world_from_part * parts[p].positions_in_part_m.col(v).cast<double>();
+        carved_vertices.push_back(world);
+        const double d = truth_surface.Distance(world);
+        distances.push_back(d);
+        part_sum[p] += d;
+        ++part_count[p];
+      }
+      for (const Eigen::Vector3i& t : parts[p].triangles) {
+        carved_triangles.push_back(t + Eigen::Vector3i::Constant(base));
+      }
+      const BodyPartInfo& info = BodyParts()[p];
+      const Eigen::Vector3d& proximal = joints->second[body::Index(info.proximal)];
+      const Eigen::Vector3d& distal = joints->second[body::Index(info.distal)];
+      const double length = data.parts[p].reference_length_m();
+      joint_sum += (poses[p].world_from_part * Eigen::Vector3d::Zero() - proximal).norm() +
+                   (poses[p].world_from_part * Eigen::Vector3d(0, length, 0) - distal).norm();
+      skeleton_sum += (fused[body::Index(info.proximal)] - proximal).norm() +
+                      (fused[body::Index(info.distal)] - distal).norm();
+      joint_count += 2;
+    }
+    const SurfaceDistance carved_surface(carved_vertices, carved_triangles);
+    for (size_t v = 0; v < mesh->second.size(); v += 4) {
+      completeness_sum += carved_surface.Distance(mesh->second[v]);
+      ++completeness_count;
+    }
+  }
+  if (distances.empty()) return absl::NotFoundError("no frame matched the ground truth");
+  double sum = 0.0;
+  for (double d : distances) sum += d;
+  accuracy.mean_mm = 1e3 * sum / distances.size();
+  std::nth_element(distances.begin(), distances.begin() + distances.size() * 9 / 10,
+                   distances.end());
+  accuracy.p90_mm = 1e3 * distances[distances.size() * 9 / 10];
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    accuracy.part_mean_mm[p] = part_count[p] ? 1e3 * part_sum[p] / part_count[p] : 0.0;
+  }
+  accuracy.truth_to_carved_mm = 1e3 * completeness_sum / std::max<int64_t>(1, completeness_count);
+  accuracy.joint_error_mm = 1e3 * joint_sum / std::max<int64_t>(1, joint_count);
+  accuracy.skeleton_joint_error_mm = 1e3 * skeleton_sum / std::max<int64_t>(1, joint_count);
+  return accuracy;
+}
+
+}  // namespace reenact::recon::carving::testing

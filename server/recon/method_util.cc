@@ -1,0 +1,175 @@
+#include "server/recon/method_util.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "common/io/proto_convert.h"
+
+namespace reenact::recon {
+
+absl::Status OptionReader::Int(const std::string& key, int* value, int min, int max) {
+  known_.insert(key);
+  auto it = options_.find(key);
+  if (it == options_.end()) return absl::OkStatus();
+  int parsed = 0;
+  if (!absl::SimpleAtoi(it->second, &parsed)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option ", key, ": \"", it->second, "\" is not an integer"));
+  }
+  if (parsed < min || parsed > max) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option ", key, ": ", parsed, " is outside [", min, ", ", max, "]"));
+  }
+  *value = parsed;
+  return absl::OkStatus();
+}
+
+absl::Status OptionReader::Double(const std::string& key, double* value, double min,
+                                  double max) {
+  known_.insert(key);
+  auto it = options_.find(key);
+  if (it == options_.end()) return absl::OkStatus();
+  double parsed = 0;
+  if (!absl::SimpleAtod(it->second, &parsed) || !std::isfinite(parsed)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option ", key, ": \"", it->second, "\" is not a finite number"));
+  }
+  if (parsed < min || parsed > max) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option ", key, ": ", parsed, " is outside [", min, ", ", max, "]"));
+  }
+  *value = parsed;
+  return absl::OkStatus();
+}
+
+absl::Status OptionReader::Bool(const std::string& key, bool* value) {
+  known_.insert(key);
+  auto it = options_.find(key);
+  if (it == options_.end()) return absl::OkStatus();
+  if (!absl::SimpleAtob(it->second, value)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option ", key, ": \"", it->second, "\" is not true or false"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status OptionReader::String(const std::string& key, std::string* value) {
+  known_.insert(key);
+  auto it = options_.find(key);
+  if (it != options_.end()) *value = it->second;
+  return absl::OkStatus();
+}
+
+absl::Status OptionReader::Finish() const {
+  std::vector<std::string> unknown;
+  for (const auto& [key, value] : options_) {
+    if (!known_.count(key)) unknown.push_back(key);
+  }
+  if (unknown.empty()) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat("unknown option", unknown.size() > 1 ? "s" : "",
+                                                 " ", absl::StrJoin(unknown, ", "),
+                                                 " (known: ", absl::StrJoin(known_, ", "), ")"));
+}
+
+StageProgress::StageProgress(const ProgressCallback& callback,
+                             std::vector<std::pair<std::string, double>> stages)
+    : callback_(callback), stages_(std::move(stages)) {
+  for (const auto& [name, weight] : stages_) total_weight_ += std::max(weight, 0.0);
+}
+
+double StageProgress::StageStart(const std::string& stage, double* weight) const {
+  double start = 0.0;
+  *weight = 0.0;
+  for (const auto& [name, w] : stages_) {
+    if (name == stage) {
+      *weight = std::max(w, 0.0);
+      break;
+    }
+    start += std::max(w, 0.0);
+  }
+  return start;
+}
+
+absl::Status StageProgress::Report(const std::string& stage, int64_t done, int64_t total) const {
+  if (!callback_) return absl::OkStatus();
+  double weight = 0.0;
+  const double start = StageStart(stage, &weight);
+  const double within = total > 0 ? std::clamp(static_cast<double>(done) / total, 0.0, 1.0) : 0.0;
+  Progress p;
+  p.stage = stage;
+  p.fraction = total_weight_ > 0 ? std::clamp((start + weight * within) / total_weight_, 0.0, 1.0)
+                                 : 0.0;
+  p.items_done = done;
+  p.items_total = total;
+  if (!callback_(p)) return absl::CancelledError(absl::StrCat("cancelled during ", stage));
+  return absl::OkStatus();
+}
+
+ProgressCallback StageProgress::ForStage(const std::string& stage) const {
+  if (!callback_) return {};
+  return [this, stage](const Progress& inner) {
+    double weight = 0.0;
+    const double start = StageStart(stage, &weight);
+    Progress p = inner;
+    p.stage = stage;
+    p.fraction = total_weight_ > 0
+                     ? std::clamp((start + weight * std::clamp(inner.fraction, 0.0, 1.0)) /
+                                      total_weight_,
+                                  0.0, 1.0)
+                     : 0.0;
+    return callback_(p);
+  };
+}
+
+v1::PartPose PartPoseToProto(const PartPose& pose, double scale) {
+  v1::PartPose out;
+  if (!pose.valid || !pose.world_from_part.matrix().allFinite() || !(scale > 0) ||
+      !std::isfinite(scale)) {
+    *out.mutable_world_from_part() = reenact::ToProto(Rigid3d());
+    out.set_scale(1.0f);
+    out.set_valid(false);
+    return out;
+  }
+  const Eigen::Quaterniond q(pose.world_from_part.linear());
+  *out.mutable_world_from_part() =
+      reenact::ToProto(Rigid3d(q.normalized(), pose.world_from_part.translation()));
+  out.set_scale(static_cast<float>(scale));
+  out.set_valid(true);
+  return out;
+}
+
+v1::PartFrame MakePartFrame(int frame_index, int64_t stamp_ns, const PartPoses& poses,
+                            const std::array<double, kNumBodyParts>& scales,
+                            const JointArray& joints_in_world_m) {
+  v1::PartFrame frame;
+  frame.set_frame_index(frame_index);
+  frame.set_stamp_ns(stamp_ns);
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    *frame.add_parts() = PartPoseToProto(poses[p], scales[p]);
+  }
+  const bool any = std::any_of(joints_in_world_m.begin(), joints_in_world_m.end(),
+                               [](const Eigen::Vector3d& j) { return IsJointValid(j); });
+  if (!any) return frame;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    // Walk up the Kinect v2 tree to the nearest present joint; failing that
+    // (a present joint only below this one), the first present joint.
+    std::optional<body::KinectV2Joint> joint = static_cast<body::KinectV2Joint>(j);
+    while (joint && !IsJointValid(joints_in_world_m[body::Index(*joint)])) {
+      joint = body::KinectV2Parent(*joint);
+    }
+    Eigen::Vector3d p;
+    if (joint) {
+      p = joints_in_world_m[body::Index(*joint)];
+    } else {
+      p = *std::find_if(joints_in_world_m.begin(), joints_in_world_m.end(),
+                        [](const Eigen::Vector3d& v) { return IsJointValid(v); });
+    }
+    *frame.add_joints_in_world_m() = reenact::ToProto(p);
+  }
+  return frame;
+}
+
+}  // namespace reenact::recon

@@ -1,0 +1,98 @@
+#include "server/recon/method_util.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "common/io/proto_convert.h"
+
+namespace reenact::recon {
+namespace {
+
+TEST(OptionReader, ReadsTypedValuesAndRejectsUnknownKeys) {
+  const std::map<std::string, std::string> options = {
+      {"lambda", "0.25"}, {"segments", "12"}, {"bake", "false"}, {"name", "x"}};
+  OptionReader reader(options);
+  double lambda = 0.5;
+  int segments = 24, rings = 8;
+  bool bake = true;
+  std::string name;
+  EXPECT_TRUE(reader.Double("lambda", &lambda, 0, 10).ok());
+  EXPECT_TRUE(reader.Int("segments", &segments, 3, 100).ok());
+  EXPECT_TRUE(reader.Int("rings", &rings).ok());  // Absent: unchanged.
+  EXPECT_TRUE(reader.Bool("bake", &bake).ok());
+  EXPECT_TRUE(reader.String("name", &name).ok());
+  EXPECT_TRUE(reader.Finish().ok());
+  EXPECT_DOUBLE_EQ(lambda, 0.25);
+  EXPECT_EQ(segments, 12);
+  EXPECT_EQ(rings, 8);
+  EXPECT_FALSE(bake);
+  EXPECT_EQ(name, "x");
+
+  const std::map<std::string, std::string> bad = {
+      {"segments", "twelve"}, {"lambda", "1e400"}, {"rings", "0"}, {"mystery", "1"}};
+  OptionReader bad_reader(bad);
+  EXPECT_EQ(bad_reader.Int("segments", &segments).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(bad_reader.Double("lambda", &lambda).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(bad_reader.Int("rings", &rings, 1, 10).code(), absl::StatusCode::kInvalidArgument);
+  const absl::Status finish = bad_reader.Finish();
+  EXPECT_EQ(finish.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(finish.message().find("mystery"), std::string::npos) << finish;
+}
+
+TEST(StageProgress, MapsStagesOntoOneFraction) {
+  std::vector<Progress> seen;
+  StageProgress stages([&](const Progress& p) {
+    seen.push_back(p);
+    return true;
+  }, {{"a", 1.0}, {"b", 3.0}});
+  EXPECT_TRUE(stages.Report("a", 1, 2).ok());
+  EXPECT_TRUE(stages.Report("b", 2, 4).ok());
+  EXPECT_TRUE(stages.ForStage("b")({"inner", 1.0, 5, 5}));
+  ASSERT_EQ(seen.size(), 3u);
+  EXPECT_NEAR(seen[0].fraction, 0.125, 1e-12);
+  EXPECT_NEAR(seen[1].fraction, 0.625, 1e-12);
+  EXPECT_EQ(seen[2].stage, "b");
+  EXPECT_NEAR(seen[2].fraction, 1.0, 1e-12);
+
+  StageProgress cancel([](const Progress&) { return false; }, {{"a", 1.0}});
+  EXPECT_EQ(cancel.Report("a", 0, 1).code(), absl::StatusCode::kCancelled);
+  StageProgress none({}, {{"a", 1.0}});
+  EXPECT_TRUE(none.Report("a", 0, 1).ok());
+}
+
+TEST(MakePartFrame, WritesPosesScalesAndFiniteJoints) {
+  JointArray joints = MissingJoints();
+  joints[body::Index(body::KinectV2Joint::kSpineBase)] = {0, 1, 0};
+  joints[body::Index(body::KinectV2Joint::kSpineMid)] = {0, 1.2, 0};
+  PartPoses poses;
+  poses[2].valid = true;
+  poses[2].length_m = 0.2;
+  poses[2].world_from_part.translation() = Eigen::Vector3d(0, 1, 0);
+  poses[2].world_from_part.linear() =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  std::array<double, kNumBodyParts> scales;
+  scales.fill(1.0);
+  scales[2] = 1.25;
+  const v1::PartFrame frame = MakePartFrame(7, 123, poses, scales, joints);
+  EXPECT_EQ(frame.frame_index(), 7);
+  EXPECT_EQ(frame.stamp_ns(), 123);
+  ASSERT_EQ(frame.parts_size(), kNumBodyParts);
+  EXPECT_TRUE(frame.parts(2).valid());
+  EXPECT_FALSE(frame.parts(0).valid());
+  EXPECT_FLOAT_EQ(frame.parts(2).scale(), 1.25f);
+  EXPECT_NEAR(FromProto(frame.parts(2).world_from_part().translation_m()).y(), 1.0, 1e-12);
+  ASSERT_EQ(frame.joints_in_world_m_size(), 25);
+  // SpineShoulder is missing: it takes its parent SpineMid's position.
+  const Eigen::Vector3d shoulder = FromProto(
+      frame.joints_in_world_m(body::Index(body::KinectV2Joint::kSpineShoulder)));
+  EXPECT_NEAR((shoulder - Eigen::Vector3d(0, 1.2, 0)).norm(), 0.0, 1e-12);
+  for (const v1::Vector3& j : frame.joints_in_world_m()) {
+    EXPECT_TRUE(std::isfinite(j.x()) && std::isfinite(j.y()) && std::isfinite(j.z()));
+  }
+  // No joint at all: none written.
+  EXPECT_EQ(MakePartFrame(0, 0, poses, scales, MissingJoints()).joints_in_world_m_size(), 0);
+}
+
+}  // namespace
+}  // namespace reenact::recon

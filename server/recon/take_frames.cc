@@ -1,0 +1,631 @@
+#include "server/recon/take_frames.h"
+
+#include <turbojpeg.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/io/depth_codec.h"
+#include "common/io/mask_codec.h"
+#include "common/io/proto_convert.h"
+#include "common/io/take.h"
+
+namespace reenact::recon {
+
+JointArray MissingJoints() {
+  JointArray joints;
+  joints.fill(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  return joints;
+}
+
+bool IsJointValid(const Eigen::Vector3d& joint) { return joint.allFinite(); }
+
+absl::Status TakeFramesOptions::Validate() const {
+  if (num_threads < 0) return absl::InvalidArgumentError("num_threads must be >= 0");
+  if (max_instants < 0) return absl::InvalidArgumentError("max_instants must be >= 0");
+  return absl::OkStatus();
+}
+
+namespace {
+
+// One sensor's messages of one frame_index, as read.
+struct RawFrame {
+  bool has_depth = false;
+  v1::DepthImage depth;
+  bool has_mask = false;
+  v1::ActorMask mask;
+  bool has_color = false;
+  v1::ColorImage color;
+  std::vector<v1::Skeleton> skeletons;
+};
+
+enum class Stream { kDepth, kMask, kColor, kSkeleton };
+
+struct TopicRoute {
+  int sensor = -1;
+  Stream stream = Stream::kDepth;
+};
+
+bool Tracked(v1::TrackingState state) {
+  return state == v1::TRACKING_STATE_TRACKED || state == v1::TRACKING_STATE_UNSPECIFIED;
+}
+
+// Picks the skeleton with the most tracked joints and fills the view's
+// skeleton fields (joints not tracked, or inferred when `inferred` is off,
+// stay NaN; inferred ones are kept in `inferred_in_world`).
+void SetSkeleton(const std::vector<v1::Skeleton>& skeletons, const TakeSensor& sensor,
+                 SensorView* view, JointArray* inferred_in_world) {
+  const v1::Skeleton* best = nullptr;
+  int best_count = -1;
+  for (const v1::Skeleton& s : skeletons) {
+    int count = 0;
+    for (const v1::Joint& j : s.joints()) count += Tracked(j.tracking_state()) ? 1 : 0;
+    if (count > best_count) {
+      best = &s;
+      best_count = count;
+    }
+  }
+  *inferred_in_world = MissingJoints();
+  if (best == nullptr) return;
+  view->has_skeleton = true;
+  view->body_index = best->body_index();
+  for (const v1::Joint& j : best->joints()) {
+    const auto id = body::KinectV2JointFromName(j.name());
+    if (!id || j.tracking_state() == v1::TRACKING_STATE_NOT_TRACKED) continue;
+    const Eigen::Vector3d p = FromProto(j.position_in_depth_m());
+    if (!p.allFinite()) continue;
+    const int index = body::Index(*id);
+    const Eigen::Vector3d p_world = sensor.world_from_depth * p;
+    if (Tracked(j.tracking_state())) {
+      view->joints_in_depth_m[index] = p;
+      view->joints_in_world_m[index] = p_world;
+      ++view->tracked_joint_count;
+    } else {
+      (*inferred_in_world)[index] = p_world;
+    }
+  }
+}
+
+// Mean of the views' tracked joints; where none tracked a joint, the mean of
+// the inferred ones (when allowed).
+void FuseSkeleton(const std::vector<JointArray>& inferred, bool use_inferred, Instant* instant) {
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (const SensorView& view : instant->views) {
+      if (IsJointValid(view.joints_in_world_m[j])) {
+        sum += view.joints_in_world_m[j];
+        ++n;
+      }
+    }
+    if (n == 0 && use_inferred) {
+      for (const JointArray& joints : inferred) {
+        if (IsJointValid(joints[j])) {
+          sum += joints[j];
+          ++n;
+        }
+      }
+    }
+    if (n > 0) {
+      instant->joints_in_world_m[j] = sum / n;
+      instant->valid = true;
+    }
+  }
+}
+
+}  // namespace
+
+// Reads the take into a TakeFrames (friend of TakeFrames).
+class TakeFramesLoader {
+ public:
+  TakeFramesLoader(const TakeFramesOptions& options, const ProgressCallback& progress)
+      : options_(options), progress_(progress) {}
+
+  absl::StatusOr<std::unique_ptr<TakeFrames>> Load(const std::string& path) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+      return absl::NotFoundError(absl::StrCat("take not found: ", path));
+    }
+    ASSIGN_OR_RETURN(reader_, TakeReader::Open(path));
+    frames_.reset(new TakeFrames());
+    frames_->path_ = path;
+    frames_->info_ = reader_->info();
+    RETURN_IF_ERROR(ReadSensors());
+    RETURN_IF_ERROR(ReadMessages());
+    if (!records_.empty()) {
+      GroupByFrameSets();
+      frames_->grouped_by_frame_sets_ = true;
+    } else {
+      GroupByFrameIndex();
+    }
+    if (frames_->instants_.empty()) {
+      return absl::InvalidArgumentError(absl::StrCat(path, ": the take has no depth frames"));
+    }
+    Finish();
+    return std::move(frames_);
+  }
+
+ private:
+  absl::Status ReadSensors() {
+    for (const auto& [id, calibration] : reader_->sensors()) {
+      TakeSensor sensor;
+      sensor.sensor_id = id;
+      sensor.calibration = calibration;
+      const std::string what = absl::StrCat(reader_->mcap().path(), ": sensor ", id);
+      auto depth_k = FromProto(calibration.depth_intrinsics());
+      if (!depth_k.ok()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(what, ": bad depth intrinsics: ", depth_k.status().message()));
+      }
+      sensor.depth_intrinsics = *depth_k;
+      auto world_from_depth = FromProto(calibration.world_from_depth());
+      if (!world_from_depth.ok()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(what, ": bad world_from_depth: ", world_from_depth.status().message()));
+      }
+      sensor.world_from_depth = *world_from_depth;
+      // Colour is optional: a sensor without usable colour calibration keeps
+      // its depth, and its colour frames are dropped.
+      auto color_k = FromProto(calibration.color_intrinsics());
+      auto color_from_depth = FromProto(calibration.color_from_depth());
+      color_ok_.push_back(color_k.ok() && color_from_depth.ok());
+      if (color_ok_.back()) {
+        sensor.color_intrinsics = *color_k;
+        sensor.color_from_depth = *color_from_depth;
+      }
+      if (calibration.depth_scale_m_per_unit() > 0) {
+        sensor.depth_scale_m_per_unit = calibration.depth_scale_m_per_unit();
+      }
+      for (const char* stream : {"depth", "mask", "color", "skeleton"}) {
+        const Stream s = std::string(stream) == "depth"  ? Stream::kDepth
+                         : std::string(stream) == "mask" ? Stream::kMask
+                         : std::string(stream) == "color" ? Stream::kColor
+                                                          : Stream::kSkeleton;
+        routes_[SensorTopic(id, stream)] = {static_cast<int>(frames_->sensors_.size()), s};
+      }
+      frames_->sensors_.push_back(std::move(sensor));
+    }
+    if (frames_->sensors_.empty()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(reader_->mcap().path(), ": the take has no sensor calibration"));
+    }
+    raw_.resize(frames_->sensors_.size());
+    return absl::OkStatus();
+  }
+
+  // The schema a topic's messages must have.
+  static const char* ExpectedType(Stream stream) {
+    switch (stream) {
+      case Stream::kDepth:
+        return "reenact.v1.DepthImage";
+      case Stream::kMask:
+        return "reenact.v1.ActorMask";
+      case Stream::kColor:
+        return "reenact.v1.ColorImage";
+      case Stream::kSkeleton:
+        return "reenact.v1.Skeleton";
+    }
+    return "";
+  }
+
+  absl::Status CheckSchema(const McapChannel& channel, const std::string& expected) const {
+    const auto& schemas = reader_->mcap().schemas();
+    auto it = schemas.find(channel.schema_id);
+    if (it == schemas.end() || it->second.name != expected) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          reader_->mcap().path(), ": channel ", channel.topic, " does not hold ", expected));
+    }
+    return absl::OkStatus();
+  }
+
+  template <typename Message>
+  absl::Status Parse(const McapChannel& channel, const McapMessage& message, Message* out) {
+    if (!out->ParseFromString(message.data)) {
+      return absl::DataLossError(absl::StrCat(reader_->mcap().path(), ": message on ",
+                                              channel.topic, " at log time ", message.log_time_ns,
+                                              " ns does not parse"));
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status ReadMessages() {
+    const uint64_t total = reader_->mcap().statistics().message_count;
+    uint64_t done = 0;
+    std::map<uint16_t, bool> checked;  // Channel id -> schema checked.
+    return reader_->mcap().ForEachMessage(
+        [&](const McapChannel& channel, const McapMessage& message) -> absl::Status {
+          if ((++done % 32 == 0 || done == total) && progress_) {
+            Progress p{"load", total > 0 ? static_cast<double>(done) / total : 0.0,
+                       static_cast<int64_t>(done), static_cast<int64_t>(total)};
+            if (!progress_(p)) return absl::CancelledError("cancelled while loading the take");
+          }
+          if (channel.topic == kIngestFrameSetTopic) {
+            if (!checked[channel.id]) {
+              RETURN_IF_ERROR(CheckSchema(channel, "reenact.v1.FrameSetRecord"));
+              checked[channel.id] = true;
+            }
+            v1::FrameSetRecord record;
+            RETURN_IF_ERROR(Parse(channel, message, &record));
+            records_.push_back(std::move(record));
+            return absl::OkStatus();
+          }
+          auto route = routes_.find(channel.topic);
+          if (route == routes_.end()) return absl::OkStatus();
+          if (!checked[channel.id]) {
+            RETURN_IF_ERROR(CheckSchema(channel, ExpectedType(route->second.stream)));
+            checked[channel.id] = true;
+          }
+          return Store(channel, message, route->second);
+        });
+  }
+
+  absl::Status Store(const McapChannel& channel, const McapMessage& message,
+                     const TopicRoute& route) {
+    auto& frames = raw_[route.sensor];
+    switch (route.stream) {
+      case Stream::kDepth: {
+        v1::DepthImage m;
+        RETURN_IF_ERROR(Parse(channel, message, &m));
+        RawFrame& f = frames[m.frame_index()];
+        f.has_depth = true;
+        f.depth = std::move(m);
+        break;
+      }
+      case Stream::kMask: {
+        v1::ActorMask m;
+        RETURN_IF_ERROR(Parse(channel, message, &m));
+        RawFrame& f = frames[m.frame_index()];
+        f.has_mask = true;
+        f.mask = std::move(m);
+        break;
+      }
+      case Stream::kColor: {
+        if (!options_.load_color || !color_ok_[route.sensor]) break;
+        v1::ColorImage m;
+        RETURN_IF_ERROR(Parse(channel, message, &m));
+        RawFrame& f = frames[m.frame_index()];
+        f.has_color = true;
+        f.color = std::move(m);
+        break;
+      }
+      case Stream::kSkeleton: {
+        v1::Skeleton m;
+        RETURN_IF_ERROR(Parse(channel, message, &m));
+        frames[m.frame_index()].skeletons.push_back(std::move(m));
+        break;
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  // Moves one raw frame into a view.
+  SensorView MakeView(int sensor, RawFrame& f, JointArray* inferred) {
+    SensorView view;
+    view.present = true;
+    view.frame_index = f.depth.frame_index();
+    view.host_stamp_ns = f.depth.host_stamp_ns();
+    view.depth_encoding = f.depth.encoding();
+    view.depth_data = std::move(*f.depth.mutable_data());
+    if (f.has_mask) {
+      view.mask_encoding = f.mask.encoding();
+      view.mask_data = std::move(*f.mask.mutable_data());
+    }
+    if (f.has_color) {
+      view.color_jpeg = std::move(*f.color.mutable_data());
+      view.color_host_stamp_ns = f.color.host_stamp_ns();
+    }
+    SetSkeleton(f.skeletons, frames_->sensors_[sensor], &view, inferred);
+    return view;
+  }
+
+  // Appends an instant made of `chosen` (frame_index per sensor, or absent).
+  void AddInstant(const std::vector<std::optional<int64_t>>& chosen,
+                  std::optional<int64_t> stamp_ns) {
+    const int num_sensors = static_cast<int>(raw_.size());
+    Instant instant;
+    instant.views.resize(num_sensors);
+    std::vector<JointArray> inferred;
+    double stamp_sum = 0;
+    int stamp_n = 0;
+    for (int s = 0; s < num_sensors; ++s) {
+      if (!chosen[s]) continue;
+      auto it = raw_[s].find(*chosen[s]);
+      if (it == raw_[s].end() || !it->second.has_depth) continue;
+      JointArray inferred_joints;
+      instant.views[s] = MakeView(s, it->second, &inferred_joints);
+      inferred.push_back(inferred_joints);
+      stamp_sum += static_cast<double>(instant.views[s].host_stamp_ns);
+      ++stamp_n;
+    }
+    if (stamp_n == 0) return;
+    instant.stamp_ns = stamp_ns ? *stamp_ns : static_cast<int64_t>(std::llround(stamp_sum / stamp_n));
+    FuseSkeleton(inferred, options_.use_inferred_joints, &instant);
+    frames_->instants_.push_back(std::move(instant));
+  }
+
+  void GroupByFrameIndex() {
+    std::vector<int64_t> indices;
+    for (const auto& frames : raw_) {
+      for (const auto& [index, f] : frames) {
+        if (f.has_depth) indices.push_back(index);
+      }
+    }
+    std::sort(indices.begin(), indices.end());
+    indices.erase(std::unique(indices.begin(), indices.end()), indices.end());
+    for (int64_t index : indices) {
+      std::vector<std::optional<int64_t>> chosen(raw_.size(), index);
+      AddInstant(chosen, std::nullopt);
+    }
+  }
+
+  // Each record is an instant; per listed sensor the nearest unused depth
+  // frame within skew + half a frame period of the record's stamp.
+  void GroupByFrameSets() {
+    std::sort(records_.begin(), records_.end(),
+              [](const auto& a, const auto& b) { return a.sequence() < b.sequence(); });
+    const double fps = frames_->info_.fps() > 0 ? frames_->info_.fps() : 30.0;
+    const int64_t half_period_ns = static_cast<int64_t>(0.5e9 / fps);
+    // Per sensor: (host stamp, frame_index) sorted by stamp, and a cursor.
+    std::vector<std::vector<std::pair<int64_t, int64_t>>> by_stamp(raw_.size());
+    for (size_t s = 0; s < raw_.size(); ++s) {
+      for (const auto& [index, f] : raw_[s]) {
+        if (f.has_depth) by_stamp[s].push_back({f.depth.host_stamp_ns(), index});
+      }
+      std::sort(by_stamp[s].begin(), by_stamp[s].end());
+    }
+    std::vector<size_t> cursor(raw_.size(), 0);
+    for (const v1::FrameSetRecord& record : records_) {
+      std::vector<std::optional<int64_t>> chosen(raw_.size());
+      const int64_t tolerance_ns = std::max<int64_t>(record.skew_ns(), 0) + half_period_ns;
+      for (const std::string& id : record.sensor_ids()) {
+        const int s = frames_->SensorIndex(id);
+        if (s < 0) continue;
+        const auto& list = by_stamp[s];
+        size_t best = list.size();
+        int64_t best_dt = std::numeric_limits<int64_t>::max();
+        for (size_t i = cursor[s]; i < list.size(); ++i) {
+          const int64_t dt = std::llabs(list[i].first - record.stamp_ns());
+          if (dt < best_dt) {
+            best_dt = dt;
+            best = i;
+          } else if (list[i].first > record.stamp_ns()) {
+            break;
+          }
+        }
+        if (best < list.size() && best_dt <= tolerance_ns) {
+          chosen[s] = list[best].second;
+          cursor[s] = best + 1;
+        }
+      }
+      AddInstant(chosen, record.stamp_ns());
+    }
+  }
+
+  void Finish() {
+    auto& instants = frames_->instants_;
+    std::stable_sort(instants.begin(), instants.end(),
+                     [](const Instant& a, const Instant& b) { return a.stamp_ns < b.stamp_ns; });
+    if (options_.max_instants > 0 && static_cast<int>(instants.size()) > options_.max_instants) {
+      instants.resize(options_.max_instants);
+    }
+    double fps = frames_->info_.fps();
+    if (!(fps > 0) && instants.size() >= 2) {
+      std::vector<int64_t> steps;
+      for (size_t i = 1; i < instants.size(); ++i) {
+        steps.push_back(instants[i].stamp_ns - instants[i - 1].stamp_ns);
+      }
+      std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+      if (steps[steps.size() / 2] > 0) fps = 1e9 / static_cast<double>(steps[steps.size() / 2]);
+    }
+    frames_->fps_ = fps > 0 && std::isfinite(fps) ? fps : 30.0;
+    int threads = options_.num_threads;
+    if (threads == 0) {
+      threads = std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 8);
+    }
+    frames_->pool_ = std::make_unique<ThreadPool>(threads);
+  }
+
+  TakeFramesOptions options_;
+  ProgressCallback progress_;
+  std::unique_ptr<TakeReader> reader_;
+  std::unique_ptr<TakeFrames> frames_;
+  std::map<std::string, TopicRoute> routes_;
+  std::vector<bool> color_ok_;
+  std::vector<std::map<int64_t, RawFrame>> raw_;  // Per sensor, by frame_index.
+  std::vector<v1::FrameSetRecord> records_;
+};
+
+absl::StatusOr<std::unique_ptr<TakeFrames>> TakeFrames::Load(const std::string& path,
+                                                             const TakeFramesOptions& options,
+                                                             const ProgressCallback& progress) {
+  RETURN_IF_ERROR(options.Validate());
+  TakeFramesLoader loader(options, progress);
+  return loader.Load(path);
+}
+
+int TakeFrames::SensorIndex(const std::string& sensor_id) const {
+  for (size_t i = 0; i < sensors_.size(); ++i) {
+    if (sensors_[i].sensor_id == sensor_id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+int TakeFrames::num_valid_instants() const {
+  return static_cast<int>(
+      std::count_if(instants_.begin(), instants_.end(), [](const Instant& i) { return i.valid; }));
+}
+
+double TakeFrames::duration_s() const {
+  if (instants_.size() < 2) return 0.0;
+  return static_cast<double>(instants_.back().stamp_ns - instants_.front().stamp_ns) * 1e-9;
+}
+
+namespace {
+
+absl::Status CheckView(const TakeFrames& take, int instant, int sensor) {
+  if (instant < 0 || instant >= take.num_instants() || sensor < 0 ||
+      sensor >= take.num_sensors()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("no view (instant ", instant, ", sensor ", sensor, ") in the take"));
+  }
+  if (!take.instant(instant).views[sensor].present) {
+    return absl::InvalidArgumentError(absl::StrCat("sensor ", take.sensors()[sensor].sensor_id,
+                                                   " has no frame at instant ", instant));
+  }
+  return absl::OkStatus();
+}
+
+std::string ViewName(const TakeFrames& take, int instant, int sensor) {
+  return absl::StrCat(take.path(), ": sensor ", take.sensors()[sensor].sensor_id, " frame ",
+                      take.instant(instant).views[sensor].frame_index);
+}
+
+}  // namespace
+
+absl::StatusOr<DepthImageMm> TakeFrames::LoadDepth(int instant, int sensor) const {
+  RETURN_IF_ERROR(CheckView(*this, instant, sensor));
+  const SensorView& view = instants_[instant].views[sensor];
+  auto depth = DecodeDepth(view.depth_data);
+  if (!depth.ok()) {
+    return absl::DataLossError(
+        absl::StrCat(ViewName(*this, instant, sensor), ": depth: ", depth.status().message()));
+  }
+  const CameraIntrinsics& k = sensors_[sensor].depth_intrinsics;
+  if (depth->width != k.width || depth->height != k.height) {
+    return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor), ": depth is ",
+                                            depth->width, "x", depth->height,
+                                            ", the calibration says ", k.width, "x", k.height));
+  }
+  return depth;
+}
+
+absl::StatusOr<MaskImage> TakeFrames::LoadActorMask(int instant, int sensor) const {
+  ASSIGN_OR_RETURN(DepthImageMm depth, LoadDepth(instant, sensor));
+  const SensorView& view = instants_[instant].views[sensor];
+  MaskImage actor(depth.width, depth.height, 0);
+  if (view.mask_data.empty()) {
+    for (size_t i = 0; i < depth.data.size(); ++i) actor.data[i] = depth.data[i] > 0 ? 1 : 0;
+    return actor;
+  }
+  MaskImage mask;
+  if (view.mask_encoding == "rvl") {
+    auto decoded = DecodeDepth(view.mask_data);
+    if (!decoded.ok()) {
+      return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor),
+                                              ": mask: ", decoded.status().message()));
+    }
+    mask = MaskImage(decoded->width, decoded->height);
+    for (size_t i = 0; i < decoded->data.size(); ++i) {
+      mask.data[i] = static_cast<uint8_t>(std::min<int>(decoded->data[i], 255));
+    }
+  } else {
+    auto decoded = DecodeMaskRle(view.mask_data);
+    if (!decoded.ok()) {
+      return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor),
+                                              ": mask: ", decoded.status().message()));
+    }
+    mask = std::move(*decoded);
+  }
+  if (mask.width != depth.width || mask.height != depth.height) {
+    return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor), ": mask is ",
+                                            mask.width, "x", mask.height, ", depth is ",
+                                            depth.width, "x", depth.height));
+  }
+  bool body_in_mask = false;
+  if (view.body_index > 0 && view.body_index < 256) {
+    body_in_mask = std::find(mask.data.begin(), mask.data.end(),
+                             static_cast<uint8_t>(view.body_index)) != mask.data.end();
+  }
+  for (size_t i = 0; i < mask.data.size(); ++i) {
+    const bool is_actor =
+        body_in_mask ? mask.data[i] == view.body_index : mask.data[i] > 0;
+    actor.data[i] = is_actor && depth.data[i] > 0 ? 1 : 0;
+  }
+  return actor;
+}
+
+absl::StatusOr<DepthImageMm> TakeFrames::LoadActorDepth(int instant, int sensor) const {
+  ASSIGN_OR_RETURN(DepthImageMm depth, LoadDepth(instant, sensor));
+  ASSIGN_OR_RETURN(MaskImage actor, LoadActorMask(instant, sensor));
+  for (size_t i = 0; i < depth.data.size(); ++i) {
+    if (actor.data[i] == 0) depth.data[i] = 0;
+  }
+  return depth;
+}
+
+absl::StatusOr<RgbImage> TakeFrames::LoadColor(int instant, int sensor,
+                                               int scale_denominator) const {
+  RETURN_IF_ERROR(CheckView(*this, instant, sensor));
+  if (scale_denominator != 1 && scale_denominator != 2 && scale_denominator != 4 &&
+      scale_denominator != 8) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("colour scale denominator must be 1, 2, 4 or 8, not ", scale_denominator));
+  }
+  const SensorView& view = instants_[instant].views[sensor];
+  if (view.color_jpeg.empty()) {
+    return absl::NotFoundError(
+        absl::StrCat(ViewName(*this, instant, sensor), ": no colour frame"));
+  }
+  const std::string what = absl::StrCat(ViewName(*this, instant, sensor), ": colour: ");
+  tjhandle handle = tjInitDecompress();
+  if (handle == nullptr) return absl::InternalError("tjInitDecompress failed");
+  struct Closer {
+    tjhandle h;
+    ~Closer() { tjDestroy(h); }
+  } closer{handle};
+  int width = 0, height = 0, subsampling = 0, colorspace = 0;
+  auto* bytes = reinterpret_cast<const unsigned char*>(view.color_jpeg.data());
+  const auto size = static_cast<unsigned long>(view.color_jpeg.size());
+  if (tjDecompressHeader3(handle, bytes, size, &width, &height, &subsampling, &colorspace) != 0) {
+    return absl::DataLossError(absl::StrCat(what, tjGetErrorStr2(handle)));
+  }
+  const CameraIntrinsics& k = sensors_[sensor].color_intrinsics;
+  if (width != k.width || height != k.height) {
+    return absl::DataLossError(absl::StrCat(what, "image is ", width, "x", height,
+                                            ", the calibration says ", k.width, "x", k.height));
+  }
+  const tjscalingfactor factor{1, scale_denominator};
+  RgbImage image(TJSCALED(width, factor), TJSCALED(height, factor));
+  if (tjDecompress2(handle, bytes, size, image.data.data(), image.width, 0, image.height,
+                    TJPF_RGB, TJFLAG_FASTDCT) != 0) {
+    return absl::DataLossError(absl::StrCat(what, tjGetErrorStr2(handle)));
+  }
+  return image;
+}
+
+absl::StatusOr<CameraIntrinsics> TakeFrames::ColorIntrinsicsForImage(int sensor,
+                                                                     const RgbImage& image) const {
+  if (sensor < 0 || sensor >= num_sensors()) {
+    return absl::InvalidArgumentError(absl::StrCat("no sensor ", sensor));
+  }
+  return ScaledIntrinsics(sensors_[sensor].color_intrinsics, image.width, image.height);
+}
+
+absl::Status TakeFrames::ParallelForViews(
+    const std::function<absl::Status(int instant, int sensor)>& fn) const {
+  std::vector<std::pair<int, int>> views;
+  for (int i = 0; i < num_instants(); ++i) {
+    for (int s = 0; s < num_sensors(); ++s) {
+      if (instants_[i].views[s].present) views.push_back({i, s});
+    }
+  }
+  std::mutex mu;
+  absl::Status first = absl::OkStatus();
+  pool_->ParallelFor(0, static_cast<int>(views.size()), [&](int k) {
+    absl::Status status = fn(views[k].first, views[k].second);
+    if (!status.ok()) {
+      std::lock_guard<std::mutex> lock(mu);
+      if (first.ok()) first = status;
+    }
+  });
+  return first;
+}
+
+}  // namespace reenact::recon

@@ -1,0 +1,322 @@
+#include "server/recon/take_frames.h"
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include <gtest/gtest.h>
+
+#include "common/io/proto_convert.h"
+#include "common/io/take.h"
+#include "server/recon/recon_test_util.h"
+
+namespace reenact::recon {
+namespace {
+
+using recon::testing::GetSharedTake;
+
+// Ground-truth joints by frame index.
+std::map<int64_t, JointArray> TruthJoints(const std::string& path) {
+  std::map<int64_t, JointArray> truth;
+  auto reader = TakeReader::Open(path);
+  EXPECT_TRUE(reader.ok()) << reader.status();
+  if (!reader.ok()) return truth;
+  auto all = (*reader)->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
+  EXPECT_TRUE(all.ok()) << all.status();
+  if (!all.ok()) return truth;
+  for (const v1::GroundTruthJoints& g : *all) {
+    JointArray joints = MissingJoints();
+    for (int i = 0; i < g.joint_names_size() && i < g.positions_in_world_m_size(); ++i) {
+      if (auto j = body::KinectV2JointFromName(g.joint_names(i))) {
+        joints[body::Index(*j)] = FromProto(g.positions_in_world_m(i));
+      }
+    }
+    truth[g.frame_index()] = joints;
+  }
+  return truth;
+}
+
+TEST(TakeFrames, LoadsTheSyntheticTake) {
+  RECON_REQUIRE_SHARED_TAKE();
+  const auto& shared = GetSharedTake();
+  auto take = TakeFrames::Load(shared.path);
+  ASSERT_TRUE(take.ok()) << take.status();
+  const TakeFrames& t = **take;
+  EXPECT_EQ(t.num_sensors(), 2);
+  EXPECT_EQ(t.num_instants(), shared.summary.frames);
+  EXPECT_EQ(t.num_valid_instants(), shared.summary.frames);
+  EXPECT_FALSE(t.grouped_by_frame_sets());
+  EXPECT_NEAR(t.fps(), 15.0, 1e-9);
+  EXPECT_NEAR(t.duration_s(), (shared.summary.frames - 1) / 15.0, 0.01);
+  for (int i = 1; i < t.num_instants(); ++i) {
+    EXPECT_GT(t.instant(i).stamp_ns, t.instant(i - 1).stamp_ns);
+  }
+  for (const Instant& instant : t.instants()) {
+    for (const SensorView& view : instant.views) {
+      EXPECT_TRUE(view.present);
+      EXPECT_TRUE(view.has_skeleton);
+      EXPECT_FALSE(view.color_jpeg.empty());
+      EXPECT_GT(view.tracked_joint_count, 10);
+    }
+  }
+  const TakeSensor& k0 = t.sensors()[0];
+  EXPECT_EQ(k0.depth_intrinsics.width, 512);
+  EXPECT_EQ(k0.color_intrinsics.width, 640);
+  EXPECT_NEAR(k0.depth_scale_m_per_unit, 0.001, 1e-12);
+}
+
+// The fused skeleton (mean over the two sensors) against the ground truth:
+// the synthetic sensor skeletons carry 10 mm (tracked) / 30 mm (inferred)
+// Gaussian noise per axis, so one sensor's mean 3-D error is about 16 mm
+// and the mean of two about 11 mm.
+TEST(TakeFrames, FusedSkeletonMatchesGroundTruth) {
+  RECON_REQUIRE_SHARED_TAKE();
+  const auto& shared = GetSharedTake();
+  auto take = TakeFrames::Load(shared.path);
+  ASSERT_TRUE(take.ok()) << take.status();
+  const auto truth = TruthJoints(shared.path);
+  ASSERT_EQ(static_cast<int>(truth.size()), (*take)->num_instants());
+  double fused_sum = 0, single_sum = 0;
+  int fused_n = 0, single_n = 0;
+  for (const Instant& instant : (*take)->instants()) {
+    auto it = truth.find(instant.views[0].frame_index);
+    ASSERT_NE(it, truth.end());
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      ASSERT_TRUE(IsJointValid(instant.joints_in_world_m[j]));
+      fused_sum += (instant.joints_in_world_m[j] - it->second[j]).norm();
+      ++fused_n;
+      const Eigen::Vector3d& one = instant.views[0].joints_in_world_m[j];
+      if (IsJointValid(one)) {
+        single_sum += (one - it->second[j]).norm();
+        ++single_n;
+      }
+    }
+  }
+  const double fused_mm = 1e3 * fused_sum / fused_n;
+  const double single_mm = 1e3 * single_sum / single_n;
+  std::printf("[ figures  ] fused skeleton mean error %.1f mm over %d joints; sensor k0 alone "
+              "(tracked joints) %.1f mm\n",
+              fused_mm, fused_n, single_mm);
+  EXPECT_LT(fused_mm, 16.0);
+  EXPECT_LT(single_mm, 22.0);
+}
+
+TEST(TakeFrames, DecodesDepthMaskAndColour) {
+  RECON_REQUIRE_SHARED_TAKE();
+  auto take = TakeFrames::Load(GetSharedTake().path);
+  ASSERT_TRUE(take.ok()) << take.status();
+  const TakeFrames& t = **take;
+  auto depth = t.LoadDepth(3, 1);
+  ASSERT_TRUE(depth.ok()) << depth.status();
+  EXPECT_EQ(depth->width, 512);
+  EXPECT_EQ(depth->height, 424);
+  auto mask = t.LoadActorMask(3, 1);
+  ASSERT_TRUE(mask.ok()) << mask.status();
+  int actor = 0, with_depth = 0;
+  for (size_t i = 0; i < mask->data.size(); ++i) {
+    actor += mask->data[i] ? 1 : 0;
+    with_depth += depth->data[i] > 0 ? 1 : 0;
+    if (mask->data[i]) {
+      EXPECT_GT(depth->data[i], 0);
+    }
+  }
+  EXPECT_GT(actor, 2000);          // A person at 2.5 m covers ~10k depth pixels.
+  EXPECT_LT(actor, with_depth);    // The room is not the actor.
+  auto actor_depth = t.LoadActorDepth(3, 1);
+  ASSERT_TRUE(actor_depth.ok());
+  int nonzero = 0;
+  for (uint16_t d : actor_depth->data) nonzero += d > 0 ? 1 : 0;
+  EXPECT_EQ(nonzero, actor);
+
+  auto full = t.LoadColor(3, 0);
+  ASSERT_TRUE(full.ok()) << full.status();
+  EXPECT_EQ(full->width, 640);
+  EXPECT_EQ(full->height, 360);
+  auto half = t.LoadColor(3, 0, 2);
+  ASSERT_TRUE(half.ok()) << half.status();
+  EXPECT_EQ(half->width, 320);
+  EXPECT_EQ(half->height, 180);
+  auto k = t.ColorIntrinsicsForImage(0, *half);
+  ASSERT_TRUE(k.ok());
+  EXPECT_NEAR(k->fx, t.sensors()[0].color_intrinsics.fx / 2, 1e-9);
+
+  EXPECT_EQ(t.LoadColor(3, 0, 3).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(t.LoadDepth(-1, 0).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(t.LoadDepth(0, 2).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(t.LoadDepth(t.num_instants(), 0).status().code(),
+            absl::StatusCode::kInvalidArgument);
+
+  std::atomic<int> views{0};
+  ASSERT_TRUE(t.ParallelForViews([&](int i, int s) {
+                 auto d = t.LoadDepth(i, s);
+                 if (!d.ok()) return d.status();
+                 ++views;
+                 return absl::OkStatus();
+               }).ok());
+  EXPECT_EQ(views.load(), 2 * t.num_instants());
+  auto failing = t.ParallelForViews(
+      [](int i, int s) { return i == 2 ? absl::DataLossError("x") : absl::OkStatus(); });
+  EXPECT_EQ(failing.code(), absl::StatusCode::kDataLoss);
+}
+
+TEST(TakeFrames, LoadOptions) {
+  RECON_REQUIRE_SHARED_TAKE();
+  TakeFramesOptions options;
+  options.load_color = false;
+  options.max_instants = 5;
+  options.num_threads = 2;
+  auto take = TakeFrames::Load(GetSharedTake().path, options);
+  ASSERT_TRUE(take.ok()) << take.status();
+  EXPECT_EQ((*take)->num_instants(), 5);
+  EXPECT_EQ((*take)->pool().num_threads(), 2);
+  EXPECT_TRUE((*take)->instant(0).views[0].color_jpeg.empty());
+  EXPECT_EQ((*take)->LoadColor(0, 0).status().code(), absl::StatusCode::kNotFound);
+  options.max_instants = -1;
+  EXPECT_EQ(TakeFrames::Load(GetSharedTake().path, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // Cancelled through the progress callback.
+  int calls = 0;
+  auto cancelled = TakeFrames::Load(GetSharedTake().path, {}, [&](const Progress& p) {
+    EXPECT_EQ(p.stage, "load");
+    return ++calls < 2;
+  });
+  EXPECT_EQ(cancelled.status().code(), absl::StatusCode::kCancelled);
+}
+
+// A take as the server's ingest writes it: frame-set records after each
+// set's frames; sensor k1 misses the third set.
+TEST(TakeFrames, GroupsByFrameSetRecords) {
+  RECON_REQUIRE_SHARED_TAKE();
+  auto source = TakeReader::Open(GetSharedTake().path);
+  ASSERT_TRUE(source.ok()) << source.status();
+  const std::string path = reenact::testing::MakeTempDir("recon_frame_sets") + "/take.mcap";
+  auto writer = TakeWriter::Open(path, (*source)->info());
+  ASSERT_TRUE(writer.ok()) << writer.status();
+  for (const auto& [id, calibration] : (*source)->sensors()) {
+    ASSERT_TRUE((*writer)->AddSensor(calibration).ok());
+  }
+  // Frames per sensor and index.
+  std::map<std::pair<std::string, int64_t>, v1::DepthImage> depth;
+  std::map<std::pair<std::string, int64_t>, v1::Skeleton> skeletons;
+  ASSERT_TRUE((*source)
+                  ->ForEach<v1::DepthImage>(SensorTopic("k0", "depth"),
+                                            [&](const v1::DepthImage& m) {
+                                              depth[{"k0", m.frame_index()}] = m;
+                                              return absl::OkStatus();
+                                            })
+                  .ok());
+  ASSERT_TRUE((*source)
+                  ->ForEach<v1::DepthImage>(SensorTopic("k1", "depth"),
+                                            [&](const v1::DepthImage& m) {
+                                              depth[{"k1", m.frame_index()}] = m;
+                                              return absl::OkStatus();
+                                            })
+                  .ok());
+  for (const char* id : {"k0", "k1"}) {
+    ASSERT_TRUE((*source)
+                    ->ForEach<v1::Skeleton>(SensorTopic(id, "skeleton"),
+                                            [&](const v1::Skeleton& m) {
+                                              skeletons[{id, m.frame_index()}] = m;
+                                              return absl::OkStatus();
+                                            })
+                    .ok());
+  }
+  constexpr int kSets = 6;
+  for (int f = 0; f < kSets; ++f) {
+    v1::FrameSetRecord record;
+    record.set_sequence(f + 1);
+    int64_t stamp_sum = 0;
+    int n = 0;
+    for (const char* id : {"k0", "k1"}) {
+      if (f == 2 && std::string(id) == "k1") {
+        record.add_missing_sensor_ids(id);
+        continue;
+      }
+      const v1::DepthImage& d = depth.at({id, f});
+      ASSERT_TRUE((*writer)->WriteDepth(d).ok());
+      ASSERT_TRUE((*writer)->WriteSkeleton(skeletons.at({id, f})).ok());
+      record.add_sensor_ids(id);
+      stamp_sum += d.host_stamp_ns();
+      ++n;
+    }
+    record.set_stamp_ns(stamp_sum / n);
+    ASSERT_TRUE((*writer)->WriteFrameSetRecord(record).ok());
+  }
+  ASSERT_TRUE((*writer)->Close().ok());
+
+  auto take = TakeFrames::Load(path);
+  ASSERT_TRUE(take.ok()) << take.status();
+  EXPECT_TRUE((*take)->grouped_by_frame_sets());
+  ASSERT_EQ((*take)->num_instants(), kSets);
+  for (int f = 0; f < kSets; ++f) {
+    const Instant& instant = (*take)->instant(f);
+    EXPECT_TRUE(instant.valid);
+    EXPECT_EQ(instant.views[0].frame_index, f);
+    EXPECT_EQ(instant.views[1].present, f != 2);
+    if (f != 2) {
+      EXPECT_EQ(instant.views[1].frame_index, f);
+    }
+    // No mask in this take: every pixel with depth counts as the actor.
+    auto mask = (*take)->LoadActorMask(f, 0);
+    auto d = (*take)->LoadDepth(f, 0);
+    ASSERT_TRUE(mask.ok() && d.ok());
+    for (size_t i = 0; i < d->data.size(); i += 97) {
+      EXPECT_EQ(mask->data[i] != 0, d->data[i] != 0);
+    }
+    // No colour in this take.
+    EXPECT_EQ((*take)->LoadColor(f, 0).status().code(), absl::StatusCode::kNotFound);
+  }
+}
+
+TEST(TakeFrames, BadInputIsAnErrorNotACrash) {
+  const std::string dir = reenact::testing::MakeTempDir("recon_bad_takes");
+  EXPECT_EQ(TakeFrames::Load(dir + "/missing.mcap").status().code(), absl::StatusCode::kNotFound);
+  {
+    std::ofstream(dir + "/garbage.mcap") << "this is not an mcap file at all";
+  }
+  auto garbage = TakeFrames::Load(dir + "/garbage.mcap");
+  EXPECT_FALSE(garbage.ok());
+  EXPECT_TRUE(absl::IsInvalidArgument(garbage.status()) || absl::IsDataLoss(garbage.status()))
+      << garbage.status();
+
+  RECON_REQUIRE_SHARED_TAKE();
+  // Cut the take at several lengths and flip bytes in its middle: every
+  // outcome is a clean error or a (shorter) take.
+  std::string bytes;
+  {
+    std::ifstream in(GetSharedTake().path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_GT(bytes.size(), 100000u);
+  for (double fraction : {0.0005, 0.01, 0.3, 0.77}) {
+    const std::string path = dir + "/cut.mcap";
+    {
+      std::ofstream out(path, std::ios::binary | std::ios::trunc);
+      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size() * fraction));
+    }
+    auto take = TakeFrames::Load(path);
+    if (take.ok()) {
+      EXPECT_LE((*take)->num_instants(), GetSharedTake().summary.frames);
+    } else {
+      EXPECT_TRUE(absl::IsInvalidArgument(take.status()) || absl::IsDataLoss(take.status()))
+          << take.status();
+    }
+  }
+  std::string flipped = bytes;
+  for (size_t i = bytes.size() / 3; i < bytes.size() / 3 + 4096; i += 7) flipped[i] ^= 0x5a;
+  const std::string path = dir + "/flipped.mcap";
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(flipped.data(), static_cast<std::streamsize>(flipped.size()));
+  }
+  auto take = TakeFrames::Load(path);
+  if (!take.ok()) {
+    EXPECT_TRUE(absl::IsInvalidArgument(take.status()) || absl::IsDataLoss(take.status()))
+        << take.status();
+  }
+}
+
+}  // namespace
+}  // namespace reenact::recon

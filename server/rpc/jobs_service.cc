@@ -1,0 +1,200 @@
+#include "server/rpc/jobs_service.h"
+
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "proto/grpc_status.h"
+#include "server/jobs/job_scheduler.h"
+
+namespace reenact::server {
+namespace {
+
+// One Watch stream: events from the scheduler are merged into one pending
+// event (the latest job, every log line) and written one at a time.
+class WatchStream final : public grpc::ServerWriteReactor<v1::JobEvent> {
+ public:
+  WatchStream(ServerContext& context, const v1::WatchJobRequest& request) : context_(context) {
+    const absl::StatusOr<uint64_t> id = context_.jobs->Watch(
+        request.job_id(), [this](const v1::JobEvent& event, bool last, const absl::Status& end) {
+          OnEvent(event, last, end);
+        });
+    if (!id.ok()) {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        finished_ = true;
+      }
+      Finish(ToGrpcStatus(id.status()));
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    watch_id_ = *id;
+  }
+
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      writing_ = false;
+      if (!ok) broken_ = true;
+    }
+    Pump();
+  }
+  void OnCancel() override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      broken_ = true;
+    }
+    Pump();
+  }
+  void OnDone() override {
+    uint64_t watch_id = 0;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      watch_id = watch_id_;
+    }
+    // After Unwatch no event comes any more.
+    if (watch_id != 0) context_.jobs->Unwatch(watch_id);
+    delete this;
+  }
+
+ private:
+  void OnEvent(const v1::JobEvent& event, bool last, const absl::Status& end) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (pending_.has_value()) {
+        *pending_->mutable_job() = event.job();
+        for (const std::string& line : event.log_lines()) pending_->add_log_lines(line);
+      } else {
+        pending_ = event;
+      }
+      if (last) {
+        ended_ = true;
+        end_ = end;
+      }
+    }
+    Pump();
+  }
+
+  // Starts the next write, or finishes once the last event is out.
+  void Pump() {
+    grpc::Status status;
+    bool finish = false;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (writing_ || finished_) return;
+      if (pending_.has_value() && !broken_) {
+        in_flight_ = std::move(*pending_);
+        pending_.reset();
+        writing_ = true;
+      } else if (broken_ || ended_) {
+        finished_ = true;
+        finish = true;
+        status = broken_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the watch was cancelled")
+                         : ToGrpcStatus(end_);
+      } else {
+        return;
+      }
+    }
+    if (finish) {
+      Finish(status);
+    } else {
+      StartWrite(&in_flight_);
+    }
+  }
+
+  ServerContext& context_;
+  std::mutex mu_;
+  uint64_t watch_id_ = 0;
+  std::optional<v1::JobEvent> pending_;
+  v1::JobEvent in_flight_;
+  bool writing_ = false;
+  bool broken_ = false;
+  bool ended_ = false;
+  absl::Status end_;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+absl::Status SubmitJob(ServerContext& context, const v1::SubmitJobRequest& request,
+                       v1::Job* response) {
+  ASSIGN_OR_RETURN(*response, context.jobs->Submit(request));
+  return absl::OkStatus();
+}
+
+absl::Status ListJobs(ServerContext& context, const v1::ListJobsRequest& request,
+                      v1::ListJobsResponse* response) {
+  if (!v1::JobState_IsValid(request.state())) {
+    return absl::InvalidArgumentError(absl::StrCat("unknown job state ", request.state()));
+  }
+  for (v1::Job& job : context.jobs->List(request.state(), request.take_id())) {
+    *response->add_jobs() = std::move(job);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status GetJob(ServerContext& context, const v1::GetJobRequest& request, v1::Job* response) {
+  ASSIGN_OR_RETURN(*response, context.jobs->Get(request.job_id()));
+  return absl::OkStatus();
+}
+
+grpc::ServerUnaryReactor* JobsService::Submit(grpc::CallbackServerContext* rpc,
+                                              const v1::SubmitJobRequest* request,
+                                              v1::Job* response) {
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  // Storing the job commits (fsync) to the catalog: off gRPC's threads.
+  context_.blocking->Schedule([this, reactor, request, response] {
+    reactor->Finish(ToGrpcStatus(SubmitJob(context_, *request, response)));
+  });
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::JobEvent>* JobsService::Watch(grpc::CallbackServerContext* rpc,
+                                                           const v1::WatchJobRequest* request) {
+  return new WatchStream(context_, *request);
+}
+
+grpc::ServerUnaryReactor* JobsService::Cancel(grpc::CallbackServerContext* rpc,
+                                              const v1::CancelJobRequest* request,
+                                              v1::Job* response) {
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  context_.blocking->Schedule([this, reactor, request, response] {
+    const absl::StatusOr<v1::Job> job = context_.jobs->Cancel(request->job_id());
+    if (!job.ok() || job->state() != v1::JOB_STATE_RUNNING) {
+      if (job.ok()) *response = *job;
+      reactor->Finish(ToGrpcStatus(job.status()));
+      return;
+    }
+    // Answer when the worker has stopped: the watch's last event. The call
+    // (and `response`) live until Finish, even when the client has gone.
+    const absl::StatusOr<uint64_t> watch = context_.jobs->Watch(
+        request->job_id(),
+        [reactor, response](const v1::JobEvent& event, bool last, const absl::Status& end) {
+          if (!last) return;
+          *response = event.job();
+          reactor->Finish(ToGrpcStatus(end));
+        });
+    if (!watch.ok()) reactor->Finish(ToGrpcStatus(watch.status()));
+  });
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* JobsService::List(grpc::CallbackServerContext* rpc,
+                                            const v1::ListJobsRequest* request,
+                                            v1::ListJobsResponse* response) {
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  reactor->Finish(ToGrpcStatus(ListJobs(context_, *request, response)));
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* JobsService::Get(grpc::CallbackServerContext* rpc,
+                                           const v1::GetJobRequest* request, v1::Job* response) {
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  reactor->Finish(ToGrpcStatus(GetJob(context_, *request, response)));
+  return reactor;
+}
+
+}  // namespace reenact::server

@@ -1,0 +1,48 @@
+// The Jobs service (proto/reenact/v1/jobs_service.proto): reconstruction jobs
+// run by the server's JobScheduler (server/jobs/job_scheduler.h). One handler
+// per RPC, reaching the scheduler through the context. Beyond the proto:
+//  - Malformed take or job ids are INVALID_ARGUMENT, unknown ones NOT_FOUND.
+//  - Cancel of a RUNNING job answers once the worker has stopped (at most the
+//    scheduler's grace period, 5 s), with the job CANCELLED; a job that
+//    ended meanwhile is answered as it ended.
+//  - Watch coalesces: a slow reader gets the latest job with every log line
+//    since its previous event. At server shutdown a watch of an unfinished
+//    job ends with UNAVAILABLE (the job runs again after the restart).
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/status.h"
+#include "reenact/v1/jobs_service.grpc.pb.h"
+#include "server/rpc/server_context.h"
+
+namespace reenact::server {
+
+// The unary handlers that answer at once.
+absl::Status SubmitJob(ServerContext& context, const v1::SubmitJobRequest& request,
+                       v1::Job* response);
+absl::Status ListJobs(ServerContext& context, const v1::ListJobsRequest& request,
+                      v1::ListJobsResponse* response);
+absl::Status GetJob(ServerContext& context, const v1::GetJobRequest& request, v1::Job* response);
+
+class JobsService final : public v1::Jobs::CallbackService {
+ public:
+  explicit JobsService(ServerContext& context) : context_(context) {}
+
+  grpc::ServerUnaryReactor* Submit(grpc::CallbackServerContext* rpc,
+                                   const v1::SubmitJobRequest* request, v1::Job* response) override;
+  grpc::ServerWriteReactor<v1::JobEvent>* Watch(grpc::CallbackServerContext* rpc,
+                                                const v1::WatchJobRequest* request) override;
+  grpc::ServerUnaryReactor* Cancel(grpc::CallbackServerContext* rpc,
+                                   const v1::CancelJobRequest* request, v1::Job* response) override;
+  grpc::ServerUnaryReactor* List(grpc::CallbackServerContext* rpc,
+                                 const v1::ListJobsRequest* request,
+                                 v1::ListJobsResponse* response) override;
+  grpc::ServerUnaryReactor* Get(grpc::CallbackServerContext* rpc, const v1::GetJobRequest* request,
+                                v1::Job* response) override;
+
+ private:
+  ServerContext& context_;
+};
+
+}  // namespace reenact::server

@@ -1,0 +1,434 @@
+// The Jobs service end to end over loopback: a Server (in-process) with the
+// fake worker (server/jobs/testing/fake_worker_main.cc) or small shell
+// scripts as its worker program, and real takes recorded through Ingest.
+#include "server/rpc/jobs_service.h"
+
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/base/files.h"
+#include "common/base/time.h"
+#include "reenact/v1/jobs_service.grpc.pb.h"
+#include "server/server_flags.h"
+#include "server/testing/test_server.h"
+#include "server/testing/test_takes.h"
+
+namespace reenact::server {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::IngestClient;
+using testing::MakeOpenTake;
+using testing::TestServer;
+
+// Every test's wait is bounded by this, seconds.
+constexpr double kWaitS = 20.0;
+
+ServerOptions JobOptions(const std::string& worker, int concurrency = 2) {
+  ServerOptions options;
+  options.jobs.worker_path = worker;
+  options.jobs.concurrency = concurrency;
+  options.jobs.poll_period_s = 0.02;
+  options.jobs.cancel_grace_s = 5.0;
+  options.jobs.shutdown_grace_s = 2.0;
+  return options;
+}
+
+// A shell script worker in `dir`.
+std::string Script(const std::string& dir, const std::string& name, const std::string& body) {
+  const std::string path = dir + "/" + name;
+  std::ofstream(path) << "#!/bin/bash\n" << body;
+  fs::permissions(path, fs::perms::owner_all);
+  return path;
+}
+
+// Records a complete take of `sets` frame sets.
+void RecordTake(TestServer& t, const std::string& id, uint64_t sets = 3) {
+  IngestClient client(*t.ingest);
+  client.Open(MakeOpenTake(id, "daemon-a", 1));
+  client.SendSets(1, sets, 1);
+  client.Close(sets);
+  ASSERT_TRUE(client.Finish().ok()) << id;
+}
+
+struct Jobs {
+  std::unique_ptr<v1::Jobs::Stub> stub;
+
+  explicit Jobs(TestServer& t) : stub(v1::Jobs::NewStub(t.channel)) {}
+
+  grpc::Status Submit(const std::string& take_id, const std::string& method,
+                      const std::map<std::string, std::string>& options, v1::Job* job) {
+    grpc::ClientContext context;
+    v1::SubmitJobRequest request;
+    request.set_take_id(take_id);
+    request.set_method(method);
+    for (const auto& [k, v] : options) (*request.mutable_options())[k] = v;
+    return stub->Submit(&context, request, job);
+  }
+  v1::Job SubmitOk(const std::string& take_id, const std::map<std::string, std::string>& options) {
+    v1::Job job;
+    const grpc::Status status = Submit(take_id, "rigid-carved", options, &job);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return job;
+  }
+  grpc::Status Get(const std::string& job_id, v1::Job* job) {
+    grpc::ClientContext context;
+    v1::GetJobRequest request;
+    request.set_job_id(job_id);
+    return stub->Get(&context, request, job);
+  }
+  grpc::Status Cancel(const std::string& job_id, v1::Job* job) {
+    grpc::ClientContext context;
+    v1::CancelJobRequest request;
+    request.set_job_id(job_id);
+    return stub->Cancel(&context, request, job);
+  }
+  grpc::Status List(v1::JobState state, const std::string& take_id, v1::ListJobsResponse* out) {
+    grpc::ClientContext context;
+    v1::ListJobsRequest request;
+    request.set_state(state);
+    request.set_take_id(take_id);
+    return stub->List(&context, request, out);
+  }
+  // Every event of a Watch until the stream ends.
+  grpc::Status Watch(const std::string& job_id, std::vector<v1::JobEvent>* events) {
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+    v1::WatchJobRequest request;
+    request.set_job_id(job_id);
+    auto reader = stub->Watch(&context, request);
+    v1::JobEvent event;
+    while (reader->Read(&event)) events->push_back(event);
+    return reader->Finish();
+  }
+  // Polls Get until `done(job)` or kWaitS.
+  v1::Job WaitFor(const std::string& job_id, const std::function<bool(const v1::Job&)>& done) {
+    v1::Job job;
+    const int64_t deadline_ns = SteadyNowNs() + SecondsToNs(kWaitS);
+    while (SteadyNowNs() < deadline_ns) {
+      if (Get(job_id, &job).ok() && done(job)) return job;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ADD_FAILURE() << "job " << job_id << " never got there; last: " << job.ShortDebugString();
+    return job;
+  }
+  v1::Job WaitEnd(const std::string& job_id) {
+    return WaitFor(job_id, [](const v1::Job& j) {
+      return j.state() == v1::JOB_STATE_SUCCEEDED || j.state() == v1::JOB_STATE_FAILED ||
+             j.state() == v1::JOB_STATE_CANCELLED;
+    });
+  }
+};
+
+TEST(JobsService, SubmitErrors) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_submit_errors");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  v1::Job job;
+  EXPECT_EQ(jobs.Submit("nope", "rigid-carved", {}, &job).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  const grpc::Status bad_method = jobs.Submit("take1", "rigid-magic", {}, &job);
+  EXPECT_EQ(bad_method.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(bad_method.error_message().find("rigid-cylinders, rigid-carved"), std::string::npos)
+      << bad_method.error_message();
+  EXPECT_EQ(jobs.Submit("../etc", "rigid-carved", {}, &job).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(jobs.Submit("take1", "rigid-carved", {{"", "x"}}, &job).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  // A take still recording.
+  IngestClient recording(*t->ingest);
+  recording.Open(MakeOpenTake("take2", "daemon-a", 1));
+  recording.SendSets(1, 2, 1);
+  ASSERT_TRUE(recording.WaitAck(2));
+  EXPECT_EQ(jobs.Submit("take2", "rigid-carved", {}, &job).error_code(),
+            grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_EQ(jobs.Get("j-unknown", &job).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(jobs.Get("bad/id", &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(jobs.Cancel("j-unknown", &job).error_code(), grpc::StatusCode::NOT_FOUND);
+  std::vector<v1::JobEvent> events;
+  EXPECT_EQ(jobs.Watch("j-unknown", &events).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_TRUE(events.empty());
+  v1::ListJobsResponse list;
+  ASSERT_TRUE(jobs.List(v1::JOB_STATE_UNSPECIFIED, "", &list).ok());
+  EXPECT_EQ(list.jobs_size(), 0);
+}
+
+TEST(JobsService, WatchSeesProgressAndTheReenactment) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_success");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const v1::Job submitted =
+      jobs.SubmitOk("take1", {{"fake_steps", "10"}, {"fake_step_ms", "60"}, {"voxel_mm", "8"}});
+  EXPECT_EQ(submitted.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(submitted.take_id(), "take1");
+  EXPECT_EQ(submitted.options().at("voxel_mm"), "8");
+  EXPECT_GT(submitted.submitted_unix_ns(), 0);
+
+  std::vector<v1::JobEvent> events;
+  const grpc::Status watched = jobs.Watch(submitted.job_id(), &events);
+  ASSERT_TRUE(watched.ok()) << watched.error_message();
+  ASSERT_GE(events.size(), 3u);
+  double last_fraction = 0;
+  int increases = 0, log_lines = 0;
+  bool saw_running = false, saw_eta = false;
+  for (const v1::JobEvent& e : events) {
+    EXPECT_GE(e.job().progress().fraction(), last_fraction);
+    if (e.job().progress().fraction() > last_fraction) ++increases;
+    last_fraction = e.job().progress().fraction();
+    saw_running |= e.job().state() == v1::JOB_STATE_RUNNING;
+    saw_eta |= e.job().state() == v1::JOB_STATE_RUNNING && e.job().progress().eta_s() > 0;
+    log_lines += e.log_lines_size();
+  }
+  std::cout << "[ figures  ] events " << events.size() << ", fraction increases " << increases
+            << ", log lines " << log_lines << "\n";
+  EXPECT_GE(increases, 4);
+  EXPECT_TRUE(saw_running);
+  EXPECT_TRUE(saw_eta);
+  EXPECT_GE(log_lines, 5);  // The first line, a line every second step, the result.
+  const v1::Job end = events.back().job();
+  ASSERT_EQ(end.state(), v1::JOB_STATE_SUCCEEDED) << end.error();
+  EXPECT_DOUBLE_EQ(end.progress().fraction(), 1.0);
+  EXPECT_EQ(end.progress().frames_done(), 10);
+  EXPECT_EQ(end.progress().frames_total(), 10);
+  EXPECT_EQ(end.attempts(), 1);
+  EXPECT_GE(end.finished_unix_ns(), end.started_unix_ns());
+  EXPECT_GE(end.started_unix_ns(), end.submitted_unix_ns());
+  ASSERT_FALSE(end.reenactment_id().empty());
+  auto summary = t->server->reenactments().Get(end.reenactment_id());
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_EQ(summary->info().job_id(), end.job_id());
+  EXPECT_EQ(summary->info().take_id(), "take1");
+  // The worker got the take's file and its output stays beside the job.
+  const std::string job_dir = dir + "/data/jobs/" + end.job_id();
+  const std::string progress = ReadFileToString(job_dir + "/progress.jsonl").value_or("");
+  EXPECT_NE(progress.find("takes/take1.mcap"), std::string::npos) << progress;
+  EXPECT_TRUE(fs::exists(job_dir + "/worker.log"));
+
+  // Watching a finished job: one event, then the end.
+  events.clear();
+  ASSERT_TRUE(jobs.Watch(end.job_id(), &events).ok());
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].job().state(), v1::JOB_STATE_SUCCEEDED);
+  // Cancel of a finished job returns it as it is.
+  v1::Job cancelled;
+  ASSERT_TRUE(jobs.Cancel(end.job_id(), &cancelled).ok());
+  EXPECT_EQ(cancelled.state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+TEST(JobsService, InvalidReenactmentFails) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_garbage");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const v1::Job job = jobs.WaitEnd(jobs.SubmitOk("take1", {{"fake_end", "garbage"}}).job_id());
+  EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(job.error().find("is not usable"), std::string::npos) << job.error();
+  EXPECT_TRUE(job.reenactment_id().empty());
+  EXPECT_TRUE(t->server->reenactments().List().empty());
+}
+
+TEST(JobsService, WorkerErrorsFailTheJobNotTheServer) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_crash");
+  const std::string segv = Script(dir, "segv.sh",
+                                  "echo '{\"stage\":\"load\",\"fraction\":0.1}'\n"
+                                  "echo 'loading the take went badly' >&2\n"
+                                  "kill -SEGV $$\n");
+  auto t = TestServer::Start(dir + "/data", JobOptions(segv));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const v1::Job crashed = jobs.WaitEnd(jobs.SubmitOk("take1", {}).job_id());
+  EXPECT_EQ(crashed.state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(crashed.error().find("worker killed by signal 11 (SIGSEGV)"), std::string::npos)
+      << crashed.error();
+  EXPECT_NE(crashed.error().find("last log: loading the take went badly"), std::string::npos)
+      << crashed.error();
+  std::cout << "[ figures  ] crash error: " << crashed.error() << "\n";
+  // The compiled fake crashing mid-way, and a clean {"error"} failure.
+  t.reset();
+  t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  Jobs jobs2(*t);
+  const v1::Job segv2 = jobs2.WaitEnd(jobs2.SubmitOk("take1", {{"fake_end", "segv"}}).job_id());
+  EXPECT_NE(segv2.error().find("signal 11 (SIGSEGV); last log: fake worker: about to crash"),
+            std::string::npos)
+      << segv2.error();
+  const v1::Job failed = jobs2.WaitEnd(jobs2.SubmitOk("take1", {{"fake_end", "fail"}}).job_id());
+  EXPECT_EQ(failed.state(), v1::JOB_STATE_FAILED);
+  EXPECT_EQ(failed.error(), "fake failure at the end");
+  // The server still answers and still runs jobs.
+  v1::ListJobsResponse list;
+  ASSERT_TRUE(jobs2.List(v1::JOB_STATE_FAILED, "take1", &list).ok());
+  EXPECT_EQ(list.jobs_size(), 3);
+  const v1::Job ok = jobs2.WaitEnd(jobs2.SubmitOk("take1", {}).job_id());
+  EXPECT_EQ(ok.state(), v1::JOB_STATE_SUCCEEDED) << ok.error();
+  // A worker program that does not exist.
+  t.reset();
+  t = TestServer::Start(dir + "/data", JobOptions(dir + "/no-such-worker"));
+  ASSERT_NE(t, nullptr);
+  Jobs jobs3(*t);
+  const v1::Job missing = jobs3.WaitEnd(jobs3.SubmitOk("take1", {}).job_id());
+  EXPECT_EQ(missing.state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(missing.error().find("cannot start the worker"), std::string::npos) << missing.error();
+}
+
+TEST(JobsService, CancelStopsRunningAndQueuedJobs) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_cancel");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const std::map<std::string, std::string> forever = {{"fake_steps", "100000"},
+                                                      {"fake_step_ms", "20"}};
+  const v1::Job running = jobs.SubmitOk("take1", forever);
+  const v1::Job queued = jobs.SubmitOk("take1", forever);
+  jobs.WaitFor(running.job_id(), [](const v1::Job& j) { return j.progress().fraction() > 0; });
+  EXPECT_EQ(jobs.WaitFor(queued.job_id(), [](const v1::Job&) { return true; }).state(),
+            v1::JOB_STATE_QUEUED);
+
+  v1::Job job;
+  ASSERT_TRUE(jobs.Cancel(queued.job_id(), &job).ok());
+  EXPECT_EQ(job.state(), v1::JOB_STATE_CANCELLED);
+  EXPECT_EQ(job.started_unix_ns(), 0);
+
+  const int64_t start_ns = SteadyNowNs();
+  ASSERT_TRUE(jobs.Cancel(running.job_id(), &job).ok());
+  const double cancel_s = NsToSeconds(SteadyNowNs() - start_ns);
+  std::cout << "[ figures  ] cancel of a running job answered in " << cancel_s << " s\n";
+  EXPECT_EQ(job.state(), v1::JOB_STATE_CANCELLED) << job.error();
+  EXPECT_EQ(job.error(), "cancelled by a client");
+  EXPECT_LT(cancel_s, 5.0);  // SIGTERM sufficed: well within the grace period.
+  EXPECT_TRUE(t->server->reenactments().List().empty());
+
+  // A worker that ignores SIGTERM is killed after the grace period.
+  t.reset();
+  ServerOptions options = JobOptions(REENACT_FAKE_WORKER, 1);
+  options.jobs.cancel_grace_s = 0.3;
+  t = TestServer::Start(dir + "/data", options);
+  ASSERT_NE(t, nullptr);
+  Jobs jobs2(*t);
+  std::map<std::string, std::string> stubborn = forever;
+  stubborn["fake_ignore_term"] = "1";
+  const v1::Job deaf = jobs2.SubmitOk("take1", stubborn);
+  jobs2.WaitFor(deaf.job_id(), [](const v1::Job& j) { return j.progress().fraction() > 0; });
+  ASSERT_TRUE(jobs2.Cancel(deaf.job_id(), &job).ok());
+  EXPECT_EQ(job.state(), v1::JOB_STATE_CANCELLED);
+  EXPECT_NE(job.error().find("killed after 0.3 s"), std::string::npos) << job.error();
+}
+
+TEST(JobsService, RestartRequeuesRunningJobs) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_restart");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  std::string job_id;
+  {
+    Jobs jobs(*t);
+    job_id = jobs.SubmitOk("take1", {{"fake_hang_first", "1"}, {"fake_steps", "4"}}).job_id();
+    jobs.WaitFor(job_id, [](const v1::Job& j) { return j.progress().fraction() > 0; });
+    // A watch open across the shutdown ends with UNAVAILABLE.
+    std::vector<v1::JobEvent> events;
+    grpc::Status watched;
+    std::thread watcher([&] { watched = jobs.Watch(job_id, &events); });
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    t->server->Shutdown();
+    watcher.join();
+    EXPECT_EQ(watched.error_code(), grpc::StatusCode::UNAVAILABLE) << watched.error_message();
+    ASSERT_FALSE(events.empty());
+    EXPECT_EQ(events.back().job().state(), v1::JOB_STATE_RUNNING);
+  }
+  t.reset();
+  // The catalog still says RUNNING.
+  {
+    auto catalog = Catalog::Open(dir + "/data/catalog.sqlite");
+    ASSERT_TRUE(catalog.ok()) << catalog.status();
+    auto stored = (*catalog)->GetJob(job_id);
+    ASSERT_TRUE(stored.ok()) << stored.status();
+    EXPECT_EQ(stored->state(), v1::JOB_STATE_RUNNING);
+    EXPECT_EQ(stored->attempts(), 1);
+  }
+  t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  Jobs jobs(*t);
+  const v1::Job end = jobs.WaitEnd(job_id);
+  EXPECT_EQ(end.state(), v1::JOB_STATE_SUCCEEDED) << end.error();
+  EXPECT_EQ(end.attempts(), 2);
+  EXPECT_FALSE(end.reenactment_id().empty());
+  const std::string log =
+      ReadFileToString(dir + "/data/jobs/" + job_id + "/worker.log").value_or("");
+  EXPECT_NE(log.find("--- attempt 1"), std::string::npos) << log;
+  EXPECT_NE(log.find("--- attempt 2"), std::string::npos) << log;
+}
+
+TEST(JobsService, ConcurrencyOneRunsJobsOneAfterTheOther) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_serial");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const std::string trace = dir + "/trace.txt";
+  const std::map<std::string, std::string> options = {
+      {"fake_steps", "5"}, {"fake_step_ms", "40"}, {"fake_trace", trace}};
+  const std::string first = jobs.SubmitOk("take1", options).job_id();
+  const std::string second = jobs.SubmitOk("take1", options).job_id();
+  EXPECT_EQ(jobs.WaitEnd(first).state(), v1::JOB_STATE_SUCCEEDED);
+  EXPECT_EQ(jobs.WaitEnd(second).state(), v1::JOB_STATE_SUCCEEDED);
+  // The workers' own clocks: the second started after the first ended.
+  std::istringstream lines(ReadFileToString(trace).value_or(""));
+  std::map<std::string, int64_t> start_ns, end_ns;
+  std::string what, id;
+  int64_t ns = 0;
+  while (lines >> what >> id >> ns) (what == "start" ? start_ns : end_ns)[id] = ns;
+  ASSERT_EQ(start_ns.size(), 2u);
+  ASSERT_EQ(end_ns.size(), 2u);
+  std::cout << "[ figures  ] gap between the two workers "
+            << NsToSeconds(start_ns[second] - end_ns[first]) * 1e3 << " ms\n";
+  EXPECT_GE(start_ns[second], end_ns[first]);
+  // Newest first, filtered by take and state.
+  v1::ListJobsResponse list;
+  ASSERT_TRUE(jobs.List(v1::JOB_STATE_SUCCEEDED, "take1", &list).ok());
+  ASSERT_EQ(list.jobs_size(), 2);
+  EXPECT_EQ(list.jobs(0).job_id(), second);
+  EXPECT_EQ(list.jobs(1).job_id(), first);
+  v1::ListJobsResponse other;
+  ASSERT_TRUE(jobs.List(v1::JOB_STATE_UNSPECIFIED, "other", &other).ok());
+  EXPECT_EQ(other.jobs_size(), 0);
+}
+
+TEST(ServerFlags, JobsAndWorker) {
+  auto parsed = ParseServerCommandLine(
+      {"--data", "/tmp/d", "--listen", "127.0.0.1:0", "--jobs", "3", "--worker", "/opt/w"});
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(parsed->options.jobs.concurrency, 3);
+  EXPECT_EQ(parsed->options.jobs.worker_path, "/opt/w");
+  EXPECT_EQ(parsed->options.jobs.methods, JobMethodNames());
+  parsed = ParseServerCommandLine({"--data", "/tmp/d", "--listen", "127.0.0.1:0"});
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(parsed->options.jobs.concurrency, 0);  // One per hardware thread.
+  EXPECT_TRUE(parsed->options.jobs.worker_path.empty());
+  EXPECT_EQ(
+      ParseServerCommandLine({"--data", "d", "--listen", ":1", "--jobs", "-1"}).status().code(),
+      absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(
+      ParseServerCommandLine({"--data", "d", "--listen", ":1", "--jobs", "two"}).status().code(),
+      absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace reenact::server

@@ -1,0 +1,171 @@
+// reenact-worker: one reconstruction job, run by reenact-server's job
+// scheduler in its own process (server/jobs/job_scheduler.h describes the
+// protocol; server/recon/methods.h the methods).
+//
+//   reenact-worker --take FILE --method METHOD --out FILE
+//                  [--options-json '{"key":"value"}'] [--reenactment-id RID]
+//                  [--take-id T] [--job-id J]
+//
+// stdout carries one JSON object per line: progress
+// {"stage":"register","fraction":0.42,"frames_done":120,"frames_total":300}
+// (about ten a second at most, plus every stage change and the end), log
+// lines {"log":"..."}, and at the end {"result":{...}} or {"error":"..."}.
+// Exit codes: 0 success, 1 failure, 2 usage error, 3 stopped by SIGTERM or
+// SIGINT (the method stops at its next progress callback).
+//
+// reenact-server blocks SIGTERM/SIGINT in every thread (it takes them with
+// sigwait) and a signal mask survives fork and exec, so the worker unblocks
+// them first. It also asks for SIGTERM when its parent dies, so a crashed
+// server leaves no worker running on.
+#include <signal.h>
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/base/flags.h"
+#include "common/base/time.h"
+#include "server/recon/methods.h"
+
+namespace {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitStopped = 3;
+// Least time between two progress lines of the same stage, ns (~10/s).
+constexpr int64_t kProgressPeriodNs = 100'000'000;
+
+constexpr char kUsage[] =
+    "usage: reenact-worker --take FILE --method METHOD --out FILE "
+    "[--options-json '{\"key\":\"value\"}'] [--reenactment-id RID] [--take-id T] [--job-id J]";
+
+volatile sig_atomic_t g_stop_signal = 0;
+
+void OnStopSignal(int signal) { g_stop_signal = signal; }
+
+void InstallSignals() {
+  struct sigaction action {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGTERM, &action, nullptr);
+  sigaction(SIGINT, &action, nullptr);
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  sigprocmask(SIG_UNBLOCK, &signals, nullptr);
+  // SIGTERM when the server dies; it may have died before this call.
+  const pid_t parent = getppid();
+  prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (getppid() != parent) g_stop_signal = SIGTERM;
+}
+
+// Writes one JSON line on stdout (whole lines, flushed, from any thread).
+class Output {
+ public:
+  void Line(const nlohmann::json& j) {
+    const std::string text = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    std::lock_guard<std::mutex> lock(mu_);
+    std::fwrite(text.data(), 1, text.size(), stdout);
+    std::fputc('\n', stdout);
+    std::fflush(stdout);
+  }
+
+  // The progress callback: throttled lines; false once a stop signal came.
+  bool Progress(const reenact::Progress& p) {
+    const int64_t now_ns = reenact::SteadyNowNs();
+    bool emit = false;
+    {
+      std::lock_guard<std::mutex> lock(progress_mu_);
+      if (p.stage != last_stage_ || p.fraction >= 1.0 || now_ns - last_ns_ >= kProgressPeriodNs) {
+        emit = true;
+        last_stage_ = p.stage;
+        last_ns_ = now_ns;
+      }
+    }
+    if (emit) {
+      Line({{"stage", p.stage},
+            {"fraction", p.fraction},
+            {"frames_done", p.items_done},
+            {"frames_total", p.items_total}});
+    }
+    return g_stop_signal == 0;
+  }
+
+ private:
+  std::mutex mu_;
+  std::mutex progress_mu_;
+  std::string last_stage_;
+  int64_t last_ns_ = 0;
+};
+
+int Usage(Output& out, const std::string& message) {
+  out.Line({{"error", message}});
+  std::fprintf(stderr, "reenact-worker: %s\n%s\n", message.c_str(), kUsage);
+  return kExitUsage;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  InstallSignals();
+  Output out;
+  const absl::StatusOr<reenact::Flags> flags = reenact::Flags::Parse(
+      std::vector<std::string>(argv + 1, argv + argc),
+      {"take", "method", "options-json", "out", "reenactment-id", "take-id", "job-id"}, {"help"});
+  if (!flags.ok()) return Usage(out, std::string(flags.status().message()));
+  if (flags->Has("help")) {
+    std::printf("%s\n", kUsage);
+    return kExitOk;
+  }
+  if (!flags->positional().empty()) {
+    return Usage(out, "unexpected argument \"" + flags->positional().front() + "\"");
+  }
+  reenact::recon::MethodInput input;
+  for (const char* name : {"take", "method", "out"}) {
+    if (flags->GetOr(name, "").empty()) return Usage(out, std::string("missing --") + name);
+  }
+  input.take_path = *flags->Get("take");
+  input.method = *flags->Get("method");
+  input.reenactment_id = flags->GetOr("reenactment-id", "");
+  input.take_id = flags->GetOr("take-id", "");
+  input.job_id = flags->GetOr("job-id", "");
+  const nlohmann::json options =
+      nlohmann::json::parse(flags->GetOr("options-json", "{}"), nullptr, false);
+  if (!options.is_object()) return Usage(out, "--options-json is not a JSON object");
+  for (const auto& [key, value] : options.items()) {
+    input.options[key] = value.is_string() ? value.get<std::string>() : value.dump();
+  }
+  const std::string out_path = *flags->Get("out");
+
+  out.Line(
+      {{"log", "reenact-worker: " + input.method + " on " + input.take_path + " -> " + out_path}});
+  const absl::StatusOr<reenact::recon::MethodResult> result = reenact::recon::RunMethod(
+      input, out_path, [&out](const reenact::Progress& p) { return out.Progress(p); },
+      [&out](const std::string& line) {
+        out.Line({{"log", line}});
+      });
+  if (!result.ok()) {
+    const bool stopped = g_stop_signal != 0;
+    out.Line({{"error",
+               stopped ? "stopped by " + std::string(g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM")
+                       : std::string(result.status().ToString())}});
+    return stopped ? kExitStopped : kExitFailure;
+  }
+  nlohmann::json figures = nlohmann::json::object();
+  for (const auto& [name, value] : result->figures) figures[name] = value;
+  out.Line({{"result",
+             {{"frames", result->frames},
+              {"keyframes", result->keyframes},
+              {"file_bytes", result->file_bytes},
+              {"figures", figures}}}});
+  return kExitOk;
+}

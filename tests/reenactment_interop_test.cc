@@ -1,0 +1,166 @@
+// Interoperability of reenactments: the .glb export must pass the Khronos
+// glTF-Validator (tests/js/check_gltf.mjs, npm gltf-validator) with zero
+// errors, and reenactment files must open in an independent MCAP reader
+// (tests/js/check_take.mjs, @mcap/core).
+//
+// Setup (once per checkout; deploy/setup-debian.sh does it for CI):
+//   npm ci --prefix tests/js   or   npm install --prefix tests/js
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <sys/wait.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/base/files.h"
+#include "common/io/gltf_export.h"
+#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_test_util.h"
+#include "common/testing/test_data.h"
+
+namespace reenact {
+namespace {
+
+using testing::MakeTestReenactment;
+using testing::TestReenactmentOptions;
+
+const std::string kJsDir = std::string(REENACT_SOURCE_DIR) + "/tests/js";
+
+// Skips the test (loudly) when node or the npm package `package` is missing.
+#define REQUIRE_NODE_PACKAGE(package)                                                     \
+  do {                                                                                    \
+    if (std::system("node --version > /dev/null 2>&1") != 0) {                            \
+      GTEST_SKIP() << "\n*** SKIPPED: node is not installed; the independent " << package \
+                   << " check did not run. ***";                                          \
+    }                                                                                     \
+    if (!std::filesystem::exists(kJsDir + "/node_modules/" + package)) {                  \
+      GTEST_SKIP() << "\n*** SKIPPED: " << kJsDir << "/node_modules/" << package          \
+                   << " is missing; run `npm ci --prefix tests/js` (or "                  \
+                      "`npm install --prefix tests/js`). ***";                            \
+    }                                                                                     \
+  } while (false)
+
+// Runs `node tests/js/<script> <path>` and parses the JSON it prints.
+nlohmann::json RunNode(const std::string& script, const std::string& path, int* exit_code) {
+  const std::string command = "node '" + kJsDir + "/" + script + "' '" + path + "' 2>&1";
+  std::FILE* pipe = ::popen(command.c_str(), "r");
+  EXPECT_NE(pipe, nullptr) << command;
+  if (pipe == nullptr) return {};
+  std::string output;
+  char buffer[4096];
+  for (size_t n; (n = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0;) output.append(buffer, n);
+  const int status = ::pclose(pipe);
+  *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  const nlohmann::json result = nlohmann::json::parse(output, nullptr, false);
+  EXPECT_FALSE(result.is_discarded()) << script << " printed no JSON:\n" << output;
+  return result;
+}
+
+// Exports `data` to `path` and validates it; returns the validator's report.
+nlohmann::json ExportAndValidate(const ReenactmentData& data, const std::string& path,
+                                 const GltfExportOptions& options = {}) {
+  const absl::Status written = WriteReenactmentGlb(data, path, options);
+  EXPECT_TRUE(written.ok()) << written;
+  int exit_code = -1;
+  nlohmann::json report = RunNode("check_gltf.mjs", path, &exit_code);
+  EXPECT_EQ(exit_code, report.value("num_errors", -1) == 0 ? 0 : 1) << report.dump(2);
+  return report;
+}
+
+TEST(GltfValidator, TexturedExportHasNoErrorsOrWarnings) {
+  REQUIRE_NODE_PACKAGE("gltf-validator");
+  const std::string dir = testing::MakeTempDir("gltf_validator");
+  TestReenactmentOptions options;
+  options.parts = 15;
+  options.frames = 90;
+  options.texture_px = 64;
+  const nlohmann::json report =
+      ExportAndValidate(MakeTestReenactment(options), dir + "/textured.glb");
+  ASSERT_TRUE(report.contains("num_errors")) << report.dump(2);
+  EXPECT_EQ(report["num_errors"].get<int>(), 0) << report["issues"].dump(2);
+  EXPECT_EQ(report["num_warnings"].get<int>(), 0) << report["issues"].dump(2);
+  EXPECT_EQ(report["mime_type"], "model/gltf-binary");
+  EXPECT_EQ(report["info"]["animationCount"].get<int>(), 1);
+  EXPECT_EQ(report["info"]["materialCount"].get<int>(), 15);
+  EXPECT_EQ(report["info"]["drawCallCount"].get<int>(), 15);
+  EXPECT_TRUE(report["info"]["hasTextures"].get<bool>());
+}
+
+TEST(GltfValidator, HiddenPartsPlainMaterialsAndMeshlessPartsHaveNoErrors) {
+  REQUIRE_NODE_PACKAGE("gltf-validator");
+  const std::string dir = testing::MakeTempDir("gltf_validator_edge");
+  TestReenactmentOptions options;
+  options.frames = 20;
+  options.part1_invalid_before = 20;  // Never posed.
+  ReenactmentData data = MakeTestReenactment(options);
+  for (int f = 5; f < 9; ++f) data.frames[f].mutable_parts(2)->set_valid(false);
+  data.parts[0].clear_triangle_indices();  // A node without a mesh.
+  const nlohmann::json steps = ExportAndValidate(data, dir + "/steps.glb");
+  EXPECT_EQ(steps.value("num_errors", -1), 0) << steps.dump(2);
+
+  GltfExportOptions plain;
+  plain.textures = false;
+  plain.unlit = false;
+  const nlohmann::json untextured = ExportAndValidate(data, dir + "/plain.glb", plain);
+  EXPECT_EQ(untextured.value("num_errors", -1), 0) << untextured.dump(2);
+
+  // One frame: a zero-length animation.
+  options.frames = 1;
+  options.keyframes = 1;
+  options.part1_invalid_before = 0;
+  const nlohmann::json single = ExportAndValidate(MakeTestReenactment(options), dir + "/one.glb");
+  EXPECT_EQ(single.value("num_errors", -1), 0) << single.dump(2);
+}
+
+// The checker itself must be able to fail: a broken export is reported.
+TEST(GltfValidator, ReportsErrorsInADamagedFile) {
+  REQUIRE_NODE_PACKAGE("gltf-validator");
+  const std::string dir = testing::MakeTempDir("gltf_validator_bad");
+  const std::string path = dir + "/bad.glb";
+  ASSERT_TRUE(WriteReenactmentGlb(MakeTestReenactment(), path).ok());
+  auto bytes = ReadFileToString(path);
+  ASSERT_TRUE(bytes.ok());
+  // Same length, so the GLB container stays intact: an unknown
+  // interpolation and an unknown attribute semantic.
+  const std::vector<std::pair<std::string, std::string>> edits = {{"\"LINEAR\"", "\"LINEAX\""},
+                                                                  {"\"NORMAL\"", "\"NORMAX\""}};
+  for (const auto& [from, to] : edits) {
+    const size_t at = bytes->find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    bytes->replace(at, from.size(), to);
+  }
+  ASSERT_TRUE(WriteFileAtomically(path, *bytes).ok());
+  int exit_code = -1;
+  const nlohmann::json report = RunNode("check_gltf.mjs", path, &exit_code);
+  EXPECT_EQ(exit_code, 1);
+  EXPECT_GE(report.value("num_errors", 0), 1) << report.dump(2);
+}
+
+TEST(ReenactmentMcapInterop, IndependentReaderSeesEveryChannel) {
+  REQUIRE_NODE_PACKAGE("@mcap/core");
+  const std::string path = testing::MakeTempDir("reen_interop") + "/r.reen";
+  TestReenactmentOptions options;
+  options.frames = 30;
+  options.keyframes = 4;
+  ASSERT_TRUE(WriteReenactmentFile(MakeTestReenactment(options), path).ok());
+  int exit_code = -1;
+  const nlohmann::json result = RunNode("check_take.mjs", path, &exit_code);
+  EXPECT_EQ(exit_code, 0) << result.dump(2);
+  ASSERT_TRUE(result.contains("counts")) << result.dump(2);
+  EXPECT_TRUE(result["problems"].empty()) << result["problems"].dump(2);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentInfoTopic)].get<int>(), 1);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentPartMeshTopic)].get<int>(), 3);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentFrameTopic)].get<int>(), 30);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentKeyframeTopic)].get<int>(), 4);
+  for (const auto& channel : result["channels"]) {
+    EXPECT_EQ(channel["schema_encoding"], "protobuf");
+    EXPECT_GT(channel["schema_bytes"].get<int>(), 0);
+  }
+}
+
+}  // namespace
+}  // namespace reenact

@@ -1,6 +1,7 @@
 #include "server/server.h"
 
 #include <chrono>
+#include <filesystem>
 #include <utility>
 
 #include "absl/strings/numbers.h"
@@ -64,16 +65,34 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   RETURN_IF_ERROR(options.Validate());
   std::unique_ptr<Server> server(new Server());
   server->options_ = options;
-  TakeStoreOptions store_options = options.store;
-  store_options.data_dir = options.data_dir;
+  // Workers run in their job's folder: every path handed to them (the take,
+  // the output) must not depend on the server's working directory.
+  std::error_code error;
+  const std::filesystem::path data_dir = std::filesystem::absolute(options.data_dir, error);
+  if (error) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("data folder ", options.data_dir, ": ", error.message()));
+  }
+  server->options_.data_dir = data_dir.lexically_normal().string();
+  if (!options.jobs.worker_path.empty()) {
+    const std::filesystem::path worker = std::filesystem::absolute(options.jobs.worker_path, error);
+    if (error) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("worker ", options.jobs.worker_path, ": ", error.message()));
+    }
+    server->options_.jobs.worker_path = worker.lexically_normal().string();
+  }
+  const ServerOptions& absolute = server->options_;
+  TakeStoreOptions store_options = absolute.store;
+  store_options.data_dir = absolute.data_dir;
   ASSIGN_OR_RETURN(server->store_, TakeStore::Open(store_options, &server->recovered_));
   ASSIGN_OR_RETURN(server->reenactments_,
-                   ReenactmentStore::Open(options.data_dir + "/reenactments"));
+                   ReenactmentStore::Open(absolute.data_dir + "/reenactments"));
   ASSIGN_OR_RETURN(server->job_store_,
                    JobStore::Open(&server->store_->catalog(), options.jobs.store));
   ASSIGN_OR_RETURN(
       server->jobs_,
-      JobScheduler::Start(options.jobs, options.data_dir + "/jobs", server->job_store_.get(),
+      JobScheduler::Start(absolute.jobs, absolute.data_dir + "/jobs", server->job_store_.get(),
                           server->store_.get(), server->reenactments_.get()));
   server->blocking_ = std::make_unique<ThreadPool>(options.blocking_threads);
   server->context_.takes = server->store_.get();

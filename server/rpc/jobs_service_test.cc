@@ -411,6 +411,23 @@ TEST(JobsService, ConcurrencyOneRunsJobsOneAfterTheOther) {
   EXPECT_EQ(other.jobs_size(), 0);
 }
 
+// `reenact-server --data out/server` from a shell: the workers run in their
+// job's folder, so the take's path they get must not be relative.
+TEST(JobsService, RelativeDataFolderStillReachesTheTake) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_relative");
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir);
+  {
+    auto t = TestServer::Start("data", JobOptions(REENACT_FAKE_WORKER));
+    ASSERT_NE(t, nullptr);
+    RecordTake(*t, "take1");
+    Jobs jobs(*t);
+    const v1::Job end = jobs.WaitEnd(jobs.SubmitOk("take1", {{"fake_steps", "2"}}).job_id());
+    EXPECT_EQ(end.state(), v1::JOB_STATE_SUCCEEDED) << end.error();
+  }
+  fs::current_path(previous);
+}
+
 TEST(ServerFlags, JobsAndWorker) {
   auto parsed = ParseServerCommandLine(
       {"--data", "/tmp/d", "--listen", "127.0.0.1:0", "--jobs", "3", "--worker", "/opt/w"});

@@ -203,20 +203,20 @@ TEST_F(ReenactmentEndToEnd, RigidMethodsFromIngestToExport) {
   ASSERT_FALSE(carved.empty());
   ASSERT_FALSE(cylinders.empty());
 
-  // Carved parts: the surface meets its floor (<= 15 mm). The novel view
-  // 90 degrees off a facing pair of sensors does not yet reach the target
-  // PSNR (25 dB carved, 22 dB cylinders) or IoU (0.85): on this take the
-  // methods score about 16.7 / 15.5 dB and 0.80 / 0.74, and even parts cut
-  // from the true mesh, textured from the same images, score ~18 dB (the
-  // side of the body is seen edge-on by both sensors). The checks below
-  // hold the levels reached so that a regression fails; the targets are
-  // printed beside them.
+  // Carved parts: the surface (<= 15 mm) and the novel view's IoU (>= 0.85)
+  // meet their floors (on this take about 6.1 mm and 0.87). The novel view
+  // 90 degrees off a facing pair of sensors does not reach the target PSNR
+  // (25 dB carved, 22 dB cylinders; about 17.8 / 15.5 dB here) nor, for
+  // cylinders, the IoU (about 0.74): even parts cut from the true mesh,
+  // textured from the same images, score ~18 dB (the side of the body is
+  // seen edge-on by both sensors). The PSNR checks hold the levels reached
+  // so that a regression fails; the targets are printed beside them.
   constexpr double kTargetPsnrCarvedDb = 25.0, kTargetPsnrCylindersDb = 22.0, kTargetIou = 0.85;
   nlohmann::json figures = Eval(carved);
   ASSERT_TRUE(figures.is_object());
   EXPECT_LE(figures["surface_mm"].get<double>(), 15.0);
-  EXPECT_GE(figures["psnr_db_90"].get<double>(), 15.5);
-  EXPECT_GE(figures["iou_90"].get<double>(), 0.75);
+  EXPECT_GE(figures["psnr_db_90"].get<double>(), 17.0);
+  EXPECT_GE(figures["iou_90"].get<double>(), kTargetIou);
   EXPECT_LE(figures["mpjpe_mm"].get<double>(), 60.0);
   std::printf(
       "[ targets  ] rigid-carved psnr_db_90 %.2f (target %.0f), iou_90 %.3f (target %.2f)\n",

@@ -91,6 +91,7 @@ struct ReenactmentRenderer::Group {
   int part = 0;
   int keyframe = -1;          // Texture source; -1: baked or untextured.
   bool baked = false;         // Baked texture and the mesh's own uvs.
+  bool underlay = false;      // Drawn behind the keyframe groups (DrawItem::underlay).
   render::TextureId texture;  // Invalid: untextured (lit flat colour).
   int texture_width = 0, texture_height = 0;
   std::vector<int> triangles;  // Indices into the part's triangles.
@@ -131,6 +132,8 @@ ReenactmentRenderer::ReenactmentRenderer(const ReenactmentData& data,
       options_(options),
       selection_(options.selection_from_method ? SelectionForMethod(data.info.method())
                                                : options.selection),
+      underlay_baked_(options.underlay_from_method ? selection_ == TextureSelection::kRotation
+                                                   : options.underlay_baked),
       model_(std::move(model)),
       baked_(model_.num_parts()),
       baked_tried_(model_.num_parts(), false) {}
@@ -214,6 +217,16 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
     const std::vector<int> chosen = model_.AssignTriangles(b, ranking, &next_best);
     stats->triangles_next_best += next_best;
     ASSIGN_OR_RETURN(render::TextureId baked, BakedTexture(b));
+    if (baked.valid() && underlay_baked_) {
+      Group under;
+      under.part = b;
+      under.baked = true;
+      under.underlay = true;
+      under.texture = baked;
+      under.triangles.resize(chosen.size());
+      for (size_t t = 0; t < chosen.size(); ++t) under.triangles[t] = static_cast<int>(t);
+      groups->push_back(std::move(under));
+    }
     std::map<int, Group> by_keyframe;  // Keyframe -> group; -2: baked; -1: untextured.
     for (size_t t = 0; t < chosen.size(); ++t) {
       int source = chosen[t];
@@ -338,8 +351,9 @@ absl::Status ReenactmentRenderer::Render(int frame_index, const render::RenderCa
     item.lit = !group.texture.valid();  // Keyframe colours already carry the light.
     item.colour_srgb = options_.untextured_srgb;
     item.label = group.part + 1;
+    item.underlay = group.underlay;
     items.push_back(item);
-    s.triangles += static_cast<int>(group.triangles.size());
+    if (!group.underlay) s.triangles += static_cast<int>(group.triangles.size());
   }
   s.draw_items = static_cast<int>(items.size());
   if (status.ok()) status = renderer_->Render(camera, items, out);

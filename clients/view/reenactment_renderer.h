@@ -9,7 +9,9 @@
 //    alpha-tested textures whose alpha is the keyframe's actor mask, so
 //    lookups that land on background are discarded (thesis 3.4.2: "an
 //    extraneous part caused by the simplified geometry model"; the viewer
-//    sees what lies behind).
+//    sees what lies behind; for carved parts, whose mesh is the actor's
+//    surface, the part's baked texture drawn beneath shows instead,
+//    ReenactmentRendererOptions::underlay_baked).
 //  * TextureMode::kBaked: every part with its static baked texture
 //    (PartMesh.uvs_f32 + baked_texture_jpeg), unlit.
 // Triangles that no keyframe shows (visible in none) use the baked texture
@@ -48,6 +50,14 @@ struct ReenactmentRendererOptions {
   // (SelectionForMethod of ReenactmentInfo.method).
   bool selection_from_method = true;
   TextureSelection selection = TextureSelection::kRotation;
+  // VDTM: draw each part's baked texture (when it has one) behind its
+  // keyframe textures, so that lookups landing off a keyframe's actor mask
+  // show the baked colour instead of what lies behind the part. By default
+  // on for carved parts (kRotation: the mesh is the actor's surface, so an
+  // off-mask lookup is a texture misregistration) and off for cylinders
+  // (kPose: there it is extraneous geometry, thesis 3.4.2).
+  bool underlay_from_method = true;
+  bool underlay_baked = false;
   // GPU memory for keyframe textures (RGBA with mipmaps), bytes: after each
   // frame, the least recently used are released until the cache fits (a
   // frame's textures stay while it is drawn, whatever the budget).
@@ -124,6 +134,7 @@ class ReenactmentRenderer {
   render::OffscreenRenderer* renderer_;
   ReenactmentRendererOptions options_;
   TextureSelection selection_;
+  bool underlay_baked_;
   VdtmModel model_;
   std::map<int, CachedTexture> textures_;  // By keyframe.
   std::list<int> lru_;

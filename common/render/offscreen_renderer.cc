@@ -455,8 +455,13 @@ void OffscreenRenderer::Impl::DrawItems(const RenderCamera& camera,
                 SrgbToLinear(item.colour_srgb.y()), SrgbToLinear(item.colour_srgb.z()));
     glUniform1ui(program.label, static_cast<GLuint>(item.label));
     glBindTexture(GL_TEXTURE_2D, mode == 2 ? textures[item.texture.value] : 0);
+    if (item.underlay) {
+      glEnable(GL_POLYGON_OFFSET_FILL);
+      glPolygonOffset(1.0f, 4.0f);
+    }
     glBindVertexArray(mesh.vao);
     glDrawElements(GL_TRIANGLES, mesh.num_indices, GL_UNSIGNED_INT, nullptr);
+    if (item.underlay) glDisable(GL_POLYGON_OFFSET_FILL);
   }
   glBindVertexArray(0);
 }

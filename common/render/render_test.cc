@@ -207,10 +207,8 @@ TEST(OffscreenRendererTexture, CheckerboardShowsExpectedColours) {
   }
 }
 
-TEST(OffscreenRendererTexture, AlphaBelowHalfIsDiscardedAndShowsWhatIsBehind) {
-  auto renderer = MakeRenderer();
-  ASSERT_NE(renderer, nullptr);
-  // Left half of the texture transparent (alpha 0), right half opaque red.
+// Left half transparent (alpha 0), right half opaque red (220, 0, 0).
+RgbaImage HalfTransparentRed() {
   RgbaImage texture(64, 64);
   for (int y = 0; y < 64; ++y) {
     for (int x = 0; x < 64; ++x) {
@@ -218,7 +216,13 @@ TEST(OffscreenRendererTexture, AlphaBelowHalfIsDiscardedAndShowsWhatIsBehind) {
       texture.at(x, y, 3) = x < 32 ? 0 : 255;
     }
   }
-  auto texture_id = renderer->UploadTexture(texture);
+  return texture;
+}
+
+TEST(OffscreenRendererTexture, AlphaBelowHalfIsDiscardedAndShowsWhatIsBehind) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  auto texture_id = renderer->UploadTexture(HalfTransparentRed());
   ASSERT_TRUE(texture_id.ok()) << texture_id.status();
   auto front = renderer->UploadMesh(MakeRectangle(-0.5, -0.5, 0.5, 0.5, 2.0));
   auto back = renderer->UploadMesh(MakeRectangle(-1.0, -1.0, 1.0, 1.0, 3.0));
@@ -246,6 +250,43 @@ TEST(OffscreenRendererTexture, AlphaBelowHalfIsDiscardedAndShowsWhatIsBehind) {
   EXPECT_EQ(out.label.at(static_cast<int>(right.x()), v), 1);
   EXPECT_NEAR(out.colour.at(static_cast<int>(right.x()), v, 0), 220, 2);
   EXPECT_NEAR(out.depth_m.at(static_cast<int>(right.x()), v), 2.0, 1e-3);
+}
+
+TEST(OffscreenRendererTexture, UnderlayShowsOnlyWhereACoincidentItemDiscards) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  // The half-transparent texture on the same rectangle as a blue underlay,
+  // drawn first and last: the order must not matter.
+  auto texture_id = renderer->UploadTexture(HalfTransparentRed());
+  ASSERT_TRUE(texture_id.ok()) << texture_id.status();
+  auto mesh = renderer->UploadMesh(MakeRectangle(-0.5, -0.5, 0.5, 0.5, 2.0));
+  ASSERT_TRUE(mesh.ok());
+  DrawItem top;
+  top.mesh = *mesh;
+  top.texture = *texture_id;
+  top.lit = false;
+  top.label = 1;
+  DrawItem under = top;
+  under.texture = TextureId();
+  under.colour_srgb = Eigen::Vector3f(0.0f, 0.0f, 1.0f);
+  under.label = 2;
+  under.underlay = true;
+  const RenderCamera camera = TestCamera();
+  const Eigen::Vector2d left = Project(camera, {-0.25, 0.0, 2.0});
+  const Eigen::Vector2d right = Project(camera, {0.25, 0.0, 2.0});
+  const int v = static_cast<int>(left.y());
+  for (const std::vector<DrawItem>& items :
+       {std::vector<DrawItem>{under, top}, std::vector<DrawItem>{top, under}}) {
+    RenderOutputs out;
+    ASSERT_TRUE(renderer->Render(camera, items, &out).ok());
+    // Discarded texels: the underlay (blue, label 2) at the same depth.
+    EXPECT_EQ(out.label.at(static_cast<int>(left.x()), v), 2);
+    EXPECT_NEAR(out.colour.at(static_cast<int>(left.x()), v, 2), 255, 1);
+    EXPECT_NEAR(out.depth_m.at(static_cast<int>(left.x()), v), 2.0, 2e-3);
+    // Elsewhere the coincident item wins although both lie at 2 m.
+    EXPECT_EQ(out.label.at(static_cast<int>(right.x()), v), 1);
+    EXPECT_NEAR(out.colour.at(static_cast<int>(right.x()), v, 0), 220, 2);
+  }
 }
 
 TEST(OffscreenRendererIds, ReleasedSlotsAreReused) {

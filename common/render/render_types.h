@@ -82,6 +82,10 @@ struct DrawItem {
   // Lambert + ambient shading (ShadingOptions) when true; the plain surface
   // colour when false.
   bool lit = true;
+  // Drawn pushed back in depth (a slope-scaled polygon offset), so that a
+  // coincident surface of another item wins wherever it is drawn and this
+  // one shows only where that one leaves a gap (e.g. discarded texels).
+  bool underlay = false;
 };
 
 // Light and background shared by all items of a frame.

@@ -45,7 +45,10 @@ inline const SharedTake& GetSharedTake() {
     auto* t = new SharedTake;
     std::error_code ec;
     const auto stamp = fs::last_write_time("/proc/self/exe", ec).time_since_epoch().count();
-    const fs::path dir = fs::temp_directory_path() / "reenact_recon_test_takes";
+    // One folder per test executable: each clears only its own older takes
+    // (another executable's take may be in use or being written).
+    const fs::path dir = fs::temp_directory_path() / "reenact_recon_test_takes" /
+                         fs::read_symlink("/proc/self/exe", ec).filename();
     fs::create_directories(dir, ec);
     const std::string name = "arm_raise_" + std::to_string(stamp) + ".mcap";
     t->path = (dir / name).string();

@@ -299,9 +299,13 @@ ProjectedPart ProjectPart(const PartGeometry& part, const PartPoseInWorld& pose,
   const auto n = part.positions_in_part_m.cols();
   out.in_camera.resize(n);
   out.in_crop.assign(n, Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  // PartToCamera folded into one affine map.
+  const Eigen::Matrix3d color_from_world_rotation = color_from_world.rotation.toRotationMatrix();
+  const Eigen::Matrix3d linear =
+      color_from_world_rotation * (pose.scale * pose.world_from_part.linear());
+  const Eigen::Vector3d offset = color_from_world * pose.world_from_part.translation();
   for (Eigen::Index i = 0; i < n; ++i) {
-    out.in_camera[i] =
-        PartToCamera(part.positions_in_part_m.col(i).cast<double>(), pose, color_from_world);
+    out.in_camera[i] = linear * part.positions_in_part_m.col(i).cast<double>() + offset;
     if (out.in_camera[i].z() < kNearM) continue;
     if (const auto pixel = color.Project(out.in_camera[i])) out.in_crop[i] = crop.FromFull(*pixel);
   }
@@ -323,18 +327,28 @@ void RasterizeTriangle(const Eigen::Vector2d (&p)[3], const double (&z)[3], ZBuf
   const int ya = static_cast<int>(std::max(0.0, std::ceil(min_y)));
   const int yb = static_cast<int>(std::min(zbuffer->height - 1.0, std::floor(max_y)));
   if (xa > xb || ya > yb) return;
+  // Barycentric k is affine in the pixel: b_k = gx[k] x + gy[k] y + g0[k],
+  // ((c - a) x (pixel - a)) / area for the edge a -> c opposite vertex k.
+  const double inv_area = 1.0 / area;
+  double gx[3], gy[3], g0[3];
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector2d& a = p[(k + 1) % 3];
+    const Eigen::Vector2d edge = p[(k + 2) % 3] - a;
+    gx[k] = -edge.y() * inv_area;
+    gy[k] = edge.x() * inv_area;
+    g0[k] = (edge.y() * a.x() - edge.x() * a.y()) * inv_area;
+  }
+  const double inv_z[3] = {1.0 / z[0], 1.0 / z[1], 1.0 / z[2]};
   for (int y = ya; y <= yb; ++y) {
+    float* row = &zbuffer->at(0, y);
     for (int x = xa; x <= xb; ++x) {
-      double b[3];
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector2d& a = p[(k + 1) % 3];
-        const Eigen::Vector2d& c = p[(k + 2) % 3];
-        b[k] = ((c - a).x() * (y - a.y()) - (c - a).y() * (x - a.x())) / area;
-      }
-      if (b[0] < -1e-9 || b[1] < -1e-9 || b[2] < -1e-9) continue;
-      const double inv_z = b[0] / z[0] + b[1] / z[1] + b[2] / z[2];
-      float& cell = zbuffer->at(x, y);
-      cell = std::min(cell, static_cast<float>(1.0 / inv_z));
+      const double b0 = gx[0] * x + gy[0] * y + g0[0];
+      const double b1 = gx[1] * x + gy[1] * y + g0[1];
+      const double b2 = gx[2] * x + gy[2] * y + g0[2];
+      if (b0 < -1e-9 || b1 < -1e-9 || b2 < -1e-9) continue;
+      // 1/z is affine in screen space (perspective-correct depth).
+      const float depth = static_cast<float>(1.0 / (b0 * inv_z[0] + b1 * inv_z[1] + b2 * inv_z[2]));
+      row[x] = std::min(row[x], depth);
     }
   }
 }
@@ -583,6 +597,11 @@ struct BakeKeyframe {
   const v1::TextureKeyframe* message = nullptr;
   KeyframeCamera camera;
   std::vector<PartPoseInWorld> poses;  // Of the keyframe's instant, part-id order.
+  // Per part: the rotation of colour_from_world * world_from_part and the
+  // part origin in the colour camera (PartToCamera = scale * rotation * x +
+  // origin), precomputed for the per-triangle loops.
+  std::vector<Eigen::Matrix3d> color_from_part_rotation;
+  std::vector<Eigen::Vector3d> part_origin_in_color;
 };
 
 std::string KeyframeName(const v1::TextureKeyframe& m) {
@@ -602,6 +621,13 @@ absl::StatusOr<BakeKeyframe> PrepareKeyframe(
   keyframe.message = &message;
   ASSIGN_OR_RETURN(keyframe.camera, KeyframeCameraFromProto(*sensor->second, message));
   ASSIGN_OR_RETURN(keyframe.poses, PartPosesFromProto(*frame->second));
+  const Eigen::Matrix3d color_from_world =
+      keyframe.camera.color_from_world.rotation.toRotationMatrix();
+  for (const PartPoseInWorld& pose : keyframe.poses) {
+    keyframe.color_from_part_rotation.push_back(color_from_world * pose.world_from_part.linear());
+    keyframe.part_origin_in_color.push_back(keyframe.camera.color_from_world *
+                                            pose.world_from_part.translation());
+  }
   return keyframe;
 }
 
@@ -763,9 +789,10 @@ std::vector<Candidate> ChooseKeyframes(const PartGeometry& part, int part_id,
     const int seen =
         VertexVisible(bits, t[0]) + VertexVisible(bits, t[1]) + VertexVisible(bits, t[2]);
     if (seen == 0) continue;
-    const Eigen::Vector3d in_camera = PartToCamera(centroid, pose, kf.camera.color_from_world);
-    const Eigen::Vector3d n_camera =
-        kf.camera.color_from_world.rotation * (pose.world_from_part.linear() * normal);
+    const Eigen::Matrix3d& rotation = kf.color_from_part_rotation[part_id];
+    const Eigen::Vector3d in_camera =
+        pose.scale * (rotation * centroid) + kf.part_origin_in_color[part_id];
+    const Eigen::Vector3d n_camera = rotation * normal;
     const double frontality = -n_camera.dot(in_camera.normalized());
     if (!(frontality > 0.05)) continue;
     (seen == 3 ? full : partial).push_back({static_cast<int>(k), frontality, seen < 3});

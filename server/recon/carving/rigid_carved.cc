@@ -49,6 +49,16 @@
 //  - Depth pixels at discontinuities are dropped (time-of-flight "flying
 //    pixels", sensor_frame.h RemoveDepthEdges) before registration and
 //    fusion.
+//  - Free space from the silhouette: depth pixels without a return that lie
+//    more than 2 px off the actor mask carve their whole ray as free
+//    (MarkFreeRays, option carve_no_return). Eq. 3.11 only uses returns;
+//    where the background returns nothing (open space, the synthetic take's
+//    empty room) the voxels beside a limb were never observed, and with two
+//    facing sensors the limb's sides stayed open. On a 2 s front kick
+//    (1080p, eval at 90 degrees): IoU 0.815 -> 0.880, PSNR 16.6 -> 17.8 dB,
+//    surface 6.7 -> 6.1 mm. A "visual hull" rule for unobserved voxels
+//    (inside when every image saw them behind this part's own surface) was
+//    tried with it and dropped: IoU 0.863 instead of 0.880.
 //  - A part whose skeleton bone is missing at the first instant starts at
 //    the first instant it is present; an instant without a skeleton is
 //    registered without the skeleton term; a part with nothing to register
@@ -150,6 +160,9 @@ struct CarvedOptions {
   // Voxels no depth image observed (N*(v) = 0) that lie inside the part's
   // nominal shape count as inside (-mu) when meshing ("fill_unseen").
   bool fill_unseen = true;
+  // Depth pixels without a return that lie off the actor mask carve their
+  // whole ray as free space ("carve_no_return"; see MarkFreeRays).
+  bool carve_no_return = true;
   // Label pixels by the nearest nominal part ("ownership"; false: the
   // thesis' volumes: a part registers every point inside its box and fuses
   // every pixel).
@@ -177,6 +190,7 @@ struct CarvedOptions {
     RETURN_IF_ERROR(reader.Int("fuse_stride", &fuse_stride, 0, 1000));
     RETURN_IF_ERROR(reader.Bool("ownership", &ownership));
     RETURN_IF_ERROR(reader.Bool("fill_unseen", &fill_unseen));
+    RETURN_IF_ERROR(reader.Bool("carve_no_return", &carve_no_return));
     RETURN_IF_ERROR(reader.Int("cache_mb", &cache_mb, 0, 1 << 20));
     RETURN_IF_ERROR(reader.Double("min_component_fraction", &min_component_fraction, 0.0, 1.0));
     RETURN_IF_ERROR(texturing.Read(reader));
@@ -262,9 +276,9 @@ float NominalDistance(const Eigen::Vector3f& in_part, const Eigen::Vector4f& sha
 // inside the nominal shape become inside (-mu). With two sensors facing each
 // other the sides of a limb are seen edge-on, their depth pixels fall to the
 // edge filter, and the front and back sheets of the TSDF never meet; the
-// voxels between them and the observed free space beside the limb are
-// unobserved. Filling them puts the side surface at the boundary of the
-// observed free space, as a visual hull would.
+// voxels between them are unobserved. Filling them puts the side surface at
+// the boundary of the observed free space (MarkFreeRays), as a visual hull
+// would.
 void FillUnseenInterior(const Eigen::Vector4f& shape_m, double mu_m, carving::SdfGrid* grid) {
   for (int k = 0; k < grid->nz; ++k) {
     for (int j = 0; j < grid->ny; ++j) {
@@ -278,6 +292,51 @@ void FillUnseenInterior(const Eigen::Vector4f& shape_m, double mu_m, carving::Sd
         grid->observed[index] = 1;
       }
     }
+  }
+}
+
+// Pixels farther than this from the actor mask may carve as free rays.
+constexpr int kNoReturnGuardPx = 2;
+
+// Gives pixels without a depth return (0) that lie farther than guard_px
+// from every actor pixel of the mask the depth kFreeRayMm, so that fusion
+// counts their whole ray as free space: the actor mask says the actor is not
+// on that ray (a visual hull's silhouette constraint). Without it, voxels
+// beside a limb whose background returns nothing (open space, a far wall,
+// the edge filter's band) are never observed, and the limb's side surface,
+// seen edge-on by facing sensors, is not closed. Used only for fusion: the
+// surface map for registration is built before.
+void MarkFreeRays(const MaskImage& actor, int guard_px, DepthImageMm* depth_mm) {
+  const int width = depth_mm->width;
+  const int height = depth_mm->height;
+  if (actor.width != width || actor.height != height) return;
+  // Distance to the nearest actor pixel, as a separable max filter (square guard).
+  std::vector<uint8_t> near(static_cast<size_t>(width) * height, 0);
+  std::vector<uint8_t> row_near(static_cast<size_t>(width) * height, 0);
+  for (int y = 0; y < height; ++y) {
+    int last = -1 << 20;
+    for (int x = 0; x < width; ++x) {
+      if (actor.at(x, y) != 0) last = x;
+      if (x - last <= guard_px) row_near[static_cast<size_t>(y) * width + x] = 1;
+    }
+    last = 1 << 20;
+    for (int x = width - 1; x >= 0; --x) {
+      if (actor.at(x, y) != 0) last = x;
+      if (last - x <= guard_px) row_near[static_cast<size_t>(y) * width + x] = 1;
+    }
+  }
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      bool hit = false;
+      for (int dy = -guard_px; dy <= guard_px && !hit; ++dy) {
+        const int yy = y + dy;
+        hit = yy >= 0 && yy < height && row_near[static_cast<size_t>(yy) * width + x] != 0;
+      }
+      near[static_cast<size_t>(y) * width + x] = hit ? 1 : 0;
+    }
+  }
+  for (size_t i = 0; i < near.size(); ++i) {
+    if (depth_mm->data[i] == 0 && near[i] == 0) depth_mm->data[i] = carving::kFreeRayMm;
   }
 }
 
@@ -411,6 +470,7 @@ absl::Status RigidCarved::LoadFrame(int instant, int sensor, bool with_colour, S
   ASSIGN_OR_RETURN(
       frame->surface,
       carving::BuildSurfaceMap(*cameras_[sensor].depth, frame->depth_mm, &actor, surface_options));
+  if (options_.carve_no_return) MarkFreeRays(actor, kNoReturnGuardPx, &frame->depth_mm);
   if (!with_colour || view.color_jpeg.empty()) return absl::OkStatus();
   int denominator = 1;
   while (denominator < 8 && take_.sensors()[sensor].color_intrinsics.width / (2 * denominator) >=

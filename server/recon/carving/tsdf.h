@@ -69,6 +69,10 @@ VolumeBox BoneBox(double y_min_m, double y_max_m, double radius_m, double voxel_
 // depth pixel on the grid of every `step`-th pixel (pixel (x, y) reads label
 // (x / step, y / step)), and the labels the volume accepts. Pixels with
 // other labels add free-space values only.
+// A depth value (mm) that marks a pixel whose whole ray is free space
+// (no return, off the actor): Integrate counts every voxel on it as free.
+inline constexpr uint16_t kFreeRayMm = 65535;
+
 struct SurfaceOwnership {
   const MaskImage* labels = nullptr;
   int step = 1;

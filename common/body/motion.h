@@ -98,6 +98,25 @@ struct BvhOptions {
 // match no known joint set (DetectJointSet).
 absl::StatusOr<Motion> ReadBvh(const std::string& path, const BvhOptions& options = {});
 
+struct BvhWriteOptions {
+  // Metres per file unit (0.01: centimetres, the common BVH unit). Read the
+  // file back with the same value (ReadBvh's options.metres_per_unit).
+  double metres_per_unit = 0.01;
+  // Decimals of every written number, 1..12.
+  int decimals = 6;
+};
+
+// Writes `motion` as BVH (bvh_writer.cc: one root with position channels,
+// "Zrotation Xrotation Yrotation" everywhere, angles in degrees, joints
+// depth first), through a temporary file. ReadBvh reads it back: the same
+// joints (End Sites included), frame rate, root translations and rotations,
+// except that a leaf joint that was not an End Site gains a "<leaf>_end"
+// joint at its own position. InvalidArgument for more or fewer than one
+// root, a parent listed after its child, names with white space or braces,
+// non-finite values, zero rotations or bad options.
+absl::Status WriteBvh(const Motion& motion, const std::string& path,
+                      const BvhWriteOptions& options = {});
+
 // Reads a CMU ASF skeleton and an AMC motion. Length unit from the ASF
 // ":units length" (CMU: length 0.45 -> 1 unit = 1/0.45 inch = 0.05644 m).
 // Errors name the file and line.

@@ -142,6 +142,59 @@ TEST(ReadBvh, ScaledCopyAgreesWithinOneMillimetre) {
   EXPECT_LT(worst_m, 1 * kMm);
 }
 
+// 131_01 written back as BVH (centimetres) and read again: the same
+// joints, rate and frames, and every joint within 0.01 mm of where the
+// original puts it.
+TEST(WriteBvh, RoundTripThroughReadBvhKeepsEveryJoint) {
+  REENACT_REQUIRE_TEST_FILE(Cmu("131_01.bvh"));
+  auto original = ReadBvh(Cmu("131_01.bvh"), {.metres_per_unit = kCmuMetresPerUnit});
+  ASSERT_TRUE(original.ok()) << original.status();
+  const std::string path = reenact::testing::MakeTempDir("bvh_write") + "/131_01_cm.bvh";
+  ASSERT_TRUE(WriteBvh(*original, path).ok());
+  auto back = ReadBvh(path, {.metres_per_unit = 0.01});
+  ASSERT_TRUE(back.ok()) << back.status();
+  ASSERT_EQ(back->joints().size(), original->joints().size());
+  for (size_t j = 0; j < original->joints().size(); ++j) {
+    EXPECT_EQ(back->joints()[j].name, original->joints()[j].name);
+    EXPECT_EQ(back->joints()[j].parent, original->joints()[j].parent);
+  }
+  EXPECT_EQ(back->info().joint_set, original->info().joint_set);
+  ASSERT_EQ(back->num_frames(), original->num_frames());
+  EXPECT_NEAR(back->fps(), original->fps(), 1e-6);
+  double worst_m = 0.0;
+  for (int frame = 0; frame < original->num_frames(); frame += 37) {
+    const std::vector<Eigen::Isometry3d> a = original->WorldFromJoints(frame);
+    const std::vector<Eigen::Isometry3d> b = back->WorldFromJoints(frame);
+    for (size_t j = 0; j < a.size(); ++j) {
+      worst_m = std::max(worst_m, (a[j].translation() - b[j].translation()).norm());
+    }
+  }
+  std::cout << "131_01 written and read back: worst joint difference " << worst_m / kMm << " mm\n";
+  EXPECT_LT(worst_m, 0.01 * kMm);
+}
+
+TEST(WriteBvh, BadInputIsAnErrorAndLeavesNoFile) {
+  REENACT_REQUIRE_TEST_FILE(Cmu("131_01.bvh"));
+  auto original = ReadBvh(Cmu("131_01.bvh"), {.metres_per_unit = kCmuMetresPerUnit});
+  ASSERT_TRUE(original.ok()) << original.status();
+  const std::string dir = reenact::testing::MakeTempDir("bvh_write_bad");
+  EXPECT_EQ(WriteBvh(*original, dir + "/a.bvh", {.metres_per_unit = 0.0}).code(),
+            absl::StatusCode::kInvalidArgument);
+  std::vector<MotionJoint> joints = original->joints();
+  std::vector<std::vector<Eigen::Quaterniond>> rotations = {original->local_rotations(0)};
+  rotations[0][1] = Eigen::Quaterniond(std::nan(""), 0, 0, 0);
+  const Motion broken(original->info(), joints, rotations, {original->root_translation_m(0)});
+  EXPECT_EQ(WriteBvh(broken, dir + "/b.bvh").code(), absl::StatusCode::kInvalidArgument);
+  joints[1].name = "two words";
+  const Motion badly_named(original->info(), joints, {original->local_rotations(0)},
+                           {original->root_translation_m(0)});
+  EXPECT_EQ(WriteBvh(badly_named, dir + "/c.bvh").code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_FALSE(WriteBvh(*original, dir + "/no/such/folder/d.bvh").ok());
+  for (const char* name : {"a.bvh", "b.bvh", "c.bvh"}) {
+    EXPECT_FALSE(std::ifstream(dir + "/" + name).good()) << name;
+  }
+}
+
 TEST(ReadBvh, DetectedUnitScalesRestPoseToAssumedStature) {
   REENACT_REQUIRE_TEST_FILE(Cmu("131_01.bvh"));
   REENACT_REQUIRE_TEST_FILE(Cmu("scaled_131_01.bvh"));

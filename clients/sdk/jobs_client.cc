@@ -6,6 +6,7 @@
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "clients/sdk/call_util.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
@@ -15,16 +16,8 @@ namespace {
 // once the worker has stopped (its grace period is 5 s).
 constexpr double kCancelGraceS = 6.0;
 
-void SetDeadline(grpc::ClientContext& context, double timeout_s) {
-  context.set_deadline(std::chrono::system_clock::now() +
-                       std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
-}
-
-absl::Status WithAddress(const grpc::Status& status, const std::string& address) {
-  absl::Status s = FromGrpcStatus(status);
-  if (s.ok()) return s;
-  return absl::Status(s.code(), absl::StrCat(address, ": ", std::string(s.message())));
-}
+using internal::SetDeadline;
+using internal::WithAddress;
 
 }  // namespace
 

@@ -7,24 +7,14 @@
 #include <grpcpp/client_context.h>
 
 #include "absl/strings/str_cat.h"
+#include "clients/sdk/call_util.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
 namespace {
 
-void SetDeadline(grpc::ClientContext& context, double timeout_s) {
-  context.set_deadline(std::chrono::system_clock::now() +
-                       std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
-}
-
-absl::Status WithAddress(const absl::Status& s, const std::string& address) {
-  if (s.ok()) return s;
-  return absl::Status(s.code(), absl::StrCat(address, ": ", std::string(s.message())));
-}
-
-absl::Status WithAddress(const grpc::Status& status, const std::string& address) {
-  return WithAddress(FromGrpcStatus(status), address);
-}
+using internal::SetDeadline;
+using internal::WithAddress;
 
 // Puts one streamed message into `data`, checking the order the service
 // promises: info, part meshes, frame batches, keyframes.

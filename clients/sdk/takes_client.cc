@@ -12,23 +12,14 @@
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "clients/sdk/call_util.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
 namespace {
 
-void SetDeadline(grpc::ClientContext& context, double timeout_s) {
-  context.set_deadline(std::chrono::system_clock::now() +
-                       std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
-}
-
-// The status with the peer's address in front, so that a user sees where a
-// call went ("reenact-server at 127.0.0.1:50051: ...").
-absl::Status WithAddress(const grpc::Status& status, const std::string& address) {
-  absl::Status s = FromGrpcStatus(status);
-  if (s.ok()) return s;
-  return absl::Status(s.code(), absl::StrCat(address, ": ", std::string(s.message())));
-}
+using internal::SetDeadline;
+using internal::WithAddress;
 
 }  // namespace
 

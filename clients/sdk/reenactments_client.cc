@@ -17,19 +17,27 @@ using internal::SetDeadline;
 using internal::WithAddress;
 
 // Puts one streamed message into `data`, checking the order the service
-// promises: info, part meshes, frame batches, keyframes.
+// promises: info, the body mesh (body-model reenactments), part meshes,
+// frame batches, keyframes.
 absl::Status Accept(v1::FetchReenactmentChunk& chunk, ReenactmentData* data, int* stage) {
   const int kind = static_cast<int>(chunk.chunk_case());
   if (kind == 0) return absl::DataLossError("the server sent an empty Fetch message");
-  if (kind < *stage || (kind != v1::FetchReenactmentChunk::kInfo && *stage == 0) ||
-      (kind == v1::FetchReenactmentChunk::kInfo && *stage != 0)) {
+  // Rank of each kind in the promised order (the body mesh's field number is
+  // the newest, but it comes second).
+  const auto rank = [](int k) { return k == v1::FetchReenactmentChunk::kBodyMesh ? 3 : 2 * k; };
+  const int info_rank = rank(v1::FetchReenactmentChunk::kInfo);
+  if (rank(kind) < *stage || (rank(kind) != info_rank && *stage == 0) ||
+      (rank(kind) == info_rank && *stage != 0)) {
     return absl::DataLossError(
-        absl::StrCat("the server sent Fetch message kind ", kind, " after kind ", *stage));
+        absl::StrCat("the server sent Fetch message kind ", kind, " out of order"));
   }
-  *stage = kind;
+  *stage = rank(kind);
   switch (chunk.chunk_case()) {
     case v1::FetchReenactmentChunk::kInfo:
       data->info = std::move(*chunk.mutable_info());
+      break;
+    case v1::FetchReenactmentChunk::kBodyMesh:
+      data->body.push_back(std::move(*chunk.mutable_body_mesh()));
       break;
     case v1::FetchReenactmentChunk::kPartMesh:
       data->parts.push_back(std::move(*chunk.mutable_part_mesh()));

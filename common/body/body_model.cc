@@ -439,10 +439,13 @@ absl::StatusOr<std::array<Eigen::Vector3d, kNumKinectV2Joints>> RestJointPositio
   return result;
 }
 
-absl::StatusOr<PosedBody> PoseBody(const BodyModel& model, const BodyPose& pose,
-                                   const Eigen::VectorXd& shape) {
-  if (model.skin_joints.size() != static_cast<size_t>(model.num_vertices()) ||
-      model.skin_weights.size() != model.skin_joints.size()) {
+absl::StatusOr<PosedBody> SkinRestVertices(
+    const std::vector<std::array<int, kMaxInfluences>>& skin_joints,
+    const std::vector<std::array<float, kMaxInfluences>>& skin_weights,
+    const Eigen::Matrix3Xd& rest_vertices_m,
+    const std::array<Eigen::Vector3d, kNumKinectV2Joints>& rest_joints_m, const BodyPose& pose) {
+  if (skin_joints.size() != static_cast<size_t>(rest_vertices_m.cols()) ||
+      skin_weights.size() != skin_joints.size()) {
     return absl::InvalidArgumentError("skinning does not match the template");
   }
   if (!pose.root_translation_m.allFinite()) {
@@ -455,10 +458,6 @@ absl::StatusOr<PosedBody> PoseBody(const BodyModel& model, const BodyPose& pose,
           " is invalid"));
     }
   }
-  ASSIGN_OR_RETURN(Eigen::Matrix3Xd vertices_m, ShapedRestVertices(model, shape));
-  ASSIGN_OR_RETURN(const auto rest_joints_m, RestJointPositions(model, shape));
-  AddPoseCorrectives(model, pose, vertices_m);
-
   PosedBody posed;
   // SMPL Eq. (4): G_j = G_parent * [R_j | J_j - J_parent]; the root carries
   // the pose translation on top of its rest position.
@@ -482,21 +481,33 @@ absl::StatusOr<PosedBody> PoseBody(const BodyModel& model, const BodyPose& pose,
     skinning[j].leftCols<3>() = rotation;
     skinning[j].col(3) = posed.joints_m[j] - rotation * rest_joints_m[j];
   }
-  posed.vertices_m.resize(3, vertices_m.cols());
-  for (Eigen::Index v = 0; v < vertices_m.cols(); ++v) {
+  posed.vertices_m.resize(3, rest_vertices_m.cols());
+  for (Eigen::Index v = 0; v < rest_vertices_m.cols(); ++v) {
     Eigen::Matrix<double, 3, 4> blended = Eigen::Matrix<double, 3, 4>::Zero();
     for (int k = 0; k < kMaxInfluences; ++k) {
-      const float weight = model.skin_weights[v][k];
+      const float weight = skin_weights[v][k];
       if (weight == 0.0f) continue;
-      const int joint = model.skin_joints[v][k];
+      const int joint = skin_joints[v][k];
       if (joint < 0 || joint >= kNumKinectV2Joints) {
         return absl::InvalidArgumentError(absl::StrCat("vertex ", v, " has a bad skin joint"));
       }
       blended += static_cast<double>(weight) * skinning[joint];
     }
-    posed.vertices_m.col(v) = blended.leftCols<3>() * vertices_m.col(v) + blended.col(3);
+    posed.vertices_m.col(v) = blended.leftCols<3>() * rest_vertices_m.col(v) + blended.col(3);
   }
   return posed;
+}
+
+absl::StatusOr<PosedBody> PoseBody(const BodyModel& model, const BodyPose& pose,
+                                   const Eigen::VectorXd& shape) {
+  if (model.skin_joints.size() != static_cast<size_t>(model.num_vertices()) ||
+      model.skin_weights.size() != model.skin_joints.size()) {
+    return absl::InvalidArgumentError("skinning does not match the template");
+  }
+  ASSIGN_OR_RETURN(Eigen::Matrix3Xd vertices_m, ShapedRestVertices(model, shape));
+  ASSIGN_OR_RETURN(const auto rest_joints_m, RestJointPositions(model, shape));
+  AddPoseCorrectives(model, pose, vertices_m);
+  return SkinRestVertices(model.skin_joints, model.skin_weights, vertices_m, rest_joints_m, pose);
 }
 
 absl::Status SaveBodyModel(const BodyModel& model, const std::string& path) {

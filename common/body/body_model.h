@@ -89,6 +89,18 @@ absl::StatusOr<Eigen::Matrix3Xd> ShapedRestVertices(const BodyModel& model,
 absl::StatusOr<PosedBody> PoseBody(const BodyModel& model, const BodyPose& pose,
                                    const Eigen::VectorXd& shape);
 
+// Linear blend skinning of rest vertices that already carry their shape (and
+// correctives) about the rest joints `rest_joints_m`, by per-vertex skinning
+// (`skin_joints`/`skin_weights` as in BodyModel, one entry per column of
+// `rest_vertices_m`). PoseBody is ShapedRestVertices + RestJointPositions +
+// correctives + this. InvalidArgument for mismatched sizes, a bad joint id
+// or a non-finite pose.
+absl::StatusOr<PosedBody> SkinRestVertices(
+    const std::vector<std::array<int, kMaxInfluences>>& skin_joints,
+    const std::vector<std::array<float, kMaxInfluences>>& skin_weights,
+    const Eigen::Matrix3Xd& rest_vertices_m,
+    const std::array<Eigen::Vector3d, kNumKinectV2Joints>& rest_joints_m, const BodyPose& pose);
+
 // Canonical joint ids ordered so that every parent precedes its children
 // (SpineBase first), for forward kinematics over the Kinect v2 tree.
 const std::array<int, kNumKinectV2Joints>& KinectV2JointsParentsFirst();

@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/io/body_reenactment.h"
 #include "common/io/mcap_reader.h"
 #include "common/io/mcap_writer.h"
 #include "common/io/proto_schema.h"
@@ -190,6 +191,9 @@ absl::Status WriteAll(const ReenactmentData& data, McapWriter* mcap) {
   ChannelWriter writer(mcap);
   const int64_t created = data.info.created_unix_ns();
   RETURN_IF_ERROR(writer.Write(kReenactmentInfoTopic, data.info, created));
+  for (const v1::BodyMesh& body : data.body) {
+    RETURN_IF_ERROR(writer.Write(kReenactmentBodyMeshTopic, body, created));
+  }
   for (const v1::PartMesh& mesh : data.parts) {
     RETURN_IF_ERROR(writer.Write(kReenactmentPartMeshTopic, mesh, created));
   }
@@ -236,9 +240,33 @@ absl::Status WithPath(const absl::Status& status, const std::string& path) {
   return absl::Status(status.code(), absl::StrCat(path, ": ", status.message()));
 }
 
+absl::Status ValidateBodyReenactment(const ReenactmentData& data) {
+  const v1::ReenactmentInfo& info = data.info;
+  if (data.body.size() != 1) return Invalid(absl::StrCat(data.body.size(), " body meshes"));
+  if (info.part_names_size() != 0 || !data.parts.empty() || !data.keyframes.empty()) {
+    return Invalid("a body-model reenactment with parts or keyframes");
+  }
+  if (info.frame_count() != static_cast<int64_t>(data.frames.size())) {
+    return Invalid(absl::StrCat("frame_count is ", info.frame_count(), " but there are ",
+                                data.frames.size(), " frames"));
+  }
+  if (!Finite(info.fps()) || info.fps() < 0) return Invalid(absl::StrCat("fps is ", info.fps()));
+  absl::StatusOr<DecodedBodyMesh> mesh = DecodeBodyMesh(data.body.front());
+  if (!mesh.ok()) return Invalid(std::string(mesh.status().message()));
+  for (size_t f = 0; f < data.frames.size(); ++f) {
+    RETURN_IF_ERROR(ValidateFrame(data.frames[f], static_cast<int>(f), 0));
+    if (!data.frames[f].has_body()) return Invalid(absl::StrCat("frame ", f, " has no body pose"));
+    absl::Status pose = ValidateBodyPose(data.frames[f].body(), mesh->num_vertices(),
+                                         absl::StrCat("frame ", f, " body pose"));
+    if (!pose.ok()) return Invalid(std::string(pose.message()));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::Status ValidateReenactment(const ReenactmentData& data) {
+  if (data.is_body()) return ValidateBodyReenactment(data);
   const v1::ReenactmentInfo& info = data.info;
   const int part_count = info.part_names_size();
   if (part_count == 0) return Invalid("no part names");
@@ -312,6 +340,7 @@ absl::StatusOr<ReenactmentData> ReadReenactmentFile(const std::string& path, boo
   data.info = std::move(infos.front());
   ASSIGN_OR_RETURN(data.parts, ReadTopic<v1::PartMesh>(*reader, kReenactmentPartMeshTopic));
   ASSIGN_OR_RETURN(data.frames, ReadTopic<v1::PartFrame>(*reader, kReenactmentFrameTopic));
+  ASSIGN_OR_RETURN(data.body, ReadTopic<v1::BodyMesh>(*reader, kReenactmentBodyMeshTopic));
   // Chunks hold messages by log time; put parts and frames back in id order
   // (stable, so a file with repeated ids still fails validation).
   std::stable_sort(data.parts.begin(), data.parts.end(),

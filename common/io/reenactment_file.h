@@ -7,6 +7,9 @@
 //   /reenactment/part_mesh  PartMesh          once per part, in part order
 //   /reenactment/frame      PartFrame         per instant, in frame order
 //   /reenactment/keyframe   TextureKeyframe   per kept colour image
+//   /reenactment/body_mesh  BodyMesh          once, body-model reenactments
+//                                             only (they have no parts and
+//                                             no keyframes)
 // Log time: ReenactmentInfo.created_unix_ns for info and meshes, the stamps
 // of frames and keyframes for those.
 #pragma once
@@ -24,6 +27,7 @@ inline constexpr std::string_view kReenactmentInfoTopic = "/reenactment/info";
 inline constexpr std::string_view kReenactmentPartMeshTopic = "/reenactment/part_mesh";
 inline constexpr std::string_view kReenactmentFrameTopic = "/reenactment/frame";
 inline constexpr std::string_view kReenactmentKeyframeTopic = "/reenactment/keyframe";
+inline constexpr std::string_view kReenactmentBodyMeshTopic = "/reenactment/body_mesh";
 
 // A whole reenactment in memory.
 struct ReenactmentData {
@@ -31,12 +35,19 @@ struct ReenactmentData {
   std::vector<v1::PartMesh> parts;          // In part-id order.
   std::vector<v1::PartFrame> frames;        // In frame order.
   std::vector<v1::TextureKeyframe> keyframes;
+  // Body-model reenactments: the skinned mesh (each frame then holds a
+  // BodyPose). Empty (no message) for rigid-part reenactments.
+  std::vector<v1::BodyMesh> body;  // 0 or 1 element.
+
+  bool is_body() const { return !body.empty(); }
 };
 
 // Checks consistency: one mesh per part name with sizes that agree (positions,
 // normals and uvs per vertex, indices in range, visibility bits per vertex),
 // one pose per part in every frame, frame_count equal to the frames,
-// keyframes naming known frames and sensors, finite numbers. InvalidArgument
+// keyframes naming known frames and sensors, finite numbers. A body-model
+// reenactment instead has one BodyMesh that decodes, no parts or keyframes,
+// and a valid BodyPose in every frame. InvalidArgument
 // naming the first problem.
 absl::Status ValidateReenactment(const ReenactmentData& data);
 

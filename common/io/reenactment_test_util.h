@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include "common/body/procedural_body.h"
+#include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "common/io/reenactment_file.h"
 
@@ -174,6 +176,79 @@ inline ReenactmentData MakeTestReenactment(const TestReenactmentOptions& o = {})
       keyframe.add_vertex_visible_bits(std::string(3, '\x55'));
     }
     data.keyframes.push_back(std::move(keyframe));
+  }
+  return data;
+}
+
+// A coarse procedural body model (about 3,000 vertices; fast to build).
+inline const body::BodyModel& TestBodyModel() {
+  static const body::BodyModel* model = [] {
+    body::ProceduralBodyOptions options;
+    options.grid_spacing_m = 0.03;
+    options.smoothing_iterations = 3;
+    options.population_size = 40;
+    options.num_held_out = 0;
+    auto built = body::BuildProceduralBody(options);
+    EXPECT_TRUE(built.ok()) << built.status();
+    return new body::BodyModel(std::move(*built));
+  }();
+  return *model;
+}
+
+// The pose of frame `frame` of the test body reenactment: the right elbow
+// bends, the body turns about +Y and walks along +X.
+inline body::BodyPose TestBodyPose(int frame) {
+  body::BodyPose pose;
+  const double t = 0.1 * frame;
+  pose.local_rotation[static_cast<int>(body::KinectV2Joint::kSpineBase)] =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * t, Eigen::Vector3d::UnitY()));
+  pose.local_rotation[static_cast<int>(body::KinectV2Joint::kElbowRight)] =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.8 * t, Eigen::Vector3d::UnitX()));
+  pose.root_translation_m = Eigen::Vector3d(0.05 * frame, 0.0, 0.0);
+  return pose;
+}
+
+// A valid body-model reenactment of TestBodyModel() with shape (0.5, -0.5)
+// and `frames` TestBodyPose frames; frame 1 carries vertex offsets of 5 mm
+// along +Z when there is one.
+inline ReenactmentData MakeTestBodyReenactment(int frames = 5,
+                                               const std::string& id = "r-20260101-120000-body") {
+  ReenactmentData data;
+  v1::ReenactmentInfo& info = data.info;
+  info.set_reenactment_id(id);
+  info.set_take_id("t-20260101-110000-test");
+  info.set_job_id("j-20260101-115900-test");
+  info.set_method("body");
+  info.set_created_unix_ns(1767268800000000000);
+  info.set_generator("reenact test");
+  info.set_frame_count(frames);
+  info.set_fps(30.0);
+  Eigen::VectorXd shape(2);
+  shape << 0.5, -0.5;
+  auto mesh = MakeBodyMesh(TestBodyModel(), shape, TestJpeg(64, 64, 7));
+  EXPECT_TRUE(mesh.ok()) << mesh.status();
+  data.body.push_back(std::move(*mesh));
+  const int vertices = TestBodyModel().num_vertices();
+  for (int f = 0; f < frames; ++f) {
+    v1::PartFrame frame;
+    frame.set_frame_index(f);
+    frame.set_stamp_ns(1000000000LL + f * 33333333LL);
+    *frame.mutable_body() = BodyPoseToProto(TestBodyPose(f));
+    if (f == 1) {
+      Eigen::Matrix3Xd offsets = Eigen::Matrix3Xd::Zero(3, vertices);
+      offsets.row(2).setConstant(0.005);
+      SetBodyPoseOffsets(offsets, frame.mutable_body());
+    }
+    frame.mutable_body()->set_point_rms_mm(3.0f);
+    auto posed = body::PoseBody(TestBodyModel(), TestBodyPose(f), shape);
+    EXPECT_TRUE(posed.ok()) << posed.status();
+    for (const Eigen::Vector3d& j : posed->joints_m) {
+      v1::Vector3* p = frame.add_joints_in_world_m();
+      p->set_x(j.x());
+      p->set_y(j.y());
+      p->set_z(j.z());
+    }
+    data.frames.push_back(std::move(frame));
   }
   return data;
 }

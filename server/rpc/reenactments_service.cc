@@ -94,6 +94,11 @@ class FetchStream final : public grpc::ServerWriteReactor<v1::FetchReenactmentCh
     v1::FetchReenactmentChunk chunk;
     *chunk.mutable_info() = std::move(data.info);
     RETURN_IF_ERROR(Push(std::move(chunk)));
+    for (v1::BodyMesh& body : data.body) {
+      chunk.Clear();
+      *chunk.mutable_body_mesh() = std::move(body);
+      RETURN_IF_ERROR(Push(std::move(chunk)));
+    }
     for (v1::PartMesh& mesh : data.parts) {
       chunk.Clear();
       *chunk.mutable_part_mesh() = std::move(mesh);

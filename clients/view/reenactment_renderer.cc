@@ -8,9 +8,11 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/geometry/camera.h"
+#include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
+#include "common/render/mesh_data.h"
 
 namespace reenact::view {
 namespace {
@@ -97,6 +99,13 @@ struct ReenactmentRenderer::Group {
   std::vector<int> triangles;  // Indices into the part's triangles.
 };
 
+struct ReenactmentRenderer::Body {
+  DecodedBodyMesh mesh;
+  bool uploaded = false;    // Upload tried (mesh and atlas).
+  render::MeshId gpu_mesh;  // Over the texture vertices; positions per frame.
+  render::TextureId atlas;  // Invalid: no atlas (lit flat colour).
+};
+
 absl::StatusOr<TextureMode> ParseTextureMode(const std::string& name) {
   if (name == "vdtm") return TextureMode::kVdtm;
   if (name == "baked") return TextureMode::kBaked;
@@ -120,13 +129,19 @@ absl::StatusOr<std::unique_ptr<ReenactmentRenderer>> ReenactmentRenderer::Create
   if (renderer == nullptr) return absl::InvalidArgumentError("ReenactmentRenderer: no renderer");
   RETURN_IF_ERROR(options.Validate());
   ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
+  std::unique_ptr<Body> body;
+  if (data.is_body()) {
+    body = std::make_unique<Body>();
+    ASSIGN_OR_RETURN(body->mesh, DecodeBodyMesh(data.body.front()));
+  }
   return std::unique_ptr<ReenactmentRenderer>(
-      new ReenactmentRenderer(data, renderer, options, std::move(model)));
+      new ReenactmentRenderer(data, renderer, options, std::move(model), std::move(body)));
 }
 
 ReenactmentRenderer::ReenactmentRenderer(const ReenactmentData& data,
                                          render::OffscreenRenderer* renderer,
-                                         const ReenactmentRendererOptions& options, VdtmModel model)
+                                         const ReenactmentRendererOptions& options, VdtmModel model,
+                                         std::unique_ptr<Body> body)
     : data_(data),
       renderer_(renderer),
       options_(options),
@@ -136,9 +151,16 @@ ReenactmentRenderer::ReenactmentRenderer(const ReenactmentData& data,
                                                    : options.underlay_baked),
       model_(std::move(model)),
       baked_(model_.num_parts()),
-      baked_tried_(model_.num_parts(), false) {}
+      baked_tried_(model_.num_parts(), false),
+      body_(std::move(body)) {}
 
 ReenactmentRenderer::~ReenactmentRenderer() {
+  if (body_ != nullptr && body_->gpu_mesh.valid()) {
+    renderer_->ReleaseMesh(body_->gpu_mesh).IgnoreError();
+  }
+  if (body_ != nullptr && body_->atlas.valid()) {
+    renderer_->ReleaseTexture(body_->atlas).IgnoreError();
+  }
   for (auto& [keyframe, texture] : textures_) renderer_->ReleaseTexture(texture.id).IgnoreError();
   for (render::TextureId id : baked_) {
     if (id.valid()) renderer_->ReleaseTexture(id).IgnoreError();
@@ -313,6 +335,67 @@ absl::StatusOr<render::MeshData> ReenactmentRenderer::GroupMesh(int frame,
   return mesh;
 }
 
+absl::Status ReenactmentRenderer::UploadBody(FrameStats* stats) {
+  if (body_->uploaded) return absl::OkStatus();
+  body_->uploaded = true;  // Once, whether or not the atlas decodes.
+  const DecodedBodyMesh& body = body_->mesh;
+  const std::string& jpeg = data_.body.front().atlas_jpeg();
+  absl::Status atlas_status;
+  if (!jpeg.empty()) {
+    auto image = DecodeJpeg(jpeg);
+    if (image.ok()) {
+      ASSIGN_OR_RETURN(body_->atlas, renderer_->UploadTexture(*image));
+      ++stats->textures_uploaded;
+    } else {
+      atlas_status = absl::DataLossError(absl::StrCat("body atlas of ", data_.info.reenactment_id(),
+                                                      ": ", image.status().message()));
+    }
+  }
+  const Eigen::Matrix3Xf rest = body.rest_vertices_m.cast<float>();
+  const Eigen::Matrix3Xf rest_normals = render::ComputeVertexNormals(rest, body.triangles);
+  const int n = static_cast<int>(body.texture_vertex_source.size());
+  render::MeshData mesh;
+  mesh.positions_m.resize(3, n);
+  mesh.normals.resize(3, n);
+  mesh.uvs.resize(2, n);
+  mesh.source_vertex.resize(n);
+  mesh.num_source_vertices = body.num_vertices();
+  for (int i = 0; i < n; ++i) {
+    const int source = static_cast<int>(body.texture_vertex_source[i]);
+    mesh.source_vertex[i] = source;
+    mesh.positions_m.col(i) = rest.col(source);
+    mesh.normals.col(i) = rest_normals.col(source);
+    mesh.uvs.col(i) = body.texture_uvs[i];
+  }
+  mesh.triangles = body.texture_triangles;
+  ASSIGN_OR_RETURN(body_->gpu_mesh, renderer_->UploadMesh(mesh));
+  return atlas_status;
+}
+
+absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCamera& camera,
+                                             render::RenderOutputs* out, FrameStats* stats) {
+  RETURN_IF_ERROR(UploadBody(stats));
+  const v1::BodyPose& pose = data_.frames[frame].body();
+  std::vector<render::DrawItem> items;
+  if (pose.valid()) {
+    ASSIGN_OR_RETURN(const body::PosedBody posed, PoseBodyMesh(body_->mesh, pose));
+    // Normals recomputed over the model's triangles, so seams do not show.
+    RETURN_IF_ERROR(
+        renderer_->UpdateMeshPositions(body_->gpu_mesh, posed.vertices_m.cast<float>()));
+    render::DrawItem item;
+    item.mesh = body_->gpu_mesh;
+    item.texture = body_->atlas;
+    item.lit = !body_->atlas.valid();  // The atlas already carries the light.
+    item.colour_srgb = options_.untextured_srgb;
+    item.label = 1;
+    items.push_back(item);
+    stats->parts_drawn = 1;
+    stats->triangles = static_cast<int>(body_->mesh.texture_triangles.size());
+  }
+  stats->draw_items = static_cast<int>(items.size());
+  return renderer_->Render(camera, items, out);
+}
+
 absl::Status ReenactmentRenderer::Render(int frame_index, const render::RenderCamera& camera,
                                          render::RenderOutputs* out, FrameStats* stats) {
   if (frame_index < 0 || frame_index >= model_.num_frames()) {
@@ -323,6 +406,7 @@ absl::Status ReenactmentRenderer::Render(int frame_index, const render::RenderCa
   FrameStats local;
   FrameStats& s = stats != nullptr ? *stats : local;
   s = FrameStats();
+  if (body_ != nullptr) return RenderBody(frame_index, camera, out, &s);
   s.best_keyframe.assign(model_.num_parts(), -1);
   const Eigen::Isometry3d camera_from_world = camera.world_from_camera.inverse();
   std::vector<Group> groups;

@@ -1,5 +1,5 @@
-// Draws a rigid-part reenactment (common/io/reenactment_file.h) at one
-// instant from any camera, headless, through OffscreenRenderer:
+// Draws a reenactment (common/io/reenactment_file.h) at one instant from any
+// camera, headless, through OffscreenRenderer. Rigid-part reenactments:
 //  * TextureMode::kVdtm: view-dependent texture mapping from the texture
 //    keyframes (clients/view/texture_selection.h: Eq. 3.13 for
 //    "rigid-carved", Eq. 3.6 for "rigid-cylinders", next-best keyframe where
@@ -22,6 +22,17 @@
 // least-recently-used cache bounded in bytes; baked textures are uploaded
 // once. Meshes are built per frame (only the triangles of each group) and
 // released after the draw.
+//
+// Body-model reenactments (ReenactmentData::is_body()) are one textured
+// mesh in both texture modes: the frame's BodyPose is applied on the CPU
+// (PoseBodyMesh: skinning plus the frame's vertex offsets), the posed model
+// vertices are spread over the texture vertices (BodyMesh seams), normals
+// are area-weighted over the closed surface, and the atlas is the texture
+// (unlit: it holds the light the sensors saw; no atlas: lit flat grey). A
+// pose that is not valid hides the body (as an invalid part pose does). The
+// mesh is decoded once (Create) and uploaded once with the atlas (first
+// Render, counted in FrameStats::textures_uploaded); each frame updates only
+// its positions. The label of the body is 1.
 #pragma once
 
 #include <cstdint>
@@ -71,7 +82,7 @@ struct ReenactmentRendererOptions {
 
 // What one Render call drew.
 struct FrameStats {
-  int parts_drawn = 0;
+  int parts_drawn = 0;  // A drawn body counts as one.
   int draw_items = 0;
   int triangles = 0;
   // VDTM: triangles coloured from a keyframe below their part's best usable
@@ -90,7 +101,8 @@ class ReenactmentRenderer {
  public:
   // `data` and `renderer` must outlive the returned object, which uploads
   // into `renderer` and leaves its shading alone. InvalidArgument for a
-  // reenactment that does not validate or bad options.
+  // reenactment that does not validate (a body mesh that does not decode
+  // included) or bad options.
   static absl::StatusOr<std::unique_ptr<ReenactmentRenderer>> Create(
       const ReenactmentData& data, render::OffscreenRenderer* renderer,
       const ReenactmentRendererOptions& options = {});
@@ -100,8 +112,9 @@ class ReenactmentRenderer {
 
   // Draws the instant `frame_index` (PartFrame.frame_index) seen by `camera`
   // into `out` (outputs as OffscreenRenderer::Render; the label of part b is
-  // b + 1). NotFound for an unknown frame; InvalidArgument for a bad camera;
-  // DataLoss when a keyframe's JPEG or mask does not decode.
+  // b + 1; of a body, 1). NotFound for an unknown frame; InvalidArgument for
+  // a bad camera; DataLoss when a keyframe's JPEG or mask, or a body's
+  // atlas, does not decode.
   absl::Status Render(int frame_index, const render::RenderCamera& camera,
                       render::RenderOutputs* out, FrameStats* stats = nullptr);
 
@@ -119,9 +132,12 @@ class ReenactmentRenderer {
   };
   // A texture and the uv mapping that goes with it for one part.
   struct Group;
+  // The decoded body mesh and its GPU mesh and atlas (body reenactments).
+  struct Body;
 
   ReenactmentRenderer(const ReenactmentData& data, render::OffscreenRenderer* renderer,
-                      const ReenactmentRendererOptions& options, VdtmModel model);
+                      const ReenactmentRendererOptions& options, VdtmModel model,
+                      std::unique_ptr<Body> body);
   absl::StatusOr<const CachedTexture*> KeyframeTexture(int keyframe, int* uploaded);
   absl::StatusOr<render::TextureId> BakedTexture(int part);
   void EvictTextures();
@@ -129,6 +145,9 @@ class ReenactmentRenderer {
                                std::vector<Group>* groups, FrameStats* stats);
   absl::Status BuildBakedGroups(int frame, std::vector<Group>* groups, FrameStats* stats);
   absl::StatusOr<render::MeshData> GroupMesh(int frame, const Group& group) const;
+  absl::Status UploadBody(FrameStats* stats);
+  absl::Status RenderBody(int frame, const render::RenderCamera& camera, render::RenderOutputs* out,
+                          FrameStats* stats);
 
   const ReenactmentData& data_;
   render::OffscreenRenderer* renderer_;
@@ -141,6 +160,7 @@ class ReenactmentRenderer {
   int64_t cache_bytes_ = 0;
   std::vector<render::TextureId> baked_;  // By part; invalid until uploaded.
   std::vector<bool> baked_tried_;
+  std::unique_ptr<Body> body_;  // Null for rigid-part reenactments.
 };
 
 // The colour camera of `calibration` as a render camera of width x height

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <set>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "absl/strings/str_format.h"
 #include "clients/view/surface_distance.h"
 #include "common/base/status_macros.h"
+#include "common/io/body_reenactment.h"
 #include "common/io/proto_convert.h"
 #include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
@@ -87,8 +89,8 @@ absl::StatusOr<GroundTruth> LoadGroundTruth(const TakeReader& take, const std::s
 }
 
 // The reconstructed surface at `frame`: every valid part posed in the world.
-void PosedReconstruction(const VdtmModel& model, int frame, Eigen::Matrix3Xd* vertices,
-                         std::vector<Eigen::Vector3i>* triangles) {
+void PosedParts(const VdtmModel& model, int frame, Eigen::Matrix3Xd* vertices,
+                std::vector<Eigen::Vector3i>* triangles) {
   int total = 0;
   for (int b = 0; b < model.num_parts(); ++b) {
     if (model.pose(frame, b).valid)
@@ -110,18 +112,30 @@ void PosedReconstruction(const VdtmModel& model, int frame, Eigen::Matrix3Xd* ve
   }
 }
 
+// The reconstructed surface at `frame` of a body-model reenactment: the
+// posed body mesh (skinning plus the frame's offsets), triangles over the
+// model vertices; nothing when the pose is not valid.
+absl::Status PosedBody(const DecodedBodyMesh& body, const v1::BodyPose& pose,
+                       Eigen::Matrix3Xd* vertices, std::vector<Eigen::Vector3i>* triangles) {
+  triangles->clear();
+  if (!pose.valid()) return absl::OkStatus();
+  ASSIGN_OR_RETURN(body::PosedBody posed, PoseBodyMesh(body, pose));
+  *vertices = std::move(posed.vertices_m);
+  *triangles = body.triangles;
+  return absl::OkStatus();
+}
+
 struct SurfaceSums {
   double accuracy_m = 0, completeness_m = 0;
   int64_t accuracy_count = 0, completeness_count = 0;
   int frames = 0;
 };
 
-absl::Status AddSurfaceFrame(const VdtmModel& model, int frame, const Eigen::Matrix3Xd& truth,
+absl::Status AddSurfaceFrame(const Eigen::Matrix3Xd& recon,
+                             const std::vector<Eigen::Vector3i>& recon_triangles,
+                             const Eigen::Matrix3Xd& truth,
                              const std::vector<Eigen::Vector3i>& truth_triangles, double cell_m,
                              SurfaceSums* sums) {
-  Eigen::Matrix3Xd recon;
-  std::vector<Eigen::Vector3i> recon_triangles;
-  PosedReconstruction(model, frame, &recon, &recon_triangles);
   if (recon_triangles.empty()) return absl::OkStatus();  // Nothing posed: no surface.
   ASSIGN_OR_RETURN(auto truth_index, TriangleSurfaceIndex::Build(truth, truth_triangles, cell_m));
   ASSIGN_OR_RETURN(auto recon_index, TriangleSurfaceIndex::Build(recon, recon_triangles, cell_m));
@@ -334,6 +348,10 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data
                                                      const ProgressCallback& progress) {
   RETURN_IF_ERROR(options.Validate());
   ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
+  std::optional<DecodedBodyMesh> body;
+  if (data.is_body()) {
+    ASSIGN_OR_RETURN(body, DecodeBodyMesh(data.body.front()));
+  }
   std::set<int64_t> wanted;
   for (int f = 0; f < model.num_frames(); f += options.every) wanted.insert(f);
   const bool need_mesh = options.surface || options.novel_view;
@@ -362,7 +380,14 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data
   for (size_t i = 0; i < frames.size(); ++i) {
     const int f = frames[i];
     if (options.surface) {
-      RETURN_IF_ERROR(AddSurfaceFrame(model, f, truth.meshes[f], truth.triangles,
+      Eigen::Matrix3Xd recon;
+      std::vector<Eigen::Vector3i> recon_triangles;
+      if (body.has_value()) {
+        RETURN_IF_ERROR(PosedBody(*body, data.frames[f].body(), &recon, &recon_triangles));
+      } else {
+        PosedParts(model, f, &recon, &recon_triangles);
+      }
+      RETURN_IF_ERROR(AddSurfaceFrame(recon, recon_triangles, truth.meshes[f], truth.triangles,
                                       options.grid_cell_m, &surface));
     }
     if (scorer != nullptr) RETURN_IF_ERROR(scorer->AddFrame(f, truth.meshes[f]));

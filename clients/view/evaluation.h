@@ -1,10 +1,14 @@
-// Accuracy of a rigid-part reenactment against the ground truth of the
-// synthetic take it was made from (common/synth: /ground_truth/mesh,
-// /ground_truth/topology with the truth's appearance, /ground_truth/joints):
+// Accuracy of a reenactment (rigid parts or body model) against the ground
+// truth of the synthetic take it was made from (common/synth:
+// /ground_truth/mesh, /ground_truth/topology with the truth's appearance,
+// /ground_truth/joints):
 //
 //  * Surface: per evaluated instant, the reconstructed surface (the posed
-//    meshes of the valid parts) against the true posed mesh, both ways,
-//    vertex to surface (point-to-triangle, TriangleSurfaceIndex):
+//    meshes of the valid parts; for a body-model reenactment the posed body
+//    mesh, PoseBodyMesh with the frame's vertex offsets, triangles over the
+//    model vertices, none where the pose is not valid) against the true
+//    posed mesh, both ways, vertex to surface (point-to-triangle,
+//    TriangleSurfaceIndex):
 //      surface_accuracy_mm      mean distance of reconstructed vertices to
 //                               the true surface (recon -> truth);
 //      surface_completeness_mm  mean distance of true vertices to the
@@ -16,9 +20,10 @@
 //    actor's mean true root (SpineBase) position over the evaluated
 //    instants; with two facing sensors this is the view farthest from both.
 //    Rendered at 960 x 540 (the colour intrinsics scaled, distortion left
-//    out) twice by the same renderer: the reenactment (VDTM, or baked) and
-//    the truth (true posed mesh with its albedo texture under the take's
-//    light, lit).
+//    out) twice by the same renderer: the reenactment (VDTM, or baked; a
+//    body-model reenactment with its atlas, ReenactmentRenderer) and the
+//    truth (true posed mesh with its albedo texture under the take's light,
+//    lit).
 //      psnr_db_90  PSNR (8-bit, peak 255) over the pixels where both show
 //                  the person, MSE pooled over RGB and all evaluated instants;
 //      iou_90      mean over instants of the silhouette IoU.

@@ -6,9 +6,13 @@
 #include <numbers>
 #include <set>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
 #include "absl/strings/str_cat.h"
 #include "clients/view/reenactment_renderer.h"
 #include "common/base/status_macros.h"
+#include "common/io/body_reenactment.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
 #include "common/render/mesh_data.h"
@@ -241,7 +245,82 @@ absl::StatusOr<v1::TextureKeyframe> MakeKeyframe(
   return keyframe;
 }
 
+// The truth's albedo (PNG) as a JPEG atlas.
+absl::StatusOr<std::string> AlbedoJpeg(const std::string& png) {
+  const cv::Mat encoded(1, static_cast<int>(png.size()), CV_8UC1, const_cast<char*>(png.data()));
+  const cv::Mat bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
+  std::vector<uint8_t> jpeg;
+  if (bgr.empty() || !cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, 95})) {
+    return absl::FailedPreconditionError("the take's albedo is not a decodable PNG");
+  }
+  return std::string(jpeg.begin(), jpeg.end());
+}
+
+// The true meshes by frame index (3 x V each, model vertex order).
+absl::StatusOr<std::map<int64_t, Eigen::Matrix3Xd>> TruthMeshes(const TakeReader& take,
+                                                                int vertex_count) {
+  std::map<int64_t, Eigen::Matrix3Xd> meshes;
+  RETURN_IF_ERROR(take.ForEach<v1::GroundTruthMesh>(
+      kGroundTruthMeshTopic, [&](const v1::GroundTruthMesh& mesh) -> absl::Status {
+        ASSIGN_OR_RETURN(const std::vector<float> values,
+                         UnpackFloats(mesh.positions_in_world_m_f32()));
+        if (mesh.vertex_count() != vertex_count || values.size() != 3u * vertex_count) {
+          return absl::FailedPreconditionError(
+              absl::StrCat("ground truth mesh of frame ", mesh.frame_index(), " has ",
+                           mesh.vertex_count(), " vertices, the model ", vertex_count));
+        }
+        meshes[mesh.frame_index()] =
+            Eigen::Map<const Eigen::Matrix3Xf>(values.data(), 3, vertex_count).cast<double>();
+        return absl::OkStatus();
+      }));
+  return meshes;
+}
+
 }  // namespace
+
+absl::StatusOr<ReenactmentData> MakeTruthBodyReenactment(const TakeReader& take,
+                                                         const body::BodyModel& model) {
+  ASSIGN_OR_RETURN(auto bodies, take.ReadAll<v1::GroundTruthBody>(kGroundTruthBodyTopic));
+  ASSIGN_OR_RETURN(auto topologies,
+                   take.ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic));
+  if (bodies.empty() || topologies.empty()) {
+    return absl::FailedPreconditionError("take has no /ground_truth/body or topology");
+  }
+  ASSIGN_OR_RETURN(const auto meshes, TruthMeshes(take, model.num_vertices()));
+  Eigen::VectorXd shape(bodies[0].shape_coefficients_size());
+  for (int k = 0; k < shape.size(); ++k) shape[k] = bodies[0].shape_coefficients(k);
+  ASSIGN_OR_RETURN(std::string atlas, AlbedoJpeg(topologies[0].albedo_png()));
+  ReenactmentData data;
+  v1::ReenactmentInfo& info = data.info;
+  info.set_reenactment_id("r-truth-body");
+  info.set_take_id(take.info().name());
+  info.set_method("body");
+  info.set_frame_count(static_cast<int>(bodies.size()));
+  info.set_fps(take.info().fps());
+  info.set_generator("truth_reenactment (test)");
+  for (const auto& [id, calibration] : take.sensors()) *info.add_sensors() = calibration;
+  ASSIGN_OR_RETURN(v1::BodyMesh mesh, MakeBodyMesh(model, shape, std::move(atlas)));
+  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(mesh));
+  data.body.push_back(std::move(mesh));
+  for (size_t f = 0; f < bodies.size(); ++f) {
+    const auto truth = meshes.find(static_cast<int64_t>(f));
+    if (truth == meshes.end()) {
+      return absl::FailedPreconditionError(absl::StrCat("no ground truth mesh for frame ", f));
+    }
+    v1::PartFrame frame;
+    frame.set_frame_index(static_cast<int>(f));
+    frame.set_stamp_ns(bodies[f].stamp_ns());
+    *frame.mutable_body() = BodyPoseToProto(PoseFromProto(bodies[f]));
+    ASSIGN_OR_RETURN(const body::PosedBody skinned, PoseBodyMesh(decoded, frame.body()));
+    SetBodyPoseOffsets(truth->second - skinned.vertices_m, frame.mutable_body());
+    for (const Eigen::Vector3d& joint : skinned.joints_m) {
+      *frame.add_joints_in_world_m() = ToProto(joint);
+    }
+    data.frames.push_back(std::move(frame));
+  }
+  RETURN_IF_ERROR(ValidateReenactment(data));
+  return data;
+}
 
 absl::StatusOr<ReenactmentData> MakeTruthReenactment(const TakeReader& take,
                                                      const body::BodyModel& model,

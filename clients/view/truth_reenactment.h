@@ -29,6 +29,17 @@ absl::StatusOr<ReenactmentData> MakeTruthReenactment(const TakeReader& take,
                                                      const body::BodyModel& model,
                                                      const TruthReenactmentOptions& options = {});
 
+// A body-model reenactment (method "body") of the take's ground truth: the
+// BodyMesh of `model` (the synthesizer's model) with the true shape
+// (/ground_truth/body) and the truth's albedo (/ground_truth/topology, as a
+// JPEG) as its atlas; per instant the true pose and vertex offsets that take
+// the skinned mesh onto /ground_truth/mesh (what BodyMesh leaves out, the
+// pose correctives, plus float rounding), so the posed mesh is the truth;
+// the frames' joints are the posed joints. FailedPrecondition when the take
+// lacks that ground truth or its mesh is not `model`'s.
+absl::StatusOr<ReenactmentData> MakeTruthBodyReenactment(const TakeReader& take,
+                                                         const body::BodyModel& model);
+
 // Moves every part of every frame by `offset_m` (world frame) and turns it by
 // `angle_deg` about its own part-frame X axis.
 void PerturbPoses(ReenactmentData* data, const Eigen::Vector3d& offset_m, double angle_deg);

@@ -116,6 +116,32 @@ TEST(GltfValidator, HiddenPartsPlainMaterialsAndMeshlessPartsHaveNoErrors) {
   EXPECT_EQ(single.value("num_errors", -1), 0) << single.dump(2);
 }
 
+TEST(GltfValidator, SkinnedBodyExportHasNoErrorsOrWarnings) {
+  REQUIRE_NODE_PACKAGE("gltf-validator");
+  const std::string dir = testing::MakeTempDir("gltf_validator_body");
+  const nlohmann::json report =
+      ExportAndValidate(testing::MakeTestBodyReenactment(30), dir + "/body.glb");
+  ASSERT_TRUE(report.contains("num_errors")) << report.dump(2);
+  EXPECT_EQ(report["num_errors"].get<int>(), 0) << report["issues"].dump(2);
+  EXPECT_EQ(report["num_warnings"].get<int>(), 0) << report["issues"].dump(2);
+  EXPECT_EQ(report["info"]["animationCount"].get<int>(), 1);
+  EXPECT_TRUE(report["info"]["hasSkins"].get<bool>());
+  EXPECT_EQ(report["info"]["drawCallCount"].get<int>(), 1);
+  EXPECT_EQ(report["info"]["maxInfluences"].get<int>(), 4);
+  EXPECT_TRUE(report["info"]["hasTextures"].get<bool>());
+  std::printf("body .glb: %lld bytes, %d infos, %d hints\n",
+              static_cast<long long>(std::filesystem::file_size(dir + "/body.glb")),
+              report["num_infos"].get<int>(), report["num_hints"].get<int>());
+
+  // Without textures, and a single frame.
+  GltfExportOptions plain;
+  plain.textures = false;
+  const nlohmann::json untextured =
+      ExportAndValidate(testing::MakeTestBodyReenactment(1), dir + "/plain.glb", plain);
+  EXPECT_EQ(untextured.value("num_errors", -1), 0) << untextured.dump(2);
+  EXPECT_EQ(untextured.value("num_warnings", -1), 0) << untextured.dump(2);
+}
+
 // The checker itself must be able to fail: a broken export is reported.
 TEST(GltfValidator, ReportsErrorsInADamagedFile) {
   REQUIRE_NODE_PACKAGE("gltf-validator");
@@ -140,18 +166,25 @@ TEST(GltfValidator, ReportsErrorsInADamagedFile) {
   EXPECT_GE(report.value("num_errors", 0), 1) << report.dump(2);
 }
 
+// Writes `data` to `path` and reads it with @mcap/core (check_take.mjs):
+// exit status 0 and no problems; returns the report.
+nlohmann::json WriteAndReadWithMcapCore(const ReenactmentData& data, const std::string& path) {
+  EXPECT_TRUE(WriteReenactmentFile(data, path).ok());
+  int exit_code = -1;
+  nlohmann::json result = RunNode("check_take.mjs", path, &exit_code);
+  EXPECT_EQ(exit_code, 0) << result.dump(2);
+  EXPECT_TRUE(result.value("problems", nlohmann::json::array()).empty()) << result.dump(2);
+  return result;
+}
+
 TEST(ReenactmentMcapInterop, IndependentReaderSeesEveryChannel) {
   REQUIRE_NODE_PACKAGE("@mcap/core");
   const std::string path = testing::MakeTempDir("reen_interop") + "/r.reen";
   TestReenactmentOptions options;
   options.frames = 30;
   options.keyframes = 4;
-  ASSERT_TRUE(WriteReenactmentFile(MakeTestReenactment(options), path).ok());
-  int exit_code = -1;
-  const nlohmann::json result = RunNode("check_take.mjs", path, &exit_code);
-  EXPECT_EQ(exit_code, 0) << result.dump(2);
+  const nlohmann::json result = WriteAndReadWithMcapCore(MakeTestReenactment(options), path);
   ASSERT_TRUE(result.contains("counts")) << result.dump(2);
-  EXPECT_TRUE(result["problems"].empty()) << result["problems"].dump(2);
   EXPECT_EQ(result["counts"][std::string(kReenactmentInfoTopic)].get<int>(), 1);
   EXPECT_EQ(result["counts"][std::string(kReenactmentPartMeshTopic)].get<int>(), 3);
   EXPECT_EQ(result["counts"][std::string(kReenactmentFrameTopic)].get<int>(), 30);
@@ -160,6 +193,18 @@ TEST(ReenactmentMcapInterop, IndependentReaderSeesEveryChannel) {
     EXPECT_EQ(channel["schema_encoding"], "protobuf");
     EXPECT_GT(channel["schema_bytes"].get<int>(), 0);
   }
+}
+
+TEST(ReenactmentMcapInterop, IndependentReaderSeesTheBodyMesh) {
+  REQUIRE_NODE_PACKAGE("@mcap/core");
+  const std::string path = testing::MakeTempDir("reen_interop_body") + "/body.reen";
+  const nlohmann::json result =
+      WriteAndReadWithMcapCore(testing::MakeTestBodyReenactment(12), path);
+  ASSERT_TRUE(result.contains("counts")) << result.dump(2);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentInfoTopic)].get<int>(), 1);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentBodyMeshTopic)].get<int>(), 1);
+  EXPECT_EQ(result["counts"][std::string(kReenactmentFrameTopic)].get<int>(), 12);
+  EXPECT_FALSE(result["counts"].contains(std::string(kReenactmentPartMeshTopic)));
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -17,6 +18,8 @@
 #include "absl/strings/str_format.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
+#include "common/body/joint_set.h"
+#include "common/io/body_reenactment.h"
 
 namespace reenact {
 
@@ -86,6 +89,17 @@ class GlbBuilder {
     return static_cast<int>(model_.accessors.size()) - 1;
   }
 
+  // An unsigned-byte VEC4 vertex attribute (e.g. JOINTS_0).
+  int AddByteVec4s(const std::vector<uint8_t>& values) {
+    tinygltf::Accessor accessor;
+    accessor.bufferView = AddView(values.data(), values.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+    accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    accessor.count = values.size() / 4;
+    accessor.type = TINYGLTF_TYPE_VEC4;
+    model_.accessors.push_back(std::move(accessor));
+    return static_cast<int>(model_.accessors.size()) - 1;
+  }
+
   int AddIndices(const std::vector<uint32_t>& indices) {
     tinygltf::Accessor accessor;
     accessor.bufferView = AddView(indices.data(), indices.size() * sizeof(uint32_t),
@@ -121,16 +135,17 @@ std::vector<float> UnitNormals(std::vector<float> normals) {
   return normals;
 }
 
-// The material of `mesh`: its baked JPEG as base colour, or plain grey.
-int AddMaterial(GlbBuilder& b, const v1::PartMesh& mesh, const GltfExportOptions& options,
-                GltfExportSummary* summary) {
+// A material named `name` with `jpeg` (a part's baked texture, a body's
+// atlas) as base colour, or plain grey.
+int AddMaterial(GlbBuilder& b, const std::string& name, const std::string& jpeg,
+                const GltfExportOptions& options, GltfExportSummary* summary) {
   tinygltf::Model& model = b.model();
   tinygltf::Material material;
-  material.name = mesh.name();
+  material.name = name;
   material.pbrMetallicRoughness.metallicFactor = 0.0;
   material.pbrMetallicRoughness.roughnessFactor = 1.0;
   if (options.unlit) material.extensions["KHR_materials_unlit"] = tinygltf::Value();
-  if (options.textures && IsJpeg(mesh.baked_texture_jpeg())) {
+  if (options.textures && IsJpeg(jpeg)) {
     if (model.samplers.empty()) {
       tinygltf::Sampler sampler;
       sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
@@ -140,13 +155,12 @@ int AddMaterial(GlbBuilder& b, const v1::PartMesh& mesh, const GltfExportOptions
       model.samplers.push_back(sampler);
     }
     tinygltf::Image image;
-    image.name = mesh.name();
+    image.name = name;
     image.mimeType = "image/jpeg";
-    image.bufferView =
-        b.AddView(mesh.baked_texture_jpeg().data(), mesh.baked_texture_jpeg().size(), 0);
+    image.bufferView = b.AddView(jpeg.data(), jpeg.size(), 0);
     model.images.push_back(std::move(image));
     tinygltf::Texture texture;
-    texture.name = mesh.name();
+    texture.name = name;
     texture.sampler = 0;
     texture.source = static_cast<int>(model.images.size()) - 1;
     model.textures.push_back(std::move(texture));
@@ -177,7 +191,7 @@ absl::StatusOr<int> AddMesh(GlbBuilder& b, const v1::PartMesh& part,
       b.AddFloats(positions, 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
   primitive.attributes["NORMAL"] = b.AddFloats(
       UnitNormals(std::move(normals)), 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
-  primitive.material = AddMaterial(b, part, options, summary);
+  primitive.material = AddMaterial(b, part.name(), part.baked_texture_jpeg(), options, summary);
   // Texture coordinates only where a texture uses them.
   if (b.model().materials[primitive.material].pbrMetallicRoughness.baseColorTexture.index >= 0) {
     primitive.attributes["TEXCOORD_0"] =
@@ -210,6 +224,16 @@ std::vector<double> KeyTimes(const ReenactmentData& data, const GltfExportOption
   if (!(fps > 0)) fps = 30.0;
   for (size_t i = 0; i < times.size(); ++i) times[i] = static_cast<double>(i) / fps;
   return times;
+}
+
+// Flips `q` into the hemisphere of `previous`, so that LINEAR slerps the
+// short way in every viewer.
+void KeepHemisphere(const std::array<float, 4>& previous, std::array<float, 4>* q) {
+  const std::array<float, 4>& a = previous;
+  std::array<float, 4>& b = *q;
+  if (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0) {
+    for (float& c : b) c = -c;
+  }
 }
 
 Key KeyOf(const v1::PartPose& pose, double time_s, bool visible) {
@@ -265,15 +289,23 @@ std::vector<Key> PartKeys(const ReenactmentData& data, int p, const std::vector<
     }
     keys.push_back(KeyOf(pose, times[i], valid));
   }
-  // Consecutive quaternions in one hemisphere.
-  for (size_t k = 1; k < keys.size(); ++k) {
-    const auto& a = keys[k - 1].rotation;
-    auto& b = keys[k].rotation;
-    if (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0) {
-      for (float& c : b) c = -c;
-    }
-  }
+  for (size_t k = 1; k < keys.size(); ++k) KeepHemisphere(keys[k - 1].rotation, &keys[k].rotation);
   return keys;
+}
+
+// A LINEAR channel animating `path` of `node`: key times from accessor
+// `input`, values from `output`.
+void AddChannel(tinygltf::Animation& animation, int node, const char* path, int input, int output) {
+  tinygltf::AnimationSampler sampler;
+  sampler.input = input;
+  sampler.output = output;
+  sampler.interpolation = "LINEAR";
+  animation.samplers.push_back(std::move(sampler));
+  tinygltf::AnimationChannel channel;
+  channel.sampler = static_cast<int>(animation.samplers.size()) - 1;
+  channel.target_node = node;
+  channel.target_path = path;
+  animation.channels.push_back(std::move(channel));
 }
 
 // The animation channels of part node `node` from `keys`; `shared_input` is
@@ -293,22 +325,11 @@ void AddPartChannels(GlbBuilder& b, tinygltf::Animation& animation, int node,
     rotation.insert(rotation.end(), k.rotation.begin(), k.rotation.end());
     scale.insert(scale.end(), {k.scale, k.scale, k.scale});
   }
-  const std::pair<const char*, int> outputs[] = {
-      {"translation", b.AddFloats(translation, 3, TINYGLTF_TYPE_VEC3, 0, false)},
-      {"rotation", b.AddFloats(rotation, 4, TINYGLTF_TYPE_VEC4, 0, false)},
-      {"scale", b.AddFloats(scale, 3, TINYGLTF_TYPE_VEC3, 0, false)}};
-  for (const auto& [path, output] : outputs) {
-    tinygltf::AnimationSampler sampler;
-    sampler.input = input;
-    sampler.output = output;
-    sampler.interpolation = "LINEAR";
-    animation.samplers.push_back(std::move(sampler));
-    tinygltf::AnimationChannel channel;
-    channel.sampler = static_cast<int>(animation.samplers.size()) - 1;
-    channel.target_node = node;
-    channel.target_path = path;
-    animation.channels.push_back(std::move(channel));
-  }
+  AddChannel(animation, node, "translation", input,
+             b.AddFloats(translation, 3, TINYGLTF_TYPE_VEC3, 0, false));
+  AddChannel(animation, node, "rotation", input,
+             b.AddFloats(rotation, 4, TINYGLTF_TYPE_VEC4, 0, false));
+  AddChannel(animation, node, "scale", input, b.AddFloats(scale, 3, TINYGLTF_TYPE_VEC3, 0, false));
 }
 
 // The node's rest transform: its first key.
@@ -316,6 +337,165 @@ void SetRestTransform(tinygltf::Node& node, const Key& key) {
   node.translation.assign(key.translation.begin(), key.translation.end());
   node.rotation.assign(key.rotation.begin(), key.rotation.end());
   node.scale.assign(3, key.scale);
+}
+
+// ------------------------------------------------- body-model reenactments
+
+// Area-weighted unit normals of the rest mesh, 3 floats per model vertex.
+std::vector<float> RestNormals(const DecodedBodyMesh& body) {
+  std::vector<float> normals(3 * body.num_vertices(), 0.0f);
+  for (const Eigen::Vector3i& t : body.triangles) {
+    const Eigen::Vector3d a = body.rest_vertices_m.col(t[0]);
+    const Eigen::Vector3d n =
+        (body.rest_vertices_m.col(t[1]) - a).cross(body.rest_vertices_m.col(t[2]) - a);
+    for (int c = 0; c < 3; ++c) {
+      for (int k = 0; k < 3; ++k) normals[3 * t[c] + k] += static_cast<float>(n[k]);
+    }
+  }
+  return UnitNormals(std::move(normals));
+}
+
+// The skinned mesh over the texture vertices: rest positions, normals, uvs
+// (v flipped), JOINTS_0 (joint ids are the skin's joint indices) and
+// WEIGHTS_0 (renormalised in float32), with the atlas as material.
+int AddBodyMesh(GlbBuilder& b, const v1::BodyMesh& message, const DecodedBodyMesh& body,
+                const GltfExportOptions& options, GltfExportSummary* summary) {
+  const std::vector<float> model_normals = RestNormals(body);
+  std::vector<float> positions, normals, uvs, weights;
+  std::vector<uint8_t> joints;
+  for (size_t i = 0; i < body.texture_vertex_source.size(); ++i) {
+    const int v = static_cast<int>(body.texture_vertex_source[i]);
+    for (int c = 0; c < 3; ++c) {
+      positions.push_back(static_cast<float>(body.rest_vertices_m(c, v)));
+      normals.push_back(model_normals[3 * v + c]);
+    }
+    uvs.insert(uvs.end(), {body.texture_uvs[i].x(), 1.0f - body.texture_uvs[i].y()});
+    float sum = 0.0f;
+    for (float w : body.skin_weights[v]) sum += w;
+    for (int k = 0; k < body::kMaxInfluences; ++k) {
+      const float w = body.skin_weights[v][k] / sum;
+      joints.push_back(static_cast<uint8_t>(w > 0.0f ? body.skin_joints[v][k] : 0));
+      weights.push_back(w);
+    }
+  }
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] =
+      b.AddFloats(positions, 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
+  primitive.attributes["NORMAL"] =
+      b.AddFloats(normals, 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  primitive.attributes["JOINTS_0"] = b.AddByteVec4s(joints);
+  primitive.attributes["WEIGHTS_0"] =
+      b.AddFloats(weights, 4, TINYGLTF_TYPE_VEC4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  primitive.material = AddMaterial(b, "body", message.atlas_jpeg(), options, summary);
+  if (b.model().materials[primitive.material].pbrMetallicRoughness.baseColorTexture.index >= 0) {
+    primitive.attributes["TEXCOORD_0"] =
+        b.AddFloats(uvs, 2, TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  std::vector<uint32_t> indices;
+  for (const Eigen::Vector3i& t : body.texture_triangles) {
+    for (int c = 0; c < 3; ++c) indices.push_back(static_cast<uint32_t>(t[c]));
+  }
+  primitive.indices = b.AddIndices(indices);
+  tinygltf::Mesh mesh;
+  mesh.name = message.model_name().empty() ? "body" : message.model_name();
+  mesh.primitives.push_back(std::move(primitive));
+  b.model().meshes.push_back(std::move(mesh));
+  ++summary->meshes;
+  return static_cast<int>(b.model().meshes.size()) - 1;
+}
+
+// The 25 joint nodes (Kinect v2 order, from node index `first`) in the
+// Kinect v2 tree under node 0, at their rest translations with no rotation,
+// and the skin over them: inverse bind matrices translate by -J_j.
+int AddSkeleton(GlbBuilder& b, const DecodedBodyMesh& body) {
+  tinygltf::Model& model = b.model();
+  const int first = static_cast<int>(model.nodes.size());
+  std::vector<float> inverse_binds;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    const auto joint = static_cast<body::KinectV2Joint>(j);
+    const std::optional<body::KinectV2Joint> parent = body::KinectV2Parent(joint);
+    const Eigen::Vector3d rest = body.rest_joints_m[j];
+    const Eigen::Vector3d offset =
+        parent.has_value() ? Eigen::Vector3d(rest - body.rest_joints_m[Index(*parent)]) : rest;
+    tinygltf::Node node;
+    node.name = std::string(body::KinectV2JointName(joint));
+    node.translation = {offset.x(), offset.y(), offset.z()};
+    model.nodes.push_back(std::move(node));
+    Eigen::Matrix4f inverse_bind = Eigen::Matrix4f::Identity();  // Column-major, as glTF.
+    inverse_bind.block<3, 1>(0, 3) = (-rest).cast<float>();
+    inverse_binds.insert(inverse_binds.end(), inverse_bind.data(), inverse_bind.data() + 16);
+  }
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    const std::optional<body::KinectV2Joint> parent =
+        body::KinectV2Parent(static_cast<body::KinectV2Joint>(j));
+    model.nodes[parent.has_value() ? first + Index(*parent) : 0].children.push_back(first + j);
+  }
+  tinygltf::Skin skin;
+  skin.name = "kinect_v2";
+  skin.skeleton = first + Index(body::KinectV2Joint::kSpineBase);
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) skin.joints.push_back(first + j);
+  skin.inverseBindMatrices = b.AddFloats(inverse_binds, 16, TINYGLTF_TYPE_MAT4, 0, false);
+  model.skins.push_back(std::move(skin));
+  return first;
+}
+
+// Per joint a rotation channel (the BodyPose's local rotation: in the
+// joint's world-aligned rest frame, which is the node's rotation since the
+// rest nodes carry none), and a translation channel on the root (its rest
+// joint plus root_translation_m), keyed at every frame.
+absl::Status AddBodyChannels(GlbBuilder& b, const ReenactmentData& data,
+                             const DecodedBodyMesh& body, int first_joint, int input,
+                             tinygltf::Animation& animation) {
+  std::vector<std::vector<float>> rotations(body::kNumKinectV2Joints);
+  std::vector<float> root_translations;
+  std::vector<std::array<float, 4>> previous(body::kNumKinectV2Joints);
+  for (size_t f = 0; f < data.frames.size(); ++f) {
+    ASSIGN_OR_RETURN(const body::BodyPose pose, BodyPoseFromProto(data.frames[f].body()));
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      const Eigen::Quaterniond& q = pose.local_rotation[j];
+      std::array<float, 4> key = {static_cast<float>(q.x()), static_cast<float>(q.y()),
+                                  static_cast<float>(q.z()), static_cast<float>(q.w())};
+      if (f > 0) KeepHemisphere(previous[j], &key);
+      previous[j] = key;
+      rotations[j].insert(rotations[j].end(), key.begin(), key.end());
+    }
+    const Eigen::Vector3d root =
+        body.rest_joints_m[Index(body::KinectV2Joint::kSpineBase)] + pose.root_translation_m;
+    for (int c = 0; c < 3; ++c) root_translations.push_back(static_cast<float>(root[c]));
+  }
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    AddChannel(animation, first_joint + j, "rotation", input,
+               b.AddFloats(rotations[j], 4, TINYGLTF_TYPE_VEC4, 0, false));
+  }
+  AddChannel(animation, first_joint + Index(body::KinectV2Joint::kSpineBase), "translation", input,
+             b.AddFloats(root_translations, 3, TINYGLTF_TYPE_VEC3, 0, false));
+  return absl::OkStatus();
+}
+
+// The body of a body-model reenactment: skeleton and skin, the skinned mesh
+// on its own scene node (returned; glTF ignores a skinned mesh node's own
+// transform and its parents'), and the animation channels when there are
+// frames (`input`: the frame times).
+absl::StatusOr<int> AddBody(GlbBuilder& b, const ReenactmentData& data,
+                            const GltfExportOptions& options, int input,
+                            tinygltf::Animation& animation, GltfExportSummary* summary) {
+  ASSIGN_OR_RETURN(const DecodedBodyMesh body, DecodeBodyMesh(data.body.front()));
+  const int first_joint = AddSkeleton(b, body);
+  tinygltf::Node node;
+  node.name = "body";
+  node.mesh = AddBodyMesh(b, data.body.front(), body, options, summary);
+  node.skin = 0;
+  b.model().nodes.push_back(std::move(node));
+  summary->joints = body::kNumKinectV2Joints;
+  for (const v1::PartFrame& frame : data.frames) {
+    summary->frames_offsets_left_out += !frame.body().vertex_offsets_m_f32().empty();
+  }
+  if (input >= 0) {
+    RETURN_IF_ERROR(AddBodyChannels(b, data, body, first_joint, input, animation));
+    summary->keys = body::kNumKinectV2Joints * static_cast<int>(data.frames.size());
+  }
+  return static_cast<int>(b.model().nodes.size()) - 1;
 }
 
 tinygltf::Value InfoExtras(const v1::ReenactmentInfo& info) {
@@ -339,10 +519,18 @@ absl::Status GltfExportOptions::Validate() const {
 }
 
 std::string GltfExportSummary::BriefReport() const {
+  std::string skin;
+  if (joints > 0) {
+    skin = absl::StrFormat(", skinned over %d joints", joints);
+    if (frames_offsets_left_out > 0) {
+      absl::StrAppendFormat(&skin, " (vertex offsets of %d frames left out)",
+                            frames_offsets_left_out);
+    }
+  }
   return absl::StrFormat(
-      "glb: %d nodes, %d meshes, %d textures, %d animation channels, %d keys over %.3f s%s, "
+      "glb: %d nodes, %d meshes, %d textures%s, %d animation channels, %d keys over %.3f s%s, "
       "%d bytes",
-      nodes, meshes, textures, animation_channels, keys, duration_s,
+      nodes, meshes, textures, skin, animation_channels, keys, duration_s,
       stamps_fell_back ? " (times from frame index / fps)" : "", bytes);
 }
 
@@ -373,6 +561,13 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
   }
   tinygltf::Animation animation;
   animation.name = model.nodes[0].name;
+  tinygltf::Scene scene;
+  scene.name = model.nodes[0].name;
+  scene.nodes.push_back(0);
+  if (data.is_body()) {
+    ASSIGN_OR_RETURN(const int body_node, AddBody(b, data, options, shared_input, animation, &s));
+    scene.nodes.push_back(body_node);
+  }
   for (int p = 0; p < static_cast<int>(data.parts.size()); ++p) {
     tinygltf::Node node;
     node.name = data.parts[p].name();
@@ -394,9 +589,6 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
     model.extensionsUsed.push_back("KHR_materials_unlit");
   }
 
-  tinygltf::Scene scene;
-  scene.name = model.nodes[0].name;
-  scene.nodes.push_back(0);
   model.scenes.push_back(std::move(scene));
   model.defaultScene = 0;
   model.buffers[0].data.resize((model.buffers[0].data.size() + 3) / 4 * 4, 0);

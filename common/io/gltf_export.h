@@ -56,11 +56,14 @@ struct GltfExportOptions {
 
 // What an export wrote.
 struct GltfExportSummary {
-  int nodes = 0;     // Root + parts.
-  int meshes = 0;    // Parts with triangles.
-  int textures = 0;  // Baked textures embedded.
+  int nodes = 0;     // Root + parts (body: root + joints + the mesh node).
+  int meshes = 0;    // Parts with triangles (body: 1).
+  int textures = 0;  // Baked textures (body: the atlas) embedded.
   int animation_channels = 0;
-  int keys = 0;  // Animation keys over all parts (frames + steps).
+  int keys = 0;    // Animation keys over all parts (frames + steps) or joints.
+  int joints = 0;  // Skin joints (body-model reenactments: 25).
+  // Body-model reenactments: frames whose vertex offsets were left out.
+  int frames_offsets_left_out = 0;
   double duration_s = 0.0;
   bool stamps_fell_back = false;  // Key times from frame_index / fps.
   int64_t bytes = 0;              // Size of the .glb.

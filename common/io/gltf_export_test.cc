@@ -342,18 +342,6 @@ Eigen::Matrix3Xd SkinAt(const tinygltf::Model& model, size_t k) {
   return skinned;
 }
 
-// The test body reenactment, with a frame that turns every joint.
-ReenactmentData BodyWithEveryJointTurned() {
-  ReenactmentData data = testing::MakeTestBodyReenactment(4);
-  body::BodyPose pose = testing::TestBodyPose(3);
-  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    pose.local_rotation[j] = Eigen::AngleAxisd(
-        0.05 * (j + 3), Eigen::Vector3d(std::sin(j), std::cos(2.0 * j), 0.5).normalized());
-  }
-  *data.frames[3].mutable_body() = BodyPoseToProto(pose);
-  return data;
-}
-
 TEST(ExportReenactmentGlb, BodyIsOneSkinnedMeshOverTheKinectV2Tree) {
   const ReenactmentData data = testing::MakeTestBodyReenactment(5);
   GltfExportSummary summary;
@@ -409,7 +397,8 @@ TEST(ExportReenactmentGlb, BodyIsOneSkinnedMeshOverTheKinectV2Tree) {
 // What a viewer skins from the file at key k is PoseBodyMesh of frame k
 // without the vertex offsets (which the file leaves out).
 TEST(ExportReenactmentGlb, SkinningTheBodyReproducesPoseBodyMesh) {
-  const ReenactmentData data = BodyWithEveryJointTurned();
+  ReenactmentData data = testing::MakeTestBodyReenactment(4);
+  testing::TurnEveryJoint(&data, 3);
   auto glb = ExportReenactmentGlb(data);
   ASSERT_TRUE(glb.ok()) << glb.status();
   const tinygltf::Model model = Load(*glb);

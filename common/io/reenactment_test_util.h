@@ -253,4 +253,18 @@ inline ReenactmentData MakeTestBodyReenactment(int frames = 5,
   return data;
 }
 
+// Replaces the pose of `frame` of a body reenactment by one that turns every
+// joint (0.15 to 1.35 rad about axes that differ per joint), keeping its root
+// translation, so tests of pose conventions see every joint move.
+inline void TurnEveryJoint(ReenactmentData* data, int frame) {
+  v1::BodyPose* message = data->frames[frame].mutable_body();
+  auto pose = BodyPoseFromProto(*message);
+  ASSERT_TRUE(pose.ok()) << pose.status();
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    pose->local_rotation[j] = Eigen::AngleAxisd(
+        0.05 * (j + 3), Eigen::Vector3d(std::sin(j), std::cos(2.0 * j), 0.5).normalized());
+  }
+  *message = BodyPoseToProto(*pose);
+}
+
 }  // namespace reenact::testing

@@ -13,9 +13,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_cat.h"
 #include "clients/cli/command.h"
 #include "clients/cli/commands.h"
-
+#include "common/body/motion.h"
+#include "common/io/body_reenactment.h"
 #include "common/io/reenactment_file.h"
 #include "common/io/reenactment_test_util.h"
 #include "common/testing/test_data.h"
@@ -51,9 +53,17 @@ struct Fixture {
   ~Fixture() { grpc_server->Shutdown(); }
 
   ReenactmentData Add(const TestReenactmentOptions& options) {
-    ReenactmentData data = MakeTestReenactment(options);
-    EXPECT_TRUE(WriteReenactmentFile(data, store->PathFor(options.id)).ok());
-    EXPECT_TRUE(store->Add(options.id).ok());
+    return Store(MakeTestReenactment(options));
+  }
+
+  ReenactmentData AddBody(int frames, const std::string& id) {
+    return Store(testing::MakeTestBodyReenactment(frames, id));
+  }
+
+  ReenactmentData Store(ReenactmentData data) {
+    const std::string& id = data.info.reenactment_id();
+    EXPECT_TRUE(WriteReenactmentFile(data, store->PathFor(id)).ok());
+    EXPECT_TRUE(store->Add(id).ok());
     return data;
   }
 };
@@ -91,6 +101,42 @@ TEST(ReenactmentsClient, FetchReassemblesWhatWasStored) {
   auto without = client.Fetch("r-client", /*skip_keyframes=*/true);
   ASSERT_TRUE(without.ok()) << without.status();
   EXPECT_TRUE(without->keyframes.empty());
+}
+
+TEST(ReenactmentsClient, FetchOfABodyReenactmentEqualsTheFile) {
+  Fixture f("rclient_body");
+  const ReenactmentData stored = f.AddBody(40, "r-body");
+  f.Add(TestReenactmentOptions{.id = "r-rigid"});
+  client::ReenactmentsClient client(f.connection);
+
+  auto summary = client.Get("r-body");
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_EQ(summary->part_count(), 0);
+  EXPECT_EQ(summary->keyframe_count(), 0);
+  EXPECT_EQ(summary->info().method(), "body");
+  int64_t last_items = 0;
+  auto fetched = client.Fetch("r-body", /*skip_keyframes=*/false, [&](const Progress& p) {
+    EXPECT_EQ(p.items_total, 40);
+    last_items = p.items_done;
+    return true;
+  });
+  ASSERT_TRUE(fetched.ok()) << fetched.status();
+  EXPECT_EQ(last_items, 40);
+  ASSERT_TRUE(fetched->is_body());
+  EXPECT_EQ(fetched->info.SerializeAsString(), stored.info.SerializeAsString());
+  EXPECT_EQ(fetched->body[0].SerializeAsString(), stored.body[0].SerializeAsString());
+  ASSERT_EQ(fetched->frames.size(), stored.frames.size());
+  for (size_t f = 0; f < stored.frames.size(); ++f) {
+    EXPECT_EQ(fetched->frames[f].SerializeAsString(), stored.frames[f].SerializeAsString()) << f;
+  }
+  EXPECT_TRUE(fetched->parts.empty());
+  EXPECT_TRUE(fetched->keyframes.empty());
+
+  auto mesh = client.FetchBodyMesh("r-body");
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->SerializeAsString(), stored.body[0].SerializeAsString());
+  EXPECT_EQ(client.FetchBodyMesh("r-rigid").status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(client.FetchBodyMesh("r-missing").status().code(), absl::StatusCode::kNotFound);
 }
 
 TEST(ReenactmentsClient, ListGetDeleteAndErrors) {
@@ -146,6 +192,16 @@ CliRun Cli(const std::vector<std::string>& argv) {
   return r;
 }
 
+// `reenact export --server SERVER --reenactment ID --format FORMAT --out
+// PATH --quiet --json`: its JSON summary (empty when it failed).
+nlohmann::json ExportJson(const std::string& server, const std::string& id,
+                          const std::string& format, const std::string& path) {
+  const CliRun run = Cli({"export", "--server", server, "--reenactment", id, "--format", format,
+                          "--out", path, "--quiet", "--json"});
+  EXPECT_EQ(run.code, 0) << run.err;
+  return run.code == 0 ? nlohmann::json::parse(run.out) : nlohmann::json::object();
+}
+
 TEST(ReenactCli, ListsShowsAndExports) {
   Fixture f("rcli");
   TestReenactmentOptions options;
@@ -172,10 +228,7 @@ TEST(ReenactCli, ListsShowsAndExports) {
             cli::kExitFailure);
 
   const std::string dir = testing::MakeTempDir("rcli_out");
-  const CliRun remote = Cli({"export", "--server", server, "--reenactment", "r-cli", "--format",
-                             "glb", "--out", dir + "/remote.glb", "--quiet", "--json"});
-  ASSERT_EQ(remote.code, 0) << remote.err;
-  const nlohmann::json summary = nlohmann::json::parse(remote.out);
+  const nlohmann::json summary = ExportJson(server, "r-cli", "glb", dir + "/remote.glb");
   EXPECT_EQ(summary["nodes"], 4);
   EXPECT_EQ(summary["animation_channels"], 9);
   EXPECT_EQ(summary["bytes"].get<int64_t>(),
@@ -197,9 +250,77 @@ TEST(ReenactCli, ListsShowsAndExports) {
   EXPECT_EQ(Cli({"export", "--in", dir + "/missing.reen", "--out", dir + "/m.glb"}).code,
             cli::kExitFailure);
 
+  // BVH is the skeleton of a body model; a rigid reenactment has none.
+  const CliRun rigid_bvh = Cli({"export", "--server", server, "--reenactment", "r-cli", "--format",
+                                "bvh", "--out", dir + "/rigid.bvh", "--quiet"});
+  EXPECT_EQ(rigid_bvh.code, cli::kExitUsage);
+  EXPECT_NE(rigid_bvh.err.find("--format bvh needs a body-model reenactment"), std::string::npos)
+      << rigid_bvh.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/rigid.bvh"));
+
   const CliRun deleted = Cli({"reenactments", "delete", "r-cli", "--server", server});
   ASSERT_EQ(deleted.code, 0) << deleted.err;
   EXPECT_TRUE(f.store->List().empty());
+}
+
+TEST(ReenactCli, ShowsAndExportsABodyReenactment) {
+  Fixture f("rcli_body");
+  const ReenactmentData stored = f.AddBody(6, "r-body-cli");
+  const std::string server = f.connection.address;
+  const int vertices = testing::TestBodyModel().num_vertices();
+
+  const CliRun show = Cli({"reenactments", "show", "r-body-cli", "--server", server});
+  ASSERT_EQ(show.code, 0) << show.err;
+  EXPECT_NE(show.out.find("body model  procedural"), std::string::npos) << show.out;
+  EXPECT_NE(show.out.find("=0.500"), std::string::npos) << show.out;
+  EXPECT_NE(show.out.find("=-0.500"), std::string::npos) << show.out;
+  EXPECT_NE(show.out.find(absl::StrCat("mesh        ", vertices, " vertices, ",
+                                       stored.body[0].triangle_indices_size() / 3, " triangles")),
+            std::string::npos)
+      << show.out;
+  EXPECT_NE(show.out.find("atlas       64 x 64 JPEG"), std::string::npos) << show.out;
+  EXPECT_EQ(show.out.find("parts "), std::string::npos) << show.out;
+  const CliRun json = Cli({"reenactments", "show", "r-body-cli", "--server", server, "--json"});
+  ASSERT_EQ(json.code, 0) << json.err;
+  const nlohmann::json shown = nlohmann::json::parse(json.out);
+  EXPECT_EQ(shown["body"]["model_name"], "procedural");
+  EXPECT_EQ(shown["body"]["vertices"].get<int>(), vertices);
+  EXPECT_EQ(shown["body"]["atlas_width"].get<int>(), 64);
+  EXPECT_EQ(shown["body"]["shape"].size(), static_cast<size_t>(stored.body[0].shape_size()));
+
+  const std::string dir = testing::MakeTempDir("rcli_body_out");
+  const nlohmann::json glb_summary = ExportJson(server, "r-body-cli", "glb", dir + "/body.glb");
+  EXPECT_EQ(glb_summary["joints"], 25);
+  EXPECT_EQ(glb_summary["meshes"], 1);
+  EXPECT_EQ(glb_summary["frames_offsets_left_out"], 1);
+  EXPECT_EQ(glb_summary["animation_channels"], 26);
+
+  const nlohmann::json bvh_summary = ExportJson(server, "r-body-cli", "bvh", dir + "/body.bvh");
+  EXPECT_EQ(bvh_summary["joints"], 25);
+  EXPECT_EQ(bvh_summary["frames"], 6);
+  // The file reads back as the posed joints (0.1 mm).
+  body::BvhOptions options;
+  options.metres_per_unit = 0.01;
+  auto motion = body::ReadBvh(dir + "/body.bvh", options);
+  ASSERT_TRUE(motion.ok()) << motion.status();
+  auto mesh = DecodeBodyMesh(stored.body[0]);
+  ASSERT_TRUE(mesh.ok());
+  for (int frame = 0; frame < 6; ++frame) {
+    auto posed = PoseBodyMesh(*mesh, stored.frames[frame].body());
+    ASSERT_TRUE(posed.ok());
+    const auto world = motion->WorldFromJoints(frame);
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      const Eigen::Vector3d read = world[motion->canonical_to_source()[j]].translation();
+      EXPECT_LT((read - posed->joints_m[j]).norm(), 0.1e-3) << "frame " << frame << " joint " << j;
+    }
+  }
+  // The same from the file, in words.
+  const CliRun local = Cli({"export", "--in", f.store->PathFor("r-body-cli"), "--format", "bvh",
+                            "--out", dir + "/local.bvh"});
+  ASSERT_EQ(local.code, 0) << local.err;
+  EXPECT_NE(local.out.find("25 Kinect v2 joints, 6 frames"), std::string::npos) << local.out;
+  EXPECT_EQ(std::filesystem::file_size(dir + "/local.bvh"),
+            std::filesystem::file_size(dir + "/body.bvh"));
 }
 
 }  // namespace

@@ -1,7 +1,12 @@
 // `reenact reenactments ...` (the server's Reenactments service) and
-// `reenact export` (a reenactment, fetched or from a local file, as glTF).
+// `reenact export` (a reenactment, fetched or from a local file, as glTF, or
+// a body-model reenactment's skeleton as BVH).
 #include <ctime>
+#include <filesystem>
+#include <optional>
 #include <ostream>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -13,7 +18,10 @@
 #include "clients/sdk/reenactments_client.h"
 #include "common/base/flags.h"
 #include "common/base/time.h"
+#include "common/body/motion.h"
+#include "common/io/body_reenactment_motion.h"
 #include "common/io/gltf_export.h"
+#include "common/io/jpeg.h"
 #include "common/io/reenactment_file.h"
 
 namespace reenact::cli {
@@ -57,7 +65,48 @@ absl::StatusOr<std::string> ReenactmentId(const Flags& flags, const std::string&
       absl::StrCat(command, " needs exactly one reenactment id (ID or --reenactment ID)"));
 }
 
-void PrintSummary(const v1::ReenactmentSummary& s, std::ostream& out) {
+// What `reenactments show` tells of a body-model reenactment's BodyMesh.
+struct BodyFacts {
+  std::string model_name;
+  std::vector<std::pair<std::string, double>> shape;  // (direction name, coefficient).
+  int64_t vertices = 0, triangles = 0, texture_vertices = 0;
+  int atlas_width = 0, atlas_height = 0;  // 0 when the atlas is missing or undecodable.
+  int64_t atlas_bytes = 0;
+};
+
+BodyFacts FactsOf(const v1::BodyMesh& mesh) {
+  BodyFacts facts;
+  facts.model_name = mesh.model_name();
+  for (int k = 0; k < mesh.shape_size(); ++k) {
+    facts.shape.emplace_back(k < mesh.shape_names_size() ? mesh.shape_names(k) : "", mesh.shape(k));
+  }
+  facts.vertices = static_cast<int64_t>(mesh.rest_positions_m_f32().size() / (3 * sizeof(float)));
+  facts.triangles = mesh.triangle_indices_size() / 3;
+  facts.texture_vertices = mesh.texture_vertex_source_size();
+  facts.atlas_bytes = static_cast<int64_t>(mesh.atlas_jpeg().size());
+  if (auto atlas = DecodeJpeg(mesh.atlas_jpeg()); atlas.ok()) {
+    facts.atlas_width = atlas->width;
+    facts.atlas_height = atlas->height;
+  }
+  return facts;
+}
+
+nlohmann::json BodyJson(const BodyFacts& facts) {
+  nlohmann::json shape = nlohmann::json::object();
+  for (const auto& [name, value] : facts.shape) shape[name] = value;
+  return {{"model_name", facts.model_name},
+          {"shape", shape},
+          {"vertices", facts.vertices},
+          {"triangles", facts.triangles},
+          {"texture_vertices", facts.texture_vertices},
+          {"atlas_width", facts.atlas_width},
+          {"atlas_height", facts.atlas_height},
+          {"atlas_bytes", facts.atlas_bytes}};
+}
+
+// The summary; for a body-model reenactment (`body` set) its model, shape,
+// mesh and atlas instead of the part and keyframe counts.
+void PrintSummary(const v1::ReenactmentSummary& s, const BodyFacts* body, std::ostream& out) {
   const v1::ReenactmentInfo& info = s.info();
   out << "reenactment " << info.reenactment_id() << "\n"
       << "take        " << info.take_id() << "\n"
@@ -65,10 +114,22 @@ void PrintSummary(const v1::ReenactmentSummary& s, std::ostream& out) {
       << "method      " << info.method() << "\n"
       << "created     " << UtcTime(info.created_unix_ns()) << "\n"
       << "frames      " << info.frame_count()
-      << absl::StrFormat(" at %.2f fps (%.3f s)", info.fps(), DurationS(info)) << "\n"
-      << "parts       " << s.part_count() << "\n"
-      << "keyframes   " << s.keyframe_count() << " from " << info.sensors_size() << " sensor(s)\n"
-      << "size        " << HumanBytes(s.file_bytes()) << "\n"
+      << absl::StrFormat(" at %.2f fps (%.3f s)", info.fps(), DurationS(info)) << "\n";
+  if (body != nullptr) {
+    out << "body model  " << body->model_name << "\n"
+        << "shape      ";
+    for (const auto& [name, value] : body->shape) out << absl::StrFormat(" %s=%.3f", name, value);
+    out << (body->shape.empty() ? " (none)\n" : "\n")
+        << absl::StrFormat("mesh        %d vertices, %d triangles, %d texture vertices\n",
+                           body->vertices, body->triangles, body->texture_vertices)
+        << absl::StrFormat("atlas       %d x %d JPEG (%s)\n", body->atlas_width, body->atlas_height,
+                           HumanBytes(body->atlas_bytes));
+  } else {
+    out << "parts       " << s.part_count() << "\n"
+        << "keyframes   " << s.keyframe_count() << " from " << info.sensors_size()
+        << " sensor(s)\n";
+  }
+  out << "size        " << HumanBytes(s.file_bytes()) << "\n"
       << "generator   " << info.generator() << "\n";
   for (const auto& [key, value] : info.options()) {
     out << "option      " << key << " = " << value << "\n";
@@ -76,6 +137,72 @@ void PrintSummary(const v1::ReenactmentSummary& s, std::ostream& out) {
   for (const auto& [key, value] : info.figures()) {
     out << "figure      " << key << " = " << value << "\n";
   }
+}
+
+// `reenact export --format glb`: the .glb of `data` at `path`.
+int ExportGlb(const ReenactmentData& data, const Flags& flags, const std::string& path,
+              std::ostream& out, std::ostream& err) {
+  GltfExportOptions options;
+  options.textures = !flags.Has("no-textures");
+  GltfExportSummary summary;
+  const absl::Status written = WriteReenactmentGlb(data, path, options, &summary);
+  if (!written.ok()) return ReportRemoteError(written, err);
+  if (flags.Has("json")) {
+    out << nlohmann::json{{"out", path},
+                          {"format", "glb"},
+                          {"reenactment_id", data.info.reenactment_id()},
+                          {"nodes", summary.nodes},
+                          {"meshes", summary.meshes},
+                          {"textures", summary.textures},
+                          {"joints", summary.joints},
+                          {"frames_offsets_left_out", summary.frames_offsets_left_out},
+                          {"animation_channels", summary.animation_channels},
+                          {"keys", summary.keys},
+                          {"duration_s", summary.duration_s},
+                          {"stamps_fell_back", summary.stamps_fell_back},
+                          {"bytes", summary.bytes}}
+               .dump(2)
+        << "\n";
+    return kExitOk;
+  }
+  out << "wrote " << path << " (" << HumanBytes(summary.bytes) << "): " << summary.BriefReport()
+      << "\n";
+  return kExitOk;
+}
+
+// `reenact export --format bvh`: the fitted skeleton of a body-model
+// reenactment (BodyReenactmentMotion) as BVH, centimetres.
+int ExportBvh(const ReenactmentData& data, const Flags& flags, const std::string& path,
+              std::ostream& out, std::ostream& err) {
+  if (!data.is_body()) {
+    return ReportError(
+        absl::InvalidArgumentError(absl::StrCat(
+            "--format bvh needs a body-model reenactment; ", data.info.reenactment_id(),
+            " (method \"", data.info.method(), "\") is made of rigid parts: use --format glb")),
+        err);
+  }
+  auto motion = BodyReenactmentMotion(data);
+  if (!motion.ok()) return ReportRemoteError(motion.status(), err);
+  const absl::Status written = body::WriteBvh(*motion, path);
+  if (!written.ok()) return ReportRemoteError(written, err);
+  std::error_code ec;
+  const auto bytes = static_cast<int64_t>(std::filesystem::file_size(path, ec));
+  if (flags.Has("json")) {
+    out << nlohmann::json{{"out", path},
+                          {"format", "bvh"},
+                          {"reenactment_id", data.info.reenactment_id()},
+                          {"joints", motion->joints().size()},
+                          {"frames", motion->num_frames()},
+                          {"fps", motion->fps()},
+                          {"bytes", ec ? -1 : bytes}}
+               .dump(2)
+        << "\n";
+    return kExitOk;
+  }
+  out << "wrote " << path << " (" << HumanBytes(ec ? 0 : bytes)
+      << "): bvh: " << motion->joints().size() << " Kinect v2 joints, " << motion->num_frames()
+      << absl::StrFormat(" frames at %.2f fps, centimetres", motion->fps()) << "\n";
+  return kExitOk;
 }
 
 }  // namespace
@@ -117,13 +244,25 @@ int RunReenactmentsShow(const std::vector<std::string>& args, std::ostream& out,
   if (!id.ok()) return ReportError(id.status(), err);
   auto connection = ConnectionFromFlags(*flags);
   if (!connection.ok()) return ReportError(connection.status(), err);
-  auto summary = client::ReenactmentsClient(*connection).Get(*id);
+  const client::ReenactmentsClient client(*connection);
+  auto summary = client.Get(*id);
   if (!summary.ok()) return ReportRemoteError(summary.status(), err);
+  std::optional<BodyFacts> body;
+  if (summary->part_count() == 0) {  // Body-model reenactments have no parts.
+    auto mesh = client.FetchBodyMesh(*id);
+    if (mesh.ok()) {
+      body = FactsOf(*mesh);
+    } else if (mesh.status().code() != absl::StatusCode::kFailedPrecondition) {
+      return ReportRemoteError(mesh.status(), err);
+    }
+  }
   if (flags->Has("json")) {
-    out << SummaryJson(*summary).dump(2) << "\n";
+    nlohmann::json j = SummaryJson(*summary);
+    if (body.has_value()) j["body"] = BodyJson(*body);
+    out << j.dump(2) << "\n";
     return kExitOk;
   }
-  PrintSummary(*summary, out);
+  PrintSummary(*summary, body.has_value() ? &*body : nullptr, out);
   return kExitOk;
 }
 
@@ -148,9 +287,11 @@ int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostr
   auto out_path = flags->Required("out");
   if (!out_path.ok()) return ReportError(out_path.status(), err);
   const std::string format = flags->GetOr("format", "glb");
-  if (format != "glb") {
+  if (format != "glb" && format != "bvh") {
     return ReportError(absl::InvalidArgumentError(absl::StrCat(
-                           "--format ", format, " is not supported (glb: glTF 2.0 binary)")),
+                           "--format ", format,
+                           " is not supported (glb: glTF 2.0 binary; bvh: the fitted skeleton "
+                           "of a body-model reenactment)")),
                        err);
   }
   if (!flags->positional().empty() || flags->Has("in") == flags->Has("reenactment") ||
@@ -174,29 +315,8 @@ int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostr
     bar.Finish();
     if (!data.ok()) return ReportRemoteError(data.status(), err);
   }
-  GltfExportOptions options;
-  options.textures = !flags->Has("no-textures");
-  GltfExportSummary summary;
-  const absl::Status written = WriteReenactmentGlb(*data, *out_path, options, &summary);
-  if (!written.ok()) return ReportRemoteError(written, err);
-  if (flags->Has("json")) {
-    out << nlohmann::json{{"out", *out_path},
-                          {"reenactment_id", data->info.reenactment_id()},
-                          {"nodes", summary.nodes},
-                          {"meshes", summary.meshes},
-                          {"textures", summary.textures},
-                          {"animation_channels", summary.animation_channels},
-                          {"keys", summary.keys},
-                          {"duration_s", summary.duration_s},
-                          {"stamps_fell_back", summary.stamps_fell_back},
-                          {"bytes", summary.bytes}}
-               .dump(2)
-        << "\n";
-    return kExitOk;
-  }
-  out << "wrote " << *out_path << " (" << HumanBytes(summary.bytes)
-      << "): " << summary.BriefReport() << "\n";
-  return kExitOk;
+  return format == "bvh" ? ExportBvh(*data, *flags, *out_path, out, err)
+                         : ExportGlb(*data, *flags, *out_path, out, err);
 }
 
 }  // namespace reenact::cli

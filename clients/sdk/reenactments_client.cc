@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
+#include <string>
 #include <utility>
 
 #include <grpcpp/client_context.h>
@@ -56,6 +58,16 @@ absl::Status Accept(v1::FetchReenactmentChunk& chunk, ReenactmentData* data, int
   return absl::OkStatus();
 }
 
+// Starts a Fetch of `reenactment_id` on `context`.
+std::unique_ptr<grpc::ClientReader<v1::FetchReenactmentChunk>> StartFetch(
+    v1::Reenactments::Stub& stub, grpc::ClientContext* context, const std::string& reenactment_id,
+    bool skip_keyframes) {
+  v1::FetchReenactmentRequest request;
+  request.set_reenactment_id(reenactment_id);
+  request.set_skip_keyframes(skip_keyframes);
+  return stub.Fetch(context, request);
+}
+
 }  // namespace
 
 ReenactmentsClient::ReenactmentsClient(const ConnectionOptions& options)
@@ -102,10 +114,7 @@ absl::StatusOr<ReenactmentData> ReenactmentsClient::Fetch(const std::string& ree
             (skip_keyframes ? 0 : summary->keyframe_count());
   }
   grpc::ClientContext context;
-  v1::FetchReenactmentRequest request;
-  request.set_reenactment_id(reenactment_id);
-  request.set_skip_keyframes(skip_keyframes);
-  auto reader = stub_->Fetch(&context, request);
+  auto reader = StartFetch(*stub_, &context, reenactment_id, skip_keyframes);
   ReenactmentData data;
   v1::FetchReenactmentChunk chunk;
   int stage = 0;
@@ -137,6 +146,35 @@ absl::StatusOr<ReenactmentData> ReenactmentsClient::Fetch(const std::string& ree
                      " arrived incomplete or inconsistent: ", std::string(valid.message())));
   }
   return data;
+}
+
+absl::StatusOr<v1::BodyMesh> ReenactmentsClient::FetchBodyMesh(
+    const std::string& reenactment_id) const {
+  grpc::ClientContext context;
+  auto reader = StartFetch(*stub_, &context, reenactment_id, /*skip_keyframes=*/true);
+  ReenactmentData data;
+  v1::FetchReenactmentChunk chunk;
+  int stage = 0;
+  absl::Status failure;
+  // The body mesh comes right after the info; anything else there means none.
+  bool ended = false;
+  for (int read = 0; read < 2 && failure.ok() && data.body.empty(); ++read) {
+    if (!reader->Read(&chunk)) {
+      ended = true;
+      break;
+    }
+    failure = Accept(chunk, &data, &stage);
+  }
+  if (!ended) context.TryCancel();  // Leaves the frames on the server.
+  const grpc::Status status = reader->Finish();
+  if (!failure.ok()) return WithAddress(failure, options_.address);
+  if (!data.body.empty()) return std::move(data.body.front());
+  if (!status.ok() && status.error_code() != grpc::StatusCode::CANCELLED) {
+    return WithAddress(status, options_.address);
+  }
+  return absl::FailedPreconditionError(absl::StrCat(options_.address, ": reenactment ",
+                                                    reenactment_id, " (method \"",
+                                                    data.info.method(), "\") has no body mesh"));
 }
 
 absl::Status ReenactmentsClient::Delete(const std::string& reenactment_id) const {

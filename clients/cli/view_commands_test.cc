@@ -20,9 +20,11 @@ namespace {
 
 struct Files {
   std::string dir, take, reenactment;
+  std::string body_reenactment;  // The truth as a body-model reenactment.
 };
 
-// A 0.3 s two-sensor take at 480 x 270 and its truth reenactment, once.
+// A 0.3 s two-sensor take at 480 x 270 and its truth reenactments (rigid
+// parts, body model), once.
 const Files& SharedFiles() {
   static const Files* files = [] {
     auto* f = new Files;
@@ -49,6 +51,14 @@ const Files& SharedFiles() {
     }
     const absl::Status written = WriteReenactmentFile(*truth, f->reenactment);
     if (!written.ok()) ADD_FAILURE() << written;
+    auto body_truth = view::testing::MakeTruthBodyReenactment(**take, *model);
+    if (!body_truth.ok()) {
+      ADD_FAILURE() << body_truth.status();
+      return f;
+    }
+    f->body_reenactment = f->dir + "/truth_body.reen";
+    const absl::Status body_written = WriteReenactmentFile(*body_truth, f->body_reenactment);
+    if (!body_written.ok()) ADD_FAILURE() << body_written;
     return f;
   }();
   return *files;
@@ -68,6 +78,22 @@ TEST(RunEval, PrintsTheFiguresAsJson) {
   EXPECT_GT(j["iou_90"].get<double>(), 0.97);
   EXPECT_LT(j["mpjpe_mm"].get<double>(), 1e-3);
   EXPECT_EQ(j["method"].get<std::string>(), "rigid-carved");
+}
+
+TEST(RunEval, MeasuresABodyReenactment) {
+  const Files& files = SharedFiles();
+  std::ostringstream out, err;
+  ASSERT_EQ(
+      RunEval({"--in", files.body_reenactment, "--take", files.take, "--every", "4", "--json"}, out,
+              err),
+      kExitOk)
+      << err.str();
+  const nlohmann::json j = nlohmann::json::parse(out.str());
+  EXPECT_EQ(j["method"].get<std::string>(), "body");
+  EXPECT_EQ(j["frames_evaluated"].get<int>(), 3);
+  EXPECT_LT(j["surface_mm"].get<double>(), 0.01);  // The truth, up to float32 offsets.
+  EXPECT_GT(j["iou_90"].get<double>(), 0.995);
+  EXPECT_LT(j["mpjpe_mm"].get<double>(), 1e-3);
 }
 
 TEST(RunEval, UsageAndInputErrors) {
@@ -98,6 +124,19 @@ TEST(RunRender, WritesOnePngPerFrame) {
     }
     EXPECT_FALSE(std::filesystem::exists(dir + "/frame_00005.png"));
   }
+}
+
+TEST(RunRender, RendersABodyReenactment) {
+  const Files& files = SharedFiles();
+  const std::string dir = files.dir + "/frames_body";
+  std::ostringstream out, err;
+  ASSERT_EQ(
+      RunRender({"--in", files.body_reenactment, "--camera", "orbit:90", "--out", dir, "--width",
+                 "320", "--height", "180", "--frames", "0:2", "--mode", "baked", "--quiet"},
+                out, err),
+      kExitOk)
+      << err.str();
+  EXPECT_TRUE(std::filesystem::exists(dir + "/frame_00001.png"));
 }
 
 TEST(RunRender, BadCameraFramesAndModeAreUsageErrors) {

@@ -49,10 +49,23 @@ struct ServiceFixture {
   ~ServiceFixture() { server->Shutdown(); }
 
   ReenactmentData AddReenactment(const TestReenactmentOptions& options) {
-    ReenactmentData data = MakeTestReenactment(options);
-    EXPECT_TRUE(WriteReenactmentFile(data, store->PathFor(options.id)).ok());
-    EXPECT_TRUE(store->Add(options.id).ok());
+    return Store(MakeTestReenactment(options));
+  }
+
+  // Writes `data` into the store and adds it.
+  ReenactmentData Store(ReenactmentData data) {
+    const std::string& id = data.info.reenactment_id();
+    EXPECT_TRUE(WriteReenactmentFile(data, store->PathFor(id)).ok());
+    EXPECT_TRUE(store->Add(id).ok());
     return data;
+  }
+
+  // The Get RPC.
+  grpc::Status Get(const std::string& id, v1::ReenactmentSummary* summary) {
+    grpc::ClientContext context;
+    v1::GetReenactmentRequest request;
+    request.set_reenactment_id(id);
+    return stub->Get(&context, request, summary);
   }
 };
 
@@ -90,6 +103,9 @@ Fetched Fetch(ServiceFixture& f, const std::string& id, bool skip_keyframes) {
       case v1::FetchReenactmentChunk::kKeyframe:
         out.data.keyframes.push_back(chunk.keyframe());
         break;
+      case v1::FetchReenactmentChunk::kBodyMesh:
+        out.data.body.push_back(chunk.body_mesh());
+        break;
       default:
         ADD_FAILURE() << "empty chunk";
     }
@@ -122,17 +138,12 @@ TEST(Reenactments, ListGetAndDeleteOverTheWire) {
   ASSERT_TRUE(f.stub->List(&filter_context, filter, &listed).ok());
   ASSERT_EQ(listed.reenactments_size(), 1);
 
-  grpc::ClientContext get_context;
-  v1::GetReenactmentRequest get;
-  get.set_reenactment_id("r-a");
   v1::ReenactmentSummary summary;
-  ASSERT_TRUE(f.stub->Get(&get_context, get, &summary).ok());
+  ASSERT_TRUE(f.Get("r-a", &summary).ok());
   EXPECT_EQ(summary.part_count(), 3);
   EXPECT_EQ(summary.keyframe_count(), 2);
   EXPECT_EQ(summary.info().frame_count(), 5);
-  grpc::ClientContext missing_context;
-  get.set_reenactment_id("r-zzz");
-  EXPECT_EQ(f.stub->Get(&missing_context, get, &summary).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(f.Get("r-zzz", &summary).error_code(), grpc::StatusCode::NOT_FOUND);
 
   v1::DeleteReenactmentRequest del;
   del.set_reenactment_id("r-a");
@@ -181,6 +192,37 @@ TEST(Reenactments, FetchStreamsEverythingInOrderInSmallMessages) {
   EXPECT_EQ(skipped.data.frames.size(), 3000u);
 
   EXPECT_EQ(Fetch(f, "r-unknown", false).status.error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+// A body-model reenactment streams as info, its body mesh, then the frame
+// batches, and arrives equal to the file.
+TEST(Reenactments, FetchOfABodyReenactmentStreamsTheBodyMeshAfterTheInfo) {
+  ServiceFixture f("rsvc_body");
+  const ReenactmentData written = f.Store(reenact::testing::MakeTestBodyReenactment(300, "r-body"));
+  v1::ReenactmentSummary summary;
+  ASSERT_TRUE(f.Get("r-body", &summary).ok());
+  EXPECT_EQ(summary.part_count(), 0);
+  EXPECT_EQ(summary.info().frame_count(), 300);
+
+  const Fetched got = Fetch(f, "r-body", /*skip_keyframes=*/false);
+  ASSERT_TRUE(got.status.ok()) << got.status.error_message();
+  ASSERT_TRUE(ValidateReenactment(got.data).ok());
+  ASSERT_GE(got.kinds.size(), 3u);
+  EXPECT_EQ(got.kinds[0], v1::FetchReenactmentChunk::kInfo);
+  EXPECT_EQ(got.kinds[1], v1::FetchReenactmentChunk::kBodyMesh);
+  for (size_t i = 2; i < got.kinds.size(); ++i) {
+    EXPECT_EQ(got.kinds[i], v1::FetchReenactmentChunk::kFrames) << i;
+  }
+  EXPECT_EQ(static_cast<int>(got.kinds.size()), 2 + got.frame_batches);
+  EXPECT_EQ(got.data.info.SerializeAsString(), written.info.SerializeAsString());
+  ASSERT_EQ(got.data.body.size(), 1u);
+  EXPECT_EQ(got.data.body[0].SerializeAsString(), written.body[0].SerializeAsString());
+  ASSERT_EQ(got.data.frames.size(), 300u);
+  for (int frame : {0, 1, 299}) {  // Frame 1 carries vertex offsets.
+    EXPECT_EQ(got.data.frames[frame].SerializeAsString(),
+              written.frames[frame].SerializeAsString());
+  }
+  EXPECT_LT(got.largest_message_bytes, kDefaultMaxMessageBytes / 2);
 }
 
 TEST(Reenactments, FetchOfADamagedFileFailsWithDataLoss) {

@@ -123,5 +123,31 @@ TEST(ReenactmentStore, OpenIndexesFilesSkipsBadOnesAndRemovesTemporaries) {
   EXPECT_TRUE(fs::exists(dir + "/notes.txt"));
 }
 
+// A body-model reenactment (no parts, no keyframes, a body mesh) is
+// summarised on Add and when Open indexes it again.
+TEST(ReenactmentStore, SummarisesBodyReenactments) {
+  const std::string dir = reenact::testing::MakeTempDir("rstore_body");
+  const ReenactmentData data = reenact::testing::MakeTestBodyReenactment(7, "r-body");
+  {
+    auto store = ReenactmentStore::Open(dir);
+    ASSERT_TRUE(store.ok());
+    ASSERT_TRUE(WriteReenactmentFile(data, (*store)->PathFor("r-body")).ok());
+    auto added = (*store)->Add("r-body");
+    ASSERT_TRUE(added.ok()) << added.status();
+    EXPECT_EQ(added->part_count(), 0);
+    EXPECT_EQ(added->keyframe_count(), 0);
+    EXPECT_EQ(added->info().SerializeAsString(), data.info.SerializeAsString());
+  }
+  auto store = ReenactmentStore::Open(dir);
+  ASSERT_TRUE(store.ok()) << store.status();
+  auto got = (*store)->Get("r-body");
+  ASSERT_TRUE(got.ok()) << got.status();
+  EXPECT_EQ(got->info().method(), "body");
+  EXPECT_EQ(got->info().frame_count(), 7);
+  EXPECT_EQ(got->part_count(), 0);
+  EXPECT_EQ(got->keyframe_count(), 0);
+  EXPECT_EQ(got->file_bytes(), static_cast<int64_t>(fs::file_size((*store)->PathFor("r-body"))));
+}
+
 }  // namespace
 }  // namespace reenact::server

@@ -8,6 +8,7 @@
 #include "absl/strings/str_join.h"
 #include "common/base/status_macros.h"
 #include "common/io/reenactment_file.h"
+#include "server/recon/body/body_method.h"
 #include "server/recon/cylinders.h"
 #include "server/recon/method_util.h"
 #include "server/recon/take_frames.h"
@@ -20,6 +21,7 @@ namespace {
 
 constexpr char kRigidCylinders[] = "rigid-cylinders";
 constexpr char kRigidCarved[] = "rigid-carved";
+constexpr char kBody[] = "body";
 constexpr char kGenerator[] = "reenact-recon 0.1.0";
 
 // Options RunMethod itself reads (loading), taken out before the method
@@ -61,19 +63,20 @@ int64_t NowUnixNs() {
 
 }  // namespace
 
-std::vector<std::string> MethodNames() { return {kRigidCylinders, kRigidCarved}; }
+std::vector<std::string> MethodNames() { return {kRigidCylinders, kRigidCarved, kBody}; }
 
 absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::string& out_path,
                                        const ProgressCallback& progress, const LogCallback& log) {
   const auto start = std::chrono::steady_clock::now();
   const bool cylinders = input.method == kRigidCylinders;
-  if (!cylinders && input.method != kRigidCarved) {
+  const bool body = input.method == kBody;
+  if (!cylinders && !body && input.method != kRigidCarved) {
     return absl::InvalidArgumentError(absl::StrCat("unknown method \"", input.method,
                                                    "\" (known: ",
                                                    absl::StrJoin(MethodNames(), ", "), ")"));
   }
 #if !REENACT_HAVE_RIGID_CARVED
-  if (!cylinders) {
+  if (!cylinders && !body) {
     return absl::UnimplementedError("method rigid-carved is not built into this program");
   }
 #endif
@@ -88,6 +91,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
     RETURN_IF_ERROR(options.Read(reader));
     RETURN_IF_ERROR(reader.Finish());
   }
+  if (body) RETURN_IF_ERROR(CheckBodyOptions(method_options));
 
   // Load.
   ASSIGN_OR_RETURN(std::unique_ptr<TakeFrames> take,
@@ -110,6 +114,8 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   absl::StatusOr<ReenactmentData> made;
   if (cylinders) {
     made = RunRigidCylinders(*take, method_options, method_progress, log);
+  } else if (body) {
+    made = RunBody(*take, method_options, method_progress, log);
   } else {
 #if REENACT_HAVE_RIGID_CARVED
     made = RunRigidCarved(*take, method_options, method_progress, log);
@@ -130,7 +136,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   info.set_generator(kGenerator);
   info.set_frame_count(static_cast<int32_t>(data.frames.size()));
   if (!(info.fps() > 0)) info.set_fps(take->fps());
-  if (info.part_names_size() == 0) {
+  if (info.part_names_size() == 0 && !data.is_body()) {
     for (const std::string& name : BodyPartNames()) info.add_part_names(name);
   }
   info.clear_sensors();

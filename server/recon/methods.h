@@ -8,6 +8,9 @@
 //   rigid-carved     thesis 3.4: per-part registration (Eq. 3.7-3.9),
 //                    per-part truncated SDF (Eq. 3.10-3.11), marching cubes,
 //                    VDTM by the rotation-closest frame (Eq. 3.13-3.15).
+//   body             thesis ch. 4: the statistical body model fitted to the
+//                    merged point clouds (Eq. 4.4-4.8), textured into an
+//                    atlas (4.4); body/body_method.h.
 #pragma once
 
 #include <functional>

@@ -1,0 +1,479 @@
+#include "server/recon/body/body_fit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+#include <utility>
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/body/joint_set.h"
+#include "server/recon/body/body_terms.h"
+
+namespace reenact::recon::bodyfit {
+namespace {
+
+using body::KinectV2Joint;
+
+// Area-weighted unit vertex normals of a posed mesh.
+void VertexNormals(const Eigen::Matrix3Xd& vertices_m,
+                   const std::vector<Eigen::Vector3i>& triangles, Eigen::Matrix3Xd* normals) {
+  normals->setZero(3, vertices_m.cols());
+  for (const Eigen::Vector3i& t : triangles) {
+    const Eigen::Vector3d n = (vertices_m.col(t[1]) - vertices_m.col(t[0]))
+                                  .cross(vertices_m.col(t[2]) - vertices_m.col(t[0]));
+    for (int c = 0; c < 3; ++c) normals->col(t[c]) += n;
+  }
+  for (Eigen::Index v = 0; v < normals->cols(); ++v) {
+    const double norm = normals->col(v).norm();
+    if (norm > 0) normals->col(v) /= norm;
+  }
+}
+
+// A uniform grid over posed vertices for the normal-aware nearest vertex of
+// Eq. 4.8.
+class VertexGrid {
+ public:
+  VertexGrid(const Eigen::Matrix3Xd& vertices_m, const Eigen::Matrix3Xd& normals, double cell_m)
+      : vertices_(vertices_m), normals_(normals), inverse_cell_(1.0 / cell_m) {
+    for (Eigen::Index v = 0; v < vertices_m.cols(); ++v) {
+      cells_[Key(Cell(vertices_m.col(v)))].push_back(static_cast<int>(v));
+    }
+  }
+
+  // argmin_y |y - z| (epsilon - n_y . n_z) over vertices within the 27
+  // cells around z (Eq. 4.8), with |y - z| <= max_distance and
+  // n_y . n_z >= min_dot; -1 when none.
+  int Nearest(const Eigen::Vector3d& z, const Eigen::Vector3d& n_z, double epsilon,
+              double max_distance_m, double min_dot) const {
+    const Eigen::Vector3i c = Cell(z);
+    int best = -1;
+    double best_score = std::numeric_limits<double>::infinity();
+    const double max2 = max_distance_m * max_distance_m;
+    for (int dz = -1; dz <= 1; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (int v : it->second) {
+            const double d2 = (vertices_.col(v) - z).squaredNorm();
+            if (d2 > max2) continue;
+            const double dot = normals_.col(v).dot(n_z);
+            if (dot < min_dot) continue;
+            const double score = std::sqrt(d2) * (epsilon - dot);
+            if (score < best_score) {
+              best_score = score;
+              best = v;
+            }
+          }
+        }
+      }
+    }
+    return best;
+  }
+
+ private:
+  Eigen::Vector3i Cell(const Eigen::Vector3d& p) const {
+    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inverse_cell_)),
+                           static_cast<int>(std::floor(p.y() * inverse_cell_)),
+                           static_cast<int>(std::floor(p.z() * inverse_cell_)));
+  }
+  static int64_t Key(const Eigen::Vector3i& c) {
+    return (static_cast<int64_t>(c.x() + (1 << 20)) << 42) |
+           (static_cast<int64_t>(c.y() + (1 << 20)) << 21) |
+           static_cast<int64_t>(c.z() + (1 << 20));
+  }
+
+  const Eigen::Matrix3Xd& vertices_;
+  const Eigen::Matrix3Xd& normals_;
+  double inverse_cell_;
+  std::unordered_map<int64_t, std::vector<int>> cells_;
+};
+
+// Ceres parameter memory of one pose.
+struct PoseBlocks {
+  std::array<std::array<double, 3>, kJoints> angle_axis;
+  std::array<double, 3> translation;
+
+  explicit PoseBlocks(const PoseParameters& p) {
+    for (int j = 0; j < kJoints; ++j) {
+      for (int c = 0; c < 3; ++c) angle_axis[j][c] = p.angle_axis[j][c];
+    }
+    for (int c = 0; c < 3; ++c) translation[c] = p.translation_m[c];
+  }
+  PoseParameters Parameters() const {
+    PoseParameters p;
+    for (int j = 0; j < kJoints; ++j) {
+      p.angle_axis[j] = Eigen::Vector3d(angle_axis[j][0], angle_axis[j][1], angle_axis[j][2]);
+    }
+    p.translation_m = Eigen::Vector3d(translation[0], translation[1], translation[2]);
+    return p;
+  }
+  std::vector<double*> Blocks(double* shape) {
+    std::vector<double*> out;
+    for (auto& a : angle_axis) out.push_back(a.data());
+    out.push_back(translation.data());
+    if (shape != nullptr) out.push_back(shape);
+    return out;
+  }
+  std::array<const double*, kJoints> AngleAxisPointers() const {
+    std::array<const double*, kJoints> out;
+    for (int j = 0; j < kJoints; ++j) out[j] = angle_axis[j].data();
+    return out;
+  }
+};
+
+Eigen::Matrix3d RotationOf(const Eigen::Vector3d& a) {
+  const double theta = a.norm();
+  if (theta < 1e-12) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(theta, a / theta).toRotationMatrix();
+}
+
+ceres::Solver::Options SolverOptions(int iterations, bool sparse) {
+  ceres::Solver::Options options;
+  options.linear_solver_type = sparse ? ceres::SPARSE_NORMAL_CHOLESKY : ceres::DENSE_QR;
+  options.max_num_iterations = iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  options.function_tolerance = 1e-7;
+  options.parameter_tolerance = 1e-8;
+  return options;
+}
+
+// Evenly spread indices of the cloud, at most `count`, starting at `phase`.
+std::vector<int> SamplePoints(size_t size, int count, int phase) {
+  std::vector<int> out;
+  if (size == 0) return out;
+  const size_t stride = std::max<size_t>(1, (size + count - 1) / static_cast<size_t>(count));
+  for (size_t i = static_cast<size_t>(phase) % stride; i < size; i += stride) {
+    out.push_back(static_cast<int>(i));
+  }
+  return out;
+}
+
+// Adds one frame's terms of Eq. 4.7 to `problem`: the point term over the
+// Eq. 4.8 correspondences of round `round`'s subset of the cloud (against
+// the posed mesh `posed`/`normals`), the skeleton prior and Eq. 4.6 towards
+// `smooth_to`. `shape_block` (may be null: shape held at `shape`) is shared.
+void AddFrameTerms(const ModelData& data, const BodyFitOptions& o, const PointCloud& cloud,
+                   const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd& normals, int round,
+                   const SkeletonJoints& skeleton_m, const PoseParameters& smooth_to,
+                   double* shape_block, const Eigen::VectorXd& shape, PoseBlocks* blocks,
+                   ceres::Problem* problem) {
+  const VertexGrid grid(posed, normals, o.max_distance_m);
+  std::vector<Correspondence> matches;
+  const std::vector<int> sample = SamplePoints(cloud.size(), o.max_points, round);
+  for (int i : sample) {
+    const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
+    const Eigen::Vector3d n = cloud.normals[i].cast<double>();
+    const int v = grid.Nearest(z, n, o.normal_epsilon, o.max_distance_m, o.min_normal_dot);
+    if (v >= 0) matches.push_back({v, z, n});
+  }
+  const bool fit_shape = shape_block != nullptr;
+  std::vector<double*> parameters = blocks->Blocks(shape_block);
+  if (!matches.empty()) {
+    // The sample stands for the whole cloud: Eq. 4.5 sums over every point.
+    const double weight = o.point_weight * cloud.size() / sample.size();
+    problem->AddResidualBlock(NewPointTerm(data, std::move(matches), weight, fit_shape, shape),
+                              new ceres::HuberLoss(std::sqrt(weight) * o.huber_m), parameters);
+  }
+  if (o.skeleton_weight > 0) {
+    problem->AddResidualBlock(
+        NewSkeletonTerm(data, skeleton_m, o.skeleton_weight, fit_shape, shape), nullptr,
+        parameters);
+  }
+  for (int j = 0; j < kJoints; ++j) {
+    if (!problem->HasParameterBlock(parameters[j])) continue;
+    if (!data.active[j]) {
+      problem->SetParameterBlockConstant(parameters[j]);
+    } else if (o.smoothness_weight > 0) {
+      problem->AddResidualBlock(
+          NewSmoothnessTerm(RotationOf(smooth_to.angle_axis[j]), o.smoothness_weight), nullptr,
+          parameters[j]);
+    }
+  }
+}
+
+}  // namespace
+
+SkeletonJoints NoSkeletonJoints() {
+  SkeletonJoints out;
+  out.fill(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  return out;
+}
+
+absl::Status BodyFitOptions::Validate() const {
+  const auto bad = [](const std::string& what) {
+    return absl::InvalidArgumentError(absl::StrCat("body fit: ", what));
+  };
+  if (!(point_weight > 0)) return bad("point_weight must be > 0");
+  if (!(smoothness_weight >= 0) || !(skeleton_weight >= 0) || !(shape_prior_weight >= 0)) {
+    return bad("weights must be >= 0");
+  }
+  if (!(normal_epsilon > 1)) return bad("normal_epsilon must be > 1 (Eq. 4.8)");
+  if (!(max_distance_m > 0) || !(refine_max_distance_m > 0) || !(huber_m > 0)) {
+    return bad("distances must be > 0");
+  }
+  if (!(min_normal_dot >= -1 && min_normal_dot <= 1)) return bad("min_normal_dot outside [-1, 1]");
+  if (max_points < 10 || rounds < 1 || iterations_per_round < 1 || shape_frames < 1 ||
+      shape_rounds < 0) {
+    return bad("max_points >= 10, rounds, iterations_per_round and shape_frames >= 1");
+  }
+  return absl::OkStatus();
+}
+
+PoseParameters PoseParameters::FromPose(const body::BodyPose& pose) {
+  PoseParameters p;
+  for (int j = 0; j < kJoints; ++j) {
+    const Eigen::AngleAxisd aa(pose.local_rotation[j].normalized());
+    double angle = aa.angle();
+    Eigen::Vector3d axis = aa.axis();
+    if (angle > M_PI) {
+      angle = 2 * M_PI - angle;
+      axis = -axis;
+    }
+    p.angle_axis[j] = angle * axis;
+  }
+  p.translation_m = pose.root_translation_m;
+  return p;
+}
+
+body::BodyPose PoseParameters::ToPose() const {
+  body::BodyPose pose;
+  for (int j = 0; j < kJoints; ++j)
+    pose.local_rotation[j] = Eigen::Quaterniond(RotationOf(angle_axis[j]));
+  pose.root_translation_m = translation_m;
+  return pose;
+}
+
+BodyFitter::BodyFitter(const body::BodyModel& model, const BodyFitOptions& options)
+    : model_(model), options_(options) {}
+
+BodyFitter::~BodyFitter() = default;
+
+absl::StatusOr<std::unique_ptr<BodyFitter>> BodyFitter::Create(const body::BodyModel& model,
+                                                               const BodyFitOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
+  RETURN_IF_ERROR(body::ValidateBodyModel(model));
+  std::unique_ptr<BodyFitter> fitter(new BodyFitter(model, options));
+  fitter->data_ = std::make_unique<ModelData>(model);
+  fitter->shape_ = Eigen::VectorXd::Zero(model.num_shape_components());
+  return fitter;
+}
+
+absl::Status BodyFitter::set_shape(const Eigen::VectorXd& shape) {
+  if (shape.size() != model_.num_shape_components() || !shape.allFinite()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "shape has ", shape.size(), " coefficients, the model ", model_.num_shape_components()));
+  }
+  shape_ = shape;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<body::BodyPose> BodyFitter::PoseFromSkeleton(
+    const SkeletonJoints& skeleton_m) const {
+  const auto at = [&](KinectV2Joint j) { return skeleton_m[body::Index(j)]; };
+  const Eigen::Vector3d base = at(KinectV2Joint::kSpineBase);
+  const Eigen::Vector3d top = at(KinectV2Joint::kSpineShoulder);
+  Eigen::Vector3d left = at(KinectV2Joint::kHipLeft) - at(KinectV2Joint::kHipRight);
+  const Eigen::Vector3d shoulders =
+      at(KinectV2Joint::kShoulderLeft) - at(KinectV2Joint::kShoulderRight);
+  if (!left.allFinite()) left = shoulders;
+  if (!base.allFinite() || !top.allFinite() || !left.allFinite()) {
+    return absl::FailedPreconditionError(
+        "the skeleton lacks the torso joints (spine base and shoulder, hips or shoulders)");
+  }
+  Eigen::Matrix3Xd rest;
+  std::array<Eigen::Vector3d, kJoints> rest_joints;
+  data_->Shaped(shape_, &rest, &rest_joints);
+  const auto frame = [](const Eigen::Vector3d& up_in, const Eigen::Vector3d& left_in) {
+    const Eigen::Vector3d up = up_in.normalized();
+    const Eigen::Vector3d l = (left_in - left_in.dot(up) * up).normalized();
+    Eigen::Matrix3d f;
+    f << l, up, l.cross(up);
+    return f;
+  };
+  const auto rj = [&](KinectV2Joint j) { return rest_joints[body::Index(j)]; };
+  const Eigen::Matrix3d target = frame(top - base, left);
+  const Eigen::Matrix3d model_frame =
+      frame(rj(KinectV2Joint::kSpineShoulder) - rj(KinectV2Joint::kSpineBase),
+            rj(KinectV2Joint::kHipLeft) - rj(KinectV2Joint::kHipRight));
+  if (!target.allFinite()) return absl::FailedPreconditionError("degenerate skeleton torso");
+  PoseParameters start;
+  for (auto& a : start.angle_axis) a.setZero();
+  Eigen::AngleAxisd root(target * model_frame.transpose());
+  start.angle_axis[body::Index(KinectV2Joint::kSpineBase)] = root.angle() * root.axis();
+  start.translation_m = base - rj(KinectV2Joint::kSpineBase);
+
+  return FollowSkeleton(start.ToPose(), skeleton_m, 1e-4);
+}
+
+absl::StatusOr<body::BodyPose> BodyFitter::FollowSkeleton(const body::BodyPose& start,
+                                                          const SkeletonJoints& skeleton_m,
+                                                          double stay_weight) const {
+  PoseBlocks blocks(PoseParameters::FromPose(start));
+  const PoseParameters from = blocks.Parameters();
+  ceres::Problem problem;
+  std::vector<double*> parameters = blocks.Blocks(nullptr);
+  problem.AddResidualBlock(NewSkeletonTerm(*data_, skeleton_m, 1.0, false, shape_), nullptr,
+                           parameters);
+  // A weak pull to the start: joint positions leave twists open.
+  for (int j = 0; j < kJoints; ++j) {
+    if (!data_->active[j]) {
+      problem.SetParameterBlockConstant(parameters[j]);
+      continue;
+    }
+    problem.AddResidualBlock(NewSmoothnessTerm(RotationOf(from.angle_axis[j]), stay_weight),
+                             nullptr, parameters[j]);
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(SolverOptions(30, false), &problem, &summary);
+  body::BodyPose out = blocks.Parameters().ToPose();
+  if (!out.root_translation_m.allFinite()) return absl::InternalError("skeleton fit diverged");
+  return out;
+}
+
+absl::Status BodyFitter::FitShape(const std::vector<FitInput>& frames,
+                                  std::vector<body::BodyPose>* poses) {
+  if (poses->size() != frames.size() || frames.empty()) {
+    return absl::InvalidArgumentError("FitShape needs one initial pose per frame");
+  }
+  const int k_shape = model_.num_shape_components();
+  Eigen::VectorXd beta = shape_;
+  std::vector<PoseBlocks> blocks;
+  for (const body::BodyPose& pose : *poses) blocks.emplace_back(PoseParameters::FromPose(pose));
+  for (int round = 0; round < options_.shape_rounds; ++round) {
+    Eigen::Matrix3Xd rest;
+    std::array<Eigen::Vector3d, kJoints> rest_joints;
+    data_->Shaped(beta, &rest, &rest_joints);
+    ceres::Problem problem;
+    for (size_t f = 0; f < frames.size(); ++f) {
+      const auto pointers = blocks[f].AngleAxisPointers();
+      Kinematics kin;
+      ComputeKinematics(*data_, pointers.data(), blocks[f].translation.data(), nullptr,
+                        &rest_joints, false, &kin);
+      Eigen::Matrix3Xd posed, normals;
+      PoseAllVertices(*data_, kin, rest, &posed);
+      VertexNormals(posed, data_->triangles, &normals);
+      // Eq. 4.6 against the frame's pose at the start of the round.
+      AddFrameTerms(*data_, options_, *frames[f].cloud, posed, normals, round, frames[f].skeleton_m,
+                    blocks[f].Parameters(), k_shape > 0 ? beta.data() : nullptr, beta, &blocks[f],
+                    &problem);
+    }
+    if (k_shape > 0 && problem.HasParameterBlock(beta.data())) {
+      problem.AddResidualBlock(NewShapePrior(k_shape, options_.shape_prior_weight), nullptr,
+                               beta.data());
+    }
+    ceres::Solver::Summary summary;
+    ceres::Solve(SolverOptions(options_.iterations_per_round, true), &problem, &summary);
+  }
+  if (!beta.allFinite()) return absl::InternalError("the shape fit diverged");
+  shape_ = beta;
+  for (size_t f = 0; f < frames.size(); ++f) (*poses)[f] = blocks[f].Parameters().ToPose();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body::BodyPose& initial,
+                                              const body::BodyPose* previous) {
+  if (input.cloud == nullptr) return absl::InvalidArgumentError("no point cloud");
+  Eigen::Matrix3Xd rest;
+  std::array<Eigen::Vector3d, kJoints> rest_joints;
+  data_->Shaped(shape_, &rest, &rest_joints);
+  PoseBlocks blocks(PoseParameters::FromPose(initial));
+  const PoseParameters smooth_to = PoseParameters::FromPose(previous ? *previous : initial);
+  const PointCloud& cloud = *input.cloud;
+  Eigen::Matrix3Xd posed, normals;
+  const auto pose_now = [&]() {
+    const auto pointers = blocks.AngleAxisPointers();
+    Kinematics kin;
+    ComputeKinematics(*data_, pointers.data(), blocks.translation.data(), nullptr, &rest_joints,
+                      false, &kin);
+    PoseAllVertices(*data_, kin, rest, &posed);
+    VertexNormals(posed, data_->triangles, &normals);
+    return kin;
+  };
+  for (int round = 0; round < options_.rounds; ++round) {
+    pose_now();
+    ceres::Problem problem;
+    AddFrameTerms(*data_, options_, cloud, posed, normals, round, input.skeleton_m, smooth_to,
+                  nullptr, shape_, &blocks, &problem);
+    if (problem.NumResidualBlocks() == 0) break;
+    ceres::Solver::Summary summary;
+    ceres::Solve(SolverOptions(options_.iterations_per_round, false), &problem, &summary);
+  }
+  const Kinematics kin = pose_now();
+  FrameFit fit;
+  fit.pose = blocks.Parameters().ToPose();
+  if (!fit.pose.root_translation_m.allFinite()) return absl::InternalError("the fit diverged");
+  for (int j = 0; j < kJoints; ++j) fit.joints_m[j] = kin.position_m[j];
+
+  // Final correspondences over the whole cloud: the RMS figure and step 2.
+  const VertexGrid grid(posed, normals, options_.max_distance_m);
+  const int v_count = data_->num_vertices();
+  Eigen::Matrix3Xd pull = Eigen::Matrix3Xd::Zero(3, v_count);
+  Eigen::VectorXd count = Eigen::VectorXd::Zero(v_count);
+  double sum2 = 0.0;
+  int used = 0;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
+    const Eigen::Vector3d n = cloud.normals[i].cast<double>();
+    const int v = grid.Nearest(z, n, options_.normal_epsilon, options_.max_distance_m,
+                               options_.min_normal_dot);
+    if (v < 0) continue;
+    const double plane = normals.col(v).dot(z - posed.col(v));
+    sum2 += plane * plane;
+    ++used;
+    if ((z - posed.col(v)).norm() <= options_.refine_max_distance_m) {
+      pull.col(v) += z - posed.col(v);
+      count[v] += 1.0;
+    }
+  }
+  fit.correspondences = used;
+  fit.point_rms_mm = used > 0 ? 1000.0 * std::sqrt(sum2 / used) : 0.0;
+  fit.vertices_m = posed;
+
+  if (options_.refine_vertices && count.sum() > 0) {
+    // Step 2 (Eq. 4.4 + w_z Eq. 4.5 in D = Y_f - M): per triangle the edges
+    // 1-0 and 2-0 keep the prediction's, each point pulls its vertex:
+    //   (E^T E + w_z C) D = w_z sum_n (z_n - m_v(n)).
+    if (!refine_solver_ready_) {
+      std::vector<Eigen::Triplet<double>> triplets;
+      for (const Eigen::Vector3i& t : data_->triangles) {
+        for (int e = 1; e <= 2; ++e) {
+          const int a = t[0], b = t[e];
+          triplets.emplace_back(a, a, 1.0);
+          triplets.emplace_back(b, b, 1.0);
+          triplets.emplace_back(a, b, -1.0);
+          triplets.emplace_back(b, a, -1.0);
+        }
+      }
+      laplacian_.resize(v_count, v_count);
+      laplacian_.setFromTriplets(triplets.begin(), triplets.end());
+      laplacian_.makeCompressed();
+      refine_solver_.analyzePattern(laplacian_);
+      refine_solver_ready_ = true;
+    }
+    Eigen::SparseMatrix<double> system = laplacian_;
+    for (int v = 0; v < v_count; ++v) {
+      system.coeffRef(v, v) += options_.point_weight * count[v];
+    }
+    refine_solver_.factorize(system);
+    if (refine_solver_.info() == Eigen::Success) {
+      const Eigen::MatrixXd rhs = options_.point_weight * pull.transpose();
+      const Eigen::MatrixXd d = refine_solver_.solve(rhs);
+      if (refine_solver_.info() == Eigen::Success && d.allFinite()) {
+        fit.offsets_m = d.transpose();
+      }
+    }
+  }
+  return fit;
+}
+
+}  // namespace reenact::recon::bodyfit

@@ -1,0 +1,47 @@
+// The method "body" (thesis ch. 4): per instant the merged point cloud of all
+// sensors (body_cloud.h), the fit of the statistical body model with one
+// shape for the take (body_fit.h), and the atlas (body_texturing.h); the
+// result is a body-model reenactment (common/io/body_reenactment.h).
+//
+// Options (strings, as submitted with the job):
+//   model              "procedural" (default) or "makehuman:DIR"
+//   point_weight       w_z of Eq. 4.7 (1)
+//   smoothness_weight  w_r of Eq. 4.7 (0.001; see body_fit.h)
+//   skeleton_weight    the sensors' skeleton prior (0.1)
+//   shape_frames       instants the shape is fitted on (5)
+//   rounds, iterations correspondence rounds and LM iterations per frame (3, 5)
+//   max_points         points per round (1200)
+//   refine_vertices    the free-form mesh step (true)
+//   atlas_px           atlas side (1024)
+//   visibility_m       T of thesis 4.4 (0.10)
+//   texture_every      use every k-th instant for the atlas (2)
+#pragma once
+
+#include <map>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "common/base/progress.h"
+#include "common/body/body_model.h"
+#include "common/io/reenactment_file.h"
+#include "server/recon/methods.h"
+#include "server/recon/take_frames.h"
+
+namespace reenact::recon {
+
+// Reads and checks the options without running (InvalidArgument naming the
+// key), so a job can be rejected before the take is loaded.
+absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options);
+
+// The body model an option value names: "procedural" (built by our code) or
+// "makehuman:DIR". InvalidArgument for other values; the importer's errors.
+absl::StatusOr<body::BodyModel> LoadBodyModelSpec(const std::string& spec);
+
+// Runs the method on a loaded take. InvalidArgument for bad options or a
+// take without a usable instant (no skeleton with a torso and no points);
+// Cancelled when `progress` returned false.
+absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
+                                        const std::map<std::string, std::string>& options,
+                                        const ProgressCallback& progress, const LogCallback& log);
+
+}  // namespace reenact::recon

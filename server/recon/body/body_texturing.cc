@@ -1,0 +1,274 @@
+#include "server/recon/body/body_texturing.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <mutex>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+
+namespace reenact::recon::bodyfit {
+namespace {
+
+// One atlas texel: the surface point it shows.
+struct Texel {
+  int index = 0;  // y * size + x.
+  int triangle = 0;
+  float b0 = 0, b1 = 0, b2 = 0;
+};
+
+// Texels whose centres lie in a texture triangle (first triangle wins).
+std::vector<Texel> RasteriseAtlas(const DecodedBodyMesh& mesh, int size) {
+  std::vector<Texel> texels;
+  std::vector<uint8_t> taken(static_cast<size_t>(size) * size, 0);
+  for (size_t t = 0; t < mesh.texture_triangles.size(); ++t) {
+    Eigen::Vector2d p[3];
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Vector2f& uv = mesh.texture_uvs[mesh.texture_triangles[t][c]];
+      p[c] = Eigen::Vector2d(uv.x() * size - 0.5, (1.0 - uv.y()) * size - 0.5);
+    }
+    const double area =
+        (p[1] - p[0]).x() * (p[2] - p[0]).y() - (p[1] - p[0]).y() * (p[2] - p[0]).x();
+    if (std::abs(area) < 1e-12) continue;
+    const int x0 =
+        std::max(0, static_cast<int>(std::floor(std::min({p[0].x(), p[1].x(), p[2].x()}))));
+    const int x1 =
+        std::min(size - 1, static_cast<int>(std::ceil(std::max({p[0].x(), p[1].x(), p[2].x()}))));
+    const int y0 =
+        std::max(0, static_cast<int>(std::floor(std::min({p[0].y(), p[1].y(), p[2].y()}))));
+    const int y1 =
+        std::min(size - 1, static_cast<int>(std::ceil(std::max({p[0].y(), p[1].y(), p[2].y()}))));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const Eigen::Vector2d q(x, y);
+        const auto edge = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+          return ((b - a).x() * (q - a).y() - (b - a).y() * (q - a).x()) / area;
+        };
+        const double w0 = edge(p[1], p[2]), w1 = edge(p[2], p[0]), w2 = edge(p[0], p[1]);
+        constexpr double kEps = -1e-4;
+        if (w0 < kEps || w1 < kEps || w2 < kEps) continue;
+        const int index = y * size + x;
+        if (taken[index]) continue;
+        taken[index] = 1;
+        texels.push_back({index, static_cast<int>(t), static_cast<float>(w0),
+                          static_cast<float>(w1), static_cast<float>(w2)});
+      }
+    }
+  }
+  return texels;
+}
+
+// Depth of the posed mesh in a camera: a CPU z-buffer over projected
+// triangles (vertices in the camera frame and their pixels).
+std::vector<float> RenderDepth(const std::vector<Eigen::Vector3i>& triangles,
+                               const std::vector<Eigen::Vector3f>& in_camera,
+                               const std::vector<Eigen::Vector2f>& pixels, int width, int height) {
+  std::vector<float> depth(static_cast<size_t>(width) * height,
+                           std::numeric_limits<float>::infinity());
+  for (const Eigen::Vector3i& t : triangles) {
+    const Eigen::Vector3f& a = in_camera[t[0]];
+    const Eigen::Vector3f& b = in_camera[t[1]];
+    const Eigen::Vector3f& c = in_camera[t[2]];
+    if (a.z() <= 0.05f || b.z() <= 0.05f || c.z() <= 0.05f) continue;
+    const Eigen::Vector2f& pa = pixels[t[0]];
+    const Eigen::Vector2f& pb = pixels[t[1]];
+    const Eigen::Vector2f& pc = pixels[t[2]];
+    const float area = (pb - pa).x() * (pc - pa).y() - (pb - pa).y() * (pc - pa).x();
+    if (std::abs(area) < 1e-6f) continue;
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({pa.x(), pb.x(), pc.x()}))));
+    const int x1 =
+        std::min(width - 1, static_cast<int>(std::ceil(std::max({pa.x(), pb.x(), pc.x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({pa.y(), pb.y(), pc.y()}))));
+    const int y1 =
+        std::min(height - 1, static_cast<int>(std::ceil(std::max({pa.y(), pb.y(), pc.y()}))));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const Eigen::Vector2f q(static_cast<float>(x), static_cast<float>(y));
+        const auto edge = [&](const Eigen::Vector2f& e0, const Eigen::Vector2f& e1) {
+          return ((e1 - e0).x() * (q - e0).y() - (e1 - e0).y() * (q - e0).x()) / area;
+        };
+        const float w0 = edge(pb, pc), w1 = edge(pc, pa), w2 = edge(pa, pb);
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        const float z = w0 * a.z() + w1 * b.z() + w2 * c.z();
+        float& d = depth[static_cast<size_t>(y) * width + x];
+        d = std::min(d, z);
+      }
+    }
+  }
+  return depth;
+}
+
+// Minimum of the depth buffer over the 3 x 3 pixels around (x, y): tolerant
+// of the half-pixel between a texel's projection and the raster.
+float NearDepth(const std::vector<float>& depth, int width, int height, int x, int y) {
+  float out = std::numeric_limits<float>::infinity();
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int u = x + dx, v = y + dy;
+      if (u < 0 || v < 0 || u >= width || v >= height) continue;
+      out = std::min(out, depth[static_cast<size_t>(v) * width + u]);
+    }
+  }
+  return out;
+}
+
+// Fills unobserved atlas texels (weight 0) from observed ones: a push-pull
+// pyramid (average down, fill holes on the way up).
+void PushPull(std::vector<Eigen::Vector4f>* sums, int size) {
+  if (size <= 1) return;
+  const int half = (size + 1) / 2;
+  std::vector<Eigen::Vector4f> coarse(static_cast<size_t>(half) * half, Eigen::Vector4f::Zero());
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      const Eigen::Vector4f& s = (*sums)[static_cast<size_t>(y) * size + x];
+      if (s.w() > 0) coarse[static_cast<size_t>(y / 2) * half + x / 2] += s / s.w();
+    }
+  }
+  PushPull(&coarse, half);
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      Eigen::Vector4f& s = (*sums)[static_cast<size_t>(y) * size + x];
+      if (s.w() > 0) continue;
+      const Eigen::Vector4f& c = coarse[static_cast<size_t>(y / 2) * half + x / 2];
+      if (c.w() > 0) s = c / c.w();
+    }
+  }
+}
+
+}  // namespace
+
+absl::Status AtlasOptions::Validate() const {
+  if (size_px < 16 || size_px > 8192) {
+    return absl::InvalidArgumentError(absl::StrCat("atlas size ", size_px, " outside [16, 8192]"));
+  }
+  if (!(visibility_threshold_m > 0)) {
+    return absl::InvalidArgumentError("visibility threshold must be > 0");
+  }
+  if (every < 1) return absl::InvalidArgumentError("texture every must be >= 1");
+  if (colour_denominator != 1 && colour_denominator != 2 && colour_denominator != 4 &&
+      colour_denominator != 8) {
+    return absl::InvalidArgumentError("colour denominator must be 1, 2, 4 or 8");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+                                          const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                          const AtlasOptions& options,
+                                          const ProgressCallback& progress) {
+  RETURN_IF_ERROR(options.Validate());
+  if (posed_vertices_m.size() != static_cast<size_t>(take.num_instants())) {
+    return absl::InvalidArgumentError("one posed mesh per instant expected");
+  }
+  const int size = options.size_px;
+  const std::vector<Texel> texels = RasteriseAtlas(mesh, size);
+  std::vector<std::pair<int, int>> views;
+  for (int i = 0; i < take.num_instants(); i += options.every) {
+    if (posed_vertices_m[i].cols() != mesh.num_vertices()) continue;
+    for (int s = 0; s < take.num_sensors(); ++s) {
+      const SensorView& view = take.instant(i).views[s];
+      if (view.present && !view.color_jpeg.empty()) views.emplace_back(i, s);
+    }
+  }
+  // Sums per texel: r, g, b (weighted), weight.
+  std::vector<Eigen::Vector4f> sums(static_cast<size_t>(size) * size, Eigen::Vector4f::Zero());
+  std::mutex mutex;
+  std::atomic<int> done{0};
+  std::atomic<bool> cancelled{false};
+  absl::Status first_error;
+  take.pool().ParallelFor(0, static_cast<int>(views.size()), [&](int k) {
+    if (cancelled) return;
+    const auto [instant, sensor] = views[k];
+    absl::Status status = [&]() -> absl::Status {
+      ASSIGN_OR_RETURN(const RgbImage colour,
+                       take.LoadColor(instant, sensor, options.colour_denominator));
+      ASSIGN_OR_RETURN(const CameraIntrinsics intrinsics,
+                       take.ColorIntrinsicsForImage(sensor, colour));
+      const TakeSensor& info = take.sensors()[sensor];
+      const Rigid3d color_from_world =
+          (info.world_from_depth * info.color_from_depth.Inverse()).Inverse();
+      const Eigen::Matrix3Xd& posed = posed_vertices_m[instant];
+      const int v_count = mesh.num_vertices();
+      std::vector<Eigen::Vector3f> in_camera(v_count);
+      std::vector<Eigen::Vector2f> pixels(v_count);
+      for (int v = 0; v < v_count; ++v) {
+        const Eigen::Vector3d p = color_from_world * Eigen::Vector3d(posed.col(v));
+        in_camera[v] = p.cast<float>();
+        const auto pixel = intrinsics.Project(p);
+        pixels[v] = pixel ? pixel->cast<float>() : Eigen::Vector2f(-1e6f, -1e6f);
+      }
+      const std::vector<float> depth =
+          RenderDepth(mesh.triangles, in_camera, pixels, colour.width, colour.height);
+      // Face normals in the camera frame.
+      std::vector<Eigen::Vector3f> face_normal(mesh.triangles.size());
+      for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const Eigen::Vector3i& tri = mesh.triangles[t];
+        face_normal[t] = (in_camera[tri[1]] - in_camera[tri[0]])
+                             .cross(in_camera[tri[2]] - in_camera[tri[0]])
+                             .normalized();
+      }
+      std::vector<std::pair<int, Eigen::Vector4f>> local;
+      local.reserve(texels.size() / 4);
+      const float threshold = static_cast<float>(options.visibility_threshold_m);
+      for (const Texel& texel : texels) {
+        const Eigen::Vector3i& tri = mesh.triangles[texel.triangle];
+        const Eigen::Vector3f p = texel.b0 * in_camera[tri[0]] + texel.b1 * in_camera[tri[1]] +
+                                  texel.b2 * in_camera[tri[2]];
+        const float facing = -face_normal[texel.triangle].dot(p.normalized());
+        if (!(facing > 0.1f)) continue;
+        const Eigen::Vector2f q =
+            texel.b0 * pixels[tri[0]] + texel.b1 * pixels[tri[1]] + texel.b2 * pixels[tri[2]];
+        const int x = static_cast<int>(std::floor(q.x()));
+        const int y = static_cast<int>(std::floor(q.y()));
+        if (x < 0 || y < 0 || x + 1 >= colour.width || y + 1 >= colour.height) continue;
+        const float rendered =
+            NearDepth(depth, colour.width, colour.height, static_cast<int>(std::lround(q.x())),
+                      static_cast<int>(std::lround(q.y())));
+        if (p.z() > rendered + threshold) continue;  // Hidden (thesis 4.4, T).
+        const float fx = q.x() - x, fy = q.y() - y;
+        Eigen::Vector3f rgb;
+        for (int c = 0; c < 3; ++c) {
+          rgb[c] = (1 - fx) * (1 - fy) * colour.at(x, y, c) +
+                   fx * (1 - fy) * colour.at(x + 1, y, c) + (1 - fx) * fy * colour.at(x, y + 1, c) +
+                   fx * fy * colour.at(x + 1, y + 1, c);
+        }
+        const float weight = facing * facing;
+        local.emplace_back(texel.index, Eigen::Vector4f(weight * rgb.x(), weight * rgb.y(),
+                                                        weight * rgb.z(), weight));
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      for (const auto& [index, value] : local) sums[index] += value;
+      return absl::OkStatus();
+    }();
+    const int finished = ++done;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!status.ok() && first_error.ok()) first_error = status;
+    if (!status.ok()) cancelled = true;
+    if (progress && !progress({"texture", static_cast<double>(finished) / views.size(), finished,
+                               static_cast<int64_t>(views.size())})) {
+      cancelled = true;
+    }
+  });
+  RETURN_IF_ERROR(first_error);
+  if (cancelled) return absl::CancelledError("cancelled while texturing");
+
+  AtlasResult result;
+  result.views = static_cast<int>(views.size());
+  int observed = 0;
+  for (const Texel& texel : texels) observed += sums[texel.index].w() > 0 ? 1 : 0;
+  result.observed_fraction = texels.empty() ? 0.0 : static_cast<double>(observed) / texels.size();
+  PushPull(&sums, size);
+  result.atlas = RgbImage(size, size);
+  for (int i = 0; i < size * size; ++i) {
+    const Eigen::Vector4f& s = sums[i];
+    for (int c = 0; c < 3; ++c) {
+      const float value = s.w() > 0 ? s[c] / s.w() : 128.0f;
+      result.atlas.data[3 * i + c] = static_cast<uint8_t>(std::clamp(value + 0.5f, 0.0f, 255.0f));
+    }
+  }
+  return result;
+}
+
+}  // namespace reenact::recon::bodyfit

@@ -1,0 +1,62 @@
+// Texturing of the fitted body (thesis 4.4): colour from each sensor's image
+// where the surface is visible, baked into an atlas over the template's UVs.
+//
+// The thesis projects each triangle of the fitted mesh M_Y,f into the images
+// I_f^1, I_f^2, tests its vertices against a depth map of the mesh rendered
+// for that sensor (visible when within T = 10 cm of the rendered depth), and
+// colours triangles seen by no sensor with the average of their visible
+// observations over the whole sequence.
+//
+// Here every texel of the atlas is one surface point (a triangle and
+// barycentric coordinates). For each used instant and sensor we render the
+// posed mesh's depth in the colour camera (a CPU z-buffer), and a texel is
+// visible when its point faces the camera and lies within
+// `visibility_threshold_m` of the rendered depth (the thesis's T); its colour
+// is then read from the image (bilinear). The atlas holds, per texel, the
+// average of its visible observations over the sequence, weighted by how
+// squarely the sensor saw the surface (cos^2 of the angle to the normal).
+// Departures, and why: the thesis's per-frame per-triangle colours become
+// one static atlas (a skinned glTF and the viewers carry one texture; the
+// clothes of a take do not change), sampled per texel rather than per
+// triangle so that a triangle (about 1.5 cm) does not flatten the clothing's
+// pattern; texels no sensor ever saw take the colour of the nearest
+// observed texels (push-pull fill) instead of staying black.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "common/base/image.h"
+#include "common/base/progress.h"
+#include "common/io/body_reenactment.h"
+#include "server/recon/take_frames.h"
+
+namespace reenact::recon::bodyfit {
+
+struct AtlasOptions {
+  int size_px = 1024;                    // Atlas side, pixels.
+  double visibility_threshold_m = 0.10;  // T (thesis: 10 cm).
+  int every = 2;                         // Use every k-th instant.
+  int colour_denominator = 2;            // Decode colour at 1/k (1, 2, 4, 8).
+  absl::Status Validate() const;
+};
+
+struct AtlasResult {
+  RgbImage atlas;
+  double observed_fraction = 0.0;  // Of the atlas's surface texels, seen at least once.
+  int views = 0;                   // (instant, sensor) images used.
+};
+
+// Bakes the atlas of `mesh` (its texture vertices, UVs and triangles) posed
+// per instant as `posed_vertices_m[i]` (3 x V; an empty matrix skips the
+// instant). InvalidArgument for bad options or sizes; errors of the take's
+// decoders; Cancelled when `progress` returns false (stage "texture").
+absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+                                          const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                          const AtlasOptions& options = {},
+                                          const ProgressCallback& progress = {});
+
+}  // namespace reenact::recon::bodyfit

@@ -40,11 +40,30 @@ void VertexNormals(const Eigen::Matrix3Xd& vertices_m,
 // Eq. 4.8.
 class VertexGrid {
  public:
+  // Cells of `cell_m`: Nearest sees every vertex within cell_m of a point
+  // (and some farther).
   VertexGrid(const Eigen::Matrix3Xd& vertices_m, const Eigen::Matrix3Xd& normals, double cell_m)
       : vertices_(vertices_m), normals_(normals), inverse_cell_(1.0 / cell_m) {
-    for (Eigen::Index v = 0; v < vertices_m.cols(); ++v) {
-      cells_[Key(Cell(vertices_m.col(v)))].push_back(static_cast<int>(v));
+    // A dense grid over the vertices' bounding box (one cell of margin),
+    // vertices bucketed by cell (counting sort).
+    const Eigen::Vector3d low = vertices_m.rowwise().minCoeff();
+    const Eigen::Vector3d high = vertices_m.rowwise().maxCoeff();
+    origin_ = low - Eigen::Vector3d::Constant(cell_m);
+    for (int c = 0; c < 3; ++c) {
+      size_[c] = static_cast<int>(std::floor((high[c] - origin_[c]) * inverse_cell_)) + 2;
     }
+    const size_t cells = static_cast<size_t>(size_.x()) * size_.y() * size_.z();
+    start_.assign(cells + 1, 0);
+    std::vector<int> cell_of(vertices_m.cols());
+    for (Eigen::Index v = 0; v < vertices_m.cols(); ++v) {
+      cell_of[v] = Flat(Cell(vertices_m.col(v)));
+      ++start_[cell_of[v] + 1];
+    }
+    for (size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
+    order_.resize(vertices_m.cols());
+    std::vector<int> next(start_.begin(), start_.end() - 1);
+    for (Eigen::Index v = 0; v < vertices_m.cols(); ++v)
+      order_[next[cell_of[v]]++] = static_cast<int>(v);
   }
 
   // argmin_y |y - z| (epsilon - n_y . n_z) over vertices within the 27
@@ -55,21 +74,26 @@ class VertexGrid {
     const Eigen::Vector3i c = Cell(z);
     int best = -1;
     double best_score = std::numeric_limits<double>::infinity();
-    const double max2 = max_distance_m * max_distance_m;
+    // A vertex at distance d scores at least d (epsilon - 1).
+    double prune2 = max_distance_m * max_distance_m;
     for (int dz = -1; dz <= 1; ++dz) {
       for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-          const auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
-          if (it == cells_.end()) continue;
-          for (int v : it->second) {
+          const Eigen::Vector3i q = c + Eigen::Vector3i(dx, dy, dz);
+          if ((q.array() < 0).any() || (q.array() >= size_.array()).any()) continue;
+          const int cell = Flat(q);
+          for (int k = start_[cell]; k < start_[cell + 1]; ++k) {
+            const int v = order_[k];
             const double d2 = (vertices_.col(v) - z).squaredNorm();
-            if (d2 > max2) continue;
+            if (d2 > prune2) continue;
             const double dot = normals_.col(v).dot(n_z);
             if (dot < min_dot) continue;
             const double score = std::sqrt(d2) * (epsilon - dot);
             if (score < best_score) {
               best_score = score;
               best = v;
+              const double reach = best_score / (epsilon - 1.0);
+              prune2 = std::min(prune2, reach * reach);
             }
           }
         }
@@ -79,21 +103,28 @@ class VertexGrid {
   }
 
  private:
+  // The cell of `p`, clamped to the grid for vertices; points outside give
+  // cells whose neighbourhoods miss the grid (and find nothing).
   Eigen::Vector3i Cell(const Eigen::Vector3d& p) const {
-    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inverse_cell_)),
-                           static_cast<int>(std::floor(p.y() * inverse_cell_)),
-                           static_cast<int>(std::floor(p.z() * inverse_cell_)));
+    const Eigen::Vector3d g = (p - origin_) * inverse_cell_;
+    Eigen::Vector3i c;
+    for (int k = 0; k < 3; ++k) {
+      c[k] =
+          static_cast<int>(std::clamp(std::floor(g[k]), -4.0, static_cast<double>(size_[k] + 3)));
+    }
+    return c;
   }
-  static int64_t Key(const Eigen::Vector3i& c) {
-    return (static_cast<int64_t>(c.x() + (1 << 20)) << 42) |
-           (static_cast<int64_t>(c.y() + (1 << 20)) << 21) |
-           static_cast<int64_t>(c.z() + (1 << 20));
+  int Flat(const Eigen::Vector3i& c) const {
+    return (c.z() * size_.y() + c.y()) * size_.x() + c.x();
   }
 
   const Eigen::Matrix3Xd& vertices_;
   const Eigen::Matrix3Xd& normals_;
   double inverse_cell_;
-  std::unordered_map<int64_t, std::vector<int>> cells_;
+  Eigen::Vector3d origin_;
+  Eigen::Vector3i size_;
+  std::vector<int> start_;  // Per cell, its first index into order_; one more at the end.
+  std::vector<int> order_;  // Vertices by cell.
 };
 
 // Ceres parameter memory of one pose.
@@ -137,7 +168,8 @@ Eigen::Matrix3d RotationOf(const Eigen::Vector3d& a) {
 
 ceres::Solver::Options SolverOptions(int iterations, bool sparse) {
   ceres::Solver::Options options;
-  options.linear_solver_type = sparse ? ceres::SPARSE_NORMAL_CHOLESKY : ceres::DENSE_QR;
+  options.linear_solver_type =
+      sparse ? ceres::SPARSE_NORMAL_CHOLESKY : ceres::DENSE_NORMAL_CHOLESKY;
   options.max_num_iterations = iterations;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
@@ -165,9 +197,11 @@ std::vector<int> SamplePoints(size_t size, int count, int phase) {
 void AddFrameTerms(const ModelData& data, const BodyFitOptions& o, const PointCloud& cloud,
                    const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd& normals, int round,
                    const SkeletonJoints& skeleton_m, const PoseParameters& smooth_to,
-                   double* shape_block, const Eigen::VectorXd& shape, PoseBlocks* blocks,
+                   double* shape_block, const ShapedRest* fixed, PoseBlocks* blocks,
                    ceres::Problem* problem) {
-  const VertexGrid grid(posed, normals, o.max_distance_m);
+  // The first round reaches max_distance_m; later ones, close to the
+  // surface already, search half as far (a quarter of the cells' volume).
+  const VertexGrid grid(posed, normals, round == 0 ? o.max_distance_m : 0.5 * o.max_distance_m);
   std::vector<Correspondence> matches;
   const std::vector<int> sample = SamplePoints(cloud.size(), o.max_points, round);
   for (int i : sample) {
@@ -176,18 +210,16 @@ void AddFrameTerms(const ModelData& data, const BodyFitOptions& o, const PointCl
     const int v = grid.Nearest(z, n, o.normal_epsilon, o.max_distance_m, o.min_normal_dot);
     if (v >= 0) matches.push_back({v, z, n});
   }
-  const bool fit_shape = shape_block != nullptr;
   std::vector<double*> parameters = blocks->Blocks(shape_block);
   if (!matches.empty()) {
     // The sample stands for the whole cloud: Eq. 4.5 sums over every point.
     const double weight = o.point_weight * cloud.size() / sample.size();
-    problem->AddResidualBlock(NewPointTerm(data, std::move(matches), weight, fit_shape, shape),
+    problem->AddResidualBlock(NewPointTerm(data, std::move(matches), weight, fixed),
                               new ceres::HuberLoss(std::sqrt(weight) * o.huber_m), parameters);
   }
   if (o.skeleton_weight > 0) {
-    problem->AddResidualBlock(
-        NewSkeletonTerm(data, skeleton_m, o.skeleton_weight, fit_shape, shape), nullptr,
-        parameters);
+    problem->AddResidualBlock(NewSkeletonTerm(data, skeleton_m, o.skeleton_weight, fixed), nullptr,
+                              parameters);
   }
   for (int j = 0; j < kJoints; ++j) {
     if (!problem->HasParameterBlock(parameters[j])) continue;
@@ -265,6 +297,8 @@ absl::StatusOr<std::unique_ptr<BodyFitter>> BodyFitter::Create(const body::BodyM
   std::unique_ptr<BodyFitter> fitter(new BodyFitter(model, options));
   fitter->data_ = std::make_unique<ModelData>(model);
   fitter->shape_ = Eigen::VectorXd::Zero(model.num_shape_components());
+  fitter->rest_ = std::make_unique<ShapedRest>();
+  fitter->data_->Shaped(fitter->shape_, &fitter->rest_->vertices_m, &fitter->rest_->joints_m);
   return fitter;
 }
 
@@ -274,6 +308,7 @@ absl::Status BodyFitter::set_shape(const Eigen::VectorXd& shape) {
         "shape has ", shape.size(), " coefficients, the model ", model_.num_shape_components()));
   }
   shape_ = shape;
+  data_->Shaped(shape_, &rest_->vertices_m, &rest_->joints_m);
   return absl::OkStatus();
 }
 
@@ -290,9 +325,7 @@ absl::StatusOr<body::BodyPose> BodyFitter::PoseFromSkeleton(
     return absl::FailedPreconditionError(
         "the skeleton lacks the torso joints (spine base and shoulder, hips or shoulders)");
   }
-  Eigen::Matrix3Xd rest;
-  std::array<Eigen::Vector3d, kJoints> rest_joints;
-  data_->Shaped(shape_, &rest, &rest_joints);
+  const std::array<Eigen::Vector3d, kJoints>& rest_joints = rest_->joints_m;
   const auto frame = [](const Eigen::Vector3d& up_in, const Eigen::Vector3d& left_in) {
     const Eigen::Vector3d up = up_in.normalized();
     const Eigen::Vector3d l = (left_in - left_in.dot(up) * up).normalized();
@@ -322,7 +355,7 @@ absl::StatusOr<body::BodyPose> BodyFitter::FollowSkeleton(const body::BodyPose& 
   const PoseParameters from = blocks.Parameters();
   ceres::Problem problem;
   std::vector<double*> parameters = blocks.Blocks(nullptr);
-  problem.AddResidualBlock(NewSkeletonTerm(*data_, skeleton_m, 1.0, false, shape_), nullptr,
+  problem.AddResidualBlock(NewSkeletonTerm(*data_, skeleton_m, 1.0, rest_.get()), nullptr,
                            parameters);
   // A weak pull to the start: joint positions leave twists open.
   for (int j = 0; j < kJoints; ++j) {
@@ -350,9 +383,10 @@ absl::Status BodyFitter::FitShape(const std::vector<FitInput>& frames,
   std::vector<PoseBlocks> blocks;
   for (const body::BodyPose& pose : *poses) blocks.emplace_back(PoseParameters::FromPose(pose));
   for (int round = 0; round < options_.shape_rounds; ++round) {
-    Eigen::Matrix3Xd rest;
-    std::array<Eigen::Vector3d, kJoints> rest_joints;
-    data_->Shaped(beta, &rest, &rest_joints);
+    ShapedRest round_rest;
+    data_->Shaped(beta, &round_rest.vertices_m, &round_rest.joints_m);
+    const Eigen::Matrix3Xd& rest = round_rest.vertices_m;
+    const std::array<Eigen::Vector3d, kJoints>& rest_joints = round_rest.joints_m;
     ceres::Problem problem;
     for (size_t f = 0; f < frames.size(); ++f) {
       const auto pointers = blocks[f].AngleAxisPointers();
@@ -364,8 +398,8 @@ absl::Status BodyFitter::FitShape(const std::vector<FitInput>& frames,
       VertexNormals(posed, data_->triangles, &normals);
       // Eq. 4.6 against the frame's pose at the start of the round.
       AddFrameTerms(*data_, options_, *frames[f].cloud, posed, normals, round, frames[f].skeleton_m,
-                    blocks[f].Parameters(), k_shape > 0 ? beta.data() : nullptr, beta, &blocks[f],
-                    &problem);
+                    blocks[f].Parameters(), k_shape > 0 ? beta.data() : nullptr,
+                    k_shape > 0 ? nullptr : rest_.get(), &blocks[f], &problem);
     }
     if (k_shape > 0 && problem.HasParameterBlock(beta.data())) {
       problem.AddResidualBlock(NewShapePrior(k_shape, options_.shape_prior_weight), nullptr,
@@ -376,6 +410,7 @@ absl::Status BodyFitter::FitShape(const std::vector<FitInput>& frames,
   }
   if (!beta.allFinite()) return absl::InternalError("the shape fit diverged");
   shape_ = beta;
+  data_->Shaped(shape_, &rest_->vertices_m, &rest_->joints_m);
   for (size_t f = 0; f < frames.size(); ++f) (*poses)[f] = blocks[f].Parameters().ToPose();
   return absl::OkStatus();
 }
@@ -383,9 +418,8 @@ absl::Status BodyFitter::FitShape(const std::vector<FitInput>& frames,
 absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body::BodyPose& initial,
                                               const body::BodyPose* previous) {
   if (input.cloud == nullptr) return absl::InvalidArgumentError("no point cloud");
-  Eigen::Matrix3Xd rest;
-  std::array<Eigen::Vector3d, kJoints> rest_joints;
-  data_->Shaped(shape_, &rest, &rest_joints);
+  const Eigen::Matrix3Xd& rest = rest_->vertices_m;
+  const std::array<Eigen::Vector3d, kJoints>& rest_joints = rest_->joints_m;
   PoseBlocks blocks(PoseParameters::FromPose(initial));
   const PoseParameters smooth_to = PoseParameters::FromPose(previous ? *previous : initial);
   const PointCloud& cloud = *input.cloud;
@@ -403,7 +437,7 @@ absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body:
     pose_now();
     ceres::Problem problem;
     AddFrameTerms(*data_, options_, cloud, posed, normals, round, input.skeleton_m, smooth_to,
-                  nullptr, shape_, &blocks, &problem);
+                  nullptr, rest_.get(), &blocks, &problem);
     if (problem.NumResidualBlocks() == 0) break;
     ceres::Solver::Summary summary;
     ceres::Solve(SolverOptions(options_.iterations_per_round, false), &problem, &summary);
@@ -414,23 +448,32 @@ absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body:
   if (!fit.pose.root_translation_m.allFinite()) return absl::InternalError("the fit diverged");
   for (int j = 0; j < kJoints; ++j) fit.joints_m[j] = kin.position_m[j];
 
-  // Final correspondences over the whole cloud: the RMS figure and step 2.
-  const VertexGrid grid(posed, normals, options_.max_distance_m);
+  // The RMS figure over a subset of the cloud, as the rounds used it.
   const int v_count = data_->num_vertices();
-  Eigen::Matrix3Xd pull = Eigen::Matrix3Xd::Zero(3, v_count);
-  Eigen::VectorXd count = Eigen::VectorXd::Zero(v_count);
   double sum2 = 0.0;
   int used = 0;
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
-    const Eigen::Vector3d n = cloud.normals[i].cast<double>();
-    const int v = grid.Nearest(z, n, options_.normal_epsilon, options_.max_distance_m,
-                               options_.min_normal_dot);
-    if (v < 0) continue;
-    const double plane = normals.col(v).dot(z - posed.col(v));
-    sum2 += plane * plane;
-    ++used;
-    if ((z - posed.col(v)).norm() <= options_.refine_max_distance_m) {
+  {
+    const VertexGrid grid(posed, normals, 0.5 * options_.max_distance_m);
+    for (int i : SamplePoints(cloud.size(), options_.max_points, options_.rounds)) {
+      const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
+      const int v = grid.Nearest(z, cloud.normals[i].cast<double>(), options_.normal_epsilon,
+                                 options_.max_distance_m, options_.min_normal_dot);
+      if (v < 0) continue;
+      const double plane = normals.col(v).dot(z - posed.col(v));
+      sum2 += plane * plane;
+      ++used;
+    }
+  }
+  // Step 2's correspondences: every point within refine_max_distance_m.
+  Eigen::Matrix3Xd pull = Eigen::Matrix3Xd::Zero(3, v_count);
+  Eigen::VectorXd count = Eigen::VectorXd::Zero(v_count);
+  if (options_.refine_vertices) {
+    const VertexGrid grid(posed, normals, options_.refine_max_distance_m);
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
+      const int v = grid.Nearest(z, cloud.normals[i].cast<double>(), options_.normal_epsilon,
+                                 options_.refine_max_distance_m, options_.min_normal_dot);
+      if (v < 0) continue;
       pull.col(v) += z - posed.col(v);
       count[v] += 1.0;
     }

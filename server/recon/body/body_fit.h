@@ -143,7 +143,8 @@ struct PoseParameters {
   body::BodyPose ToPose() const;
 };
 
-class ModelData;  // Precomputed model arrays (body_fit.cc).
+class ModelData;    // Precomputed model arrays (body_terms.h).
+struct ShapedRest;  // Rest vertices and joints of the current shape.
 
 class BodyFitter {
  public:
@@ -188,6 +189,7 @@ class BodyFitter {
   BodyFitOptions options_;
   Eigen::VectorXd shape_;
   std::unique_ptr<ModelData> data_;
+  std::unique_ptr<ShapedRest> rest_;
   // Step 2: the edge Laplacian E^T E and its symbolic factorisation.
   bool refine_solver_ready_ = false;
   Eigen::SparseMatrix<double> laplacian_;

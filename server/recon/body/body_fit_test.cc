@@ -83,11 +83,12 @@ TEST(BodyTerms, PointTermJacobiansMatchNumericDifferences) {
     matches.push_back({vertex(rng), Eigen::Vector3d(g(rng), 1.0 + g(rng), g(rng)), n});
   }
   const std::unique_ptr<ceres::CostFunction> with_shape(
-      NewPointTerm(Data(), matches, 2.0, /*fit_shape=*/true, shape));
+      NewPointTerm(Data(), matches, 2.0, /*fixed=*/nullptr));
   const double error_shape = MaxJacobianError(*with_shape, pose, &shape);
   EXPECT_LT(error_shape, 1e-5);
-  const std::unique_ptr<ceres::CostFunction> fixed(
-      NewPointTerm(Data(), matches, 2.0, /*fit_shape=*/false, shape));
+  ShapedRest rest;
+  Data().Shaped(shape, &rest.vertices_m, &rest.joints_m);
+  const std::unique_ptr<ceres::CostFunction> fixed(NewPointTerm(Data(), matches, 2.0, &rest));
   EXPECT_LT(MaxJacobianError(*fixed, pose, &shape), 1e-5);
   std::printf("point term: max relative Jacobian error %.2e\n", error_shape);
 }
@@ -99,7 +100,7 @@ TEST(BodyTerms, SkeletonAndSmoothnessJacobiansMatchNumericDifferences) {
   SkeletonJoints targets = NoSkeletonJoints();
   for (int j = 0; j < kJoints; j += 2) targets[j] = Eigen::Vector3d(0.1 * j, 1.0, 0.0);
   const std::unique_ptr<ceres::CostFunction> skeleton(
-      NewSkeletonTerm(Data(), targets, 3.0, /*fit_shape=*/true, shape));
+      NewSkeletonTerm(Data(), targets, 3.0, /*fixed=*/nullptr));
   EXPECT_EQ(skeleton->num_residuals(), 3 * 13);
   EXPECT_LT(MaxJacobianError(*skeleton, pose, &shape), 1e-5);
 

@@ -36,41 +36,43 @@ Eigen::Matrix3d Exp(const Eigen::Vector3d& a) {
 // with the shape either free or fixed.
 class SkinnedTerm : public ceres::CostFunction {
  public:
-  SkinnedTerm(const ModelData& data, bool fit_shape, const Eigen::VectorXd& fixed_shape)
-      : data_(data), fit_shape_(fit_shape && data.num_shape() > 0) {
+  SkinnedTerm(const ModelData& data, const ShapedRest* fixed)
+      : data_(data), fit_shape_(fixed == nullptr && data.num_shape() > 0), fixed_(fixed) {
     // Blocks: 25 joints, translation, [shape].
     std::vector<int32_t>* sizes = mutable_parameter_block_sizes();
     sizes->assign(kJoints, 3);
     sizes->push_back(3);
     if (fit_shape_) sizes->push_back(data.num_shape());
-    if (!fit_shape_) data.Shaped(fixed_shape, &fixed_rest_m_, &fixed_rest_joints_m_);
+    if (!fit_shape_ && fixed_ == nullptr) {  // A model without shape directions.
+      own_ = std::make_unique<ShapedRest>();
+      data.Shaped(Eigen::VectorXd(), &own_->vertices_m, &own_->joints_m);
+      fixed_ = own_.get();
+    }
   }
 
  protected:
   void Kinematic(double const* const* parameters, bool shape_derivatives, Kinematics* kin) const {
     ComputeKinematics(
         data_, parameters, parameters[kJoints], fit_shape_ ? parameters[kJoints + 1] : nullptr,
-        fit_shape_ ? nullptr : &fixed_rest_joints_m_, fit_shape_ && shape_derivatives, kin);
+        fit_shape_ ? nullptr : &fixed_->joints_m, fit_shape_ && shape_derivatives, kin);
   }
   Eigen::Vector3d Rest(int v, double const* const* parameters) const {
-    if (!fit_shape_) return fixed_rest_m_.col(v);
+    if (!fit_shape_) return fixed_->vertices_m.col(v);
     const Eigen::Map<const Eigen::VectorXd> beta(parameters[kJoints + 1], data_.num_shape());
     return data_.template_m.col(v) + data_.shape_basis.middleRows<3>(3 * v) * beta;
   }
 
   const ModelData& data_;
   const bool fit_shape_;
-  Eigen::Matrix3Xd fixed_rest_m_;
-  std::array<Eigen::Vector3d, kJoints> fixed_rest_joints_m_;
+  const ShapedRest* fixed_;
+  std::unique_ptr<ShapedRest> own_;
 };
 
 class PointTerm final : public SkinnedTerm {
  public:
   PointTerm(const ModelData& data, std::vector<Correspondence> matches, double weight,
-            bool fit_shape, const Eigen::VectorXd& fixed_shape)
-      : SkinnedTerm(data, fit_shape, fixed_shape),
-        matches_(std::move(matches)),
-        sqrt_weight_(std::sqrt(weight)) {
+            const ShapedRest* fixed)
+      : SkinnedTerm(data, fixed), matches_(std::move(matches)), sqrt_weight_(std::sqrt(weight)) {
     set_num_residuals(static_cast<int>(matches_.size()));
   }
 
@@ -147,8 +149,8 @@ class PointTerm final : public SkinnedTerm {
 class SkeletonTerm final : public SkinnedTerm {
  public:
   SkeletonTerm(const ModelData& data, const std::array<Eigen::Vector3d, kJoints>& targets_m,
-               double weight, bool fit_shape, const Eigen::VectorXd& fixed_shape)
-      : SkinnedTerm(data, fit_shape, fixed_shape), sqrt_weight_(std::sqrt(weight)) {
+               double weight, const ShapedRest* fixed)
+      : SkinnedTerm(data, fixed), sqrt_weight_(std::sqrt(weight)) {
     for (int j = 0; j < kJoints; ++j) {
       if (targets_m[j].allFinite()) targets_.emplace_back(j, targets_m[j]);
     }
@@ -360,16 +362,14 @@ void PoseAllVertices(const ModelData& data, const Kinematics& kin, const Eigen::
 }
 
 ceres::CostFunction* NewPointTerm(const ModelData& data, std::vector<Correspondence> matches,
-                                  double weight, bool fit_shape,
-                                  const Eigen::VectorXd& fixed_shape) {
-  return new PointTerm(data, std::move(matches), weight, fit_shape, fixed_shape);
+                                  double weight, const ShapedRest* fixed) {
+  return new PointTerm(data, std::move(matches), weight, fixed);
 }
 
 ceres::CostFunction* NewSkeletonTerm(const ModelData& data,
                                      const std::array<Eigen::Vector3d, kJoints>& targets_m,
-                                     double weight, bool fit_shape,
-                                     const Eigen::VectorXd& fixed_shape) {
-  return new SkeletonTerm(data, targets_m, weight, fit_shape, fixed_shape);
+                                     double weight, const ShapedRest* fixed) {
+  return new SkeletonTerm(data, targets_m, weight, fixed);
 }
 
 ceres::CostFunction* NewSmoothnessTerm(const Eigen::Matrix3d& previous_rotation, double weight) {

@@ -57,6 +57,13 @@ class ModelData {
               std::array<Eigen::Vector3d, kJoints>* rest_joints_m) const;
 };
 
+// Rest vertices and joints of one shape (ModelData::Shaped), for terms
+// that hold the shape.
+struct ShapedRest {
+  Eigen::Matrix3Xd vertices_m;
+  std::array<Eigen::Vector3d, kJoints> joints_m;
+};
+
 // Forward kinematics of one parameter vector.
 struct Kinematics {
   std::array<Eigen::Matrix3d, kJoints> world_rotation;  // Q_j.
@@ -92,18 +99,16 @@ struct Correspondence {
 
 // Point term (Eq. 4.5, point-to-plane, body_fit.h): residual n . (v - z) per
 // correspondence, times sqrt(weight). Parameter blocks: 25 joints (3 each),
-// translation (3), and the shape (K) when `fit_shape`; otherwise the shape
-// is `fixed_shape`.
+// translation (3), and the shape (K) when `fixed` is null; otherwise the
+// shape is held at `fixed` (which must outlive the term).
 ceres::CostFunction* NewPointTerm(const ModelData& data, std::vector<Correspondence> matches,
-                                  double weight, bool fit_shape,
-                                  const Eigen::VectorXd& fixed_shape);
+                                  double weight, const ShapedRest* fixed);
 
 // Skeleton prior: sqrt(weight) (p_j - target_j) for every finite target
 // joint. Parameter blocks as NewPointTerm.
 ceres::CostFunction* NewSkeletonTerm(const ModelData& data,
                                      const std::array<Eigen::Vector3d, kJoints>& targets_m,
-                                     double weight, bool fit_shape,
-                                     const Eigen::VectorXd& fixed_shape);
+                                     double weight, const ShapedRest* fixed);
 
 // Pose smoothness of one joint (Eq. 4.6): sqrt(weight) (R(a) - R_previous),
 // 9 residuals; one parameter block of 3 (autodiff).

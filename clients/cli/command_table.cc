@@ -52,9 +52,10 @@ std::vector<Command> BuildCommandTable() {
        RunCaptureStart},
       {{"capture", "stop"}, "[--daemon HOST:PORT]", "stop the take being recorded", RunCaptureStop},
       {{"jobs", "submit"},
-       "--take ID --method rigid-cylinders|rigid-carved [--option KEY=VALUE ...] "
-       "[--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
-       "queue a reconstruction of a stored take; --wait follows it with a progress bar",
+       "--take ID --method rigid-cylinders|rigid-carved|body [--model procedural|makehuman:DIR] "
+       "[--option KEY=VALUE ...] [--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
+       "queue a reconstruction of a stored take (rigid parts, thesis ch. 3, or the body model, "
+       "ch. 4; --model is --option model= of body); --wait follows it with a progress bar",
        RunJobsSubmit},
       {{"jobs", "list"},
        "[--server HOST:PORT] [--state queued|running|succeeded|failed|cancelled|all] "

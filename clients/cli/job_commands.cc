@@ -1,5 +1,7 @@
 // `reenact jobs ...`: the server's Jobs service. Submit a reconstruction of a
-// stored take, follow it with a progress bar, list, watch, cancel.
+// stored take, follow it with a progress bar, list, watch, cancel. Submit's
+// `--model X` is `--option model=X` of the method body (the body model:
+// procedural | makehuman:DIR).
 //
 // Exit codes of the commands that wait for a job (submit --wait, watch): 0
 // when it SUCCEEDED, 1 when it FAILED or was CANCELLED (the reason on
@@ -187,13 +189,35 @@ absl::StatusOr<std::map<std::string, std::string>> TakeOptions(std::vector<std::
   return options;
 }
 
+// `--model X`: shorthand for `--option model=X`, the body model of the
+// method "body" (procedural | makehuman:DIR). InvalidArgument with another
+// method or beside a different `--option model=`.
+absl::Status ApplyModelFlag(const Flags& flags, const std::string& method,
+                            std::map<std::string, std::string>* options) {
+  if (!flags.Has("model")) return absl::OkStatus();
+  const std::string model = flags.GetOr("model", "");
+  if (method != "body") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--model chooses the body model of --method body; method \"", method, "\" has none"));
+  }
+  if (model.empty()) {
+    return absl::InvalidArgumentError("--model takes procedural or makehuman:DIR");
+  }
+  const auto [it, inserted] = options->emplace("model", model);
+  if (!inserted && it->second != model) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--model ", model, " disagrees with --option model=", it->second, "; give one of them"));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, std::ostream& err) {
   std::vector<std::string> args = raw_args;
   auto options = TakeOptions(&args);
   if (!options.ok()) return ReportError(options.status(), err);
-  auto flags = Flags::Parse(args, {"server", "timeout", "take", "method"},
+  auto flags = Flags::Parse(args, {"server", "timeout", "take", "method", "model"},
                             {"wait", "json", "logs", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
@@ -205,6 +229,9 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   if (!take.ok()) return ReportError(take.status(), err);
   auto method = flags->Required("method");
   if (!method.ok()) return ReportError(method.status(), err);
+  if (absl::Status model = ApplyModelFlag(*flags, *method, &*options); !model.ok()) {
+    return ReportError(model, err);
+  }
   auto connection = ConnectionFromFlags(*flags);
   if (!connection.ok()) return ReportError(connection.status(), err);
   const client::JobsClient jobs(*connection);

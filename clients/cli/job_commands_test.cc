@@ -26,7 +26,8 @@ class FakeJobs final : public v1::Jobs::Service {
     if (request->take_id() == "missing") {
       return grpc::Status(grpc::StatusCode::NOT_FOUND, "no take \"missing\"");
     }
-    if (request->method() != "rigid-carved" && request->method() != "rigid-cylinders") {
+    if (request->method() != "rigid-carved" && request->method() != "rigid-cylinders" &&
+        request->method() != "body") {
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "unknown method");
     }
     last_submit = *request;
@@ -182,6 +183,46 @@ TEST_F(JobCommands, SubmitErrors) {
       Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved", "--option", "novalue"}),
       kExitUsage);
   EXPECT_EQ(Run({"jobs", "submit", "--method", "rigid-carved"}), kExitUsage);
+}
+
+TEST_F(JobCommands, SubmitModelIsTheBodyMethodsModelOption) {
+  ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model",
+                 "makehuman:/data/mh", "--option", "atlas_px=512"}),
+            kExitOk)
+      << err_.str();
+  EXPECT_EQ(service_.last_submit.method(), "body");
+  EXPECT_EQ(service_.last_submit.options().at("model"), "makehuman:/data/mh");
+  EXPECT_EQ(service_.last_submit.options().at("atlas_px"), "512");
+  // The same model twice is fine.
+  ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model=procedural",
+                 "--option", "model=procedural"}),
+            kExitOk)
+      << err_.str();
+  EXPECT_EQ(service_.last_submit.options().at("model"), "procedural");
+  EXPECT_EQ(service_.last_submit.options().size(), 1u);
+}
+
+TEST_F(JobCommands, SubmitModelErrors) {
+  service_.last_submit.Clear();
+  // Another method has no body model.
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved", "--model",
+                 "procedural"}),
+            kExitUsage);
+  EXPECT_NE(err_.str().find("--model chooses the body model of --method body"), std::string::npos)
+      << err_.str();
+  EXPECT_NE(err_.str().find("\"rigid-carved\""), std::string::npos) << err_.str();
+  // --model and --option model= that disagree.
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model", "procedural",
+                 "--option", "model=makehuman:/data/mh"}),
+            kExitUsage);
+  EXPECT_NE(err_.str().find("--model procedural disagrees with --option model=makehuman:/data/mh"),
+            std::string::npos)
+      << err_.str();
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model", ""}),
+            kExitUsage);
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model"}), kExitUsage);
+  // Nothing reached the server.
+  EXPECT_TRUE(service_.last_submit.method().empty());
 }
 
 TEST_F(JobCommands, ListFiltersAndPrints) {

@@ -11,9 +11,10 @@
 
 namespace reenact::server {
 
-// thesis 3.3 (cylinders, Eq. 3.3-3.6) and 3.4 (voxel carving, Eq. 3.7-3.15).
+// thesis 3.3 (cylinders, Eq. 3.3-3.6), 3.4 (voxel carving, Eq. 3.7-3.15)
+// and ch. 4 (the statistical body model, Eq. 4.4-4.8).
 inline const std::vector<std::string>& JobMethodNames() {
-  static const std::vector<std::string> names = {"rigid-cylinders", "rigid-carved"};
+  static const std::vector<std::string> names = {"rigid-cylinders", "rigid-carved", "body"};
   return names;
 }
 

@@ -142,7 +142,8 @@ TEST(JobsService, SubmitErrors) {
             grpc::StatusCode::NOT_FOUND);
   const grpc::Status bad_method = jobs.Submit("take1", "rigid-magic", {}, &job);
   EXPECT_EQ(bad_method.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(bad_method.error_message().find("rigid-cylinders, rigid-carved"), std::string::npos)
+  EXPECT_NE(bad_method.error_message().find("rigid-cylinders, rigid-carved, body"),
+            std::string::npos)
       << bad_method.error_message();
   EXPECT_EQ(jobs.Submit("../etc", "rigid-carved", {}, &job).error_code(),
             grpc::StatusCode::INVALID_ARGUMENT);
@@ -164,6 +165,15 @@ TEST(JobsService, SubmitErrors) {
   v1::ListJobsResponse list;
   ASSERT_TRUE(jobs.List(v1::JOB_STATE_UNSPECIFIED, "", &list).ok());
   EXPECT_EQ(list.jobs_size(), 0);
+  // The body model (thesis ch. 4) is a method like the rigid ones: Submit
+  // checks the option names and sizes, the worker the values (before it
+  // loads the take).
+  const grpc::Status body =
+      jobs.Submit("take1", "body", {{"model", "procedural"}, {"atlas_px", "512"}}, &job);
+  ASSERT_TRUE(body.ok()) << body.error_message();
+  EXPECT_EQ(job.method(), "body");
+  EXPECT_EQ(job.options().at("model"), "procedural");
+  EXPECT_EQ(job.options().at("atlas_px"), "512");
 }
 
 TEST(JobsService, WatchSeesProgressAndTheReenactment) {

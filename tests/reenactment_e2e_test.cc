@@ -1,7 +1,8 @@
 // End to end over loopback, as a coach runs it: a synthetic 2-sensor take is
 // played by the real reenactd into the real reenact-server; `reenact jobs
-// submit --wait` runs the rigid methods in reenact-worker processes; the
-// reenactments are exported to glTF (checked by the npm gltf-validator),
+// submit --wait` runs the rigid methods and the body model in reenact-worker
+// processes; the reenactments are exported to glTF (checked by the npm
+// gltf-validator) and, for the body model, to BVH (read back by our reader),
 // evaluated against the take's ground truth with `reenact eval` and rendered
 // headless with `reenact render`.
 #include <chrono>
@@ -20,6 +21,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/subprocess.h"
+#include "common/body/joint_set.h"
+#include "common/body/motion.h"
 #include "common/synth/synthesizer.h"
 
 namespace reenact {
@@ -248,6 +251,80 @@ TEST_F(ReenactmentEndToEnd, RigidMethodsFromIngestToExport) {
   // glTF 2.0 with zero errors from the Khronos validator (npm gltf-validator).
   ExportAndValidate(carved);
   ExportAndValidate(cylinders);
+}
+
+// The statistical body model (thesis ch. 4) on the same take, as the README
+// runs it: `--method body --model procedural` through the server and a
+// worker, shown, exported to glTF (validator) and to BVH (our reader),
+// evaluated. The take's actor is the procedural body, so the fit must reach
+// the floors of procedural on procedural: joints within 15 mm (MPJPE), the
+// surface within 10 mm. A 512 px atlas keeps the job short.
+TEST_F(ReenactmentEndToEnd, BodyModelFromIngestToExport) {
+  const CommandResult submit = RunCommand(
+      *dir_, "submit-body",
+      {Bin("reenact"), "jobs", "submit", "--server", address_(), "--take", take_id_(), "--method",
+       "body", "--model", "procedural", "--option", "atlas_px=512", "--wait", "--json"});
+  const std::string body = ReenactmentOf(submit);
+  ASSERT_FALSE(body.empty());
+  const nlohmann::json job = nlohmann::json::parse(submit.out)["job"];
+  EXPECT_EQ(job["method"], "body");
+  EXPECT_EQ(job["options"]["model"], "procedural");
+  const double job_s = 1e-9 * static_cast<double>(job["finished_unix_ns"].get<int64_t>() -
+                                                  job["started_unix_ns"].get<int64_t>());
+
+  // The stored reenactment: no parts, the model's mesh and atlas.
+  const CommandResult show =
+      RunCommand(*dir_, "show-body",
+                 {Bin("reenact"), "reenactments", "show", body, "--server", address_(), "--json"});
+  ASSERT_EQ(show.exit_code, 0) << show.err;
+  const auto summary = nlohmann::json::parse(show.out, nullptr, false);
+  ASSERT_TRUE(summary.is_object()) << show.out;
+  EXPECT_EQ(summary["method"], "body");
+  EXPECT_EQ(summary["part_count"], 0);
+  ASSERT_TRUE(summary.contains("body")) << show.out;
+  EXPECT_FALSE(summary["body"]["model_name"].get<std::string>().empty()) << show.out;
+  EXPECT_GT(summary["body"]["vertices"].get<int64_t>(), 1000) << show.out;
+  EXPECT_EQ(summary["body"]["atlas_width"], 512) << show.out;
+  const int frames = summary["frame_count"].get<int>();
+  EXPECT_GT(frames, 0);
+
+  // The fitted skeleton as BVH (centimetres): our reader finds every Kinect
+  // v2 joint and every frame.
+  const std::string bvh = *dir_ + "/" + body + ".bvh";
+  const CommandResult exported =
+      RunCommand(*dir_, "export-bvh-" + body,
+                 {Bin("reenact"), "export", "--server", address_(), "--reenactment", body,
+                  "--format", "bvh", "--out", bvh, "--quiet"});
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  body::BvhOptions bvh_options;
+  bvh_options.metres_per_unit = 0.01;
+  const absl::StatusOr<body::Motion> motion = body::ReadBvh(bvh, bvh_options);
+  ASSERT_TRUE(motion.ok()) << motion.status();
+  EXPECT_EQ(motion->num_frames(), frames);
+  int named = 0;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    const std::string_view name = body::KinectV2JointName(static_cast<body::KinectV2Joint>(j));
+    for (const body::MotionJoint& joint : motion->joints()) {
+      if (joint.name == name) {
+        ++named;
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(named, body::kNumKinectV2Joints);
+
+  const nlohmann::json figures = Eval(body);
+  ASSERT_TRUE(figures.is_object());
+  EXPECT_LE(figures["mpjpe_mm"].get<double>(), 15.0);
+  EXPECT_LE(figures["surface_mm"].get<double>(), 10.0);
+  std::printf(
+      "[ body     ] mpjpe_mm %.2f (floor 15), surface_mm %.2f (floor 10), psnr_db_90 %.2f, "
+      "iou_90 %.3f, job %.1f s, %d frames\n",
+      figures["mpjpe_mm"].get<double>(), figures["surface_mm"].get<double>(),
+      figures["psnr_db_90"].get<double>(), figures["iou_90"].get<double>(), job_s, frames);
+
+  // One skinned mesh over the Kinect v2 joints, zero validator errors.
+  ExportAndValidate(body);
 }
 
 }  // namespace

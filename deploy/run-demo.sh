@@ -6,7 +6,9 @@
 # and draws its contact sheet; then submits a rigid body-part reconstruction
 # job (voxel-carved parts, thesis 3.4) and follows its progress bar, exports
 # the reenactment to glTF, evaluates it against the take's ground truth and
-# renders a novel view. Outputs go to ./out/demo.
+# renders a novel view; then does the same with the statistical body model
+# (thesis ch. 4), whose fitted skeleton is also exported as BVH. Outputs go
+# to ./out/demo.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/setup-debian.sh
@@ -43,19 +45,37 @@ take_id=$("$reenact" takes list --server "$server" --json | \
 "$reenact" take sheet "$out/take.mcap" --out "$out/sheet.png"
 
 # Reconstruction: a job on the server, run by a reenact-worker process; the
-# progress bar follows the job's Watch stream.
-"$reenact" jobs submit --server "$server" --take "$take_id" --method rigid-carved --wait --json \
-  > "$out/job.json"
-reenactment_id=$(sed -n 's/.*"reenactment": *"\([^"]*\)".*/\1/p' "$out/job.json" | head -n 1)
-"$reenact" reenactments show "$reenactment_id" --server "$server"
-"$reenact" export --server "$server" --reenactment "$reenactment_id" --format glb \
-  --out "$out/reenactment.glb"
-"$reenact" eval --server "$server" --reenactment "$reenactment_id" --take "$out/source.mcap" \
-  --every 3 --json > "$out/eval.json"
-cat "$out/eval.json"
-rm -rf "$out/novel-view"
-"$reenact" render --server "$server" --reenactment "$reenactment_id" --camera orbit:90 \
-  --out "$out/novel-view" --width 960 --height 540
+# progress bar follows the job's Watch stream. reconstruct NAME GLB ARGS...
+# submits a job with the `jobs submit` arguments ARGS, then shows its
+# reenactment, exports it to GLB, evaluates it against the take's ground
+# truth and renders a novel view: $out/NAMEjob.json, NAMEeval.json and
+# NAMEnovel-view/. The reenactment's id is left in $reenactment_id.
+reconstruct() {
+  local name=$1 glb=$2
+  shift 2
+  "$reenact" jobs submit --server "$server" --take "$take_id" "$@" --wait --json \
+    > "$out/${name}job.json"
+  reenactment_id=$(sed -n 's/.*"reenactment": *"\([^"]*\)".*/\1/p' "$out/${name}job.json" |
+    head -n 1)
+  "$reenact" reenactments show "$reenactment_id" --server "$server"
+  "$reenact" export --server "$server" --reenactment "$reenactment_id" --format glb --out "$glb"
+  "$reenact" eval --server "$server" --reenactment "$reenactment_id" --take "$out/source.mcap" \
+    --every 3 --json > "$out/${name}eval.json"
+  cat "$out/${name}eval.json"
+  rm -rf "$out/${name}novel-view"
+  "$reenact" render --server "$server" --reenactment "$reenactment_id" --camera orbit:90 \
+    --out "$out/${name}novel-view" --width 960 --height 540
+}
+
+# Rigid body parts (thesis 3.4): voxel-carved parts with view-dependent textures.
+reconstruct "" "$out/reenactment.glb" --method rigid-carved
+
+# The statistical body model (thesis ch. 4) on the same take: the procedural
+# body fitted to the merged point clouds of both sensors, refined, textured
+# into an atlas; one skinned glTF mesh, and the fitted skeleton as BVH.
+reconstruct body- "$out/body.glb" --method body --model procedural
+"$reenact" export --server "$server" --reenactment "$reenactment_id" --format bvh \
+  --out "$out/body.bvh"
 kill -TERM $server_pid && wait $server_pid || true
 trap - EXIT
 echo
@@ -63,7 +83,14 @@ echo "demo: source take   $PWD/$out/source.mcap"
 echo "demo: stored take   $PWD/$out/take.mcap (as reenact-server stored it)"
 echo "demo: capture stats $PWD/$out/capture-stats.json"
 echo "demo: contact sheet $PWD/$out/sheet.png"
-echo "demo: job           $PWD/$out/job.json"
-echo "demo: reenactment   $PWD/$out/reenactment.glb (glTF 2.0, any glTF viewer opens it)"
+echo "demo: job           $PWD/$out/job.json (rigid-carved)"
 echo "demo: evaluation    $PWD/$out/eval.json"
 echo "demo: novel view    $PWD/$out/novel-view/ (PNG frames, 90 degrees from the sensors)"
+echo "demo: body job      $PWD/$out/body-job.json (body model)"
+echo "demo: body skeleton $PWD/$out/body.bvh (BVH, Kinect v2 joints, centimetres)"
+echo "demo: body eval     $PWD/$out/body-eval.json"
+echo "demo: body view     $PWD/$out/body-novel-view/ (PNG frames, 90 degrees from the sensors)"
+echo
+echo "demo: glTF 2.0 files (any glTF viewer opens them):"
+echo "demo: rigid-part reenactment glTF: $PWD/$out/reenactment.glb"
+echo "demo: body-model reenactment glTF: $PWD/$out/body.glb"

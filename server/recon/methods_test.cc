@@ -28,8 +28,8 @@ MethodInput CylindersInput() {
   return input;
 }
 
-TEST(MethodNames, ListsBothRigidMethods) {
-  EXPECT_EQ(MethodNames(), (std::vector<std::string>{"rigid-cylinders", "rigid-carved"}));
+TEST(MethodNames, ListsTheRigidAndBodyMethods) {
+  EXPECT_EQ(MethodNames(), (std::vector<std::string>{"rigid-cylinders", "rigid-carved", "body"}));
 }
 
 TEST(RunMethod, RigidCylindersWritesAValidReenactment) {
@@ -101,11 +101,11 @@ TEST(RunMethod, RigidCylindersWritesAValidReenactment) {
     for (const v1::PartMesh& part : data->parts) write_ppm(part.name(), part.baked_texture_jpeg());
     if (!data->keyframes.empty()) write_ppm("keyframe0", data->keyframes[0].color_jpeg());
   }
-  std::printf("[ figures  ] rigid-cylinders: %d instants, %d keyframes, %.0f kB, %.2f s "
-              "(%.1f frames/s), representative frame %.0f\n",
-              result->frames, result->keyframes, result->file_bytes / 1024.0,
-              info.figures().at("seconds"), info.figures().at("frames_per_second"),
-              info.figures().at("representative_frame"));
+  std::printf(
+      "[ figures  ] rigid-cylinders: %d instants, %d keyframes, %.0f kB, %.2f s "
+      "(%.1f frames/s), representative frame %.0f\n",
+      result->frames, result->keyframes, result->file_bytes / 1024.0, info.figures().at("seconds"),
+      info.figures().at("frames_per_second"), info.figures().at("representative_frame"));
 
   // Progress: the stages in order, fractions never going back.
   std::vector<std::string> stages;
@@ -130,16 +130,13 @@ TEST(RunMethod, RejectsUnknownMethodsAndOptions) {
   EXPECT_NE(result.status().message().find("colour_of_the_sky"), std::string::npos);
   input = CylindersInput();
   input.options["lambda"] = "much";
-  EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(), absl::StatusCode::kInvalidArgument);
   input = CylindersInput();
   input.options["threads"] = "-3";
-  EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(), absl::StatusCode::kInvalidArgument);
   input = CylindersInput();
   input.method = "rigid-spheres";
-  EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_FALSE(std::filesystem::exists(dir + "/r.reen"));
 }
 
@@ -164,8 +161,7 @@ TEST(RunMethod, RigidCarvedWritesAValidReenactment) {
 TEST(RunMethod, RigidCarvedIsUnimplementedUntilBuilt) {
   MethodInput input = CylindersInput();
   input.method = "rigid-carved";
-  EXPECT_EQ(RunMethod(input, "/tmp/unused.reen").status().code(),
-            absl::StatusCode::kUnimplemented);
+  EXPECT_EQ(RunMethod(input, "/tmp/unused.reen").status().code(), absl::StatusCode::kUnimplemented);
 }
 #endif
 
@@ -174,9 +170,7 @@ TEST(RunMethod, BadTakesAreErrorsAndLeaveNoFile) {
   MethodInput input = CylindersInput();
   input.take_path = dir + "/missing.mcap";
   EXPECT_EQ(RunMethod(input, dir + "/r.reen").status().code(), absl::StatusCode::kNotFound);
-  {
-    std::ofstream(dir + "/corrupt.mcap") << "\x89MCAP0\r\n garbage garbage garbage";
-  }
+  { std::ofstream(dir + "/corrupt.mcap") << "\x89MCAP0\r\n garbage garbage garbage"; }
   input.take_path = dir + "/corrupt.mcap";
   auto corrupt = RunMethod(input, dir + "/r.reen");
   EXPECT_TRUE(absl::IsInvalidArgument(corrupt.status()) || absl::IsDataLoss(corrupt.status()))

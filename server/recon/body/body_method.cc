@@ -42,6 +42,8 @@ struct BodyMethodOptions {
     RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192));
     RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10));
     RETURN_IF_ERROR(reader.Int("texture_every", &atlas.every, 1, 10000));
+    RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
+    RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
     if (model != "procedural" && !absl::StartsWith(model, "makehuman:")) {
       return absl::InvalidArgumentError(absl::StrCat(
           "option model: expected 'procedural' or 'makehuman:DIR', got '", model, "'"));

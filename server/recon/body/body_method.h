@@ -15,6 +15,8 @@
 //   atlas_px           atlas side (1024)
 //   visibility_m       T of thesis 4.4 (0.10)
 //   texture_every      use every k-th instant for the atlas (2)
+//   texture_scale      decode colour at 1/k for the atlas (2: 960x540 of 1080p)
+//   texture_sharpness  p of the cos^p frontality weight of observations (2)
 #pragma once
 
 #include <map>

@@ -212,6 +212,7 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
       std::vector<std::pair<int, Eigen::Vector4f>> local;
       local.reserve(texels.size() / 4);
       const float threshold = static_cast<float>(options.visibility_threshold_m);
+      const float power = static_cast<float>(options.frontality_power);
       for (const Texel& texel : texels) {
         const Eigen::Vector3i& tri = mesh.triangles[texel.triangle];
         const Eigen::Vector3f p = texel.b0 * in_camera[tri[0]] + texel.b1 * in_camera[tri[1]] +
@@ -234,7 +235,7 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
                    fx * (1 - fy) * colour.at(x + 1, y, c) + (1 - fx) * fy * colour.at(x, y + 1, c) +
                    fx * fy * colour.at(x + 1, y + 1, c);
         }
-        const float weight = facing * facing;
+        const float weight = std::pow(facing, power);
         local.emplace_back(texel.index, Eigen::Vector4f(weight * rgb.x(), weight * rgb.y(),
                                                         weight * rgb.z(), weight));
       }

@@ -41,6 +41,9 @@ struct AtlasOptions {
   double visibility_threshold_m = 0.10;  // T (thesis: 10 cm).
   int every = 2;                         // Use every k-th instant.
   int colour_denominator = 2;            // Decode colour at 1/k (1, 2, 4, 8).
+  // Observations are weighted by cos^p of the angle between the view ray
+  // and the surface normal.
+  double frontality_power = 2.0;
   absl::Status Validate() const;
 };
 

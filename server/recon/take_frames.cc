@@ -152,13 +152,71 @@ class TakeFramesLoader {
     return std::move(frames_);
   }
 
+  // A live take: calibrations now, FrameSets through Append.
+  absl::StatusOr<std::unique_ptr<TakeFrames>> CreateLive(
+      const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors) {
+    frames_.reset(new TakeFrames());
+    frames_->path_ = "(live)";
+    frames_->info_ = info;
+    RETURN_IF_ERROR(AddSensors(sensors, "live take"));
+    frames_->fps_ = info.fps() > 0 ? info.fps() : 30.0;
+    int threads = options_.num_threads;
+    if (threads == 0) {
+      threads = std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 8);
+    }
+    frames_->pool_ = std::make_unique<ThreadPool>(threads);
+    frames_->grouped_by_frame_sets_ = true;
+    return std::move(frames_);
+  }
+
+  // Appends `set` to `frames` as its next instant.
+  void Append(const v1::FrameSet& set, TakeFrames* frames) {
+    frames_.reset(frames);  // Borrowed for MakeView; released below.
+    Instant instant;
+    instant.views.resize(frames->sensors_.size());
+    instant.stamp_ns = set.stamp_ns();
+    std::vector<JointArray> inferred;
+    for (const v1::Frame& frame : set.frames()) {
+      const int s = frames->SensorIndex(frame.sensor_id());
+      if (s < 0 || !frame.has_depth()) continue;
+      RawFrame f;
+      f.has_depth = true;
+      f.depth = frame.depth();
+      if (frame.has_mask()) {
+        f.has_mask = true;
+        f.mask = frame.mask();
+      }
+      if (options_.load_color && color_ok_[s] && frame.has_color()) {
+        f.has_color = true;
+        f.color = frame.color();
+      }
+      f.skeletons.assign(frame.skeletons().begin(), frame.skeletons().end());
+      JointArray inferred_joints;
+      instant.views[s] = MakeView(s, f, &inferred_joints);
+      inferred.push_back(inferred_joints);
+    }
+    FuseSkeleton(inferred, options_.use_inferred_joints, &instant);
+    frames->instants_.push_back(std::move(instant));
+    (void)frames_.release();
+  }
+
  private:
   absl::Status ReadSensors() {
-    for (const auto& [id, calibration] : reader_->sensors()) {
+    std::vector<v1::SensorCalibration> sensors;
+    for (const auto& [id, calibration] : reader_->sensors()) sensors.push_back(calibration);
+    return AddSensors(sensors, reader_->mcap().path());
+  }
+
+  // Decodes the calibrations into TakeSensors (`where` names the source in
+  // errors).
+  absl::Status AddSensors(const std::vector<v1::SensorCalibration>& calibrations,
+                          const std::string& where) {
+    for (const v1::SensorCalibration& calibration : calibrations) {
+      const std::string& id = calibration.sensor_id();
       TakeSensor sensor;
       sensor.sensor_id = id;
       sensor.calibration = calibration;
-      const std::string what = absl::StrCat(reader_->mcap().path(), ": sensor ", id);
+      const std::string what = absl::StrCat(where, ": sensor ", id);
       auto depth_k = FromProto(calibration.depth_intrinsics());
       if (!depth_k.ok()) {
         return absl::InvalidArgumentError(
@@ -184,8 +242,8 @@ class TakeFramesLoader {
         sensor.depth_scale_m_per_unit = calibration.depth_scale_m_per_unit();
       }
       for (const char* stream : {"depth", "mask", "color", "skeleton"}) {
-        const Stream s = std::string(stream) == "depth"  ? Stream::kDepth
-                         : std::string(stream) == "mask" ? Stream::kMask
+        const Stream s = std::string(stream) == "depth"   ? Stream::kDepth
+                         : std::string(stream) == "mask"  ? Stream::kMask
                          : std::string(stream) == "color" ? Stream::kColor
                                                           : Stream::kSkeleton;
         routes_[SensorTopic(id, stream)] = {static_cast<int>(frames_->sensors_.size()), s};
@@ -194,7 +252,7 @@ class TakeFramesLoader {
     }
     if (frames_->sensors_.empty()) {
       return absl::InvalidArgumentError(
-          absl::StrCat(reader_->mcap().path(), ": the take has no sensor calibration"));
+          absl::StrCat(where, ": the take has no sensor calibration"));
     }
     raw_.resize(frames_->sensors_.size());
     return absl::OkStatus();
@@ -219,8 +277,8 @@ class TakeFramesLoader {
     const auto& schemas = reader_->mcap().schemas();
     auto it = schemas.find(channel.schema_id);
     if (it == schemas.end() || it->second.name != expected) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          reader_->mcap().path(), ": channel ", channel.topic, " does not hold ", expected));
+      return absl::InvalidArgumentError(absl::StrCat(reader_->mcap().path(), ": channel ",
+                                                     channel.topic, " does not hold ", expected));
     }
     return absl::OkStatus();
   }
@@ -345,7 +403,8 @@ class TakeFramesLoader {
       ++stamp_n;
     }
     if (stamp_n == 0) return;
-    instant.stamp_ns = stamp_ns ? *stamp_ns : static_cast<int64_t>(std::llround(stamp_sum / stamp_n));
+    instant.stamp_ns =
+        stamp_ns ? *stamp_ns : static_cast<int64_t>(std::llround(stamp_sum / stamp_n));
     FuseSkeleton(inferred, options_.use_inferred_joints, &instant);
     frames_->instants_.push_back(std::move(instant));
   }
@@ -450,6 +509,36 @@ absl::StatusOr<std::unique_ptr<TakeFrames>> TakeFrames::Load(const std::string& 
   return loader.Load(path);
 }
 
+TakeFrames::~TakeFrames() = default;
+
+absl::StatusOr<std::unique_ptr<TakeFrames>> TakeFrames::CreateLive(
+    const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+    const TakeFramesOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
+  auto loader = std::make_unique<TakeFramesLoader>(options, ProgressCallback());
+  ASSIGN_OR_RETURN(std::unique_ptr<TakeFrames> frames, loader->CreateLive(info, sensors));
+  frames->live_ = std::move(loader);
+  return frames;
+}
+
+absl::Status TakeFrames::AppendFrameSet(const v1::FrameSet& set) {
+  if (live_ == nullptr) {
+    return absl::FailedPreconditionError("AppendFrameSet on a take loaded from a file");
+  }
+  live_->Append(set, this);
+  return absl::OkStatus();
+}
+
+void TakeFrames::ReleaseInstant(int instant) {
+  if (instant < 0 || instant >= num_instants()) return;
+  for (SensorView& view : instants_[instant].views) {
+    view.present = false;
+    std::string().swap(view.depth_data);
+    std::string().swap(view.mask_data);
+    std::string().swap(view.color_jpeg);
+  }
+}
+
 int TakeFrames::SensorIndex(const std::string& sensor_id) const {
   for (size_t i = 0; i < sensors_.size(); ++i) {
     if (sensors_[i].sensor_id == sensor_id) return static_cast<int>(i);
@@ -470,8 +559,7 @@ double TakeFrames::duration_s() const {
 namespace {
 
 absl::Status CheckView(const TakeFrames& take, int instant, int sensor) {
-  if (instant < 0 || instant >= take.num_instants() || sensor < 0 ||
-      sensor >= take.num_sensors()) {
+  if (instant < 0 || instant >= take.num_instants() || sensor < 0 || sensor >= take.num_sensors()) {
     return absl::InvalidArgumentError(
         absl::StrCat("no view (instant ", instant, ", sensor ", sensor, ") in the take"));
   }
@@ -518,8 +606,8 @@ absl::StatusOr<MaskImage> TakeFrames::LoadActorMask(int instant, int sensor) con
   if (view.mask_encoding == "rvl") {
     auto decoded = DecodeDepth(view.mask_data);
     if (!decoded.ok()) {
-      return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor),
-                                              ": mask: ", decoded.status().message()));
+      return absl::DataLossError(
+          absl::StrCat(ViewName(*this, instant, sensor), ": mask: ", decoded.status().message()));
     }
     mask = MaskImage(decoded->width, decoded->height);
     for (size_t i = 0; i < decoded->data.size(); ++i) {
@@ -528,8 +616,8 @@ absl::StatusOr<MaskImage> TakeFrames::LoadActorMask(int instant, int sensor) con
   } else {
     auto decoded = DecodeMaskRle(view.mask_data);
     if (!decoded.ok()) {
-      return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor),
-                                              ": mask: ", decoded.status().message()));
+      return absl::DataLossError(
+          absl::StrCat(ViewName(*this, instant, sensor), ": mask: ", decoded.status().message()));
     }
     mask = std::move(*decoded);
   }
@@ -544,8 +632,7 @@ absl::StatusOr<MaskImage> TakeFrames::LoadActorMask(int instant, int sensor) con
                              static_cast<uint8_t>(view.body_index)) != mask.data.end();
   }
   for (size_t i = 0; i < mask.data.size(); ++i) {
-    const bool is_actor =
-        body_in_mask ? mask.data[i] == view.body_index : mask.data[i] > 0;
+    const bool is_actor = body_in_mask ? mask.data[i] == view.body_index : mask.data[i] > 0;
     actor.data[i] = is_actor && depth.data[i] > 0 ? 1 : 0;
   }
   return actor;
@@ -570,8 +657,7 @@ absl::StatusOr<RgbImage> TakeFrames::LoadColor(int instant, int sensor,
   }
   const SensorView& view = instants_[instant].views[sensor];
   if (view.color_jpeg.empty()) {
-    return absl::NotFoundError(
-        absl::StrCat(ViewName(*this, instant, sensor), ": no colour frame"));
+    return absl::NotFoundError(absl::StrCat(ViewName(*this, instant, sensor), ": no colour frame"));
   }
   const std::string what = absl::StrCat(ViewName(*this, instant, sensor), ": colour: ");
   tjhandle handle = tjInitDecompress();
@@ -593,8 +679,8 @@ absl::StatusOr<RgbImage> TakeFrames::LoadColor(int instant, int sensor,
   }
   const tjscalingfactor factor{1, scale_denominator};
   RgbImage image(TJSCALED(width, factor), TJSCALED(height, factor));
-  if (tjDecompress2(handle, bytes, size, image.data.data(), image.width, 0, image.height,
-                    TJPF_RGB, TJFLAG_FASTDCT) != 0) {
+  if (tjDecompress2(handle, bytes, size, image.data.data(), image.width, 0, image.height, TJPF_RGB,
+                    TJFLAG_FASTDCT) != 0) {
     return absl::DataLossError(absl::StrCat(what, tjGetErrorStr2(handle)));
   }
   return image;

@@ -36,6 +36,7 @@
 #include "common/body/joint_set.h"
 #include "common/geometry/camera.h"
 #include "common/geometry/transforms.h"
+#include "reenact/v1/frame.pb.h"
 #include "reenact/v1/sensor.pb.h"
 #include "reenact/v1/take.pb.h"
 
@@ -64,14 +65,14 @@ struct TakeSensor {
 // One sensor's frame at one instant, still encoded (decode through
 // TakeFrames::Load*).
 struct SensorView {
-  bool present = false;       // False: the sensor has no frame at this instant.
-  int64_t frame_index = -1;   // The sensor's own frame index.
-  int64_t host_stamp_ns = 0;  // Of the depth frame (take timeline).
+  bool present = false;        // False: the sensor has no frame at this instant.
+  int64_t frame_index = -1;    // The sensor's own frame index.
+  int64_t host_stamp_ns = 0;   // Of the depth frame (take timeline).
   std::string depth_encoding;  // DepthImage.encoding / .data.
   std::string depth_data;
   std::string mask_encoding;  // ActorMask.encoding / .data; empty data: no mask.
   std::string mask_data;
-  std::string color_jpeg;     // ColorImage.data; empty: no colour frame.
+  std::string color_jpeg;  // ColorImage.data; empty: no colour frame.
   int64_t color_host_stamp_ns = 0;
   // The skeleton of the actor (of several bodies, the one with the most
   // tracked joints), in the depth camera frame and in the world frame.
@@ -110,6 +111,8 @@ struct TakeFramesOptions {
   absl::Status Validate() const;
 };
 
+class TakeFramesLoader;
+
 class TakeFrames {
  public:
   // Reads the take at `path`. NotFound when it does not exist;
@@ -120,6 +123,21 @@ class TakeFrames {
   static absl::StatusOr<std::unique_ptr<TakeFrames>> Load(const std::string& path,
                                                           const TakeFramesOptions& options = {},
                                                           const ProgressCallback& progress = {});
+
+  // A take that grows while it is recorded (live following): the
+  // calibrations now, each FrameSet through AppendFrameSet as the next
+  // instant (frames of unknown sensors skipped; the skeleton fused as in
+  // Load). InvalidArgument for bad calibrations or options.
+  static absl::StatusOr<std::unique_ptr<TakeFrames>> CreateLive(
+      const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+      const TakeFramesOptions& options = {});
+  // Appends an instant to a live take (FailedPrecondition for a loaded
+  // one). Not thread-safe against readers of instants().
+  absl::Status AppendFrameSet(const v1::FrameSet& set);
+  // Drops the encoded frames of `instant` (its views become not present),
+  // so a long live take keeps only what is still to be processed.
+  void ReleaseInstant(int instant);
+  ~TakeFrames();
 
   const std::string& path() const { return path_; }
   const v1::TakeInfo& info() const { return info_; }
@@ -163,7 +181,8 @@ class TakeFrames {
   ThreadPool& pool() const { return *pool_; }
   // Calls fn(instant, sensor) for every present view, in parallel on pool();
   // returns the first error (all calls finish first).
-  absl::Status ParallelForViews(const std::function<absl::Status(int instant, int sensor)>& fn) const;
+  absl::Status ParallelForViews(
+      const std::function<absl::Status(int instant, int sensor)>& fn) const;
 
  private:
   TakeFrames() = default;
@@ -176,6 +195,7 @@ class TakeFrames {
   std::vector<Instant> instants_;
   bool grouped_by_frame_sets_ = false;
   std::unique_ptr<ThreadPool> pool_;
+  std::unique_ptr<TakeFramesLoader> live_;  // Live takes only.
 };
 
 }  // namespace reenact::recon

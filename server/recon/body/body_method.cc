@@ -22,44 +22,17 @@
 #include "server/recon/method_util.h"
 
 namespace reenact::recon {
-namespace {
+namespace {}  // namespace
 
-struct BodyMethodOptions {
-  std::string model = "procedural";
-  bodyfit::BodyFitOptions fit;
-  bodyfit::AtlasOptions atlas;
-
-  absl::Status Read(OptionReader& reader) {
-    RETURN_IF_ERROR(reader.String("model", &model));
-    RETURN_IF_ERROR(reader.Double("point_weight", &fit.point_weight, 1e-6, 1e6));
-    RETURN_IF_ERROR(reader.Double("smoothness_weight", &fit.smoothness_weight, 0, 1e6));
-    RETURN_IF_ERROR(reader.Double("skeleton_weight", &fit.skeleton_weight, 0, 1e6));
-    RETURN_IF_ERROR(reader.Int("shape_frames", &fit.shape_frames, 1, 100));
-    RETURN_IF_ERROR(reader.Int("rounds", &fit.rounds, 1, 100));
-    RETURN_IF_ERROR(reader.Int("iterations", &fit.iterations_per_round, 1, 1000));
-    RETURN_IF_ERROR(reader.Int("max_points", &fit.max_points, 10, 1000000));
-    RETURN_IF_ERROR(reader.Bool("refine_vertices", &fit.refine_vertices));
-    RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192));
-    RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10));
-    RETURN_IF_ERROR(reader.Int("texture_every", &atlas.every, 1, 10000));
-    RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
-    RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
-    if (model != "procedural" && !absl::StartsWith(model, "makehuman:")) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "option model: expected 'procedural' or 'makehuman:DIR', got '", model, "'"));
-    }
-    RETURN_IF_ERROR(fit.Validate());
-    return atlas.Validate();
-  }
-};
-
-bool HasTorso(const JointArray& joints) {
+bool SkeletonHasTorso(const JointArray& joints) {
   using body::KinectV2Joint;
   const auto ok = [&](KinectV2Joint j) { return IsJointValid(joints[body::Index(j)]); };
   return ok(KinectV2Joint::kSpineBase) && ok(KinectV2Joint::kSpineShoulder) &&
          ((ok(KinectV2Joint::kHipLeft) && ok(KinectV2Joint::kHipRight)) ||
           (ok(KinectV2Joint::kShoulderLeft) && ok(KinectV2Joint::kShoulderRight)));
 }
+
+namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -74,6 +47,42 @@ v1::Vector3 ToProto(const Eigen::Vector3d& p) {
 }
 
 }  // namespace
+
+absl::Status BodyMethodOptions::Read(OptionReader& reader) {
+  RETURN_IF_ERROR(reader.String("model", &model));
+  RETURN_IF_ERROR(reader.Double("point_weight", &fit.point_weight, 1e-6, 1e6));
+  RETURN_IF_ERROR(reader.Double("smoothness_weight", &fit.smoothness_weight, 0, 1e6));
+  RETURN_IF_ERROR(reader.Double("skeleton_weight", &fit.skeleton_weight, 0, 1e6));
+  RETURN_IF_ERROR(reader.Int("shape_frames", &fit.shape_frames, 1, 100));
+  RETURN_IF_ERROR(reader.Int("rounds", &fit.rounds, 1, 100));
+  RETURN_IF_ERROR(reader.Int("iterations", &fit.iterations_per_round, 1, 1000));
+  RETURN_IF_ERROR(reader.Int("max_points", &fit.max_points, 10, 1000000));
+  RETURN_IF_ERROR(reader.Bool("refine_vertices", &fit.refine_vertices));
+  RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192));
+  RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10));
+  RETURN_IF_ERROR(reader.Int("texture_every", &atlas.every, 1, 10000));
+  RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
+  RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
+  if (model != "procedural" && !absl::StartsWith(model, "makehuman:")) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option model: expected 'procedural' or 'makehuman:DIR', got '", model, "'"));
+  }
+  RETURN_IF_ERROR(fit.Validate());
+  return atlas.Validate();
+}
+
+v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
+                               bool valid) {
+  v1::PartFrame frame;
+  frame.set_frame_index(frame_index);
+  frame.set_stamp_ns(stamp_ns);
+  *frame.mutable_body() = BodyPoseToProto(fit.pose);
+  frame.mutable_body()->set_valid(valid);
+  frame.mutable_body()->set_point_rms_mm(static_cast<float>(fit.point_rms_mm));
+  if (fit.offsets_m.cols() > 0) SetBodyPoseOffsets(fit.offsets_m, frame.mutable_body());
+  for (const Eigen::Vector3d& j : fit.joints_m) *frame.add_joints_in_world_m() = ToProto(j);
+  return frame;
+}
 
 absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options) {
   BodyMethodOptions parsed;
@@ -142,7 +151,7 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
   // One shape for the take, fitted on instants spread over it.
   std::vector<int> usable;
   for (int i = 0; i < n; ++i) {
-    if (clouds[i].size() >= kMinPoints && HasTorso(take.instant(i).joints_in_world_m)) {
+    if (clouds[i].size() >= kMinPoints && SkeletonHasTorso(take.instant(i).joints_in_world_m)) {
       usable.push_back(i);
     }
   }
@@ -197,16 +206,17 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
     // skeleton, or from the skeleton alone.
     std::optional<body::BodyPose> initial = previous;
     if (!initial.has_value()) {
-      if (!HasTorso(input.skeleton_m)) continue;
+      if (!SkeletonHasTorso(input.skeleton_m)) continue;
       ASSIGN_OR_RETURN(initial, fitter->PoseFromSkeleton(input.skeleton_m));
-    } else if (HasTorso(input.skeleton_m)) {
+    } else if (SkeletonHasTorso(input.skeleton_m)) {
       ASSIGN_OR_RETURN(initial, fitter->FollowSkeleton(*previous, input.skeleton_m));
     }
     ASSIGN_OR_RETURN(bodyfit::FrameFit fit,
                      fitter->FitFrame(input, *initial, previous ? &*previous : nullptr));
     // A fit that lost the body (fast motion) starts again from the skeleton.
     constexpr double kLostRmsMm = 25.0;
-    if (previous.has_value() && fit.point_rms_mm > kLostRmsMm && HasTorso(input.skeleton_m)) {
+    if (previous.has_value() && fit.point_rms_mm > kLostRmsMm &&
+        SkeletonHasTorso(input.skeleton_m)) {
       ASSIGN_OR_RETURN(const body::BodyPose from_skeleton,
                        fitter->PoseFromSkeleton(input.skeleton_m));
       ASSIGN_OR_RETURN(bodyfit::FrameFit again, fitter->FitFrame(input, from_skeleton, nullptr));
@@ -259,16 +269,8 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
       }
       source = best >= 0 ? best : nearest_fit;
     }
-    const bodyfit::FrameFit& fit = *fits[source];
-    v1::PartFrame frame;
-    frame.set_frame_index(i);
-    frame.set_stamp_ns(take.instant(i).stamp_ns);
-    *frame.mutable_body() = BodyPoseToProto(fit.pose);
-    frame.mutable_body()->set_valid(source == i);
-    frame.mutable_body()->set_point_rms_mm(static_cast<float>(fit.point_rms_mm));
-    if (fit.offsets_m.cols() > 0) SetBodyPoseOffsets(fit.offsets_m, frame.mutable_body());
-    for (const Eigen::Vector3d& j : fit.joints_m) *frame.add_joints_in_world_m() = ToProto(j);
-    data.frames.push_back(std::move(frame));
+    data.frames.push_back(
+        BodyFrameToProto(i, take.instant(i).stamp_ns, *fits[source], source == i));
   }
   v1::ReenactmentInfo& info = data.info;
   info.set_fps(take.fps());

@@ -26,10 +26,30 @@
 #include "common/base/progress.h"
 #include "common/body/body_model.h"
 #include "common/io/reenactment_file.h"
+#include "server/recon/body/body_fit.h"
+#include "server/recon/body/body_texturing.h"
+#include "server/recon/method_util.h"
 #include "server/recon/methods.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::recon {
+
+// The method's options, read by key (the list above).
+struct BodyMethodOptions {
+  std::string model = "procedural";
+  bodyfit::BodyFitOptions fit;
+  bodyfit::AtlasOptions atlas;
+  // InvalidArgument naming the key for a value that does not parse or fit.
+  absl::Status Read(OptionReader& reader);
+};
+
+// True when the skeleton has the joints PoseFromSkeleton needs.
+bool SkeletonHasTorso(const JointArray& joints);
+
+// The PartFrame of one fitted instant: its BodyPose (with the offsets of
+// step 2 when present), point RMS, valid flag and fitted joints.
+v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
+                               bool valid);
 
 // Reads and checks the options without running (InvalidArgument naming the
 // key), so a job can be rejected before the take is loaded.

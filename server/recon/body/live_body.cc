@@ -1,0 +1,127 @@
+#include "server/recon/body/live_body.h"
+
+#include <chrono>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/io/body_reenactment.h"
+#include "server/recon/body/body_cloud.h"
+#include "server/recon/body/body_fit.h"
+#include "server/recon/body/body_method.h"
+#include "server/recon/method_util.h"
+#include "server/recon/take_frames.h"
+
+namespace reenact::recon {
+
+struct LiveBodyFollower::State {
+  body::BodyModel model;
+  std::unique_ptr<TakeFrames> take;
+  std::unique_ptr<bodyfit::CloudBuilder> builder;
+  std::unique_ptr<bodyfit::BodyFitter> fitter;
+  int shape_frames = 5;
+  int shape_spacing = 5;
+  // Shape samples until the shape settles.
+  std::vector<bodyfit::PointCloud> shape_clouds;
+  std::vector<JointArray> shape_skeletons;
+  int last_sample = -1000000;
+  bool settled = false;
+  std::optional<body::BodyPose> previous;
+};
+
+LiveBodyFollower::LiveBodyFollower() : state_(std::make_unique<State>()) {}
+LiveBodyFollower::~LiveBodyFollower() = default;
+
+absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
+    const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+    const std::map<std::string, std::string>& options) {
+  BodyMethodOptions o;
+  o.fit.refine_vertices = false;  // The preview carries poses only.
+  std::unique_ptr<LiveBodyFollower> follower(new LiveBodyFollower());
+  State& s = *follower->state_;
+  {
+    OptionReader reader(options);
+    RETURN_IF_ERROR(o.Read(reader));
+    bool live = true;
+    RETURN_IF_ERROR(reader.Bool("live", &live));
+    RETURN_IF_ERROR(reader.Int("shape_spacing", &s.shape_spacing, 1, 10000));
+    RETURN_IF_ERROR(reader.Finish());
+  }
+  s.shape_frames = o.fit.shape_frames;
+  ASSIGN_OR_RETURN(s.model, LoadBodyModelSpec(o.model));
+  ASSIGN_OR_RETURN(s.fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
+  TakeFramesOptions frames;
+  frames.load_color = false;
+  frames.num_threads = 1;
+  ASSIGN_OR_RETURN(s.take, TakeFrames::CreateLive(info, sensors, frames));
+  ASSIGN_OR_RETURN(s.builder, bodyfit::CloudBuilder::Create(*s.take));
+  return follower;
+}
+
+int LiveBodyFollower::frames_pushed() const { return state_->take->num_instants(); }
+bool LiveBodyFollower::shape_settled() const { return state_->settled; }
+
+absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
+  const auto start = std::chrono::steady_clock::now();
+  State& s = *state_;
+  RETURN_IF_ERROR(s.take->AppendFrameSet(set));
+  const int i = s.take->num_instants() - 1;
+  LiveUpdate update;
+  if (i == 0) {
+    ASSIGN_OR_RETURN(update.mesh, MakeBodyMesh(s.model, s.fitter->shape(), ""));
+  }
+  absl::StatusOr<bodyfit::PointCloud> cloud = s.builder->Build(i);
+  const JointArray skeleton = s.take->instant(i).joints_in_world_m;
+  s.take->ReleaseInstant(i);
+  RETURN_IF_ERROR(cloud.status());
+  constexpr size_t kMinPoints = 200;
+  const bool usable = cloud->size() >= kMinPoints && SkeletonHasTorso(skeleton);
+
+  // The shape, from the first usable instants `shape_spacing` apart.
+  if (!s.settled && usable && i - s.last_sample >= s.shape_spacing) {
+    s.shape_clouds.push_back(*cloud);
+    s.shape_skeletons.push_back(skeleton);
+    s.last_sample = i;
+    if (static_cast<int>(s.shape_clouds.size()) >= s.shape_frames) {
+      std::vector<bodyfit::FitInput> inputs;
+      std::vector<body::BodyPose> poses;
+      for (size_t k = 0; k < s.shape_clouds.size(); ++k) {
+        bodyfit::FitInput input;
+        input.cloud = &s.shape_clouds[k];
+        input.skeleton_m = s.shape_skeletons[k];
+        ASSIGN_OR_RETURN(body::BodyPose pose, s.fitter->PoseFromSkeleton(input.skeleton_m));
+        inputs.push_back(input);
+        poses.push_back(pose);
+      }
+      RETURN_IF_ERROR(s.fitter->FitShape(inputs, &poses));
+      s.settled = true;
+      s.shape_clouds.clear();
+      s.shape_skeletons.clear();
+      ASSIGN_OR_RETURN(update.mesh, MakeBodyMesh(s.model, s.fitter->shape(), ""));
+    }
+  }
+
+  // The instant, from the previous fit carried to its skeleton.
+  if (cloud->size() >= kMinPoints) {
+    std::optional<body::BodyPose> initial = s.previous;
+    if (initial.has_value() && SkeletonHasTorso(skeleton)) {
+      ASSIGN_OR_RETURN(initial, s.fitter->FollowSkeleton(*s.previous, skeleton));
+    } else if (!initial.has_value() && SkeletonHasTorso(skeleton)) {
+      ASSIGN_OR_RETURN(initial, s.fitter->PoseFromSkeleton(skeleton));
+    }
+    if (initial.has_value()) {
+      bodyfit::FitInput input;
+      input.cloud = &*cloud;
+      input.skeleton_m = skeleton;
+      ASSIGN_OR_RETURN(const bodyfit::FrameFit fit,
+                       s.fitter->FitFrame(input, *initial, s.previous ? &*s.previous : nullptr));
+      s.previous = fit.pose;
+      update.frame = BodyFrameToProto(i, set.stamp_ns(), fit, /*valid=*/true);
+    }
+  }
+  update.fit_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return update;
+}
+
+}  // namespace reenact::recon

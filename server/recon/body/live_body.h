@@ -1,0 +1,65 @@
+// Following a take while it is recorded: the body fit of the method "body"
+// (body_fit.h) applied to each FrameSet as it arrives, for a live preview.
+//
+// The first FrameSet makes the model's mesh with the mean shape; the shape
+// is then fitted on `shape_frames` usable instants `shape_spacing` apart
+// (the thesis's one shape, from the first seconds instead of the whole
+// take) and the mesh is sent again. Every other FrameSet is fitted from
+// the previous fit carried to its skeleton (FitFrame; step 2 off by default:
+// the preview carries poses only). The preview has no atlas (texturing
+// needs the whole take); the job that follows the take to its end runs the
+// offline method for the stored reenactment. Encoded frames are dropped
+// once fitted, so memory stays flat however long the take.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "common/body/body_model.h"
+#include "reenact/v1/frame.pb.h"
+#include "reenact/v1/reenactment.pb.h"
+#include "reenact/v1/sensor.pb.h"
+#include "reenact/v1/take.pb.h"
+
+namespace reenact::recon {
+
+// What one FrameSet produced.
+struct LiveUpdate {
+  // A new mesh (the first FrameSet's, and once the shape has settled).
+  std::optional<v1::BodyMesh> mesh;
+  // The fitted instant (frame_index counts the FrameSets pushed, from 0);
+  // unset when the FrameSet could not be fitted (no skeleton or no points
+  // before the first fit).
+  std::optional<v1::PartFrame> frame;
+  double fit_ms = 0.0;  // Decode, cloud and fit of this FrameSet.
+};
+
+class LiveBodyFollower {
+ public:
+  // `options`: the method body's options (body_method.h) plus
+  //   shape_spacing    FrameSets between shape samples (5)
+  // and "live" (ignored here). InvalidArgument for bad options or
+  // calibrations; the model's errors.
+  static absl::StatusOr<std::unique_ptr<LiveBodyFollower>> Create(
+      const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+      const std::map<std::string, std::string>& options);
+  ~LiveBodyFollower();
+
+  // Fits the next FrameSet. DataLoss for frames that do not decode;
+  // frames of unknown sensors are skipped.
+  absl::StatusOr<LiveUpdate> Push(const v1::FrameSet& set);
+
+  int frames_pushed() const;
+  bool shape_settled() const;
+
+ private:
+  LiveBodyFollower();
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace reenact::recon

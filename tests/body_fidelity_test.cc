@@ -94,11 +94,12 @@ TEST_F(BodyFidelity, MakeHumanModelFromItsMeanShapeMeetsTheFloors) {
   if (unavailable_) GTEST_SKIP() << "no GL context for the novel view";
   EXPECT_LE(r.mpjpe_mm, 30.0);
   EXPECT_LE(r.surface_mm, 10.0);
-  // The target is 27 dB; the level reached (about 24 dB: the atlas is one
+  // The target is 27 dB; the level reached (25.4 dB: the atlas is one
   // static texture whose baked shading differs from the lit truth as limbs
-  // turn) is held as a regression guard.
-  std::printf("PSNR90 %.2f dB (target 27, guard 23)\n", r.psnr_db_90);
-  EXPECT_GE(r.psnr_db_90, 23.0);
+  // turn, and stripe edges land a pixel or two off) is held as a
+  // regression guard.
+  std::printf("PSNR90 %.2f dB (target 27, guard 24.5)\n", r.psnr_db_90);
+  EXPECT_GE(r.psnr_db_90, 24.5);
   EXPECT_GE(r.iou_90, 0.95);
 }
 

@@ -63,6 +63,7 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
   RETURN_IF_ERROR(reader.Int("texture_every", &atlas.every, 1, 10000));
   RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
   RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
+  RETURN_IF_ERROR(reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10));
   if (model != "procedural" && !absl::StartsWith(model, "makehuman:")) {
     return absl::InvalidArgumentError(
         absl::StrCat("option model: expected 'procedural' or 'makehuman:DIR', got '", model, "'"));

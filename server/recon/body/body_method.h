@@ -17,6 +17,8 @@
 //   texture_every      use every k-th instant for the atlas (2)
 //   texture_scale      decode colour at 1/k for the atlas (2: 960x540 of 1080p)
 //   texture_sharpness  p of the cos^p frontality weight of observations (2)
+//   measured_m         texels must lie this near the sensor's own depth (0.02;
+//                      0: the thesis's test alone)
 #pragma once
 
 #include <map>

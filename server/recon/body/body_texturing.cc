@@ -191,6 +191,13 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
           (info.world_from_depth * info.color_from_depth.Inverse()).Inverse();
       const Eigen::Matrix3Xd& posed = posed_vertices_m[instant];
       const int v_count = mesh.num_vertices();
+      // The sensor's own depth, for the measured-surface test.
+      DepthImageMm measured;
+      if (options.measured_threshold_m > 0) {
+        ASSIGN_OR_RETURN(measured, take.LoadActorDepth(instant, sensor));
+      }
+      const Rigid3d depth_from_color = info.color_from_depth.Inverse();
+      const float measured_threshold_mm = static_cast<float>(1000.0 * options.measured_threshold_m);
       std::vector<Eigen::Vector3f> in_camera(v_count);
       std::vector<Eigen::Vector2f> pixels(v_count);
       for (int v = 0; v < v_count; ++v) {
@@ -228,6 +235,22 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
             NearDepth(depth, colour.width, colour.height, static_cast<int>(std::lround(q.x())),
                       static_cast<int>(std::lround(q.y())));
         if (p.z() > rendered + threshold) continue;  // Hidden (thesis 4.4, T).
+        if (!measured.empty()) {
+          // The sensor must have measured this surface there (not a hand in
+          // front of it that the fit put elsewhere).
+          const Eigen::Vector3d in_depth = depth_from_color * p.cast<double>();
+          const auto dp = info.depth_intrinsics.Project(in_depth);
+          if (!dp) continue;
+          const int dx = static_cast<int>(std::lround(dp->x()));
+          const int dy = static_cast<int>(std::lround(dp->y()));
+          if (dx < 0 || dy < 0 || dx >= measured.width || dy >= measured.height) continue;
+          const uint16_t d = measured.at(dx, dy);
+          if (d == 0 ||
+              std::abs(static_cast<float>(d) - 1000.0f * static_cast<float>(in_depth.z())) >
+                  measured_threshold_mm) {
+            continue;
+          }
+        }
         const float fx = q.x() - x, fy = q.y() - y;
         Eigen::Vector3f rgb;
         for (int c = 0; c < 3; ++c) {

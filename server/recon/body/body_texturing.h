@@ -44,6 +44,12 @@ struct AtlasOptions {
   // Observations are weighted by cos^p of the angle between the view ray
   // and the surface normal.
   double frontality_power = 2.0;
+  // Beyond the thesis's test: a texel is used only where the sensor's own
+  // actor depth lies within this distance of it (0: off), so that a
+  // surface the fit placed slightly wrong, or one behind a hand within T,
+  // does not take another surface's colour. Measured on a MakeHuman take
+  // (CMU 131_01): PSNR90 24.25 dB without, 24.58 dB with 2 cm.
+  double measured_threshold_m = 0.02;
   absl::Status Validate() const;
 };
 

@@ -1,5 +1,6 @@
 #include "common/io/body_reenactment.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -12,6 +13,9 @@
 
 namespace reenact {
 namespace {
+
+// The unit of BodyPose.vertex_offsets_50um_i16.
+constexpr double kOffsetUnitM = 50e-6;
 
 absl::Status Invalid(const std::string& what) {
   return absl::InvalidArgumentError(absl::StrCat("invalid body mesh: ", what));
@@ -260,28 +264,36 @@ absl::StatusOr<body::BodyPose> BodyPoseFromProto(const v1::BodyPose& pose) {
 }
 
 absl::StatusOr<Eigen::Matrix3Xd> BodyPoseOffsets(const v1::BodyPose& pose, int num_vertices) {
-  if (pose.vertex_offsets_m_f32().empty()) return Eigen::Matrix3Xd();
-  ASSIGN_OR_RETURN(const std::vector<float> values, UnpackFloats(pose.vertex_offsets_m_f32()));
-  if (values.size() != 3 * static_cast<size_t>(num_vertices)) {
-    return absl::InvalidArgumentError(absl::StrCat("vertex offsets hold ", values.size(),
-                                                   " floats for ", num_vertices, " vertices"));
+  const std::string& bytes = pose.vertex_offsets_50um_i16();
+  if (bytes.empty()) return Eigen::Matrix3Xd();
+  if (bytes.size() != 6 * static_cast<size_t>(num_vertices)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "vertex offsets hold ", bytes.size(), " bytes for ", num_vertices, " vertices (6 each)"));
   }
   Eigen::Matrix3Xd out(3, num_vertices);
-  for (size_t i = 0; i < values.size(); ++i) {
-    if (!std::isfinite(values[i])) {
-      return absl::InvalidArgumentError("a vertex offset is not finite");
-    }
-    out(static_cast<Eigen::Index>(i % 3), static_cast<Eigen::Index>(i / 3)) = values[i];
+  for (size_t i = 0; i < 3 * static_cast<size_t>(num_vertices); ++i) {
+    const auto lo = static_cast<uint16_t>(static_cast<uint8_t>(bytes[2 * i]));
+    const auto hi = static_cast<uint16_t>(static_cast<uint8_t>(bytes[2 * i + 1]));
+    const auto value = static_cast<int16_t>(static_cast<uint16_t>(lo | (hi << 8)));
+    out(static_cast<Eigen::Index>(i % 3), static_cast<Eigen::Index>(i / 3)) =
+        kOffsetUnitM * static_cast<double>(value);
   }
   return out;
 }
 
 void SetBodyPoseOffsets(const Eigen::Matrix3Xd& offsets_m, v1::BodyPose* pose) {
-  std::vector<float> values(3 * offsets_m.cols());
+  std::string bytes(6 * static_cast<size_t>(offsets_m.cols()), '\0');
   for (Eigen::Index v = 0; v < offsets_m.cols(); ++v) {
-    for (int c = 0; c < 3; ++c) values[3 * v + c] = static_cast<float>(offsets_m(c, v));
+    for (int c = 0; c < 3; ++c) {
+      const double units = std::round(offsets_m(c, v) / kOffsetUnitM);
+      const auto value = static_cast<int16_t>(std::clamp(units, -32767.0, 32767.0));
+      const auto bits = static_cast<uint16_t>(value);
+      const size_t i = 3 * static_cast<size_t>(v) + c;
+      bytes[2 * i] = static_cast<char>(bits & 0xFF);
+      bytes[2 * i + 1] = static_cast<char>(bits >> 8);
+    }
   }
-  pose->set_vertex_offsets_m_f32(PackFloats(values));
+  pose->set_vertex_offsets_50um_i16(std::move(bytes));
 }
 
 absl::StatusOr<body::PosedBody> PoseBodyMesh(const DecodedBodyMesh& mesh,

@@ -59,7 +59,7 @@ absl::StatusOr<body::BodyPose> BodyPoseFromProto(const v1::BodyPose& pose);
 // Per-vertex offsets of a BodyPose (3 x V, metres), or an empty matrix when
 // the pose has none. InvalidArgument when the size disagrees with V.
 absl::StatusOr<Eigen::Matrix3Xd> BodyPoseOffsets(const v1::BodyPose& pose, int num_vertices);
-// Packs offsets (3 x V) into `pose`.
+// Packs offsets (3 x V) into `pose` (to 0.05 mm; clamped at +-1.6 m).
 void SetBodyPoseOffsets(const Eigen::Matrix3Xd& offsets_m, v1::BodyPose* pose);
 
 // The posed body of `mesh` at `pose`: skinned vertices plus the pose's

@@ -47,7 +47,7 @@ TEST(BodyReenactment, OffsetsAreAddedToTheSkinnedVertices) {
   auto decoded = DecodeBodyMesh(data.body.front());
   ASSERT_TRUE(decoded.ok());
   v1::BodyPose plain = data.frames[1].body();
-  plain.clear_vertex_offsets_m_f32();
+  plain.clear_vertex_offsets_50um_i16();
   auto with = PoseBodyMesh(*decoded, data.frames[1].body());
   auto without = PoseBodyMesh(*decoded, plain);
   ASSERT_TRUE(with.ok() && without.ok());
@@ -93,7 +93,7 @@ TEST(BodyReenactment, BadMeshesAndPosesAreInvalidArgument) {
   }
   {
     ReenactmentData bad = good;
-    bad.frames[1].mutable_body()->mutable_vertex_offsets_m_f32()->resize(12);
+    bad.frames[1].mutable_body()->mutable_vertex_offsets_50um_i16()->resize(12);
     EXPECT_EQ(ValidateReenactment(bad).code(), absl::StatusCode::kInvalidArgument);
   }
   {

@@ -489,7 +489,7 @@ absl::StatusOr<int> AddBody(GlbBuilder& b, const ReenactmentData& data,
   b.model().nodes.push_back(std::move(node));
   summary->joints = body::kNumKinectV2Joints;
   for (const v1::PartFrame& frame : data.frames) {
-    summary->frames_offsets_left_out += !frame.body().vertex_offsets_m_f32().empty();
+    summary->frames_offsets_left_out += !frame.body().vertex_offsets_50um_i16().empty();
   }
   if (input >= 0) {
     RETURN_IF_ERROR(AddBodyChannels(b, data, body, first_joint, input, animation));

@@ -408,7 +408,7 @@ TEST(ExportReenactmentGlb, SkinningTheBodyReproducesPoseBodyMesh) {
   ASSERT_EQ(rest.cols(), static_cast<Eigen::Index>(body->texture_vertex_source.size()));
   for (size_t k = 0; k < data.frames.size(); ++k) {
     v1::BodyPose pose = data.frames[k].body();
-    pose.clear_vertex_offsets_m_f32();
+    pose.clear_vertex_offsets_50um_i16();
     auto posed = PoseBodyMesh(*body, pose);
     ASSERT_TRUE(posed.ok()) << posed.status();
     const Eigen::Matrix3Xd skinned = SkinAt(model, k);

@@ -49,6 +49,7 @@ absl::Status ServerOptions::Validate() const {
   TakeStoreOptions store_options = store;
   store_options.data_dir = data_dir;
   RETURN_IF_ERROR(jobs.Validate());
+  RETURN_IF_ERROR(live.Validate());
   return store_options.Validate();
 }
 
@@ -90,16 +91,18 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
                    ReenactmentStore::Open(absolute.data_dir + "/reenactments"));
   ASSIGN_OR_RETURN(server->job_store_,
                    JobStore::Open(&server->store_->catalog(), options.jobs.store));
+  server->live_ = std::make_unique<LiveHub>(absolute.live);
   ASSIGN_OR_RETURN(
       server->jobs_,
       JobScheduler::Start(absolute.jobs, absolute.data_dir + "/jobs", server->job_store_.get(),
-                          server->store_.get(), server->reenactments_.get()));
+                          server->store_.get(), server->reenactments_.get(), server->live_.get()));
   server->blocking_ = std::make_unique<ThreadPool>(options.blocking_threads);
   server->context_.takes = server->store_.get();
   server->context_.blocking = server->blocking_.get();
   server->context_.ingest_queue_limit_bytes = options.ingest_queue_limit_bytes;
   server->context_.jobs = server->jobs_.get();
   server->context_.reenactments = server->reenactments_.get();
+  server->context_.live = server->live_.get();
   server->services_ = MakeServices(server->context_);
 
   grpc::ServerBuilder builder;
@@ -141,7 +144,10 @@ std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
 void Server::Shutdown() {
   if (shut_down_ || grpc_server_ == nullptr) return;
   shut_down_ = true;
-  // Workers first: their jobs stay RUNNING and run again after a restart;
+  // Live follows first: their subscribers hear the end; their jobs stay
+  // RUNNING.
+  live_->Shutdown();
+  // Workers next: their jobs stay RUNNING and run again after a restart;
   // watch streams end with UNAVAILABLE.
   jobs_->Shutdown();
   store_->Shutdown(absl::UnavailableError(

@@ -16,6 +16,7 @@
 #include "common/base/thread_pool.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/jobs/job_store.h"
+#include "server/live/live_hub.h"
 #include "server/rpc/server_context.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
@@ -44,6 +45,10 @@ struct ServerOptions {
   // (server/jobs/job_scheduler.h). Jobs live in the catalog, their worker
   // output in DATA/jobs/<job_id>/, reenactments in DATA/reenactments/.
   JobSchedulerOptions jobs;
+  // The live hub (server/live/live_hub.h): its factory makes the followers
+  // of live jobs; without one, live jobs of recording takes are refused.
+  // reenact-server plugs in the body model's (server/live/live_body_follower.h).
+  LiveHubOptions live;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -69,11 +74,13 @@ class Server {
   const std::vector<RecoveredTake>& recovered() const { return recovered_; }
   TakeStore& takes() { return *store_; }
   JobScheduler& jobs() { return *jobs_; }
+  LiveHub& live() { return *live_; }
   ReenactmentStore& reenactments() { return *reenactments_; }
 
-  // Graceful stop: refuses new takes, makes every received frame set
-  // durable and finishes recording takes as INTERRUPTED, ends their streams
-  // with UNAVAILABLE, then stops serving. Idempotent.
+  // Graceful stop: ends live follows (their jobs stay RUNNING and run
+  // offline after a restart), refuses new takes, makes every received frame
+  // set durable and finishes recording takes as INTERRUPTED, ends their
+  // streams with UNAVAILABLE, then stops serving. Idempotent.
   void Shutdown();
   // Blocks until Shutdown() (from another thread) has stopped the server.
   void Wait();
@@ -88,6 +95,8 @@ class Server {
   // the gRPC server, so that they outlive every handler.
   std::unique_ptr<ReenactmentStore> reenactments_;
   std::unique_ptr<JobStore> job_store_;
+  // Before the scheduler, which calls it (and is called back by it).
+  std::unique_ptr<LiveHub> live_;
   std::unique_ptr<JobScheduler> jobs_;
   std::unique_ptr<ThreadPool> blocking_;
   ServerContext context_;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "server/live/live_body_follower.h"
 #include "server/server.h"
 #include "server/server_flags.h"
 
@@ -40,7 +41,9 @@ int main(int argc, char** argv) {
     std::cout << kServerUsage << "\n";
     return 0;
   }
-  absl::StatusOr<std::unique_ptr<Server>> server = Server::Start(command_line->options);
+  ServerOptions options = command_line->options;
+  options.live.factory = MakeLiveBodyFollowerFactory();  // Live jobs of method body.
+  absl::StatusOr<std::unique_ptr<Server>> server = Server::Start(options);
   if (!server.ok()) return Fail(server.status(), kExitFailure);
   for (const RecoveredTake& take : (*server)->recovered()) {
     std::cerr << "reenact-server: recovered take " << take.take_id << ": " << take.durable_sequence

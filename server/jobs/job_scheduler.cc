@@ -85,10 +85,40 @@ absl::Status ValidateOptions(const google::protobuf::Map<std::string, std::strin
   return absl::OkStatus();
 }
 
-std::string OptionsJson(const google::protobuf::Map<std::string, std::string>& options) {
+// The options the worker gets: the live-only ones left out.
+std::map<std::string, std::string> WorkerOptions(
+    const google::protobuf::Map<std::string, std::string>& options) {
+  std::map<std::string, std::string> worker;
+  for (const auto& [key, value] : options) {
+    if (std::find(kLiveOnlyOptions.begin(), kLiveOnlyOptions.end(), key) ==
+        kLiveOnlyOptions.end()) {
+      worker.emplace(key, value);
+    }
+  }
+  return worker;
+}
+
+std::string OptionsJson(const std::map<std::string, std::string>& options) {
   nlohmann::json j = nlohmann::json::object();
   for (const auto& [key, value] : options) j[key] = value;
   return j.dump();
+}
+
+// Whether the job asks to follow its take (option live=true). InvalidArgument
+// for another value, or live=true with a method other than body.
+absl::StatusOr<bool> LiveOption(const v1::SubmitJobRequest& request) {
+  const auto it = request.options().find("live");
+  if (it == request.options().end() || it->second == "false") return false;
+  if (it->second != "true") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option live takes true or false, not \"", Truncate(it->second, 80), "\""));
+  }
+  if (request.method() != "body") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option live=true follows a take with the body model: method body, not \"",
+                     Truncate(request.method(), 80), "\""));
+  }
+  return true;
 }
 
 }  // namespace
@@ -133,19 +163,20 @@ absl::Status JobSchedulerOptions::Validate() const {
 }
 
 JobScheduler::JobScheduler(const JobSchedulerOptions& options, std::string jobs_dir, JobStore* jobs,
-                           TakeStore* takes, ReenactmentStore* reenactments)
+                           TakeStore* takes, ReenactmentStore* reenactments, LiveHub* live)
     : options_(options),
       jobs_dir_(std::move(jobs_dir)),
       jobs_(jobs),
       takes_(takes),
-      reenactments_(reenactments) {}
+      reenactments_(reenactments),
+      live_(live) {}
 
 absl::StatusOr<std::unique_ptr<JobScheduler>> JobScheduler::Start(
     const JobSchedulerOptions& options, const std::string& jobs_dir, JobStore* jobs,
-    TakeStore* takes, ReenactmentStore* reenactments) {
+    TakeStore* takes, ReenactmentStore* reenactments, LiveHub* live) {
   RETURN_IF_ERROR(options.Validate());
   std::unique_ptr<JobScheduler> scheduler(
-      new JobScheduler(options, jobs_dir, jobs, takes, reenactments));
+      new JobScheduler(options, jobs_dir, jobs, takes, reenactments, live));
   std::error_code error;
   fs::create_directories(jobs_dir, error);
   if (error) {
@@ -182,11 +213,10 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
                      "\"; methods: ", absl::StrJoin(options_.methods, ", ")));
   }
   RETURN_IF_ERROR(ValidateOptions(request.options()));
+  ASSIGN_OR_RETURN(const bool live, LiveOption(request));
   ASSIGN_OR_RETURN(const v1::Take take, takes_->GetTake(request.take_id()));
-  if (take.state() == v1::TAKE_STATE_RECORDING) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "take ", take.take_id(), " is still being recorded; submit the job once it is complete"));
-  }
+  const bool recording = take.state() == v1::TAKE_STATE_RECORDING;
+  if (recording) RETURN_IF_ERROR(CheckFollowable(take.take_id(), live));
   v1::Job job;
   job.set_take_id(request.take_id());
   job.set_method(request.method());
@@ -194,10 +224,115 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   std::lock_guard<std::mutex> lock(mu_);
   if (stopping_) return absl::UnavailableError("the server is shutting down; submit later");
   ASSIGN_OR_RETURN(job, jobs_->Insert(std::move(job)));
+  if (recording) {
+    absl::StatusOr<v1::Job> following = FollowLocked(job);
+    // FailedPrecondition: the take ended meanwhile; the job runs offline.
+    if (following.ok() || !absl::IsFailedPrecondition(following.status())) return following;
+  }
   queue_.push_back(job.job_id());
   wake_pending_ = true;
   wake_.notify_all();
   return job;
+}
+
+absl::Status JobScheduler::CheckFollowable(const std::string& take_id, bool live) const {
+  if (!live) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "take ", take_id,
+        " is still being recorded; submit the job once it is complete (or, for the body "
+        "model, with option live=true to follow it now)"));
+  }
+  if (live_ == nullptr || !live_->enabled()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("take ", take_id,
+                     " is still being recorded and this server cannot follow takes live; submit "
+                     "the job once the take is complete"));
+  }
+  if (!live_->Recording(take_id)) {
+    // The store has opened it; ingest has not told the hub yet.
+    return absl::UnavailableError(
+        absl::StrCat("take ", take_id, " is being opened; submit again in a moment"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<v1::Job> JobScheduler::FollowLocked(const v1::Job& job) {
+  const std::string job_id = job.job_id();
+  LiveJobCallbacks callbacks;
+  callbacks.progress = [this, job_id](int64_t frames) { LiveProgress(job_id, frames); };
+  callbacks.ended = [this, job_id](const LiveFollowSummary& summary) {
+    LiveEnded(job_id, summary);
+  };
+  const absl::Status followed = live_->Follow(
+      job_id, job.take_id(), {job.options().begin(), job.options().end()}, std::move(callbacks));
+  if (!followed.ok()) {
+    if (absl::IsFailedPrecondition(followed)) return followed;
+    // The job was stored: it fails with the reason rather than vanish.
+    (void)jobs_->Mutate(job_id, [&](v1::Job& j) {
+      j.set_state(v1::JOB_STATE_FAILED);
+      j.set_finished_unix_ns(WallNowNs());
+      j.set_error(absl::StrCat("the take could not be followed: ", followed.message()));
+    });
+    return followed;
+  }
+  following_.insert(job_id);
+  return jobs_->Mutate(job_id, [](v1::Job& j) {
+    j.set_state(v1::JOB_STATE_RUNNING);
+    j.set_started_unix_ns(WallNowNs());
+    j.mutable_progress()->set_stage(kFollowingStage);
+    j.mutable_progress()->set_eta_s(-1);
+  });
+}
+
+void JobScheduler::LiveProgress(const std::string& job_id, int64_t frames_followed) {
+  // Only noted: the scheduler thread stores and publishes it (a catalog
+  // write must not hold up the follower).
+  std::lock_guard<std::mutex> lock(mu_);
+  if (following_.contains(job_id)) live_progress_[job_id] = frames_followed;
+}
+
+void JobScheduler::PublishLiveProgress() {
+  std::map<std::string, int64_t> noted;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    noted.swap(live_progress_);
+  }
+  for (const auto& [job_id, frames] : noted) {
+    absl::StatusOr<v1::Job> job;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (!following_.contains(job_id)) continue;  // Cancelled or ended meanwhile.
+      v1::JobProgress progress;
+      progress.set_stage(kFollowingStage);
+      progress.set_frames_done(frames);
+      progress.set_eta_s(-1);
+      job = jobs_->UpdateProgress(job_id, progress);
+    }
+    if (job.ok()) Publish(*job, {}, /*last=*/false);
+  }
+}
+
+void JobScheduler::LiveEnded(const std::string& job_id, const LiveFollowSummary& summary) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (following_.erase(job_id) == 0) return;
+    live_progress_.erase(job_id);
+    if (summary.reason != v1::FOLLOW_END_REASON_FAILED) {
+      // The take is stored: the same job goes on with a worker, before the
+      // queued jobs.
+      handoff_.push_back(job_id);
+      wake_pending_ = true;
+      wake_.notify_all();
+    }
+  }
+  std::vector<std::string> logs = {
+      absl::StrCat(summary.message, "; followed ", summary.frames_followed, " of ",
+                   summary.frames_received, " frame sets (", summary.frames_skipped, " skipped)")};
+  if (summary.reason == v1::FOLLOW_END_REASON_FAILED) {
+    EndJob(job_id, v1::JOB_STATE_FAILED, summary.message, "", std::move(logs));
+    return;
+  }
+  if (auto job = jobs_->Get(job_id); job.ok()) Publish(*job, std::move(logs), /*last=*/false);
 }
 
 absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
@@ -206,25 +341,42 @@ absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     ASSIGN_OR_RETURN(job, jobs_->Get(job_id));
+    std::string error;
     if (job.state() == v1::JOB_STATE_RUNNING) {
       if (auto it = running_.find(job_id); it != running_.end()) {
         it->second->cancel_requested = true;
         wake_pending_ = true;
         wake_.notify_all();
+        return job;
       }
+      error = StopLiveLocked(job_id);
+      if (error.empty()) return job;
+    } else if (job.state() == v1::JOB_STATE_QUEUED) {
+      queue_.erase(std::remove(queue_.begin(), queue_.end(), job_id), queue_.end());
+      error = "cancelled by a client before it started";
+    } else {
       return job;
     }
-    if (job.state() != v1::JOB_STATE_QUEUED) return job;
-    queue_.erase(std::remove(queue_.begin(), queue_.end(), job_id), queue_.end());
-    ASSIGN_OR_RETURN(job, jobs_->Mutate(job_id, [](v1::Job& j) {
+    ASSIGN_OR_RETURN(job, jobs_->Mutate(job_id, [&](v1::Job& j) {
       j.set_state(v1::JOB_STATE_CANCELLED);
       j.set_finished_unix_ns(WallNowNs());
-      j.set_error("cancelled by a client before it started");
+      j.set_error(error);
       j.mutable_progress()->set_eta_s(-1);
     }));
   }
   Publish(job, {}, /*last=*/true);
   return job;
+}
+
+std::string JobScheduler::StopLiveLocked(const std::string& job_id) {
+  if (following_.erase(job_id) > 0) {
+    live_->Stop(job_id, v1::FOLLOW_END_REASON_CANCELLED, "the job was cancelled");
+    return "cancelled by a client while following its take";
+  }
+  const auto it = std::find(handoff_.begin(), handoff_.end(), job_id);
+  if (it == handoff_.end()) return "";
+  handoff_.erase(it);
+  return "cancelled by a client before its worker started";
 }
 
 absl::StatusOr<v1::Job> JobScheduler::Get(const std::string& job_id) const {
@@ -307,6 +459,7 @@ void JobScheduler::Loop() {
       if (stopping_) break;
     }
     PollRunning();
+    PublishLiveProgress();
     StartQueued();
   }
   StopWorkers();
@@ -317,34 +470,59 @@ void JobScheduler::StartQueued() {
     std::string job_id;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      if (stopping_ || static_cast<int>(running_.size()) >= concurrency_ || queue_.empty()) {
-        return;
-      }
-      job_id = queue_.front();
-      queue_.pop_front();
-      // Under mu_, so that Cancel finds the job either queued or running.
-      bool was_queued = false;
-      const absl::StatusOr<v1::Job> job = jobs_->Mutate(job_id, [&](v1::Job& j) {
-        was_queued = j.state() == v1::JOB_STATE_QUEUED;
-        if (!was_queued) return;
-        j.set_state(v1::JOB_STATE_RUNNING);
-        j.set_started_unix_ns(WallNowNs());
-        j.set_attempts(j.attempts() + 1);
-        j.clear_progress();
-        j.mutable_progress()->set_stage("starting");
-        j.mutable_progress()->set_eta_s(-1);
-        j.clear_error();
-        j.clear_reenactment_id();
-      });
-      // A job the catalog cannot write stays QUEUED in memory; it is tried
-      // again at the next start.
-      if (!job.ok() || !was_queued) continue;
-      auto run = std::make_unique<Running>();
-      run->job_id = job_id;
-      running_[job_id] = std::move(run);
+      if (stopping_ || static_cast<int>(running_.size()) >= concurrency_) return;
+      // Live jobs whose take was closed go first: they have run for a while.
+      std::deque<std::string>& source = handoff_.empty() ? queue_ : handoff_;
+      if (source.empty()) return;
+      job_id = source.front();
+      source.pop_front();
+      const bool started =
+          &source == &handoff_ ? StartHandoffLocked(job_id) : StartQueuedLocked(job_id);
+      if (!started) continue;
     }
     Launch(job_id);
   }
+}
+
+bool JobScheduler::StartQueuedLocked(const std::string& job_id) {
+  // Under mu_, so that Cancel finds the job either queued or running.
+  bool was_queued = false;
+  const absl::StatusOr<v1::Job> job = jobs_->Mutate(job_id, [&](v1::Job& j) {
+    was_queued = j.state() == v1::JOB_STATE_QUEUED;
+    if (!was_queued) return;
+    j.set_state(v1::JOB_STATE_RUNNING);
+    j.set_started_unix_ns(WallNowNs());
+    j.set_attempts(j.attempts() + 1);
+    j.clear_progress();
+    j.mutable_progress()->set_stage("starting");
+    j.mutable_progress()->set_eta_s(-1);
+    j.clear_error();
+    j.clear_reenactment_id();
+  });
+  // A job the catalog cannot write stays QUEUED in memory; it is tried
+  // again at the next start.
+  if (!job.ok() || !was_queued) return false;
+  auto run = std::make_unique<Running>();
+  run->job_id = job_id;
+  running_[job_id] = std::move(run);
+  return true;
+}
+
+bool JobScheduler::StartHandoffLocked(const std::string& job_id) {
+  bool was_running = false;
+  const absl::StatusOr<v1::Job> job = jobs_->Mutate(job_id, [&](v1::Job& j) {
+    was_running = j.state() == v1::JOB_STATE_RUNNING;
+    if (!was_running) return;
+    j.set_attempts(j.attempts() + 1);
+    j.mutable_progress()->set_stage("starting");
+    j.mutable_progress()->set_eta_s(-1);
+  });
+  // A job the catalog cannot write stays RUNNING; the next start queues it.
+  if (!job.ok() || !was_running) return false;
+  auto run = std::make_unique<Running>();
+  run->job_id = job_id;
+  running_[job_id] = std::move(run);
+  return true;
 }
 
 void JobScheduler::Launch(const std::string& job_id) {
@@ -390,8 +568,8 @@ void JobScheduler::Launch(const std::string& job_id) {
   process_options.working_dir = dir.string();
   absl::StatusOr<std::unique_ptr<Subprocess>> process = Subprocess::Start(
       {worker_path_, "--take", *take_path, "--method", job->method(), "--options-json",
-       OptionsJson(job->options()), "--out", run->out_path, "--reenactment-id", run->reenactment_id,
-       "--take-id", job->take_id(), "--job-id", job_id},
+       OptionsJson(WorkerOptions(job->options())), "--out", run->out_path, "--reenactment-id",
+       run->reenactment_id, "--take-id", job->take_id(), "--job-id", job_id},
       process_options);
   if (!process.ok()) {
     return fail(absl::StrCat("cannot start the worker: ", process.status().message()));

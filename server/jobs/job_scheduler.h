@@ -35,11 +35,23 @@
 // in the store, so that the next start queues it again (JobStore::
 // RequeueUnfinished, attempts kept: the new run counts one more).
 //
+// Live jobs (method body, option live=true) on a take still RECORDING: the
+// job becomes RUNNING at once, in stage "following", and the live hub
+// (server/live/live_hub.h) follows the take for it; its progress counts the
+// frame sets followed (frames_done). When the take stops recording the
+// same job goes on with a worker on the stored take, before the queued jobs
+// (a new attempt; the options kLiveOnlyOptions are not passed to the
+// worker), and ends SUCCEEDED with its reenactment as usual. A live fit
+// that cannot start fails the job. A live job of a take that is not
+// recording simply runs offline. Cancel stops the follow at once. After a
+// restart a live job left RUNNING runs offline.
+//
 // Thread-safe. One scheduler thread polls and starts workers; a second one
 // indexes finished reenactments so that a large file does not hold up the
 // progress of the other jobs.
 #pragma once
 
+#include <array>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -47,7 +59,9 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -58,10 +72,17 @@
 #include "reenact/v1/jobs_service.pb.h"
 #include "server/jobs/job_store.h"
 #include "server/jobs/methods_list.h"
+#include "server/live/live_hub.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
+
+// Options of a live job that only its follow uses: the worker does not get
+// them ("shape_spacing": recon::LiveBodyFollower's).
+inline constexpr std::array<std::string_view, 2> kLiveOnlyOptions = {"live", "shape_spacing"};
+// The stage of a live job while it follows its take.
+inline constexpr char kFollowingStage[] = "following";
 
 struct JobSchedulerOptions {
   // The worker program; empty: reenact-worker beside the running program
@@ -96,24 +117,30 @@ using JobEventCallback =
 class JobScheduler {
  public:
   // Makes `jobs_dir`, queues again what a previous server left RUNNING, and
-  // starts running QUEUED jobs. The stores must outlive the scheduler.
+  // starts running QUEUED jobs. The stores must outlive the scheduler; the
+  // live hub (null: no live jobs of recording takes) too, and it must be
+  // shut down before the scheduler is destroyed.
   static absl::StatusOr<std::unique_ptr<JobScheduler>> Start(const JobSchedulerOptions& options,
                                                              const std::string& jobs_dir,
                                                              JobStore* jobs, TakeStore* takes,
-                                                             ReenactmentStore* reenactments);
+                                                             ReenactmentStore* reenactments,
+                                                             LiveHub* live = nullptr);
   // Shutdown().
   ~JobScheduler();
   JobScheduler(const JobScheduler&) = delete;
   JobScheduler& operator=(const JobScheduler&) = delete;
 
-  // Queues a job. InvalidArgument for a malformed take id, an unknown
-  // method or bad options; NotFound for an unknown take; FailedPrecondition
-  // for a take still recording; Unavailable after Shutdown.
+  // Queues a job (a live job of a recording take starts following it).
+  // InvalidArgument for a malformed take id, an unknown method or bad
+  // options (live other than true/false, live=true with a method other than
+  // body); NotFound for an unknown take; FailedPrecondition for a take still
+  // recording, unless the job is live and the server has a live hub;
+  // Unavailable after Shutdown, or while the take is being opened.
   absl::StatusOr<v1::Job> Submit(const v1::SubmitJobRequest& request);
-  // Cancels a QUEUED job (returned CANCELLED) or starts stopping a RUNNING
-  // one (returned RUNNING; Watch tells when it is CANCELLED). A finished job
-  // is returned as it is. NotFound / InvalidArgument for unknown or
-  // malformed ids.
+  // Cancels a QUEUED job or a live job that follows its take (returned
+  // CANCELLED) or starts stopping a RUNNING worker (returned RUNNING; Watch
+  // tells when it is CANCELLED). A finished job is returned as it is. NotFound / InvalidArgument
+  // for unknown or malformed ids.
   absl::StatusOr<v1::Job> Cancel(const std::string& job_id);
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
   std::vector<v1::Job> List(v1::JobState state, const std::string& take_id) const;
@@ -136,10 +163,31 @@ class JobScheduler {
   struct Running;
 
   JobScheduler(const JobSchedulerOptions& options, std::string jobs_dir, JobStore* jobs,
-               TakeStore* takes, ReenactmentStore* reenactments);
+               TakeStore* takes, ReenactmentStore* reenactments, LiveHub* live);
   void Loop();
-  // Starts queued jobs while slots are free.
+  // Starts queued jobs while slots are free (live jobs whose take ended
+  // first).
   void StartQueued();
+  // Marks a queued job RUNNING with a Running entry; false when it is no
+  // longer queued. mu_ held.
+  bool StartQueuedLocked(const std::string& job_id);
+  // The same for a live job whose follow ended (it is RUNNING already).
+  bool StartHandoffLocked(const std::string& job_id);
+  // Submit of a recording take: OK when the job may follow it (live and a
+  // live hub that knows the take), else the error Submit answers.
+  absl::Status CheckFollowable(const std::string& take_id, bool live) const;
+  // Starts the follow of a stored job and makes it RUNNING. FailedPrecondition
+  // when the take stopped recording meanwhile (the job stays QUEUED); other
+  // errors fail the job. mu_ held.
+  absl::StatusOr<v1::Job> FollowLocked(const v1::Job& job);
+  // The live hub's callbacks (on its follower threads).
+  void LiveProgress(const std::string& job_id, int64_t frames_followed);
+  // Stores and publishes the progress LiveProgress noted (scheduler thread).
+  void PublishLiveProgress();
+  void LiveEnded(const std::string& job_id, const LiveFollowSummary& summary);
+  // Cancel of a live job that follows or waits for its worker: stops it and
+  // returns the job's error text; "" when the job is neither. mu_ held.
+  std::string StopLiveLocked(const std::string& job_id);
   // Starts the worker of `job_id`, which StartQueued marked RUNNING.
   void Launch(const std::string& job_id);
   // Reads the workers' output, publishes progress, signals cancelled ones
@@ -172,6 +220,7 @@ class JobScheduler {
   JobStore* const jobs_;
   TakeStore* const takes_;
   ReenactmentStore* const reenactments_;
+  LiveHub* const live_;
   int concurrency_ = 1;
   std::string worker_path_;
 
@@ -180,6 +229,12 @@ class JobScheduler {
   bool wake_pending_ = false;
   bool stopping_ = false;
   std::deque<std::string> queue_;
+  // Live jobs following their take, and those whose take ended, waiting
+  // for a worker slot.
+  std::set<std::string> following_;
+  std::deque<std::string> handoff_;
+  // Frames followed since the last PublishLiveProgress, per live job.
+  std::map<std::string, int64_t> live_progress_;
   std::map<std::string, std::unique_ptr<Running>> running_;
   std::thread thread_;
   // Indexes finished reenactments (ReenactmentStore::Add reads the file).

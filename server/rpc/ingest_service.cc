@@ -7,9 +7,12 @@
 #include <optional>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/time.h"
 #include "proto/grpc_status.h"
+#include "server/live/live_hub.h"
 #include "server/store/frame_set_validation.h"
 
 namespace reenact::server {
@@ -50,7 +53,7 @@ class IngestStream final : public Reactor, public RecorderObserver {
 
   void HandleOpen(const v1::OpenTake& open);
   void OpenDone(absl::StatusOr<TakeOpenResult> result);
-  void HandleFrameSet(v1::FrameSet set);
+  void HandleFrameSet(v1::FrameSet set, int64_t arrived_unix_ns);
   void HandleSensorLost(const v1::SensorLost& lost);
   void HandleClose(const v1::CloseTake& close);
   void HandleEndOfInput();
@@ -77,6 +80,7 @@ class IngestStream final : public Reactor, public RecorderObserver {
   Phase phase_ = Phase::kAwaitOpen;
   bool cancelled_ = false;
   std::string take_id_;
+  v1::TakeInfo info_;  // OpenTake's, for the live hub.
   std::shared_ptr<TakeRecorder> recorder_;
   v1::Take complete_take_;  // kComplete: the stored take.
   absl::Status own_error_;  // Why this stream stopped its recording.
@@ -117,7 +121,7 @@ void IngestStream::OnReadDone(bool ok) {
       HandleOpen(request.open());
       break;
     case v1::IngestRequest::kFrameSet:
-      HandleFrameSet(std::move(*request.mutable_frame_set()));
+      HandleFrameSet(std::move(*request.mutable_frame_set()), WallNowNs());
       break;
     case v1::IngestRequest::kSensorLost:
       HandleSensorLost(request.sensor_lost());
@@ -137,6 +141,7 @@ void IngestStream::HandleOpen(const v1::OpenTake& open) {
     if (phase_ == Phase::kAwaitOpen) {
       phase_ = Phase::kOpening;
       take_id_ = open.take_id();
+      info_ = open.info();
     }
   }
   if (phase() != Phase::kOpening) {
@@ -155,6 +160,15 @@ void IngestStream::OpenDone(absl::StatusOr<TakeOpenResult> result) {
   if (!result.ok()) {
     Fail(result.status());
     return;
+  }
+  // Before the stream can end the recording, so that the hub hears the
+  // take's end after its opening.
+  if (context_.live != nullptr && result->recorder != nullptr) {
+    std::vector<v1::SensorCalibration> sensors;
+    for (const auto& [id, calibration] : result->recorder->sensors()) {
+      sensors.push_back(calibration);
+    }
+    context_.live->TakeOpened(take_id_, info_, std::move(sensors));
   }
   bool cancelled = false;
   {
@@ -198,7 +212,7 @@ std::pair<IngestStream::Phase, std::shared_ptr<TakeRecorder>> IngestStream::Phas
   return {p, std::move(recorder)};
 }
 
-void IngestStream::HandleFrameSet(v1::FrameSet set) {
+void IngestStream::HandleFrameSet(v1::FrameSet set, int64_t arrived_unix_ns) {
   auto [p, recorder] = PhaseFor("FrameSet");
   if (p == Phase::kAwaitOpen) return;
   if (p == Phase::kComplete) {
@@ -209,11 +223,16 @@ void IngestStream::HandleFrameSet(v1::FrameSet set) {
   if (p != Phase::kRecording) return;
   absl::Status status = recorder->CheckNextSequence(set.sequence());
   if (status.ok()) status = ValidateFrameSet(set, recorder->sensors(), context_.takes->limits());
+  // A followed take's sets go to the live hub too: a copy, queued there for
+  // the follower's thread (the fit never runs here).
+  std::optional<v1::FrameSet> live;
+  if (status.ok() && context_.live != nullptr && context_.live->Follows(take_id_)) live = set;
   if (status.ok()) status = recorder->Enqueue(std::move(set));
   if (!status.ok()) {
     Fail(status);
     return;
   }
+  if (live.has_value()) context_.live->FrameSetArrived(take_id_, std::move(*live), arrived_unix_ns);
   ReadNext();
 }
 
@@ -337,6 +356,8 @@ void IngestStream::OnDurable(uint64_t durable_sequence) {
 }
 
 void IngestStream::OnFinished(const RecordingResult& result) {
+  // The store has the take's final row: a live job may now read the file.
+  if (context_.live != nullptr) context_.live->TakeEnded(take_id_, result.row.take.state());
   {
     std::lock_guard<std::mutex> lock(mu_);
     phase_ = Phase::kEnding;

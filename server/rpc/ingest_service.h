@@ -15,6 +15,11 @@
 //  - Server shutdown: UNAVAILABLE after every received frame set is durable.
 // On every error the take keeps each frame set durable before the refused
 // message, its file is finished and valid, and its daemon may resume it.
+//
+// With a live hub in the context (server/live/live_hub.h), the stream tells
+// it of the take's opening, of each accepted FrameSet of a followed take (a
+// copy, with the time the set reached the handler) and of the recording's
+// end; the hub queues the sets for its own threads.
 #pragma once
 
 #include <grpcpp/grpcpp.h>

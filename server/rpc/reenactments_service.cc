@@ -13,6 +13,7 @@
 #include "common/io/mcap_reader.h"
 #include "common/io/reenactment_file.h"
 #include "proto/grpc_status.h"
+#include "server/rpc/follow_stream.h"
 #include "server/store/reenactment_store.h"
 
 namespace reenact::server {
@@ -256,6 +257,11 @@ grpc::ServerUnaryReactor* ReenactmentsService::Get(grpc::CallbackServerContext* 
 grpc::ServerWriteReactor<v1::FetchReenactmentChunk>* ReenactmentsService::Fetch(
     grpc::CallbackServerContext* rpc, const v1::FetchReenactmentRequest* request) {
   return new FetchStream(context_, *request);
+}
+
+grpc::ServerWriteReactor<v1::FollowEvent>* ReenactmentsService::Follow(
+    grpc::CallbackServerContext* rpc, const v1::FollowRequest* request) {
+  return NewFollowStream(context_, *request);
 }
 
 grpc::ServerUnaryReactor* ReenactmentsService::Delete(grpc::CallbackServerContext* rpc,

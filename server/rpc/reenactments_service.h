@@ -1,7 +1,8 @@
 // The Reenactments service (proto/reenact/v1/reenactments_service.proto): the
 // reenactments that finished jobs stored, listed, described, streamed and
-// deleted. One handler per RPC, reaching the store through the context;
-// unknown ids are NOT_FOUND.
+// deleted, and the live preview of a job that follows its take (Follow). One
+// handler per RPC, reaching the store through the context; unknown ids are
+// NOT_FOUND.
 //
 // Fetch streams the file's messages in the order the proto states: the
 // info, every part mesh, the part frames in batches of at most
@@ -51,6 +52,9 @@ class ReenactmentsService final : public v1::Reenactments::CallbackService {
   grpc::ServerUnaryReactor* Delete(grpc::CallbackServerContext* rpc,
                                    const v1::DeleteReenactmentRequest* request,
                                    v1::DeleteReenactmentResponse* response) override;
+  // A live job's preview (server/rpc/follow_stream.h).
+  grpc::ServerWriteReactor<v1::FollowEvent>* Follow(grpc::CallbackServerContext* rpc,
+                                                    const v1::FollowRequest* request) override;
 
  private:
   ServerContext& context_;

@@ -11,6 +11,7 @@
 
 namespace reenact::server {
 class JobScheduler;
+class LiveHub;
 class ReenactmentStore;
 }  // namespace reenact::server
 
@@ -29,6 +30,9 @@ struct ServerContext {
   JobScheduler* jobs = nullptr;
   // The reenactments finished jobs made (Jobs, Reenactments).
   ReenactmentStore* reenactments = nullptr;
+  // Follows recording takes for live jobs (Ingest feeds it, Follow
+  // subscribes); null: no live preview.
+  LiveHub* live = nullptr;
 };
 
 }  // namespace reenact::server

@@ -1,0 +1,171 @@
+#include "server/rpc/follow_stream.h"
+
+#include <deque>
+#include <mutex>
+#include <string>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "proto/grpc_status.h"
+#include "server/jobs/job_scheduler.h"
+#include "server/live/live_hub.h"
+
+namespace reenact::server {
+namespace {
+
+// Why `job` follows nothing, for people.
+std::string NotFollowingMessage(const v1::Job& job) {
+  const auto live = job.options().find("live");
+  if (live == job.options().end() || live->second != "true") {
+    return absl::StrCat("job ", job.job_id(),
+                        " is not live (submit it with --option live=true to follow its take)");
+  }
+  if (IsFinished(job.state())) {
+    return absl::StrCat("job ", job.job_id(), " has ended (", v1::JobState_Name(job.state()), ")");
+  }
+  return absl::StrCat("job ", job.job_id(), " follows no take now: its take ", job.take_id(),
+                      " was not being recorded when it was submitted, or has stopped");
+}
+
+class FollowStream final : public grpc::ServerWriteReactor<v1::FollowEvent> {
+ public:
+  FollowStream(ServerContext& context, const v1::FollowRequest& request) : context_(context) {
+    if (context_.jobs == nullptr) {
+      FinishNow(absl::UnavailableError("this server runs no jobs"));
+      return;
+    }
+    const absl::StatusOr<v1::Job> job = context_.jobs->Get(request.job_id());
+    if (!job.ok()) {
+      FinishNow(job.status());
+      return;
+    }
+    absl::StatusOr<uint64_t> id = absl::NotFoundError("no live hub");
+    if (context_.live != nullptr) {
+      id = context_.live->Subscribe(request.job_id(), [this](const v1::FollowEvent& event,
+                                                             bool last) { OnEvent(event, last); });
+    }
+    if (!id.ok()) {
+      v1::FollowEvent end;
+      end.mutable_end()->set_reason(v1::FOLLOW_END_REASON_NOT_FOLLOWING);
+      end.mutable_end()->set_message(NotFollowingMessage(*job));
+      OnEvent(end, /*last=*/true);
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    subscription_ = *id;
+  }
+
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      writing_ = false;
+      if (!ok) broken_ = true;
+    }
+    Pump();
+  }
+  void OnCancel() override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      broken_ = true;
+    }
+    Pump();
+  }
+  void OnDone() override {
+    uint64_t subscription = 0;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      // After the FollowEnd the hub has dropped the subscription already.
+      if (!ended_) subscription = subscription_;
+    }
+    if (subscription != 0) context_.live->Unsubscribe(subscription);
+    delete this;
+  }
+
+ private:
+  void FinishNow(const absl::Status& status) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      finished_ = true;
+    }
+    Finish(ToGrpcStatus(status));
+  }
+
+  // From the hub (its subscriber lock held): queue and write.
+  void OnEvent(const v1::FollowEvent& event, bool last) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (event.has_frame()) {
+        if (queued_frames_ >= kFollowMaxQueuedFrames) DropOldestFrame();
+        ++queued_frames_;
+      }
+      outbox_.push_back(event);
+      if (last) {
+        ended_ = true;
+        if (event.end().reason() == v1::FOLLOW_END_REASON_SHUTDOWN) {
+          end_status_ = grpc::Status(grpc::StatusCode::UNAVAILABLE, event.end().message());
+        }
+      }
+    }
+    Pump();
+  }
+
+  void DropOldestFrame() {
+    for (auto it = outbox_.begin(); it != outbox_.end(); ++it) {
+      if (it->has_frame()) {
+        outbox_.erase(it);
+        --queued_frames_;
+        return;
+      }
+    }
+  }
+
+  // Starts the next write, or finishes once the end is out (or the client
+  // is gone).
+  void Pump() {
+    grpc::Status status;
+    bool finish = false;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (writing_ || finished_) return;
+      if (!outbox_.empty() && !broken_) {
+        in_flight_ = std::move(outbox_.front());
+        outbox_.pop_front();
+        if (in_flight_.has_frame()) --queued_frames_;
+        writing_ = true;
+      } else if (broken_ || ended_) {
+        finished_ = true;
+        finish = true;
+        status = broken_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the follow was cancelled")
+                         : end_status_;
+      } else {
+        return;
+      }
+    }
+    if (finish) {
+      Finish(status);
+    } else {
+      StartWrite(&in_flight_);
+    }
+  }
+
+  ServerContext& context_;
+  std::mutex mu_;
+  uint64_t subscription_ = 0;
+  std::deque<v1::FollowEvent> outbox_;
+  int queued_frames_ = 0;
+  v1::FollowEvent in_flight_;
+  bool writing_ = false;
+  bool broken_ = false;
+  bool ended_ = false;
+  grpc::Status end_status_;  // OK, or UNAVAILABLE at a server shutdown.
+  bool finished_ = false;
+};
+
+}  // namespace
+
+grpc::ServerWriteReactor<v1::FollowEvent>* NewFollowStream(ServerContext& context,
+                                                           const v1::FollowRequest& request) {
+  return new FollowStream(context, request);
+}
+
+}  // namespace reenact::server

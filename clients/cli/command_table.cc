@@ -55,7 +55,8 @@ std::vector<Command> BuildCommandTable() {
        "--take ID --method rigid-cylinders|rigid-carved|body [--model procedural|makehuman:DIR] "
        "[--option KEY=VALUE ...] [--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
        "queue a reconstruction of a stored take (rigid parts, thesis ch. 3, or the body model, "
-       "ch. 4; --model is --option model= of body); --wait follows it with a progress bar",
+       "ch. 4; --model is --option model= of body); --wait follows it with a progress bar; "
+       "body with --option live=true follows a take still recording (reenactments follow)",
        RunJobsSubmit},
       {{"jobs", "list"},
        "[--server HOST:PORT] [--state queued|running|succeeded|failed|cancelled|all] "
@@ -87,6 +88,12 @@ std::vector<Command> BuildCommandTable() {
        "ID|--reenactment ID [--server HOST:PORT]",
        "delete a stored reenactment",
        RunReenactmentsDelete},
+      {{"reenactments", "follow"},
+       "--job ID [--server HOST:PORT] [--json]",
+       "follow a live job's preview (jobs submit --method body --option live=true) while its "
+       "take is recorded: one line per fitted frame (latency: published - arrived at the "
+       "server, and received here - arrived), then p50/p95/max",
+       RunReenactmentsFollow},
       {{"export"},
        "(--server HOST:PORT --reenactment ID | --in FILE.reen) --format glb|bvh --out FILE "
        "[--no-textures] [--quiet] [--json]",

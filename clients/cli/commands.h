@@ -41,11 +41,11 @@ int RunJobsWatch(const std::vector<std::string>& args, std::ostream& out, std::o
 int RunJobsCancel(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 // reenactment_commands.cc
-int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out,
-                        std::ostream& err);
-int RunReenactmentsShow(const std::vector<std::string>& args, std::ostream& out,
-                        std::ostream& err);
+int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunReenactmentsShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunReenactmentsDelete(const std::vector<std::string>& args, std::ostream& out,
+                          std::ostream& err);
+int RunReenactmentsFollow(const std::vector<std::string>& args, std::ostream& out,
                           std::ostream& err);
 int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 

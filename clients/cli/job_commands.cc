@@ -97,6 +97,8 @@ class JobProgressLine {
       if (p.frames_total() > 0) {
         absl::StrAppend(&text,
                         absl::StrFormat("  %d/%d frames", p.frames_done(), p.frames_total()));
+      } else if (p.frames_done() > 0) {  // A live job following its take.
+        absl::StrAppend(&text, absl::StrFormat("  %d frames", p.frames_done()));
       }
       if (job.state() == v1::JOB_STATE_RUNNING)
         absl::StrAppend(&text, "  ETA ", Duration(p.eta_s()));

@@ -1,10 +1,13 @@
-// `reenact reenactments ...` (the server's Reenactments service) and
-// `reenact export` (a reenactment, fetched or from a local file, as glTF, or
-// a body-model reenactment's skeleton as BVH).
+// `reenact reenactments ...` (the server's Reenactments service: list, show,
+// delete, and follow a live job's preview) and `reenact export` (a
+// reenactment, fetched or from a local file, as glTF, or a body-model
+// reenactment's skeleton as BVH).
+#include <cctype>
 #include <ctime>
 #include <filesystem>
 #include <optional>
 #include <ostream>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -15,6 +18,7 @@
 #include "clients/cli/commands.h"
 #include "clients/cli/progress_bar.h"
 #include "clients/cli/remote_flags.h"
+#include "clients/sdk/follow_stats.h"
 #include "clients/sdk/reenactments_client.h"
 #include "common/base/flags.h"
 #include "common/base/time.h"
@@ -205,6 +209,105 @@ int ExportBvh(const ReenactmentData& data, const Flags& flags, const std::string
   return kExitOk;
 }
 
+std::string EndReasonName(v1::FollowEndReason reason) {
+  std::string name = v1::FollowEndReason_Name(reason);
+  constexpr std::string_view kPrefix = "FOLLOW_END_REASON_";
+  if (name.rfind(kPrefix, 0) == 0) name = name.substr(kPrefix.size());
+  for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return name;
+}
+
+nlohmann::json DistributionJson(const client::Distribution& d) {
+  return {{"count", d.count},
+          {"p50_ms", d.p50_ms},
+          {"p95_ms", d.p95_ms},
+          {"max_ms", d.max_ms},
+          {"mean_ms", d.mean_ms}};
+}
+
+// One line (text or JSON) per Follow event.
+void PrintFollowEvent(const v1::FollowEvent& event, int64_t received_unix_ns, bool json,
+                      std::ostream& out) {
+  if (event.has_mesh()) {
+    const v1::BodyMesh& mesh = event.mesh();
+    const int64_t vertices = static_cast<int64_t>(mesh.rest_positions_m_f32().size() / 12);
+    if (json) {
+      out << nlohmann::json{{"event", "mesh"},
+                            {"model_name", mesh.model_name()},
+                            {"vertices", vertices},
+                            {"triangles", mesh.triangle_indices_size() / 3},
+                            {"shape",
+                             std::vector<double>(mesh.shape().begin(), mesh.shape().end())}}
+                 .dump();
+    } else {
+      out << absl::StrFormat("mesh   %s, %d vertices, %d triangles", mesh.model_name(), vertices,
+                             mesh.triangle_indices_size() / 3);
+    }
+  } else if (event.has_frame()) {
+    const v1::PartFrame& frame = event.frame();
+    const double latency_ms = client::LatencyMs(event);
+    const double receive_ms = client::ReceiveDelayMs(event, received_unix_ns);
+    if (json) {
+      out << nlohmann::json{{"event", "frame"},
+                            {"frame_index", frame.frame_index()},
+                            {"sequence", event.sequence()},
+                            {"stamp_ns", frame.stamp_ns()},
+                            {"latency_ms", latency_ms},
+                            {"receive_ms", receive_ms},
+                            {"fit_ms", event.fit_ms()},
+                            {"frames_skipped", event.frames_skipped()},
+                            {"joints", frame.joints_in_world_m_size()},
+                            {"valid", frame.body().valid()}}
+                 .dump();
+    } else {
+      out << absl::StrFormat(
+          "frame %5d  set %6d  latency %6.1f ms  received %6.1f ms  fit %5.1f ms",
+          frame.frame_index(), event.sequence(), latency_ms, receive_ms, event.fit_ms());
+    }
+  } else if (event.has_end()) {
+    const v1::FollowEnd& end = event.end();
+    if (json) {
+      out << nlohmann::json{{"event", "end"},
+                            {"reason", EndReasonName(end.reason())},
+                            {"message", end.message()},
+                            {"frames_received", end.frames_received()},
+                            {"frames_followed", end.frames_followed()},
+                            {"frames_skipped", end.frames_skipped()},
+                            {"frames_unfitted", end.frames_unfitted()}}
+                 .dump();
+    } else {
+      out << absl::StrFormat(
+          "end    %s: %s (followed %d of %d frame sets, %d skipped, %d unfitted)",
+          EndReasonName(end.reason()), end.message(), end.frames_followed(), end.frames_received(),
+          end.frames_skipped(), end.frames_unfitted());
+    }
+  } else {
+    return;
+  }
+  out << "\n" << std::flush;
+}
+
+void PrintFollowSummary(const client::FollowStats& stats, bool json, std::ostream& out) {
+  const client::Distribution latency = stats.latency();
+  const client::Distribution receive = stats.receive_delay();
+  const client::Distribution fit = stats.fit();
+  if (json) {
+    out << nlohmann::json{{"summary",
+                           {{"frames", stats.frames()},
+                            {"latency", DistributionJson(latency)},
+                            {"receive", DistributionJson(receive)},
+                            {"fit", DistributionJson(fit)}}}}
+               .dump()
+        << "\n";
+    return;
+  }
+  out << absl::StrFormat(
+      "%d frames; latency (published - arrived) p50 %.1f ms, p95 %.1f ms, max %.1f ms; "
+      "received - arrived p50 %.1f ms, p95 %.1f ms, max %.1f ms; fit p50 %.1f ms\n",
+      stats.frames(), latency.p50_ms, latency.p95_ms, latency.max_ms, receive.p50_ms,
+      receive.p95_ms, receive.max_ms, fit.p50_ms);
+}
+
 }  // namespace
 
 int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out,
@@ -277,6 +380,31 @@ int RunReenactmentsDelete(const std::vector<std::string>& args, std::ostream& ou
   const absl::Status deleted = client::ReenactmentsClient(*connection).Delete(*id);
   if (!deleted.ok()) return ReportRemoteError(deleted, err);
   out << "deleted " << *id << "\n";
+  return kExitOk;
+}
+
+int RunReenactmentsFollow(const std::vector<std::string>& args, std::ostream& out,
+                          std::ostream& err) {
+  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  auto job = flags->Required("job");
+  if (!job.ok()) return ReportError(job.status(), err);
+  if (!flags->positional().empty()) {
+    return ReportError(absl::InvalidArgumentError("reenactments follow takes --job ID only"), err);
+  }
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  const bool json = flags->Has("json");
+  client::FollowStats stats;
+  auto end =
+      client::ReenactmentsClient(*connection).Follow(*job, [&](const v1::FollowEvent& event) {
+        const int64_t received_unix_ns = WallNowNs();
+        stats.Add(event, received_unix_ns);
+        PrintFollowEvent(event, received_unix_ns, json, out);
+        return true;
+      });
+  PrintFollowSummary(stats, json, out);
+  if (!end.ok()) return ReportRemoteError(end.status(), err);
   return kExitOk;
 }
 

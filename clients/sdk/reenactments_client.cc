@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -175,6 +176,33 @@ absl::StatusOr<v1::BodyMesh> ReenactmentsClient::FetchBodyMesh(
   return absl::FailedPreconditionError(absl::StrCat(options_.address, ": reenactment ",
                                                     reenactment_id, " (method \"",
                                                     data.info.method(), "\") has no body mesh"));
+}
+
+absl::StatusOr<v1::FollowEnd> ReenactmentsClient::Follow(
+    const std::string& job_id, const FollowEventCallback& on_event) const {
+  grpc::ClientContext context;
+  v1::FollowRequest request;
+  request.set_job_id(job_id);
+  auto reader = stub_->Follow(&context, request);
+  v1::FollowEvent event;
+  std::optional<v1::FollowEnd> end;
+  bool stopped = false;
+  while (reader->Read(&event)) {
+    if (event.has_end()) end = event.end();
+    if (on_event && !on_event(event)) {
+      stopped = true;
+      context.TryCancel();
+      break;
+    }
+  }
+  const grpc::Status status = reader->Finish();
+  if (stopped) return absl::CancelledError(absl::StrCat("stopped following job ", job_id));
+  if (!status.ok()) return WithAddress(status, options_.address);
+  if (!end.has_value()) {
+    return absl::DataLossError(
+        absl::StrCat(options_.address, ": the follow of job ", job_id, " ended without its end"));
+  }
+  return *end;
 }
 
 absl::Status ReenactmentsClient::Delete(const std::string& reenactment_id) const {

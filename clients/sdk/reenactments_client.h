@@ -5,6 +5,7 @@
 // address they were sent to.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,6 +20,10 @@
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 
 namespace reenact::client {
+
+// Gets each event of a followed job; returning false stops following
+// (Follow then returns Cancelled).
+using FollowEventCallback = std::function<bool(const v1::FollowEvent& event)>;
 
 class ReenactmentsClient {
  public:
@@ -46,6 +51,16 @@ class ReenactmentsClient {
   absl::StatusOr<v1::BodyMesh> FetchBodyMesh(const std::string& reenactment_id) const;
   // NotFound for an unknown id.
   absl::Status Delete(const std::string& reenactment_id) const;
+  // The live preview of a job that follows its take (method body, option
+  // live=true): calls `on_event` with each event as it arrives (the body
+  // mesh first, one frame per fitted FrameSet, the FollowEnd last) and
+  // returns the FollowEnd. No deadline: it lasts as long as the take. A job
+  // that follows nothing gets only a FollowEnd (NOT_FOLLOWING). NotFound
+  // for an unknown job; Unavailable when the server went away or shut down;
+  // Cancelled when `on_event` returned false; DataLoss when the stream
+  // ended without a FollowEnd.
+  absl::StatusOr<v1::FollowEnd> Follow(const std::string& job_id,
+                                       const FollowEventCallback& on_event) const;
 
  private:
   ConnectionOptions options_;

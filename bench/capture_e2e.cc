@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_format.h"
+#include "bench/e2e_util.h"
 #include "common/base/flags.h"
 #include "common/base/subprocess.h"
 #include "common/io/take.h"
@@ -35,27 +36,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// user + system CPU seconds of a running process, from /proc/<pid>/stat.
-double ProcessCpuSeconds(pid_t pid) {
-  std::string stat = ReadText(absl::StrFormat("/proc/%d/stat", pid));
-  const auto close = stat.rfind(')');
-  if (close == std::string::npos) return 0.0;
-  std::istringstream fields(stat.substr(close + 2));
-  std::string field;
-  double utime = 0, stime = 0;
-  for (int i = 3; i <= 15 && fields >> field; ++i) {
-    if (i == 14) utime = std::stod(field);
-    if (i == 15) stime = std::stod(field);
-  }
-  return (utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
-}
+using bench::ProcessCpuSeconds;
+using bench::ReadText;
 
 int Run(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -135,8 +117,8 @@ int Run(int argc, char** argv) {
   (void)(*server)->Wait(30);
   if (!exit.ok() || !exit->exited || exit->exit_code != 0) {
     std::cerr << "capture_e2e: reenactd failed ("
-              << (exit.ok() ? exit->ToString() : std::string(exit.status().message()))
-              << "); see " << work << "/daemon.log\n";
+              << (exit.ok() ? exit->ToString() : std::string(exit.status().message())) << "); see "
+              << work << "/daemon.log\n";
     return 1;
   }
   const auto stats = nlohmann::json::parse(ReadText(work + "/stats.json"), nullptr, false);

@@ -22,25 +22,20 @@
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/fakenect_recording.h"
 #include "clients/sdk/takes_client.h"
-#include "common/io/depth_codec.h"
 #include "common/base/subprocess.h"
+#include "common/io/depth_codec.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
+#include "tests/e2e_commands.h"
 
 namespace reenact {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string Bin(const std::string& name) { return std::string(REENACT_BINARY_DIR) + "/" + name; }
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::Bin;
+using testing::ReadText;
 
 // Waits until `path` exists and is non-empty; returns its first line.
 std::string WaitForLine(const std::string& path, double timeout_s, Subprocess* process) {
@@ -84,8 +79,8 @@ class ServerProcess {
     ASSERT_TRUE(process_->Signal(SIGTERM).ok());
     auto info = process_->Wait(20);
     ASSERT_TRUE(info.ok()) << info.status();
-    EXPECT_TRUE(info->exited && info->exit_code == 0)
-        << info->ToString() << "\n" << ReadText(dir_ + "/server.log");
+    EXPECT_TRUE(info->exited && info->exit_code == 0) << info->ToString() << "\n"
+                                                      << ReadText(dir_ + "/server.log");
   }
   const std::string& address() const { return address_; }
   std::string log() const { return ReadText(dir_ + "/server.log"); }
@@ -175,8 +170,10 @@ void ExpectIndependentReaderAgrees(const std::string& path, const TakeReader& ou
   const std::string js = std::string(REENACT_SOURCE_DIR) + "/tests/js";
   if (std::system("node --version > /dev/null 2>&1") != 0 ||
       !fs::exists(js + "/node_modules/@mcap/core")) {
-    std::printf("*** SKIPPED: node or tests/js/node_modules missing; the @mcap/core check of %s "
-                "did not run ***\n", path.c_str());
+    std::printf(
+        "*** SKIPPED: node or tests/js/node_modules missing; the @mcap/core check of %s "
+        "did not run ***\n",
+        path.c_str());
     return;
   }
   const std::string out = path + ".check.json";
@@ -260,9 +257,8 @@ std::string* CaptureIngestTest::source_ = nullptr;
 TEST_F(CaptureIngestTest, EveryFrameOfTwoSensorsIsStoredBitIdentical) {
   ServerProcess server(dir_);
   ASSERT_NO_FATAL_FAILURE(server.Start());
-  auto daemon = StartDaemon(dir_, {"--server", server.address(), "--source",
-                                   "playback:" + *source_, "--fast", "--once", "--take-name",
-                                   "kick"});
+  auto daemon = StartDaemon(dir_, {"--server", server.address(), "--source", "playback:" + *source_,
+                                   "--fast", "--once", "--take-name", "kick"});
   ASSERT_NE(daemon, nullptr);
   auto exit = daemon->Wait(120);
   ASSERT_TRUE(exit.ok()) << exit.status() << "\n" << DaemonLog();
@@ -320,7 +316,8 @@ TEST_F(CaptureIngestTest, EveryFrameOfTwoSensorsIsStoredBitIdentical) {
   };
   auto [list_code, list_json] = reenact({"takes", "list", "--json"});
   ASSERT_EQ(list_code, 0) << ReadText(dir_ + "/cli.err");
-  EXPECT_NE(list_json.find("\"take_id\": \"" + take.take_id() + "\""), std::string::npos) << list_json;
+  EXPECT_NE(list_json.find("\"take_id\": \"" + take.take_id() + "\""), std::string::npos)
+      << list_json;
   auto [show_code, show_text] = reenact({"takes", "show", take.take_id()});
   ASSERT_EQ(show_code, 0) << ReadText(dir_ + "/cli.err");
   EXPECT_NE(show_text.find("complete"), std::string::npos) << show_text;
@@ -341,9 +338,8 @@ TEST_F(CaptureIngestTest, ServerKilledMidTakeAndRestartedStoresEveryFrameOnce) {
   ASSERT_NO_FATAL_FAILURE(server.Start());
   // Real-time pacing, looping the 1.5 s source for 4 s, so that the kill
   // lands in the middle of the take.
-  auto daemon = StartDaemon(dir_, {"--server", server.address(), "--source",
-                                   "playback:" + *source_, "--loop", "--max-seconds", "4",
-                                   "--once"});
+  auto daemon = StartDaemon(dir_, {"--server", server.address(), "--source", "playback:" + *source_,
+                                   "--loop", "--max-seconds", "4", "--once"});
   ASSERT_NE(daemon, nullptr);
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   ASSERT_NO_FATAL_FAILURE(server.Kill());
@@ -401,8 +397,8 @@ TEST_F(CaptureIngestTest, SensorEndingMidTakeLeavesAValidTake) {
   ASSERT_NO_FATAL_FAILURE(CutSensor(*source_, cut, "k1", 0.75));
   ServerProcess server(dir_);
   ASSERT_NO_FATAL_FAILURE(server.Start());
-  auto daemon = StartDaemon(dir_, {"--server", server.address(), "--source", "playback:" + cut,
-                                   "--fast", "--once"});
+  auto daemon = StartDaemon(
+      dir_, {"--server", server.address(), "--source", "playback:" + cut, "--fast", "--once"});
   ASSERT_NE(daemon, nullptr);
   auto exit = daemon->Wait(120);
   ASSERT_TRUE(exit.ok()) << exit.status() << "\n" << DaemonLog();
@@ -454,9 +450,9 @@ TEST_F(CaptureIngestTest, FakenectRecordingStreamsThroughTheKinectV1Backend) {
   capture::fakenect::WriteRecording(recording);
   ServerProcess server(dir_);
   ASSERT_NO_FATAL_FAILURE(server.Start());
-  std::vector<std::string> argv = {Bin("reenactd"), "--control", "127.0.0.1:0", "--spool",
-                                   dir_ + "/spool", "--server", server.address(), "--source",
-                                   "freenect:0", "--once", "--take-name", "kinect-v1"};
+  std::vector<std::string> argv = {Bin("reenactd"), "--control", "127.0.0.1:0",    "--spool",
+                                   dir_ + "/spool", "--server",  server.address(), "--source",
+                                   "freenect:0",    "--once",    "--take-name",    "kinect-v1"};
   SubprocessOptions options;
   options.env["LD_LIBRARY_PATH"] = fakenect_dir;
   options.env["FAKENECT_PATH"] = recording;

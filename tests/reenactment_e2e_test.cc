@@ -24,47 +24,17 @@
 #include "common/body/joint_set.h"
 #include "common/body/motion.h"
 #include "common/synth/synthesizer.h"
+#include "tests/e2e_commands.h"
 
 namespace reenact {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string Bin(const std::string& name) { return std::string(REENACT_BINARY_DIR) + "/" + name; }
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-struct CommandResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-// Runs a command to completion with stdout and stderr captured in files.
-CommandResult RunCommand(const std::string& dir, const std::string& name,
-                         const std::vector<std::string>& argv, double timeout_s = 600) {
-  SubprocessOptions options;
-  options.stdout_path = dir + "/" + name + ".out";
-  options.stderr_path = dir + "/" + name + ".err";
-  fs::remove(options.stdout_path);
-  fs::remove(options.stderr_path);
-  CommandResult result;
-  auto child = Subprocess::Start(argv, options);
-  if (!child.ok()) {
-    result.err = std::string(child.status().message());
-    return result;
-  }
-  auto info = (*child)->Wait(timeout_s);
-  if (info.ok() && info->exited) result.exit_code = info->exit_code;
-  result.out = ReadText(options.stdout_path);
-  result.err = ReadText(options.stderr_path);
-  return result;
-}
+using testing::Bin;
+using testing::CommandResult;
+using testing::ReadText;
+using testing::RunCommand;
 
 class ReenactmentEndToEnd : public ::testing::Test {
  protected:

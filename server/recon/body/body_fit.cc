@@ -48,9 +48,15 @@ class VertexGrid {
     // vertices bucketed by cell (counting sort).
     const Eigen::Vector3d low = vertices_m.rowwise().minCoeff();
     const Eigen::Vector3d high = vertices_m.rowwise().maxCoeff();
-    origin_ = low - Eigen::Vector3d::Constant(cell_m);
-    for (int c = 0; c < 3; ++c) {
-      size_[c] = static_cast<int>(std::floor((high[c] - origin_[c]) * inverse_cell_)) + 2;
+    // A mesh spread far (a diverged fit) gets coarser cells, not a huge grid.
+    for (;;) {
+      origin_ = low - Eigen::Vector3d::Constant(1.0 / inverse_cell_);
+      for (int c = 0; c < 3; ++c) {
+        size_[c] =
+            static_cast<int>(std::min(std::floor((high[c] - origin_[c]) * inverse_cell_), 1e6)) + 2;
+      }
+      if (static_cast<double>(size_.x()) * size_.y() * size_.z() <= (1 << 22)) break;
+      inverse_cell_ *= 0.5;
     }
     const size_t cells = static_cast<size_t>(size_.x()) * size_.y() * size_.z();
     start_.assign(cells + 1, 0);

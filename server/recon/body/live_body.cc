@@ -1,6 +1,7 @@
 #include "server/recon/body/live_body.h"
 
 #include <chrono>
+#include <future>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -19,6 +20,10 @@ struct LiveBodyFollower::State {
   std::unique_ptr<TakeFrames> take;
   std::unique_ptr<bodyfit::CloudBuilder> builder;
   std::unique_ptr<bodyfit::BodyFitter> fitter;
+  // The shape is fitted off the Push path, by its own fitter on a thread of
+  // its own; frames are posed with the mean shape meanwhile.
+  std::unique_ptr<bodyfit::BodyFitter> shape_fitter;
+  std::future<absl::StatusOr<Eigen::VectorXd>> shape_future;
   int shape_frames = 5;
   int shape_spacing = 5;
   // Shape samples until the shape settles.
@@ -30,7 +35,11 @@ struct LiveBodyFollower::State {
 };
 
 LiveBodyFollower::LiveBodyFollower() : state_(std::make_unique<State>()) {}
-LiveBodyFollower::~LiveBodyFollower() = default;
+LiveBodyFollower::~LiveBodyFollower() { WaitForShape(); }
+
+void LiveBodyFollower::WaitForShape() {
+  if (state_ && state_->shape_future.valid()) state_->shape_future.wait();
+}
 
 absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
     const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
@@ -50,6 +59,7 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
   s.shape_frames = o.fit.shape_frames;
   ASSIGN_OR_RETURN(s.model, LoadBodyModelSpec(o.model));
   ASSIGN_OR_RETURN(s.fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
+  ASSIGN_OR_RETURN(s.shape_fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   TakeFramesOptions frames;
   frames.load_color = false;
   frames.num_threads = 1;
@@ -77,27 +87,40 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
   constexpr size_t kMinPoints = 200;
   const bool usable = cloud->size() >= kMinPoints && SkeletonHasTorso(skeleton);
 
+  // A shape fitted in the background takes over here.
+  if (s.shape_future.valid() &&
+      s.shape_future.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+    ASSIGN_OR_RETURN(const Eigen::VectorXd shape, s.shape_future.get());
+    RETURN_IF_ERROR(s.fitter->set_shape(shape));
+    s.settled = true;
+    ASSIGN_OR_RETURN(update.mesh, MakeBodyMesh(s.model, shape, ""));
+  }
   // The shape, from the first usable instants `shape_spacing` apart.
-  if (!s.settled && usable && i - s.last_sample >= s.shape_spacing) {
+  const bool sampling = !s.settled && !s.shape_future.valid();
+  if (sampling && usable && i - s.last_sample >= s.shape_spacing) {
     s.shape_clouds.push_back(*cloud);
     s.shape_skeletons.push_back(skeleton);
     s.last_sample = i;
     if (static_cast<int>(s.shape_clouds.size()) >= s.shape_frames) {
-      std::vector<bodyfit::FitInput> inputs;
-      std::vector<body::BodyPose> poses;
-      for (size_t k = 0; k < s.shape_clouds.size(); ++k) {
-        bodyfit::FitInput input;
-        input.cloud = &s.shape_clouds[k];
-        input.skeleton_m = s.shape_skeletons[k];
-        ASSIGN_OR_RETURN(body::BodyPose pose, s.fitter->PoseFromSkeleton(input.skeleton_m));
-        inputs.push_back(input);
-        poses.push_back(pose);
-      }
-      RETURN_IF_ERROR(s.fitter->FitShape(inputs, &poses));
-      s.settled = true;
+      s.shape_future = std::async(
+          std::launch::async,
+          [fitter = s.shape_fitter.get(), clouds = std::move(s.shape_clouds),
+           skeletons = std::move(s.shape_skeletons)]() -> absl::StatusOr<Eigen::VectorXd> {
+            std::vector<bodyfit::FitInput> inputs;
+            std::vector<body::BodyPose> poses;
+            for (size_t k = 0; k < clouds.size(); ++k) {
+              bodyfit::FitInput input;
+              input.cloud = &clouds[k];
+              input.skeleton_m = skeletons[k];
+              ASSIGN_OR_RETURN(body::BodyPose pose, fitter->PoseFromSkeleton(input.skeleton_m));
+              inputs.push_back(input);
+              poses.push_back(pose);
+            }
+            RETURN_IF_ERROR(fitter->FitShape(inputs, &poses));
+            return fitter->shape();
+          });
       s.shape_clouds.clear();
       s.shape_skeletons.clear();
-      ASSIGN_OR_RETURN(update.mesh, MakeBodyMesh(s.model, s.fitter->shape(), ""));
     }
   }
 

@@ -4,7 +4,9 @@
 // The first FrameSet makes the model's mesh with the mean shape; the shape
 // is then fitted on `shape_frames` usable instants `shape_spacing` apart
 // (the thesis's one shape, from the first seconds instead of the whole
-// take) and the mesh is sent again. Every other FrameSet is fitted from
+// take) on a thread of its own, so that Push keeps its pace (frames are
+// posed with the mean shape meanwhile); the first Push after it finishes
+// takes the shape over and sends the mesh again. Every other FrameSet is fitted from
 // the previous fit carried to its skeleton (FitFrame; step 2 off by default:
 // the preview carries poses only). The preview has no atlas (texturing
 // needs the whole take); the job that follows the take to its end runs the
@@ -55,6 +57,9 @@ class LiveBodyFollower {
 
   int frames_pushed() const;
   bool shape_settled() const;
+  // Blocks until a shape fit under way in the background has finished (the
+  // next Push then uses it and sends the mesh).
+  void WaitForShape();
 
  private:
   LiveBodyFollower();

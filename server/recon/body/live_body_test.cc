@@ -77,39 +77,44 @@ TEST(LiveBodyFollower, FollowsASyntheticTakeFrameSetByFrameSet) {
   auto follower = LiveBodyFollower::Create((*take)->info(), sensors,
                                            {{"live", "true"}, {"shape_spacing", "2"}});
   ASSERT_TRUE(follower.ok()) << follower.status();
+  // Two passes over the take (the second after the background shape fit
+  // has finished); the joints are measured in the second.
   int meshes = 0, frames = 0, settled_at = -1;
   double joint_sum_mm = 0.0, fit_ms = 0.0;
   int joints = 0;
-  for (size_t k = 0; k < sets.size(); ++k) {
-    auto update = (*follower)->Push(sets[k]);
-    ASSERT_TRUE(update.ok()) << update.status();
-    if (k == 0) {
-      EXPECT_TRUE(update->mesh.has_value()) << "the first FrameSet sends the mesh";
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t k = 0; k < sets.size(); ++k) {
+      auto update = (*follower)->Push(sets[k]);
+      ASSERT_TRUE(update.ok()) << update.status();
+      const int index = pass * static_cast<int>(sets.size()) + static_cast<int>(k);
+      if (index == 0) {
+        EXPECT_TRUE(update->mesh.has_value()) << "the first FrameSet sends the mesh";
+      }
+      if (update->mesh) {
+        ++meshes;
+        if (index > 0) settled_at = index;
+      }
+      if (!update->frame) continue;
+      ++frames;
+      fit_ms += update->fit_ms;
+      EXPECT_EQ(update->frame->frame_index(), index);
+      ASSERT_EQ(update->frame->joints_in_world_m_size(), body::kNumKinectV2Joints);
+      if (pass == 0 || settled_at < 0) continue;
+      const v1::GroundTruthJoints& g = (*truth)[k];
+      for (int i = 0; i < g.joint_names_size(); ++i) {
+        auto id = body::KinectV2JointFromName(g.joint_names(i));
+        if (!id) continue;
+        joint_sum_mm += 1000.0 * (FromProto(update->frame->joints_in_world_m(body::Index(*id))) -
+                                  FromProto(g.positions_in_world_m(i)))
+                                     .norm();
+        ++joints;
+      }
     }
-    if (update->mesh) {
-      ++meshes;
-      if (k > 0) settled_at = static_cast<int>(k);
-    }
-    if (!update->frame) continue;
-    ++frames;
-    fit_ms += update->fit_ms;
-    EXPECT_EQ(update->frame->frame_index(), static_cast<int>(k));
-    ASSERT_EQ(update->frame->joints_in_world_m_size(), body::kNumKinectV2Joints);
-    // Once the shape has settled, the joints against the ground truth.
-    if (settled_at < 0) continue;
-    const v1::GroundTruthJoints& g = (*truth)[k];
-    for (int i = 0; i < g.joint_names_size(); ++i) {
-      auto id = body::KinectV2JointFromName(g.joint_names(i));
-      if (!id) continue;
-      joint_sum_mm += 1000.0 * (FromProto(update->frame->joints_in_world_m(body::Index(*id))) -
-                                FromProto(g.positions_in_world_m(i)))
-                                   .norm();
-      ++joints;
-    }
+    (*follower)->WaitForShape();
   }
   EXPECT_EQ(meshes, 2) << "the mean-shape mesh, then the fitted shape's";
   EXPECT_TRUE((*follower)->shape_settled());
-  EXPECT_EQ(frames, static_cast<int>(sets.size()));
+  EXPECT_EQ(frames, 2 * static_cast<int>(sets.size()));
   ASSERT_GT(joints, 0);
   const double mpjpe_mm = joint_sum_mm / joints;
   std::printf("live: %d FrameSets, shape settled at %d, MPJPE after it %.2f mm, %.1f ms each\n",

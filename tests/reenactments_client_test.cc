@@ -23,6 +23,7 @@
 #include "common/testing/test_data.h"
 #include "server/rpc/reenactments_service.h"
 #include "server/store/reenactment_store.h"
+#include "tests/reenactments_test_server.h"
 
 namespace reenact {
 namespace {
@@ -30,27 +31,12 @@ namespace {
 using testing::MakeTestReenactment;
 using testing::TestReenactmentOptions;
 
-struct Fixture {
-  std::unique_ptr<server::ReenactmentStore> store;
-  server::ServerContext context;
-  std::unique_ptr<server::ReenactmentsService> service;
-  std::unique_ptr<grpc::Server> grpc_server;
+struct Fixture : testing::ReenactmentsTestServer {
   client::ConnectionOptions connection;
 
-  explicit Fixture(const std::string& name) {
-    auto opened = server::ReenactmentStore::Open(testing::MakeTempDir(name));
-    EXPECT_TRUE(opened.ok()) << opened.status();
-    store = std::move(*opened);
-    context.reenactments = store.get();
-    service = std::make_unique<server::ReenactmentsService>(context);
-    grpc::ServerBuilder builder;
-    int port = 0;
-    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-    builder.RegisterService(service.get());
-    grpc_server = builder.BuildAndStart();
-    connection.address = "127.0.0.1:" + std::to_string(port);
+  explicit Fixture(const std::string& name) : ReenactmentsTestServer(name) {
+    connection.address = address;
   }
-  ~Fixture() { grpc_server->Shutdown(); }
 
   ReenactmentData Add(const TestReenactmentOptions& options) {
     return Store(MakeTestReenactment(options));
@@ -58,13 +44,6 @@ struct Fixture {
 
   ReenactmentData AddBody(int frames, const std::string& id) {
     return Store(testing::MakeTestBodyReenactment(frames, id));
-  }
-
-  ReenactmentData Store(ReenactmentData data) {
-    const std::string& id = data.info.reenactment_id();
-    EXPECT_TRUE(WriteReenactmentFile(data, store->PathFor(id)).ok());
-    EXPECT_TRUE(store->Add(id).ok());
-    return data;
   }
 };
 

@@ -66,18 +66,14 @@ const Setup& GetSetup() {
     auto fitter = BodyFitter::Create(s->model);
     if (!fitter.ok()) return s;
     std::vector<FitInput> inputs;
-    std::vector<body::BodyPose> poses;
     for (int k = 0; k < 5; ++k) {
       const int i = (2 * k + 1) * s->take->num_instants() / 10;
       FitInput input;
       input.cloud = &s->clouds[i];
       input.skeleton_m = s->take->instant(i).joints_in_world_m;
-      auto pose = (*fitter)->PoseFromSkeleton(input.skeleton_m);
-      if (!pose.ok()) return s;
       inputs.push_back(input);
-      poses.push_back(*pose);
     }
-    if (!(*fitter)->FitShape(inputs, &poses).ok()) return s;
+    if (!(*fitter)->FitShapeFromSkeletons(inputs).ok()) return s;
     s->shape = (*fitter)->shape();
     s->ok = true;
     std::filesystem::remove(path);
@@ -109,13 +105,12 @@ void BM_FitFrame(benchmark::State& state) {
     FitInput input;
     input.cloud = &s.clouds[i];
     input.skeleton_m = s.take->instant(i).joints_in_world_m;
-    body::BodyPose initial;
-    if (previous) {
-      initial = *(*fitter)->FollowSkeleton(*previous, input.skeleton_m);
-    } else {
-      initial = *(*fitter)->PoseFromSkeleton(input.skeleton_m);
+    auto initial = (*fitter)->InitialPose(previous ? &*previous : nullptr, input.skeleton_m);
+    if (!initial.ok() || !initial->has_value()) {
+      state.SkipWithError("no initial pose");
+      return;
     }
-    auto fit = (*fitter)->FitFrame(input, initial, previous ? &*previous : nullptr);
+    auto fit = (*fitter)->FitFrame(input, **initial, previous ? &*previous : nullptr);
     if (!fit.ok()) {
       state.SkipWithError("fit failed");
       return;

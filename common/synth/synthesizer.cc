@@ -20,8 +20,7 @@
 #include "common/base/thread_pool.h"
 #include "common/base/time.h"
 #include "common/body/body_model.h"
-#include "common/body/makehuman_importer.h"
-#include "common/body/procedural_body.h"
+#include "common/body/model_spec.h"
 #include "common/body/retarget.h"
 #include "common/io/depth_codec.h"
 #include "common/io/jpeg.h"
@@ -45,10 +44,11 @@ constexpr char kSkeletonSource[] =
 // ---------------------------------------------------------------- the actor
 
 absl::StatusOr<body::BodyModel> LoadBody(const std::string& spec) {
-  if (spec == "procedural") return body::BuildProceduralBody();
-  if (absl::StartsWith(spec, "makehuman:")) return body::ImportMakeHuman(spec.substr(10));
-  return absl::InvalidArgumentError(
-      absl::StrCat("--body: expected 'procedural' or 'makehuman:DIR', got '", spec, "'"));
+  if (!body::IsBodyModelSpec(spec)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--body: expected 'procedural' or 'makehuman:DIR', got '", spec, "'"));
+  }
+  return body::LoadBodyModelSpec(spec);
 }
 
 absl::StatusOr<body::Motion> LoadMotion(const SynthOptions& options) {
@@ -132,7 +132,8 @@ DistortionMap MakeDistortionMap(const CameraIntrinsics& k) {
       max_v = std::max(max_v, k.fy * n.y() + k.cy);
     }
   }
-  const int left = static_cast<int>(std::ceil(-min_u)) + 1, top = static_cast<int>(std::ceil(-min_v)) + 1;
+  const int left = static_cast<int>(std::ceil(-min_u)) + 1,
+            top = static_cast<int>(std::ceil(-min_v)) + 1;
   map.canvas = k;
   map.canvas.k1 = map.canvas.k2 = map.canvas.k3 = map.canvas.p1 = map.canvas.p2 = 0;
   map.canvas.cx = k.cx + left;
@@ -201,7 +202,8 @@ void AddColorNoise(RgbImage* image, double sigma, uint64_t seed) {
     std::vector<int8_t> t(1 << 16);
     std::mt19937 rng(12345);
     std::normal_distribution<float> normal(0.0f, 1.0f);
-    for (auto& v : t) v = static_cast<int8_t>(std::clamp(std::lround(normal(rng) * 16.0f), -127L, 127L));
+    for (auto& v : t)
+      v = static_cast<int8_t>(std::clamp(std::lround(normal(rng) * 16.0f), -127L, 127L));
     return t;
   }();
   std::mt19937_64 rng(seed);
@@ -232,13 +234,15 @@ v1::Skeleton MakeSensorSkeleton(const SensorShot& shot, double jitter_m, uint64_
     // noisier) where it is hidden; not tracked outside the view.
     v1::TrackingState state = v1::TRACKING_STATE_NOT_TRACKED;
     if (auto pixel = k.Project(p); pixel && k.IsInside(*pixel)) {
-      const int x = static_cast<int>(std::lround(pixel->x())), y = static_cast<int>(std::lround(pixel->y()));
+      const int x = static_cast<int>(std::lround(pixel->x())),
+                y = static_cast<int>(std::lround(pixel->y()));
       const double z = shot.ideal_depth_m.at(x, y);
       const bool visible = shot.label.at(x, y) == kActorLabel && z > 0 && p.z() - z < 0.15;
       state = visible ? v1::TRACKING_STATE_TRACKED : v1::TRACKING_STATE_INFERRED;
     }
     const double sigma = jitter_m * (state == v1::TRACKING_STATE_TRACKED ? 1.0 : 3.0);
-    const Eigen::Vector3d noisy = p + sigma * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    const Eigen::Vector3d noisy =
+        p + sigma * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
     auto* joint = skeleton.add_joints();
     joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
     *joint->mutable_position_in_depth_m() = ToProto(noisy);
@@ -376,8 +380,8 @@ absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, in
     scene.items.push_back(item);
   }
   ASSIGN_OR_RETURN(render::MeshData body_mesh,
-                   render::MeshFromCornerUvs(model.template_vertices_m.cast<float>(), model.triangles,
-                                             model.uvs, model.uv_triangles));
+                   render::MeshFromCornerUvs(model.template_vertices_m.cast<float>(),
+                                             model.triangles, model.uvs, model.uv_triangles));
   render::DrawItem actor;
   ASSIGN_OR_RETURN(actor.mesh, scene.renderer->UploadMesh(body_mesh));
   scene.body_texture = PaintClothingTexture(model);
@@ -454,7 +458,8 @@ absl::Status WriteGroundTruth(TakeWriter* writer, const Actor& actor, int64_t fr
   joints.set_frame_index(frame);
   joints.set_stamp_ns(stamp_ns);
   for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    joints.add_joint_names(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
+    joints.add_joint_names(
+        std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
     *joints.add_positions_in_world_m() = ToProto(posed.joints_m[j]);
   }
   RETURN_IF_ERROR(writer->WriteGroundTruthJoints(joints));
@@ -464,7 +469,8 @@ absl::Status WriteGroundTruth(TakeWriter* writer, const Actor& actor, int64_t fr
   body.set_model_name(actor.model.name);
   for (const auto& q : pose.local_rotation) *body.add_local_rotations() = ToProto(q);
   *body.mutable_root_translation_in_world_m() = ToProto(pose.root_translation_m);
-  for (int k = 0; k < actor.shape.size(); ++k) body.add_shape_coefficients(static_cast<float>(actor.shape[k]));
+  for (int k = 0; k < actor.shape.size(); ++k)
+    body.add_shape_coefficients(static_cast<float>(actor.shape[k]));
   RETURN_IF_ERROR(writer->WriteGroundTruthBody(body));
   if (!with_mesh) return absl::OkStatus();
   v1::GroundTruthMesh mesh;
@@ -532,7 +538,9 @@ using PendingShot = std::future<absl::StatusOr<SensorMessages>>;
 // Runs EncodeShot on the pool; the future holds its result.
 PendingShot ScheduleEncode(ThreadPool* pool, SensorShot shot, const SynthOptions& options) {
   auto task = std::make_shared<std::packaged_task<absl::StatusOr<SensorMessages>()>>(
-      [shot = std::move(shot), &options]() mutable { return EncodeShot(std::move(shot), options); });
+      [shot = std::move(shot), &options]() mutable {
+        return EncodeShot(std::move(shot), options);
+      });
   PendingShot future = task->get_future();
   pool->Schedule([task] { (*task)(); });
   return future;
@@ -579,14 +587,16 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
     const body::BodyPose pose = SamplePose(actor.motion, f * period_s);
     ASSIGN_OR_RETURN(body::PosedBody posed, body::PoseBody(actor.model, pose, actor.shape));
     const int64_t stamp_ns = start_ns + SecondsToNs(f * period_s);
-    RETURN_IF_ERROR(WriteGroundTruth(writer.get(), actor, f, stamp_ns, pose, posed,
-                                     options.ground_truth_mesh));
+    RETURN_IF_ERROR(
+        WriteGroundTruth(writer.get(), actor, f, stamp_ns, pose, posed, options.ground_truth_mesh));
     for (const VirtualSensor& sensor : sensors) {
       // Each sensor exposes at its own phase and sees the body at that instant.
       const double exposure_s = f * period_s + sensor.phase_ns * 1e-9;
-      ASSIGN_OR_RETURN(body::PosedBody seen,
-                       body::PoseBody(actor.model, SamplePose(actor.motion, exposure_s), actor.shape));
-      RETURN_IF_ERROR(scene.renderer->UpdateMeshPositions(scene.body_mesh, seen.vertices_m.cast<float>()));
+      ASSIGN_OR_RETURN(
+          body::PosedBody seen,
+          body::PoseBody(actor.model, SamplePose(actor.motion, exposure_s), actor.shape));
+      RETURN_IF_ERROR(
+          scene.renderer->UpdateMeshPositions(scene.body_mesh, seen.vertices_m.cast<float>()));
       SensorShot shot;
       shot.sensor = &sensor;
       shot.frame_index = f;
@@ -618,7 +628,8 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
 
 }  // namespace
 
-absl::StatusOr<SynthSummary> SynthesizeTake(const SynthOptions& options, const std::string& out_path,
+absl::StatusOr<SynthSummary> SynthesizeTake(const SynthOptions& options,
+                                            const std::string& out_path,
                                             const ProgressCallback& progress) {
   RETURN_IF_ERROR(options.Validate());
   const int64_t begin_ns = SteadyNowNs();
@@ -634,7 +645,8 @@ absl::StatusOr<SynthSummary> SynthesizeTake(const SynthOptions& options, const s
   if (ec) {
     std::error_code ignored;
     std::filesystem::remove(partial, ignored);
-    return absl::PermissionDeniedError(absl::StrCat(out_path, ": cannot move the take in place: ", ec.message()));
+    return absl::PermissionDeniedError(
+        absl::StrCat(out_path, ": cannot move the take in place: ", ec.message()));
   }
   summary.file_bytes = static_cast<int64_t>(std::filesystem::file_size(out_path, ec));
   summary.elapsed_s = NsToSeconds(SteadyNowNs() - begin_ns);

@@ -247,6 +247,13 @@ SkeletonJoints NoSkeletonJoints() {
   return out;
 }
 
+bool HasTorso(const SkeletonJoints& skeleton_m) {
+  const auto ok = [&](KinectV2Joint j) { return skeleton_m[body::Index(j)].allFinite(); };
+  return ok(KinectV2Joint::kSpineBase) && ok(KinectV2Joint::kSpineShoulder) &&
+         ((ok(KinectV2Joint::kHipLeft) && ok(KinectV2Joint::kHipRight)) ||
+          (ok(KinectV2Joint::kShoulderLeft) && ok(KinectV2Joint::kShoulderRight)));
+}
+
 absl::Status BodyFitOptions::Validate() const {
   const auto bad = [](const std::string& what) {
     return absl::InvalidArgumentError(absl::StrCat("body fit: ", what));
@@ -419,6 +426,25 @@ absl::Status BodyFitter::FitShape(const std::vector<FitInput>& frames,
   data_->Shaped(shape_, &rest_->vertices_m, &rest_->joints_m);
   for (size_t f = 0; f < frames.size(); ++f) (*poses)[f] = blocks[f].Parameters().ToPose();
   return absl::OkStatus();
+}
+
+absl::Status BodyFitter::FitShapeFromSkeletons(const std::vector<FitInput>& frames) {
+  std::vector<body::BodyPose> poses;
+  for (const FitInput& input : frames) {
+    ASSIGN_OR_RETURN(body::BodyPose pose, PoseFromSkeleton(input.skeleton_m));
+    poses.push_back(pose);
+  }
+  return FitShape(frames, &poses);
+}
+
+absl::StatusOr<std::optional<body::BodyPose>> BodyFitter::InitialPose(
+    const body::BodyPose* previous, const SkeletonJoints& skeleton_m) const {
+  if (!HasTorso(skeleton_m)) {
+    if (previous == nullptr) return std::nullopt;
+    return *previous;
+  }
+  if (previous != nullptr) return FollowSkeleton(*previous, skeleton_m);
+  return PoseFromSkeleton(skeleton_m);
 }
 
 absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body::BodyPose& initial,

@@ -54,6 +54,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -117,6 +118,9 @@ struct BodyFitOptions {
 // 25 Kinect v2 joints, metres, world frame; NaN where missing.
 using SkeletonJoints = std::array<Eigen::Vector3d, body::kNumKinectV2Joints>;
 SkeletonJoints NoSkeletonJoints();
+// True when the skeleton has what PoseFromSkeleton needs: spine base and
+// shoulder, and both hips or both shoulders.
+bool HasTorso(const SkeletonJoints& skeleton_m);
 
 // One instant to fit: its cloud and the sensors' skeleton.
 struct FitInput {
@@ -176,6 +180,16 @@ class BodyFitter {
   // without R: the instants are far apart). `poses` holds the initial poses
   // and receives the fitted ones.
   absl::Status FitShape(const std::vector<FitInput>& frames, std::vector<body::BodyPose>* poses);
+
+  // FitShape from poses PoseFromSkeleton makes of each frame's skeleton.
+  absl::Status FitShapeFromSkeletons(const std::vector<FitInput>& frames);
+
+  // Where an instant's fit starts: `previous` (may be null) carried to the
+  // skeleton when it has a torso (FollowSkeleton), `previous` itself when
+  // it has not, the skeleton alone (PoseFromSkeleton) without a previous
+  // fit; nullopt when there is neither.
+  absl::StatusOr<std::optional<body::BodyPose>> InitialPose(const body::BodyPose* previous,
+                                                            const SkeletonJoints& skeleton_m) const;
 
   // Fits one instant with the shape held: from `initial`, smooth towards
   // `previous` when given (Eq. 4.6), then step 2 when enabled.

@@ -8,12 +8,10 @@
 #include <optional>
 #include <vector>
 
-#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
-#include "common/body/makehuman_importer.h"
-#include "common/body/procedural_body.h"
+#include "common/body/model_spec.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "server/recon/body/body_cloud.h"
@@ -23,14 +21,6 @@
 
 namespace reenact::recon {
 namespace {}  // namespace
-
-bool SkeletonHasTorso(const JointArray& joints) {
-  using body::KinectV2Joint;
-  const auto ok = [&](KinectV2Joint j) { return IsJointValid(joints[body::Index(j)]); };
-  return ok(KinectV2Joint::kSpineBase) && ok(KinectV2Joint::kSpineShoulder) &&
-         ((ok(KinectV2Joint::kHipLeft) && ok(KinectV2Joint::kHipRight)) ||
-          (ok(KinectV2Joint::kShoulderLeft) && ok(KinectV2Joint::kShoulderRight)));
-}
 
 namespace {
 
@@ -64,7 +54,7 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
   RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
   RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
   RETURN_IF_ERROR(reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10));
-  if (model != "procedural" && !absl::StartsWith(model, "makehuman:")) {
+  if (!body::IsBodyModelSpec(model)) {
     return absl::InvalidArgumentError(
         absl::StrCat("option model: expected 'procedural' or 'makehuman:DIR', got '", model, "'"));
   }
@@ -92,13 +82,6 @@ absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options)
   return reader.Finish();
 }
 
-absl::StatusOr<body::BodyModel> LoadBodyModelSpec(const std::string& spec) {
-  if (spec == "procedural") return body::BuildProceduralBody();
-  if (absl::StartsWith(spec, "makehuman:")) return body::ImportMakeHuman(spec.substr(10));
-  return absl::InvalidArgumentError(
-      absl::StrCat("body model: expected 'procedural' or 'makehuman:DIR', got '", spec, "'"));
-}
-
 absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
                                         const std::map<std::string, std::string>& options,
                                         const ProgressCallback& progress, const LogCallback& log) {
@@ -116,7 +99,7 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
 
   // The model.
   RETURN_IF_ERROR(stages.Report("model", 0, 1));
-  ASSIGN_OR_RETURN(const body::BodyModel model, LoadBodyModelSpec(o.model));
+  ASSIGN_OR_RETURN(const body::BodyModel model, body::LoadBodyModelSpec(o.model));
   ASSIGN_OR_RETURN(std::unique_ptr<bodyfit::BodyFitter> fitter,
                    bodyfit::BodyFitter::Create(model, o.fit));
   RETURN_IF_ERROR(stages.Report("model", 1, 1));
@@ -152,7 +135,7 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
   // One shape for the take, fitted on instants spread over it.
   std::vector<int> usable;
   for (int i = 0; i < n; ++i) {
-    if (clouds[i].size() >= kMinPoints && SkeletonHasTorso(take.instant(i).joints_in_world_m)) {
+    if (clouds[i].size() >= kMinPoints && bodyfit::HasTorso(take.instant(i).joints_in_world_m)) {
       usable.push_back(i);
     }
   }
@@ -167,17 +150,14 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
   }
   {
     std::vector<bodyfit::FitInput> inputs;
-    std::vector<body::BodyPose> poses;
     for (int i : shape_instants) {
       bodyfit::FitInput input;
       input.cloud = &clouds[i];
       input.skeleton_m = take.instant(i).joints_in_world_m;
-      ASSIGN_OR_RETURN(body::BodyPose pose, fitter->PoseFromSkeleton(input.skeleton_m));
       inputs.push_back(input);
-      poses.push_back(pose);
     }
     RETURN_IF_ERROR(stages.Report("shape", 0, 1));
-    RETURN_IF_ERROR(fitter->FitShape(inputs, &poses));
+    RETURN_IF_ERROR(fitter->FitShapeFromSkeletons(inputs));
     RETURN_IF_ERROR(stages.Report("shape", 1, 1));
   }
   const double shape_s = SecondsSince(start) - model_s - clouds_s;
@@ -205,19 +185,15 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
     const auto frame_start = std::chrono::steady_clock::now();
     // Initialised from the previous frame carried to this instant's
     // skeleton, or from the skeleton alone.
-    std::optional<body::BodyPose> initial = previous;
-    if (!initial.has_value()) {
-      if (!SkeletonHasTorso(input.skeleton_m)) continue;
-      ASSIGN_OR_RETURN(initial, fitter->PoseFromSkeleton(input.skeleton_m));
-    } else if (SkeletonHasTorso(input.skeleton_m)) {
-      ASSIGN_OR_RETURN(initial, fitter->FollowSkeleton(*previous, input.skeleton_m));
-    }
+    ASSIGN_OR_RETURN(const std::optional<body::BodyPose> initial,
+                     fitter->InitialPose(previous ? &*previous : nullptr, input.skeleton_m));
+    if (!initial.has_value()) continue;
     ASSIGN_OR_RETURN(bodyfit::FrameFit fit,
                      fitter->FitFrame(input, *initial, previous ? &*previous : nullptr));
     // A fit that lost the body (fast motion) starts again from the skeleton.
     constexpr double kLostRmsMm = 25.0;
     if (previous.has_value() && fit.point_rms_mm > kLostRmsMm &&
-        SkeletonHasTorso(input.skeleton_m)) {
+        bodyfit::HasTorso(input.skeleton_m)) {
       ASSIGN_OR_RETURN(const body::BodyPose from_skeleton,
                        fitter->PoseFromSkeleton(input.skeleton_m));
       ASSIGN_OR_RETURN(bodyfit::FrameFit again, fitter->FitFrame(input, from_skeleton, nullptr));

@@ -45,9 +45,6 @@ struct BodyMethodOptions {
   absl::Status Read(OptionReader& reader);
 };
 
-// True when the skeleton has the joints PoseFromSkeleton needs.
-bool SkeletonHasTorso(const JointArray& joints);
-
 // The PartFrame of one fitted instant: its BodyPose (with the offsets of
 // step 2 when present), point RMS, valid flag and fitted joints.
 v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
@@ -56,10 +53,6 @@ v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit:
 // Reads and checks the options without running (InvalidArgument naming the
 // key), so a job can be rejected before the take is loaded.
 absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options);
-
-// The body model an option value names: "procedural" (built by our code) or
-// "makehuman:DIR". InvalidArgument for other values; the importer's errors.
-absl::StatusOr<body::BodyModel> LoadBodyModelSpec(const std::string& spec);
 
 // Runs the method on a loaded take. InvalidArgument for bad options or a
 // take without a usable instant (no skeleton with a torso and no points);

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/body/model_spec.h"
 #include "common/io/body_reenactment.h"
 #include "server/recon/body/body_cloud.h"
 #include "server/recon/body/body_fit.h"
@@ -57,7 +58,7 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
     RETURN_IF_ERROR(reader.Finish());
   }
   s.shape_frames = o.fit.shape_frames;
-  ASSIGN_OR_RETURN(s.model, LoadBodyModelSpec(o.model));
+  ASSIGN_OR_RETURN(s.model, body::LoadBodyModelSpec(o.model));
   ASSIGN_OR_RETURN(s.fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   ASSIGN_OR_RETURN(s.shape_fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   TakeFramesOptions frames;
@@ -85,7 +86,7 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
   s.take->ReleaseInstant(i);
   RETURN_IF_ERROR(cloud.status());
   constexpr size_t kMinPoints = 200;
-  const bool usable = cloud->size() >= kMinPoints && SkeletonHasTorso(skeleton);
+  const bool usable = cloud->size() >= kMinPoints && bodyfit::HasTorso(skeleton);
 
   // A shape fitted in the background takes over here.
   if (s.shape_future.valid() &&
@@ -106,17 +107,12 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
           std::launch::async,
           [fitter = s.shape_fitter.get(), clouds = std::move(s.shape_clouds),
            skeletons = std::move(s.shape_skeletons)]() -> absl::StatusOr<Eigen::VectorXd> {
-            std::vector<bodyfit::FitInput> inputs;
-            std::vector<body::BodyPose> poses;
+            std::vector<bodyfit::FitInput> inputs(clouds.size());
             for (size_t k = 0; k < clouds.size(); ++k) {
-              bodyfit::FitInput input;
-              input.cloud = &clouds[k];
-              input.skeleton_m = skeletons[k];
-              ASSIGN_OR_RETURN(body::BodyPose pose, fitter->PoseFromSkeleton(input.skeleton_m));
-              inputs.push_back(input);
-              poses.push_back(pose);
+              inputs[k].cloud = &clouds[k];
+              inputs[k].skeleton_m = skeletons[k];
             }
-            RETURN_IF_ERROR(fitter->FitShape(inputs, &poses));
+            RETURN_IF_ERROR(fitter->FitShapeFromSkeletons(inputs));
             return fitter->shape();
           });
       s.shape_clouds.clear();
@@ -126,12 +122,8 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
 
   // The instant, from the previous fit carried to its skeleton.
   if (cloud->size() >= kMinPoints) {
-    std::optional<body::BodyPose> initial = s.previous;
-    if (initial.has_value() && SkeletonHasTorso(skeleton)) {
-      ASSIGN_OR_RETURN(initial, s.fitter->FollowSkeleton(*s.previous, skeleton));
-    } else if (!initial.has_value() && SkeletonHasTorso(skeleton)) {
-      ASSIGN_OR_RETURN(initial, s.fitter->PoseFromSkeleton(skeleton));
-    }
+    ASSIGN_OR_RETURN(const std::optional<body::BodyPose> initial,
+                     s.fitter->InitialPose(s.previous ? &*s.previous : nullptr, skeleton));
     if (initial.has_value()) {
       bodyfit::FitInput input;
       input.cloud = &*cloud;

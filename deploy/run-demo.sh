@@ -6,7 +6,7 @@
 # and draws its contact sheet; then submits a rigid body-part reconstruction
 # job (voxel-carved parts, thesis 3.4) and follows its progress bar, exports
 # the reenactment to glTF, evaluates it against the take's ground truth and
-# renders a novel view; then does the same with the statistical body model
+# renders a novel-view video with reenact-viewer; then does the same with the statistical body model
 # (thesis ch. 4), whose fitted skeleton is also exported as BVH. Outputs go
 # to ./out/demo.
 set -euo pipefail
@@ -17,6 +17,7 @@ out=out/demo
 mkdir -p "$out"
 bin=build/bin
 reenact=$bin/reenact
+viewer=$bin/reenact-viewer
 
 "$reenact" synth --motion builtin:front-kick --body procedural --sensors 2 --seconds 3 \
   --out "$out/source.mcap"
@@ -62,9 +63,11 @@ reconstruct() {
   "$reenact" eval --server "$server" --reenactment "$reenactment_id" --take "$out/source.mcap" \
     --every 3 --json > "$out/${name}eval.json"
   cat "$out/${name}eval.json"
+  # The novel-view video: reenact-viewer fetches the reenactment and renders a
+  # full turn around the teacher, headless (PNG frames and video.mp4).
   rm -rf "$out/${name}novel-view"
-  "$reenact" render --server "$server" --reenactment "$reenactment_id" --camera orbit:90 \
-    --out "$out/${name}novel-view" --width 960 --height 540
+  "$viewer" --server "$server" --reenactment "$reenactment_id" --camera orbit \
+    --cache "$out/cache" --render-to "$out/${name}novel-view" --width 960 --height 540
 }
 
 # Rigid body parts (thesis 3.4): voxel-carved parts with view-dependent textures.
@@ -85,11 +88,11 @@ echo "demo: capture stats $PWD/$out/capture-stats.json"
 echo "demo: contact sheet $PWD/$out/sheet.png"
 echo "demo: job           $PWD/$out/job.json (rigid-carved)"
 echo "demo: evaluation    $PWD/$out/eval.json"
-echo "demo: novel view    $PWD/$out/novel-view/ (PNG frames, 90 degrees from the sensors)"
+echo "demo: novel view    $PWD/$out/novel-view/video.mp4 (a full turn around the teacher; PNG frames beside it)"
 echo "demo: body job      $PWD/$out/body-job.json (body model)"
 echo "demo: body skeleton $PWD/$out/body.bvh (BVH, Kinect v2 joints, centimetres)"
 echo "demo: body eval     $PWD/$out/body-eval.json"
-echo "demo: body view     $PWD/$out/body-novel-view/ (PNG frames, 90 degrees from the sensors)"
+echo "demo: body view     $PWD/$out/body-novel-view/video.mp4 (a full turn around the teacher; PNG frames beside it)"
 echo
 echo "demo: glTF 2.0 files (any glTF viewer opens them):"
 echo "demo: rigid-part reenactment glTF: $PWD/$out/reenactment.glb"

@@ -4,7 +4,9 @@
 // processes; the reenactments are exported to glTF (checked by the npm
 // gltf-validator) and, for the body model, to BVH (read back by our reader),
 // evaluated against the take's ground truth with `reenact eval` and rendered
-// headless with `reenact render`.
+// headless with `reenact render`; reenact-viewer renders the body-model
+// reenactment from the server and the ground truth from a file from the same
+// three cameras, and their silhouettes must agree.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -19,10 +21,19 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "clients/view/reenactment_renderer.h"
+#include "clients/view/truth_reenactment.h"
 #include "common/base/subprocess.h"
 #include "common/body/joint_set.h"
 #include "common/body/motion.h"
+#include "common/body/procedural_body.h"
+#include "common/io/reenactment_file.h"
+#include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "tests/e2e_commands.h"
 
@@ -149,6 +160,83 @@ class ReenactmentEndToEnd : public ::testing::Test {
                                      {"node", js + "/check_gltf.mjs", glb});
     EXPECT_EQ(check.exit_code, 0) << check.out << check.err;
     std::cout << "[ glTF     ] " << check.out << std::flush;
+  }
+
+  // Silhouette IoU of two RGBA PNGs (alpha > 127 is the actor); NaN when
+  // either does not read or their sizes differ.
+  static double SilhouetteIou(const std::string& a_path, const std::string& b_path) {
+    const cv::Mat a = cv::imread(a_path, cv::IMREAD_UNCHANGED);
+    const cv::Mat b = cv::imread(b_path, cv::IMREAD_UNCHANGED);
+    if (a.empty() || b.empty() || a.size() != b.size() || a.channels() != 4 || b.channels() != 4) {
+      return std::nan("");
+    }
+    int64_t both = 0, either = 0;
+    for (int y = 0; y < a.rows; ++y) {
+      for (int x = 0; x < a.cols; ++x) {
+        const bool in_a = a.at<cv::Vec4b>(y, x)[3] > 127;
+        const bool in_b = b.at<cv::Vec4b>(y, x)[3] > 127;
+        both += in_a && in_b;
+        either += in_a || in_b;
+      }
+    }
+    return either > 0 ? static_cast<double>(both) / either : std::nan("");
+  }
+
+  // reenact-viewer --render-to: the reenactment from the server and the
+  // take's ground truth (a body reenactment of the true mesh, from a file)
+  // from three cameras of one path file (front, side, back-side; different
+  // instants); every silhouette IoU must reach 0.9.
+  static void CheckViewerMatchesTruth(const std::string& reenactment_id) {
+    auto take = TakeReader::Open(*dir_ + "/source.mcap");
+    ASSERT_TRUE(take.ok()) << take.status();
+    auto model = body::BuildProceduralBody();
+    ASSERT_TRUE(model.ok()) << model.status();
+    auto truth = view::testing::MakeTruthBodyReenactment(**take, *model);
+    ASSERT_TRUE(truth.ok()) << truth.status();
+    const std::string truth_path = *dir_ + "/truth.reen";
+    ASSERT_TRUE(WriteReenactmentFile(*truth, truth_path).ok());
+    auto actor = view::MeanActorPosition(*truth);
+    ASSERT_TRUE(actor.ok()) << actor.status();
+    const int frames = static_cast<int>(truth->frames.size());
+    nlohmann::json keys = nlohmann::json::array();
+    const double yaws_deg[3] = {0.0, 90.0, 225.0};
+    for (int k = 0; k < 3; ++k) {
+      const double yaw = yaws_deg[k] * M_PI / 180.0;
+      const Eigen::Vector3d eye =
+          *actor + Eigen::Vector3d(2.6 * std::sin(yaw), 0.4, 2.6 * std::cos(yaw));
+      keys.push_back({{"step", k},
+                      {"frame", (k + 1) * frames / 4},
+                      {"eye", {eye.x(), eye.y(), eye.z()}},
+                      {"target", {actor->x(), actor->y(), actor->z()}}});
+    }
+    const std::string path_file = *dir_ + "/viewer_path.json";
+    std::ofstream(path_file) << nlohmann::json{{"fov_deg", 45}, {"keys", keys}}.dump(2);
+    auto render = [&](const std::string& name, std::vector<std::string> source) {
+      std::vector<std::string> args = {Bin("reenact-viewer")};
+      args.insert(args.end(), source.begin(), source.end());
+      for (const char* a : {"--camera", "--width", "480", "--height", "360", "--alpha", "--no-mp4",
+                            "--json", "--render-to"}) {
+        args.push_back(a);
+        if (std::string(a) == "--camera") args.push_back("path:" + path_file);
+      }
+      args.push_back(*dir_ + "/" + name);
+      CommandResult result = RunCommand(*dir_, "viewer-" + name, args);
+      EXPECT_EQ(result.exit_code, 0) << result.err;
+      auto summary = nlohmann::json::parse(result.out, nullptr, false);
+      EXPECT_TRUE(summary.is_object() && summary["images"] == 3) << result.out << result.err;
+    };
+    render("viewer-recon",
+           {"--server", address_(), "--reenactment", reenactment_id, "--cache", *dir_ + "/cache"});
+    render("viewer-truth", {"--in", truth_path});
+    for (int k = 0; k < 3; ++k) {
+      const std::string name = absl::StrFormat("frame_%05d.png", k);
+      const double iou =
+          SilhouetteIou(*dir_ + "/viewer-recon/" + name, *dir_ + "/viewer-truth/" + name);
+      std::printf(
+          "[ viewer   ] view %d (yaw %.0f deg, instant %d): silhouette IoU %.3f (floor 0.9)\n", k,
+          yaws_deg[k], (k + 1) * frames / 4, iou);
+      EXPECT_GE(iou, 0.9) << "view " << k;
+    }
   }
 
   static std::string* dir_;
@@ -292,6 +380,9 @@ TEST_F(ReenactmentEndToEnd, BodyModelFromIngestToExport) {
       "iou_90 %.3f, job %.1f s, %d frames\n",
       figures["mpjpe_mm"].get<double>(), figures["surface_mm"].get<double>(),
       figures["psnr_db_90"].get<double>(), figures["iou_90"].get<double>(), job_s, frames);
+
+  // reenact-viewer headless: the same silhouettes as the ground truth.
+  CheckViewerMatchesTruth(body);
 
   // One skinned mesh over the Kinect v2 joints, zero validator errors.
   ExportAndValidate(body);

@@ -17,6 +17,12 @@ std::vector<Command> BuildCommandTable() {
        "[--shape mean|random[:SEED]] --sensors 1|2 --seconds S --out take.mcap [--json]",
        "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors",
        RunSynth},
+      {{"board"},
+       "--out board.png [--spec aruco:DICT:COLSxROWS:MARKER_MM:GAP_MM] [--dpi N] "
+       "[--margin-mm M] [--no-caption] [--json]",
+       "write the printable ArUco board that defines the world frame (default "
+       "aruco:DICT_4X4_50:3x2:110:22, A3) as a PNG; prints its physical size",
+       RunBoard},
       {{"take", "info"},
        "FILE [--json]",
        "sensors, channels, frames and duration of a take",

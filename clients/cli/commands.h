@@ -16,6 +16,9 @@ std::vector<Command> BuildCommandTable();
 int RunMotionInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunMotionJoints(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// board_command.cc
+int RunBoard(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 // synth_command.cc
 int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 

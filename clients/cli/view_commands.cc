@@ -25,6 +25,8 @@
 #include "clients/sdk/takes_client.h"
 #include "clients/view/evaluation.h"
 #include "clients/view/reenactment_renderer.h"
+#include "clients/viewer/headless_render.h"
+#include "clients/viewer/viewer_cli.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/io/reenactment_file.h"
@@ -60,118 +62,30 @@ int ReportLoadError(const absl::Status& status, std::ostream& err) {
   return status.code() == absl::StatusCode::kInvalidArgument ? kExitUsage : kExitFailure;
 }
 
-struct FrameRange {
-  int begin = 0;
-  int end = std::numeric_limits<int>::max();  // Exclusive.
-};
-
-// "A:B" (A..B-1), "A:" (A to the end), ":B", or "A" (one frame).
-absl::StatusOr<FrameRange> ParseFrames(const std::string& text, int frame_count) {
-  FrameRange range;
-  const std::vector<std::string> pieces = absl::StrSplit(text, ':');
-  auto number = [&](const std::string& s, int fallback) -> absl::StatusOr<int> {
-    if (s.empty()) return fallback;
-    int value = 0;
-    if (!absl::SimpleAtoi(s, &value) || value < 0) {
-      return absl::InvalidArgumentError(absl::StrCat("--frames: bad frame number '", s, "'"));
-    }
-    return value;
-  };
-  if (pieces.size() == 1) {
-    ASSIGN_OR_RETURN(range.begin, number(pieces[0], 0));
-    range.end = range.begin + 1;
-  } else if (pieces.size() == 2) {
-    ASSIGN_OR_RETURN(range.begin, number(pieces[0], 0));
-    ASSIGN_OR_RETURN(range.end, number(pieces[1], frame_count));
-  } else {
-    return absl::InvalidArgumentError(absl::StrCat("--frames: expected A:B, got '", text, "'"));
-  }
-  range.end = std::min(range.end, frame_count);
-  if (range.begin >= range.end) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--frames ", text, " selects none of the ", frame_count, " frames"));
-  }
-  return range;
-}
-
-// --camera orbit:DEG (sensor 0 turned DEG about the vertical through the
-// actor's mean position) or sensor:N (sensor N's colour camera).
-absl::StatusOr<render::RenderCamera> ParseCamera(const std::string& spec,
-                                                 const ReenactmentData& data, int width,
-                                                 int height) {
-  const std::vector<std::string> pieces = absl::StrSplit(spec, absl::MaxSplits(':', 1));
-  if (pieces.size() != 2 || (pieces[0] != "orbit" && pieces[0] != "sensor")) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--camera: expected orbit:DEG or sensor:N, got '", spec, "'"));
-  }
-  if (data.info.sensors_size() == 0) {
-    return absl::FailedPreconditionError("the reenactment names no sensor to place a camera by");
-  }
-  if (pieces[0] == "sensor") {
-    int n = 0;
-    if (!absl::SimpleAtoi(pieces[1], &n) || n < 0 || n >= data.info.sensors_size()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--camera sensor:N: N must be 0..", data.info.sensors_size() - 1));
-    }
-    return view::SensorRenderCamera(data.info.sensors(n), width, height);
-  }
-  double degrees = 0;
-  if (!absl::SimpleAtod(pieces[1], &degrees) || !std::isfinite(degrees)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--camera orbit:DEG: bad angle '", pieces[1], "'"));
-  }
-  ASSIGN_OR_RETURN(render::RenderCamera base,
-                   view::SensorRenderCamera(data.info.sensors(0), width, height));
-  ASSIGN_OR_RETURN(Eigen::Vector3d pivot, view::MeanActorPosition(data));
-  return view::OrbitCamera(base, pivot, degrees);
-}
-
-absl::Status WritePng(const RgbImage& image, const std::string& path) {
-  cv::Mat bgr(image.height, image.width, CV_8UC3);
-  for (int y = 0; y < image.height; ++y) {
-    for (int x = 0; x < image.width; ++x) {
-      for (int c = 0; c < 3; ++c) bgr.at<cv::Vec3b>(y, x)[2 - c] = image.at(x, y, c);
-    }
-  }
-  if (!cv::imwrite(path, bgr))
-    return absl::PermissionDeniedError(absl::StrCat(path, ": cannot write"));
-  return absl::OkStatus();
-}
-
+// `reenact render`: reenact-viewer's headless renderer (PNGs only, numbered
+// by instant, over black).
 absl::StatusOr<int> RenderFrames(const ReenactmentData& data, const Flags& flags,
                                  view::TextureMode mode, ProgressBar* bar) {
-  ASSIGN_OR_RETURN(int width, flags.GetInt("width", 960));
-  ASSIGN_OR_RETURN(int height, flags.GetInt("height", 540));
-  if (width < 16 || height < 16 || width > 8192 || height > 8192) {
-    return absl::InvalidArgumentError("--width and --height must be 16..8192");
-  }
+  viewer::HeadlessOptions options;
+  ASSIGN_OR_RETURN(options.width, flags.GetInt("width", 960));
+  ASSIGN_OR_RETURN(options.height, flags.GetInt("height", 540));
   ASSIGN_OR_RETURN(std::string out_dir, flags.Required("out"));
-  ASSIGN_OR_RETURN(render::RenderCamera camera,
-                   ParseCamera(flags.GetOr("camera", "orbit:0"), data, width, height));
-  const int frame_count = static_cast<int>(data.frames.size());
-  ASSIGN_OR_RETURN(FrameRange range, ParseFrames(flags.GetOr("frames", ":"), frame_count));
-  std::error_code ec;
-  std::filesystem::create_directories(out_dir, ec);
-  if (ec) return absl::PermissionDeniedError(absl::StrCat(out_dir, ": ", ec.message()));
-  render::RendererOptions renderer_options;
-  renderer_options.max_width = width;
-  renderer_options.max_height = height;
-  renderer_options.msaa_samples = 4;  // Smooth edges for viewing.
-  ASSIGN_OR_RETURN(auto renderer, render::OffscreenRenderer::Create(renderer_options));
-  view::ReenactmentRendererOptions options;
-  options.mode = mode;
-  ASSIGN_OR_RETURN(auto view, view::ReenactmentRenderer::Create(data, renderer.get(), options));
-  for (int f = range.begin; f < range.end; ++f) {
-    render::RenderOutputs out;
-    out.requested = render::kRenderColour;
-    RETURN_IF_ERROR(view->Render(f, camera, &out));
-    RETURN_IF_ERROR(
-        WritePng(out.colour,
-                 (std::filesystem::path(out_dir) / absl::StrFormat("frame_%05d.png", f)).string()));
-    bar->Update({"render", (f - range.begin + 1.0) / (range.end - range.begin), f - range.begin + 1,
-                 range.end - range.begin});
+  options.camera = flags.GetOr("camera", "orbit:0");
+  if (options.camera == "orbit") options.camera = "orbit:0";  // A full turn is the viewer's.
+  if (flags.Has("frames")) {
+    ASSIGN_OR_RETURN(auto range, viewer::ParseFrameRange(*flags.Get("frames"),
+                                                         static_cast<int>(data.frames.size())));
+    options.first_frame = range.first;
+    options.end_frame = range.second;
   }
-  return range.end - range.begin;
+  options.mode = mode;
+  options.mp4 = false;
+  options.name_by_instant = true;
+  options.background_srgb = Eigen::Vector3f::Zero();
+  ASSIGN_OR_RETURN(viewer::HeadlessSummary summary,
+                   viewer::RenderToDir(data, out_dir, options,
+                                       [bar](const Progress& p) { return bar->Update(p); }));
+  return summary.images;
 }
 
 // The take to evaluate against: --take FILE, else downloaded from the server

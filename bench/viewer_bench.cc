@@ -1,0 +1,118 @@
+// What the viewer draws per frame for a body-model reenactment (thesis ch. 4;
+// the goal is >= 60 frames/s at 1280x720 on the machine's software OpenGL,
+// Mesa llvmpipe): the default procedural body (the reenactments' model),
+// posed by CMU 131_01 retargeted onto it, a 1024x1024 atlas, seen by an
+// orbiting camera. Each iteration is one frame as reenact-viewer makes it:
+// the instant's skinning on the CPU, the upload of the positions, the draw
+// and the colour read back (ReenactmentRenderer::Render). Variants with and
+// without 4x multisampling (the window's default) and at 1920x1080.
+//
+//   build/bench/viewer_bench [--benchmark_filter=...]
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "clients/view/reenactment_renderer.h"
+#include "clients/viewer/viewer_camera.h"
+#include "common/body/motion.h"
+#include "common/body/procedural_body.h"
+#include "common/body/retarget.h"
+#include "common/io/body_reenactment.h"
+#include "common/io/jpeg.h"
+#include "common/io/proto_convert.h"
+#include "common/render/offscreen_renderer.h"
+
+namespace reenact {
+namespace {
+
+// A body reenactment of 120 instants of a CMU dance, or empty on failure.
+const ReenactmentData* BodyReenactment() {
+  static const ReenactmentData* data = []() -> const ReenactmentData* {
+    auto model = body::BuildProceduralBody();
+    auto motion = body::ReadMotion(std::string(REENACT_TEST_DATA_DIR) + "/mocap/cmu/131_01.bvh");
+    if (!model.ok() || !motion.ok()) return nullptr;
+    const Eigen::VectorXd shape = Eigen::VectorXd::Zero(model->num_shape_components());
+    auto poses = body::RetargetMotion(*motion, *model, shape);
+    if (!poses.ok()) return nullptr;
+    RgbImage atlas(1024, 1024);
+    for (int y = 0; y < atlas.height; ++y) {
+      for (int x = 0; x < atlas.width; ++x) {
+        atlas.at(x, y, 0) = static_cast<uint8_t>(x / 4);
+        atlas.at(x, y, 1) = static_cast<uint8_t>(y / 4);
+        atlas.at(x, y, 2) = static_cast<uint8_t>(((x / 32 + y / 32) % 2) * 200);
+      }
+    }
+    auto jpeg = EncodeJpeg(atlas, 90);
+    auto mesh = jpeg.ok() ? MakeBodyMesh(*model, shape, *jpeg) : jpeg.status();
+    if (!mesh.ok()) return nullptr;
+    auto* d = new ReenactmentData;
+    d->info.set_reenactment_id("r-bench-body");
+    d->info.set_method("body");
+    d->info.set_fps(30.0);
+    d->body.push_back(std::move(*mesh));
+    const int frames = std::min<int>(120, static_cast<int>(poses->poses.size()));
+    d->info.set_frame_count(frames);
+    for (int f = 0; f < frames; ++f) {
+      v1::PartFrame frame;
+      frame.set_frame_index(f);
+      *frame.mutable_body() = BodyPoseToProto(poses->poses[f]);
+      d->frames.push_back(std::move(frame));
+    }
+    return d;
+  }();
+  return data;
+}
+
+void RenderBody(benchmark::State& state, int width, int height, int msaa) {
+  const ReenactmentData* data = BodyReenactment();
+  if (data == nullptr) {
+    state.SkipWithError("no body reenactment (test data missing?)");
+    return;
+  }
+  render::RendererOptions options;
+  options.max_width = width;
+  options.max_height = height;
+  options.msaa_samples = msaa;
+  auto renderer = render::OffscreenRenderer::Create(options);
+  if (!renderer.ok()) {
+    state.SkipWithError(std::string(renderer.status().message()).c_str());
+    return;
+  }
+  auto view = view::ReenactmentRenderer::Create(*data, renderer->get());
+  if (!view.ok()) {
+    state.SkipWithError(std::string(view.status().message()).c_str());
+    return;
+  }
+  const int frames = static_cast<int>(data->frames.size());
+  int64_t n = 0;
+  for (auto _ : state) {
+    const double yaw = 3.0 * static_cast<double>(n);
+    const Eigen::Vector3d eye(2.8 * std::sin(yaw * M_PI / 180), 1.3,
+                              2.8 * std::cos(yaw * M_PI / 180));
+    auto camera = viewer::LookAtCamera(eye, Eigen::Vector3d(0, 0.95, 0), 50.0, width, height);
+    render::RenderOutputs out;
+    out.requested = render::kRenderColour;
+    if (!camera.ok() || !(*view)->Render(static_cast<int>(n % frames), *camera, &out).ok()) {
+      state.SkipWithError("render failed");
+      return;
+    }
+    benchmark::DoNotOptimize(out.colour.data.data());
+    ++n;
+  }
+  state.counters["fps"] = benchmark::Counter(static_cast<double>(n), benchmark::Counter::kIsRate);
+  state.SetLabel((*renderer)->Description());
+}
+
+void BM_ViewerBody_1280x720_Msaa4(benchmark::State& state) { RenderBody(state, 1280, 720, 4); }
+void BM_ViewerBody_1280x720_NoMsaa(benchmark::State& state) { RenderBody(state, 1280, 720, 0); }
+void BM_ViewerBody_1920x1080_Msaa4(benchmark::State& state) { RenderBody(state, 1920, 1080, 4); }
+BENCHMARK(BM_ViewerBody_1280x720_Msaa4)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ViewerBody_1280x720_NoMsaa)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ViewerBody_1920x1080_Msaa4)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+}  // namespace reenact
+
+BENCHMARK_MAIN();

@@ -1,0 +1,323 @@
+#include "clients/mirror/mirror_session.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "clients/mirror/mirror_test_util.h"
+#include "common/base/files.h"
+
+namespace reenact::mirror {
+namespace {
+
+using body::SkeletonPose;
+
+constexpr int64_t kFrameNs = 33'333'333;  // The learner's sensor at 30 fps.
+constexpr double kTeacherFps = 30.0;
+
+// CMU 131_01 at 30 fps, the first three seconds.
+std::vector<SkeletonPose> Teacher() { return testing::LoadCmuTeacher(4, 90); }
+
+// How the simulated learner behaves.
+struct Learner {
+  // Facing yaw relative to the sensor (turned about the vertical through
+  // their SpineBase; positive = to their own left).
+  double yaw_deg = 0.0;
+  // Teacher frames the learner lags behind while playing.
+  int lag_frames = 0;
+  // Changes the learner's pose in a given repetition (1-based), if set.
+  std::function<SkeletonPose(const SkeletonPose&, int repetition)> change = nullptr;
+};
+
+struct DriveLog {
+  std::vector<MirrorFrame> frames;
+  std::vector<MirrorState> states;  // Each state as it is entered.
+};
+
+// Drives `session` with a learner who copies the teacher: the start pose
+// while the facing is read, then the teacher frame on screen (minus the
+// lag). The sensor stands in front of the teacher's start pose.
+DriveLog Drive(MirrorSession& session, const std::vector<SkeletonPose>& teacher,
+               const Learner& learner, double max_s = 30.0) {
+  const Eigen::Isometry3d sensor_from_world = testing::SensorInFrontOf(teacher[0]);
+  DriveLog run;
+  MirrorState state = session.state();
+  int64_t play_start_ns = 0;
+  int repetition = 1;
+  for (int64_t stamp_ns = 0; stamp_ns < max_s * 1e9; stamp_ns += kFrameNs) {
+    int shown = 0;
+    if (state == MirrorState::kPlaying) {
+      shown = static_cast<int>((stamp_ns - play_start_ns) * 1e-9 * kTeacherFps + 1e-6);
+      shown = std::clamp(shown - learner.lag_frames, 0, static_cast<int>(teacher.size()) - 1);
+    }
+    SkeletonPose pose = testing::TurnAboutSpineBase(teacher[shown], learner.yaw_deg);
+    if (learner.change) pose = learner.change(pose, repetition);
+    absl::StatusOr<MirrorFrame> frame =
+        session.Update(stamp_ns, TransformPose(sensor_from_world, pose));
+    EXPECT_TRUE(frame.ok()) << frame.status();
+    if (!frame.ok()) break;
+    if (frame->state == MirrorState::kPlaying && state != MirrorState::kPlaying) {
+      play_start_ns = stamp_ns;
+    }
+    if (run.states.empty() || frame->state != run.states.back()) {
+      run.states.push_back(frame->state);
+    }
+    state = frame->state;
+    repetition = frame->repetition;
+    run.frames.push_back(*std::move(frame));
+    if (state == MirrorState::kFinished) break;
+  }
+  return run;
+}
+
+MirrorSession MakeSession(const std::vector<SkeletonPose>& teacher,
+                          const MirrorSessionOptions& options) {
+  absl::StatusOr<MirrorSession> session = MirrorSession::Create(teacher, kTeacherFps, options);
+  EXPECT_TRUE(session.ok()) << session.status();
+  return *std::move(session);
+}
+
+// The teacher's facing relative to the virtual camera, read like a learner's.
+double FacingRelativeToCamera(const SkeletonPose& teacher_in_world,
+                              const Eigen::Isometry3d& world_from_camera) {
+  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
+  return FacingYawInSensorDeg(TransformPose(camera_from_world, teacher_in_world),
+                              camera_from_world.linear() * Eigen::Vector3d::UnitY())
+      .value_or(1e9);
+}
+
+const MirrorFrame* FirstPlayingFrame(const DriveLog& run) {
+  for (const MirrorFrame& frame : run.frames) {
+    if (frame.state == MirrorState::kPlaying) return &frame;
+  }
+  return nullptr;
+}
+
+TEST(MirrorSession, TwoRepetitionsGoThroughFacingPlayingAndReportsAndWriteFiles) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_EQ(teacher.size(), 90u);
+  MirrorSessionOptions options;
+  options.repetitions = 2;
+  options.report_dir = reenact::testing::MakeTempDir("mirror_session") + "/reports";
+  MirrorSession session = MakeSession(teacher, options);
+  EXPECT_EQ(session.state(), MirrorState::kWaitingForLearner);
+  const DriveLog run = Drive(session, teacher, Learner{});
+
+  const std::vector<MirrorState> expected = {MirrorState::kReadingFacing, MirrorState::kPlaying,
+                                             MirrorState::kReadingFacing, MirrorState::kPlaying,
+                                             MirrorState::kFinished};
+  EXPECT_EQ(run.states, expected);
+  ASSERT_EQ(session.reports().size(), 2u);
+  int reports_seen = 0;
+  for (const MirrorFrame& frame : run.frames) {
+    if (!frame.finished_report) continue;
+    ++reports_seen;
+    EXPECT_TRUE(frame.report_status.ok()) << frame.report_status;
+    EXPECT_TRUE(frame.report_files);
+  }
+  EXPECT_EQ(reports_seen, 2);
+  for (int r = 1; r <= 2; ++r) {
+    const std::string stem = options.report_dir + "/" + RepetitionFileStem(r);
+    for (const char* ext : {".csv", ".json", ".png"}) {
+      EXPECT_TRUE(std::filesystem::exists(stem + ext)) << stem << ext;
+    }
+    const nlohmann::json json = nlohmann::json::parse(*ReadFileToString(stem + ".json"));
+    for (const char* key : {"mean_error_deg", "parts", "learner_facing_yaw_deg", "view_yaw_deg",
+                            "teacher_turn_yaw_deg", "dtw", "num_learner_frames",
+                            "num_teacher_frames", "num_compared_frames"}) {
+      EXPECT_TRUE(json.contains(key)) << key;
+    }
+    EXPECT_EQ(json["parts"].size(), static_cast<size_t>(kNumBodyParts));
+    EXPECT_TRUE(json["parts"].contains("right_lower_arm"));
+    EXPECT_EQ(json["num_teacher_frames"].get<int>(), 90);
+    EXPECT_EQ(json["num_compared_frames"].get<int>(), 90);
+    EXPECT_FALSE(json["dtw"].get<bool>());
+    const double mean_deg = json["mean_error_deg"].get<double>();
+    std::cout << "repetition " << r << ": mean error " << mean_deg << " deg over "
+              << json["num_compared_frames"] << " frames, facing " << json["learner_facing_yaw_deg"]
+              << " deg, turn " << json["teacher_turn_yaw_deg"] << " deg\n";
+    EXPECT_LT(mean_deg, 1.0);
+  }
+  // The hold: playing starts 2 s after the learner appears.
+  const MirrorFrame* playing = FirstPlayingFrame(run);
+  ASSERT_NE(playing, nullptr);
+  EXPECT_NEAR(playing->facing.held_s, 2.0, 0.05);
+  EXPECT_EQ(playing->teacher_frame, 0);
+}
+
+TEST(MirrorSession, LearnerFacingNinetyDegreesTurnsTheTeacherNinetyDegrees) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_FALSE(teacher.empty());
+  for (double camera_offset_deg : {0.0, 60.0}) {
+    MirrorSessionOptions options;
+    options.repetitions = 1;
+    if (camera_offset_deg != 0.0) {
+      absl::StatusOr<TeacherFacing> facing = MeasureTeacherFacing(teacher, kTeacherFps, 0.5);
+      ASSERT_TRUE(facing.ok());
+      options.world_from_virtual_camera = *PlaceVirtualCamera(
+          facing->pivot_in_world, facing->facing_yaw_world_deg + camera_offset_deg, 3.0, 1.6);
+    }
+    MirrorSession session = MakeSession(teacher, options);
+    const DriveLog run = Drive(session, teacher, Learner{.yaw_deg = 90.0});
+    const MirrorFrame* playing = FirstPlayingFrame(run);
+    ASSERT_NE(playing, nullptr);
+    ASSERT_TRUE(playing->learner_facing_yaw_deg);
+    // The teacher's start facing is the circular mean over its first
+    // teacher_facing_window_s (0.5 s = 15 frames); read the turned teacher's
+    // facing relative to the virtual camera the same way.
+    std::vector<double> relative_deg_per_frame;
+    for (int f = 0; f < 15; ++f) {
+      relative_deg_per_frame.push_back(FacingRelativeToCamera(
+          TransformPose(playing->teacher_turn.turned_from_original, teacher[f]),
+          session.world_from_virtual_camera()));
+    }
+    const double relative_deg = CircularMeanDeg(relative_deg_per_frame).value_or(1e9);
+    std::cout << "learner turned 90 deg, camera bearing +" << camera_offset_deg << ": facing read "
+              << *playing->learner_facing_yaw_deg << " deg, teacher turn "
+              << playing->teacher_turn.turn_yaw_deg
+              << " deg, teacher facing relative to the virtual camera " << relative_deg
+              << " deg over its first 0.5 s (frame 0: " << relative_deg_per_frame[0] << " deg)\n";
+    RecordProperty("teacher_relative_facing_deg", std::to_string(relative_deg));
+    EXPECT_NEAR(*playing->learner_facing_yaw_deg, 90.0, 5.0);
+    EXPECT_NEAR(relative_deg, 90.0, 5.0);
+    if (camera_offset_deg == 0.0) {
+      EXPECT_NEAR(playing->teacher_turn.turn_yaw_deg, 90.0, 5.0);
+    }
+    ASSERT_EQ(session.reports().size(), 1u);
+    EXPECT_LT(*session.reports()[0].mean_error_deg, 1.0);  // Spine-normalised.
+  }
+}
+
+TEST(MirrorSession, DtwForgivesALaggingLearner) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_FALSE(teacher.empty());
+  double mean_deg[2] = {0.0, 0.0};
+  for (bool use_dtw : {false, true}) {
+    MirrorSessionOptions options;
+    options.repetitions = 1;
+    options.use_dtw = use_dtw;
+    options.report_dir = reenact::testing::MakeTempDir(use_dtw ? "mirror_lag_dtw" : "mirror_lag");
+    MirrorSession session = MakeSession(teacher, options);
+    Drive(session, teacher, Learner{.lag_frames = 6});
+    ASSERT_EQ(session.reports().size(), 1u);
+    EXPECT_EQ(session.reports()[0].used_dtw, use_dtw);
+    const nlohmann::json json =
+        nlohmann::json::parse(*ReadFileToString(options.report_dir + "/rep-001.json"));
+    EXPECT_EQ(json["dtw"].get<bool>(), use_dtw);
+    mean_deg[use_dtw] = *session.reports()[0].mean_error_deg;
+  }
+  std::cout << "learner 0.2 s behind: one to one " << mean_deg[0] << " deg, DTW " << mean_deg[1]
+            << " deg\n";
+  EXPECT_LT(mean_deg[1], mean_deg[0]);
+}
+
+TEST(MirrorSession, ChallengeCycleShowsTheListedViews) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_FALSE(teacher.empty());
+  MirrorSessionOptions options;
+  options.repetitions = 3;
+  options.challenge = ChallengeMode::kCycle;
+  options.challenge_view_yaws_deg = {0.0, 90.0};
+  MirrorSession session = MakeSession(teacher, options);
+  Drive(session, teacher, Learner{.yaw_deg = 30.0});
+  ASSERT_EQ(session.reports().size(), 3u);
+  const double views[3] = {0.0, 90.0, 0.0};
+  for (int r = 0; r < 3; ++r) {
+    const RepetitionReport& report = session.reports()[r];
+    EXPECT_TRUE(report.challenge);
+    EXPECT_NEAR(report.view_yaw_deg, views[r], 1e-9);
+    EXPECT_NEAR(report.teacher_turn_yaw_deg, views[r], 1e-9);  // Camera in front.
+    EXPECT_NEAR(*report.learner_facing_yaw_deg, 30.0, 5.0);
+  }
+}
+
+TEST(MirrorSession, ChallengeHardestViewRepeatsTheWorstView) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_FALSE(teacher.empty());
+  MirrorSessionOptions options;
+  options.repetitions = 3;
+  options.challenge = ChallengeMode::kHardestView;
+  options.challenge_view_yaws_deg = {0.0, 90.0};
+  MirrorSession session = MakeSession(teacher, options);
+  Learner learner;
+  learner.change = [](const SkeletonPose& pose, int repetition) {
+    return repetition == 2 ? testing::TurnRightForearm(pose, 30.0) : pose;
+  };
+  Drive(session, teacher, learner);
+  ASSERT_EQ(session.reports().size(), 3u);
+  EXPECT_NEAR(session.reports()[0].view_yaw_deg, 0.0, 1e-9);
+  EXPECT_NEAR(session.reports()[1].view_yaw_deg, 90.0, 1e-9);
+  EXPECT_GT(*session.reports()[1].mean_error_deg, *session.reports()[0].mean_error_deg);
+  EXPECT_NEAR(session.reports()[2].view_yaw_deg, 90.0, 1e-9);
+}
+
+TEST(MirrorSession, LostLearnerAndBadStampsAndOptions) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_FALSE(teacher.empty());
+  MirrorSession session = MakeSession(teacher, {});
+  const SkeletonPose learner = TransformPose(testing::SensorInFrontOf(teacher[0]), teacher[0]);
+  EXPECT_EQ(session.Update(0, std::nullopt)->state, MirrorState::kWaitingForLearner);
+  absl::StatusOr<MirrorFrame> reading = session.Update(kFrameNs, learner);
+  ASSERT_TRUE(reading.ok());
+  EXPECT_EQ(reading->state, MirrorState::kReadingFacing);
+  EXPECT_EQ(reading->comparison.num_parts_compared, kNumBodyParts);  // Start-pose feedback.
+  EXPECT_EQ(reading->joint_color[body::Index(body::KinectV2Joint::kElbowRight)],
+            ErrorColorOptions().green_color);
+  EXPECT_EQ(session.Update(2 * kFrameNs, std::nullopt)->state, MirrorState::kWaitingForLearner);
+  SkeletonPose nan_learner = learner;
+  for (auto& p : nan_learner.position_m) p.x() = std::nan("");
+  absl::StatusOr<MirrorFrame> nan_frame = session.Update(3 * kFrameNs, nan_learner);
+  ASSERT_TRUE(nan_frame.ok());
+  EXPECT_EQ(nan_frame->state, MirrorState::kWaitingForLearner);
+  EXPECT_EQ(nan_frame->comparison.num_parts_compared, 0);
+  EXPECT_EQ(nan_frame->part_color[0], ErrorColorOptions().missing_color);
+  EXPECT_FALSE(session.Update(kFrameNs, learner).ok());  // Earlier stamp.
+
+  EXPECT_FALSE(MirrorSession::Create({}, 30.0, {}).ok());
+  EXPECT_FALSE(MirrorSession::Create(teacher, 0.0, {}).ok());
+  MirrorSessionOptions bad;
+  bad.playback_speed = 0.0;
+  EXPECT_FALSE(bad.Validate().ok());
+  bad = {};
+  bad.challenge = ChallengeMode::kCycle;
+  bad.challenge_view_yaws_deg.clear();
+  EXPECT_FALSE(bad.Validate().ok());
+  bad = {};
+  bad.repetitions = -1;
+  EXPECT_FALSE(bad.Validate().ok());
+  bad = {};
+  bad.up_in_sensor.setZero();
+  EXPECT_FALSE(bad.Validate().ok());
+}
+
+TEST(MirrorSession, UnwritableReportFolderIsReportedNotFatal) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_FALSE(teacher.empty());
+  const std::string dir = reenact::testing::MakeTempDir("mirror_session_bad");
+  ASSERT_TRUE(WriteFileAtomically(dir + "/a_file", "x").ok());
+  MirrorSessionOptions options;
+  options.repetitions = 1;
+  options.report_dir = dir + "/a_file/reports";
+  MirrorSession session = MakeSession(teacher, options);
+  const DriveLog run = Drive(session, teacher, Learner{});
+  EXPECT_EQ(run.states.back(), MirrorState::kFinished);
+  bool saw_error = false;
+  for (const MirrorFrame& frame : run.frames) saw_error |= !frame.report_status.ok();
+  EXPECT_TRUE(saw_error);
+  EXPECT_EQ(session.reports().size(), 1u);
+}
+
+}  // namespace
+}  // namespace reenact::mirror

@@ -1,0 +1,117 @@
+#include "clients/mirror/repetition_report.h"
+
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
+
+namespace reenact::mirror {
+namespace {
+
+using Json = nlohmann::json;
+
+Json OptionalNumber(const std::optional<double>& value) {
+  return value ? Json(*value) : Json(nullptr);
+}
+
+std::string CsvNumber(const std::optional<double>& value) {
+  return value ? absl::StrFormat("%.3f", *value) : std::string();
+}
+
+std::string CsvRow(const ComparedFrame& frame) {
+  std::string row =
+      absl::StrFormat("%.4f,%d,%d", frame.time_s, frame.teacher_frame, frame.learner_stamp_ns);
+  for (const std::optional<double>& error_deg : frame.comparison.part_error_deg) {
+    absl::StrAppend(&row, ",", CsvNumber(error_deg));
+  }
+  absl::StrAppend(&row, ",", CsvNumber(frame.comparison.mean_error_deg), "\n");
+  return row;
+}
+
+Json PartsJson(const PerPart<double>& part_mean_error_deg) {
+  Json parts = Json::object();
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    parts[std::string(BodyPartName(BodyPartAt(p)))] = OptionalNumber(part_mean_error_deg[p]);
+  }
+  return parts;
+}
+
+}  // namespace
+
+void SummarizeErrors(RepetitionReport& report) {
+  std::array<double, kNumBodyParts> part_sum{};
+  std::array<int, kNumBodyParts> part_count{};
+  double mean_sum = 0.0;
+  int mean_count = 0;
+  for (const ComparedFrame& frame : report.frames) {
+    for (int p = 0; p < kNumBodyParts; ++p) {
+      if (!frame.comparison.part_error_deg[p]) continue;
+      part_sum[p] += *frame.comparison.part_error_deg[p];
+      ++part_count[p];
+    }
+    if (!frame.comparison.mean_error_deg) continue;
+    mean_sum += *frame.comparison.mean_error_deg;
+    ++mean_count;
+  }
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    report.part_mean_error_deg[p] =
+        part_count[p] > 0 ? std::optional<double>(part_sum[p] / part_count[p]) : std::nullopt;
+  }
+  report.mean_error_deg =
+      mean_count > 0 ? std::optional<double>(mean_sum / mean_count) : std::nullopt;
+}
+
+std::string RepetitionCsv(const RepetitionReport& report) {
+  std::string csv = "time_s,teacher_frame,learner_stamp_ns";
+  for (int p = 0; p < kNumBodyParts; ++p)
+    absl::StrAppend(&csv, ",", std::string(BodyPartName(BodyPartAt(p))));
+  absl::StrAppend(&csv, ",mean_error_deg\n");
+  for (const ComparedFrame& frame : report.frames) absl::StrAppend(&csv, CsvRow(frame));
+  return csv;
+}
+
+std::string RepetitionJson(const RepetitionReport& report) {
+  const std::string stem = RepetitionFileStem(report.repetition);
+  Json json = {
+      {"repetition", report.repetition},
+      {"mean_error_deg", OptionalNumber(report.mean_error_deg)},
+      {"parts", PartsJson(report.part_mean_error_deg)},
+      {"learner_facing_yaw_deg", OptionalNumber(report.learner_facing_yaw_deg)},
+      {"view_yaw_deg", report.view_yaw_deg},
+      {"teacher_turn_yaw_deg", report.teacher_turn_yaw_deg},
+      {"teacher_facing_yaw_world_deg", report.teacher_facing_yaw_world_deg},
+      {"challenge", report.challenge},
+      {"dtw", report.used_dtw},
+      {"playback_speed", report.playback_speed},
+      {"start_stamp_ns", report.start_stamp_ns},
+      {"end_stamp_ns", report.end_stamp_ns},
+      {"duration_s", (report.end_stamp_ns - report.start_stamp_ns) * 1e-9},
+      {"num_learner_frames", report.num_learner_frames},
+      {"num_teacher_frames", report.num_teacher_frames},
+      {"num_compared_frames", static_cast<int>(report.frames.size())},
+      {"files", {{"csv", stem + ".csv"}, {"png", stem + ".png"}}},
+  };
+  return json.dump(2) + "\n";
+}
+
+std::string RepetitionFileStem(int repetition) { return absl::StrFormat("rep-%03d", repetition); }
+
+absl::StatusOr<RepetitionFiles> WriteRepetitionReport(const RepetitionReport& report,
+                                                      const std::string& report_dir) {
+  RETURN_IF_ERROR(CreateDirectories(report_dir));
+  const std::filesystem::path stem =
+      std::filesystem::path(report_dir) / RepetitionFileStem(report.repetition);
+  RepetitionFiles files{stem.string() + ".csv", stem.string() + ".json", stem.string() + ".png"};
+  ASSIGN_OR_RETURN(const std::string png, RepetitionPlotPng(report));
+  // The JSON goes last: a reader that sees it finds the other two in place.
+  RETURN_IF_ERROR(WriteFileAtomically(files.csv_path, RepetitionCsv(report)));
+  RETURN_IF_ERROR(WriteFileAtomically(files.png_path, png));
+  RETURN_IF_ERROR(WriteFileAtomically(files.json_path, RepetitionJson(report)));
+  return files;
+}
+
+}  // namespace reenact::mirror

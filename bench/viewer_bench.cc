@@ -7,10 +7,16 @@
 // and the colour read back (ReenactmentRenderer::Render). Variants with and
 // without 4x multisampling (the window's default) and at 1920x1080.
 //
+// REENACT_BENCH_REENACTMENT=FILE.reen measures that reenactment instead (e.g.
+// the demo's body reenactment under out/demo/server/reenactments/). The
+// _SwitchContext variant also releases the renderer's context after every
+// frame, as the window does to show the image with its own context.
+//
 //   build/bench/viewer_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <string>
 
@@ -22,6 +28,7 @@
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "common/io/proto_convert.h"
+#include "common/io/reenactment_file.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact {
@@ -30,6 +37,14 @@ namespace {
 // A body reenactment of 120 instants of a CMU dance, or empty on failure.
 const ReenactmentData* BodyReenactment() {
   static const ReenactmentData* data = []() -> const ReenactmentData* {
+    if (const char* file = std::getenv("REENACT_BENCH_REENACTMENT"); file != nullptr) {
+      auto read = ReadReenactmentFile(file);
+      if (!read.ok()) {
+        std::fprintf(stderr, "%s\n", std::string(read.status().message()).c_str());
+        return nullptr;
+      }
+      return new ReenactmentData(std::move(*read));
+    }
     auto model = body::BuildProceduralBody();
     auto motion = body::ReadMotion(std::string(REENACT_TEST_DATA_DIR) + "/mocap/cmu/131_01.bvh");
     if (!model.ok() || !motion.ok()) return nullptr;
@@ -65,7 +80,8 @@ const ReenactmentData* BodyReenactment() {
   return data;
 }
 
-void RenderBody(benchmark::State& state, int width, int height, int msaa) {
+void RenderBody(benchmark::State& state, int width, int height, int msaa,
+                bool switch_context = false) {
   const ReenactmentData* data = BodyReenactment();
   if (data == nullptr) {
     state.SkipWithError("no body reenactment (test data missing?)");
@@ -94,11 +110,16 @@ void RenderBody(benchmark::State& state, int width, int height, int msaa) {
     auto camera = viewer::LookAtCamera(eye, Eigen::Vector3d(0, 0.95, 0), 50.0, width, height);
     render::RenderOutputs out;
     out.requested = render::kRenderColour;
-    if (!camera.ok() || !(*view)->Render(static_cast<int>(n % frames), *camera, &out).ok()) {
+    const int instant = data->frames[n % frames].frame_index();
+    if (!camera.ok() || !(*view)->Render(instant, *camera, &out).ok()) {
       state.SkipWithError("render failed");
       return;
     }
     benchmark::DoNotOptimize(out.colour.data.data());
+    if (switch_context && !(*renderer)->ReleaseCurrent().ok()) {
+      state.SkipWithError("ReleaseCurrent failed");
+      return;
+    }
     ++n;
   }
   state.counters["fps"] = benchmark::Counter(static_cast<double>(n), benchmark::Counter::kIsRate);
@@ -107,9 +128,15 @@ void RenderBody(benchmark::State& state, int width, int height, int msaa) {
 
 void BM_ViewerBody_1280x720_Msaa4(benchmark::State& state) { RenderBody(state, 1280, 720, 4); }
 void BM_ViewerBody_1280x720_NoMsaa(benchmark::State& state) { RenderBody(state, 1280, 720, 0); }
+void BM_ViewerBody_1280x720_NoMsaa_SwitchContext(benchmark::State& state) {
+  RenderBody(state, 1280, 720, 0, true);
+}
 void BM_ViewerBody_1920x1080_Msaa4(benchmark::State& state) { RenderBody(state, 1920, 1080, 4); }
 BENCHMARK(BM_ViewerBody_1280x720_Msaa4)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ViewerBody_1280x720_NoMsaa)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ViewerBody_1280x720_NoMsaa_SwitchContext)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_ViewerBody_1920x1080_Msaa4)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

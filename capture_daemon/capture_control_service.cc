@@ -1,11 +1,123 @@
 #include "capture_daemon/capture_control_service.h"
 
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <utility>
+
 #include "proto/grpc_status.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
 
 namespace reenact::capture {
 
+absl::StatusOr<uint64_t> CaptureController::SubscribeFrames(const v1::StreamFramesRequest&,
+                                                            LiveFrames::Callback) {
+  return absl::UnimplementedError("this daemon streams no frames");
+}
+
+void CaptureController::UnsubscribeFrames(uint64_t) {}
+
 namespace {
+
+// The reactor of one StreamFrames call: keeps the newest set not yet
+// written (an older one is dropped and counted), writes one at a time, and
+// ends OK when the daemon ends the stream, CANCELLED when the client goes.
+class FrameStream final : public grpc::ServerWriteReactor<v1::LiveFrameSet> {
+ public:
+  FrameStream(CaptureController* controller, const v1::StreamFramesRequest& request)
+      : controller_(controller) {
+    absl::StatusOr<uint64_t> id = controller_->SubscribeFrames(
+        request, [this](std::shared_ptr<const v1::LiveFrameSet> set) { OnSet(std::move(set)); });
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (id.ok()) {
+        subscription_ = *id;
+        return;
+      }
+      finished_ = true;
+    }
+    Finish(ToGrpcStatus(id.status()));
+  }
+
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      writing_ = false;
+      if (!ok) broken_ = true;
+    }
+    Pump();
+  }
+  void OnCancel() override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      broken_ = true;
+    }
+    Pump();
+  }
+  void OnDone() override {
+    std::optional<uint64_t> subscription;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      subscription = subscription_;
+    }
+    if (subscription) controller_->UnsubscribeFrames(*subscription);
+    delete this;
+  }
+
+ private:
+  void OnSet(std::shared_ptr<const v1::LiveFrameSet> set) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (set == nullptr) {
+        ended_ = true;
+      } else {
+        next_ = std::move(set);
+      }
+    }
+    Pump();
+  }
+
+  // Starts the next write, or finishes once the stream ended or broke.
+  void Pump() {
+    bool finish = false;
+    grpc::Status status;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (writing_ || finished_) return;
+      if (next_ != nullptr && !broken_ && !ended_) {
+        in_flight_ = *next_;
+        next_.reset();
+        if (first_index_ == 0) first_index_ = in_flight_.set_index();
+        ++written_;
+        in_flight_.set_dropped_sets(in_flight_.set_index() - first_index_ + 1 - written_);
+        writing_ = true;
+      } else if (broken_ || ended_) {
+        finished_ = true;
+        finish = true;
+        if (broken_) status = grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled");
+      } else {
+        return;
+      }
+    }
+    if (finish) {
+      Finish(status);
+    } else {
+      StartWrite(&in_flight_);
+    }
+  }
+
+  CaptureController* controller_;
+  std::mutex mu_;
+  std::optional<uint64_t> subscription_;
+  std::shared_ptr<const v1::LiveFrameSet> next_;
+  v1::LiveFrameSet in_flight_;
+  uint64_t first_index_ = 0;
+  uint64_t written_ = 0;
+  bool writing_ = false;
+  bool broken_ = false;
+  bool ended_ = false;
+  bool finished_ = false;
+};
 
 // Callback-API handlers; each finishes its reactor at once (the controller
 // answers without waiting on devices or the network).
@@ -16,7 +128,8 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
   grpc::ServerUnaryReactor* ListSensors(grpc::CallbackServerContext* context,
                                         const v1::ListSensorsRequest*,
                                         v1::ListSensorsResponse* response) override {
-    for (v1::SensorInfo& info : controller_->ListSensors()) *response->add_sensors() = std::move(info);
+    for (v1::SensorInfo& info : controller_->ListSensors())
+      *response->add_sensors() = std::move(info);
     return Finish(context, absl::OkStatus());
   }
 
@@ -36,8 +149,12 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
     return Finish(context, stopped.status());
   }
 
-  grpc::ServerUnaryReactor* Status(grpc::CallbackServerContext* context,
-                                   const v1::StatusRequest*,
+  grpc::ServerWriteReactor<v1::LiveFrameSet>* StreamFrames(
+      grpc::CallbackServerContext*, const v1::StreamFramesRequest* request) override {
+    return new FrameStream(controller_, *request);
+  }
+
+  grpc::ServerUnaryReactor* Status(grpc::CallbackServerContext* context, const v1::StatusRequest*,
                                    v1::DaemonStatus* response) override {
     *response = controller_->Status();
     return Finish(context, absl::OkStatus());

@@ -12,6 +12,7 @@
 #include <grpcpp/impl/service_type.h>
 
 #include "absl/status/statusor.h"
+#include "capture_daemon/live_frames.h"
 #include "reenact/v1/capture_control_service.pb.h"
 
 namespace reenact::capture {
@@ -28,6 +29,13 @@ class CaptureController {
   // FailedPrecondition when no take is being recorded.
   virtual absl::StatusOr<v1::StopTakeResponse> StopTake() = 0;
   virtual v1::DaemonStatus Status() = 0;
+  // StreamFrames: `on_set` receives each live set for `request`, and nullptr
+  // when the stream ends (LiveFrames::Callback); returns the subscription.
+  // InvalidArgument naming an unknown sensor id; Unimplemented by default.
+  virtual absl::StatusOr<uint64_t> SubscribeFrames(const v1::StreamFramesRequest& request,
+                                                   LiveFrames::Callback on_set);
+  // No call of the subscription's `on_set` starts after this returns.
+  virtual void UnsubscribeFrames(uint64_t subscription);
 };
 
 // The service, ready for grpc::ServerBuilder::RegisterService. `controller`

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <ostream>
 #include <set>
 #include <utility>
@@ -79,6 +80,7 @@ absl::Status DaemonOptions::Validate() const {
   if (!(drain_timeout_s >= 0)) return absl::InvalidArgumentError("--drain-timeout-s must not be negative");
   RETURN_IF_ERROR(sync.Validate());
   RETURN_IF_ERROR(processing.Validate());
+  RETURN_IF_ERROR(anchor.Validate());
   return uplink.Validate();
 }
 
@@ -105,6 +107,14 @@ std::string DefaultSpoolDir() {
   }
   return absl::StrCat("/tmp/reenactd-", getuid(), "/spool");
 }
+
+// The board anchoring of one take (DaemonOptions.anchor).
+struct TakeAnchoring {
+  std::shared_ptr<TakeRecorder> take;
+  std::vector<v1::SensorCalibration> calibrations;               // As the sensors gave them.
+  std::map<std::string, std::shared_ptr<SensorAnchor>> anchors;  // By sensor id.
+  int64_t started_steady_ns = 0;
+};
 
 struct Daemon::Impl {
   DaemonOptions options;
@@ -149,6 +159,21 @@ struct Daemon::Impl {
   int64_t snapshot_steady_ns = 0;
 
   std::mutex log_mutex;
+
+  // StreamFrames subscribers.
+  LiveFrames live;
+
+  // Board anchoring of the take being recorded, until its OpenTake is sent.
+  std::mutex anchor_mutex;
+  std::unique_ptr<TakeAnchoring> anchoring;
+  // Held through FinishAnchoring, so that a StopTake waits for a finish in
+  // progress before it stops the take.
+  std::mutex anchor_finish_mutex;
+  void StartAnchoring(const std::shared_ptr<TakeRecorder>& recorder,
+                      const std::vector<v1::SensorCalibration>& calibrations);
+  void OfferToAnchoring(const v1::Frame& frame);
+  bool AnchoringDue();
+  void FinishAnchoring();
 
   void Log(const std::string& line) {
     if (options.log == nullptr) return;
@@ -199,6 +224,7 @@ void Daemon::Impl::OnFrame(SensorEntry* entry, CapturedFrame frame) {
     return;
   }
   ++entry->frames;
+  if (options.anchor.enabled()) OfferToAnchoring(frame.frame);
   const int64_t host_stamp_ns = frame.frame.host_stamp_ns();
   entry->last_host_stamp_ns = host_stamp_ns;
   std::lock_guard<std::mutex> lock(sync_mutex);
@@ -219,6 +245,7 @@ void Daemon::Impl::OnFrame(SensorEntry* entry, CapturedFrame frame) {
 }
 
 void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
+  for (const v1::FrameSet& set : sets) live.Publish(set);
   if (recording == nullptr) return;
   for (v1::FrameSet& set : sets) {
     const absl::Status added = recording->Add(std::move(set));
@@ -325,6 +352,10 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
                    TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info,
                                        calibrations));
   take = std::move(recorder);
+  if (options.anchor.enabled()) {
+    take->HoldOpen();  // Before the first set: `recording` is set below.
+    StartAnchoring(take, calibrations);
+  }
   take_started_steady_ns = SteadyNowNs();
   take_max_seconds = request.max_seconds();
   last_take = take;
@@ -342,6 +373,7 @@ absl::StatusOr<v1::StopTakeResponse> Daemon::Impl::StopTake(const std::string& r
   if (!take) return absl::FailedPreconditionError("no take is being recorded");
   std::shared_ptr<TakeRecorder> stopping = std::move(take);
   take = nullptr;
+  FinishAnchoring();
   stopping->StopWaiting();  // Frees the frame path if it waits for spool space.
   {
     std::lock_guard<std::mutex> sync_lock(sync_mutex);
@@ -405,6 +437,85 @@ v1::DaemonStatus Daemon::Impl::Status() {
   }
   for (v1::SensorInfo& info : ListSensors()) *status.add_sensors() = std::move(info);
   return status;
+}
+
+// ---------------------------------------------------------------------------
+// Board anchoring
+
+void Daemon::Impl::StartAnchoring(const std::shared_ptr<TakeRecorder>& recorder,
+                                  const std::vector<v1::SensorCalibration>& calibrations) {
+  auto state = std::make_unique<TakeAnchoring>();
+  state->take = recorder;
+  state->calibrations = calibrations;
+  state->started_steady_ns = SteadyNowNs();
+  for (const v1::SensorCalibration& calibration : calibrations) {
+    absl::StatusOr<std::unique_ptr<SensorAnchor>> anchor =
+        SensorAnchor::Create(options.anchor, calibration);
+    if (anchor.ok()) {
+      state->anchors[calibration.sensor_id()] = std::move(*anchor);
+    } else {
+      Log(absl::StrCat("warning: sensor ", calibration.sensor_id(),
+                       " cannot be anchored on the board: ", anchor.status().message(),
+                       "; it keeps its calibration"));
+    }
+  }
+  std::lock_guard<std::mutex> lock(anchor_mutex);
+  anchoring = std::move(state);
+}
+
+void Daemon::Impl::OfferToAnchoring(const v1::Frame& frame) {
+  if (!frame.has_color()) return;
+  std::shared_ptr<SensorAnchor> anchor;
+  {
+    std::lock_guard<std::mutex> lock(anchor_mutex);
+    if (!anchoring) return;
+    auto it = anchoring->anchors.find(frame.sensor_id());
+    if (it == anchoring->anchors.end()) return;
+    anchor = it->second;
+  }
+  anchor->Offer(frame.color());
+}
+
+bool Daemon::Impl::AnchoringDue() {
+  std::lock_guard<std::mutex> lock(anchor_mutex);
+  if (!anchoring) return false;
+  if (NsToSeconds(SteadyNowNs() - anchoring->started_steady_ns) >= options.anchor.timeout_s) {
+    return true;
+  }
+  return std::all_of(anchoring->anchors.begin(), anchoring->anchors.end(),
+                     [](const auto& entry) { return entry.second->finished(); });
+}
+
+// Combines each sensor's detections, and sends the take's OpenTake with the
+// anchored calibrations (the others as given, with a warning).
+void Daemon::Impl::FinishAnchoring() {
+  std::lock_guard<std::mutex> finish_lock(anchor_finish_mutex);
+  std::unique_ptr<TakeAnchoring> state;
+  {
+    std::lock_guard<std::mutex> lock(anchor_mutex);
+    state = std::move(anchoring);
+  }
+  if (!state) return;
+  const absl::StatusOr<std::string> anchor_name = WorldAnchorName(options.anchor.board_spec);
+  std::vector<v1::SensorCalibration> calibrations = state->calibrations;
+  for (v1::SensorCalibration& calibration : calibrations) {
+    auto it = state->anchors.find(calibration.sensor_id());
+    if (it == state->anchors.end() || !anchor_name.ok()) continue;
+    absl::StatusOr<AnchorResult> found = it->second->Finish();
+    absl::StatusOr<v1::SensorCalibration> anchored =
+        found.ok() ? AnchorCalibration(calibration, *found, *anchor_name) : found.status();
+    if (!anchored.ok()) {
+      Log(absl::StrCat("warning: sensor ", calibration.sensor_id(), " is not anchored on ",
+                       *anchor_name, ": ", anchored.status().message(),
+                       "; it keeps its calibration (world_anchor empty)"));
+      continue;
+    }
+    calibration = *std::move(anchored);
+    Log(absl::StrFormat("sensor %s anchored on %s: %d of %d colour frames, RMS %.2f px",
+                        calibration.sensor_id(), *anchor_name, found->detections,
+                        found->frames_tried, found->rms_px));
+  }
+  state->take->ReleaseOpen(calibrations);
 }
 
 // ---------------------------------------------------------------------------
@@ -525,6 +636,7 @@ void Daemon::Impl::Tick() {
       SnapshotLocked(false);
     }
   }
+  if (AnchoringDue()) FinishAnchoring();
   std::shared_ptr<TakeRecorder> current;
   double max_seconds = 0;
   int64_t started_ns = 0;
@@ -710,6 +822,7 @@ Daemon::Daemon(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 Daemon::~Daemon() {
   impl_->StopSensors();
+  impl_->live.Close();
   if (impl_->control_server) impl_->control_server->Shutdown();
 }
 
@@ -730,6 +843,9 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
   impl->recorder_options.wait_when_full =
       std::all_of(options.sources.begin(), options.sources.end(),
                   [](const SourceSpec& s) { return s.backend == "playback"; });
+  if (impl->recorder_options.wait_when_full) {
+    impl->options.anchor.queued_frames = impl->options.anchor.frames;
+  }
   ASSIGN_OR_RETURN(impl->sync, SyncGroup::Create(options.sync));
   return std::unique_ptr<Daemon>(new Daemon(std::move(impl)));
 }
@@ -848,6 +964,7 @@ absl::Status Daemon::Run() {
     }
   }
   d.WriteStats(result);
+  d.live.Close();  // Ends the StreamFrames calls.
   if (d.control_server) d.control_server->Shutdown(std::chrono::system_clock::now() +
                                                    std::chrono::milliseconds(500));
   return result;
@@ -871,6 +988,30 @@ absl::StatusOr<v1::StopTakeResponse> Daemon::StopTake() {
 }
 
 v1::DaemonStatus Daemon::Status() { return impl_->Status(); }
+
+absl::StatusOr<uint64_t> Daemon::SubscribeFrames(const v1::StreamFramesRequest& request,
+                                                 LiveFrames::Callback on_set) {
+  std::set<std::string> known;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    for (const auto& entry : impl_->sensors) known.insert(entry->info.sensor_id());
+  }
+  for (const auto* ids : {&request.sensor_ids(), &request.color_sensor_ids()}) {
+    for (const std::string& id : *ids) {
+      if (!known.count(id)) {
+        return absl::InvalidArgumentError(absl::StrCat("no sensor '", id, "' on this daemon"));
+      }
+    }
+  }
+  if (request.color_max_width_px() < 0 || request.color_jpeg_quality() < 0 ||
+      request.color_jpeg_quality() > 100) {
+    return absl::InvalidArgumentError(
+        "color_max_width_px must be >= 0 and color_jpeg_quality within 0..100");
+  }
+  return impl_->live.Subscribe(request, std::move(on_set));
+}
+
+void Daemon::UnsubscribeFrames(uint64_t subscription) { impl_->live.Unsubscribe(subscription); }
 
 void Daemon::OnUsbEvent(const UsbEvent& event) {
   if (!event.arrived) return;

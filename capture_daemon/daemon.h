@@ -23,6 +23,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "capture_daemon/board_anchor.h"
 #include "capture_daemon/capture_control_service.h"
 #include "capture_daemon/processing/frame_processor.h"
 #include "capture_daemon/sensor_factory.h"
@@ -60,6 +61,15 @@ struct DaemonOptions {
   SyncOptions sync;
   ProcessingOptions processing;
   UplinkOptions uplink;
+  // Board anchoring (--anchor board[:SPEC]): at the start of each take every
+  // sensor looks for the board in its colour frames; the take's OpenTake
+  // waits (up to anchor.timeout_s) and carries each anchored sensor's
+  // calibration with world_from_depth in the board's frame and world_anchor
+  // "board:SPEC". A sensor that does not see the board keeps its calibration
+  // (a warning is logged). The daemon puts nothing else in world coordinates
+  // (skeletons stay in the depth camera; the segmenter uses only the source
+  // calibration's up direction, which the board on the floor shares).
+  AnchorOptions anchor;
   // How long a shutdown waits for the take to become durable, seconds.
   double drain_timeout_s = 10.0;
   // Figures for the end-to-end benchmark, written at exit (JSON).
@@ -109,6 +119,10 @@ class Daemon : public CaptureController {
   absl::StatusOr<std::string> StartTake(const v1::StartTakeRequest& request) override;
   absl::StatusOr<v1::StopTakeResponse> StopTake() override;
   v1::DaemonStatus Status() override;
+  // Every set of the sync group, recording or not (capture_daemon/live_frames.h).
+  absl::StatusOr<uint64_t> SubscribeFrames(const v1::StreamFramesRequest& request,
+                                           LiveFrames::Callback on_set) override;
+  void UnsubscribeFrames(uint64_t subscription) override;
 
   // Hotplug hook: an arrival rescans the hardware sources and starts the
   // sensors that are new; a departure needs nothing (the sensor's stream

@@ -10,6 +10,7 @@
 #include "common/base/files.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
+#include "common/board/board_spec.h"
 
 namespace reenact::capture {
 
@@ -18,8 +19,25 @@ namespace {
 const std::set<std::string> kValueFlags = {
     "server", "control", "control-port-file", "spool", "spool-max-mb", "take-name",
     "daemon-id", "sync-tolerance-ms", "segmentation", "registration", "config", "stats-json",
-    "max-seconds", "drain-timeout-s"};
+    "max-seconds", "drain-timeout-s", "anchor", "anchor-timeout-s"};
 const std::set<std::string> kBoolFlags = {"fast", "loop", "once", "verbose", "help"};
+
+// "--anchor board[:SPEC]" (or "none") into `anchor`.
+absl::Status ParseAnchor(const Flags& flags, AnchorOptions* anchor) {
+  const std::string value = flags.GetOr("anchor", "none");
+  if (value == "none") {
+    anchor->board_spec.clear();
+  } else if (value == "board") {
+    anchor->board_spec = board::kDefaultBoardSpecText;
+  } else if (value.rfind("board:", 0) == 0) {
+    anchor->board_spec = value.substr(6);
+  } else {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--anchor: expected 'board', 'board:SPEC' or 'none', got '", value, "'"));
+  }
+  ASSIGN_OR_RETURN(anchor->timeout_s, flags.GetDouble("anchor-timeout-s", anchor->timeout_s));
+  return absl::OkStatus();
+}
 
 // Pulls every --source out of `args` (Flags keeps only the last of a
 // repeated flag).
@@ -109,6 +127,10 @@ std::string ReenactdUsage() {
          "  --segmentation M        auto|on|off (default auto)\n"
          "  --registration M        auto|on|off (default auto)\n"
          "  --drain-timeout-s S     wait at shutdown for the take to be durable (default 10)\n"
+         "  --anchor board[:SPEC]   at each take's start, find the printed board (default\n"
+         "                          aruco:DICT_4X4_50:3x2:110:22) in every sensor's colour\n"
+         "                          and make its frame the take's world (default none)\n"
+         "  --anchor-timeout-s S    longest wait for the anchoring (default 15)\n"
          "  --config FILE           JSON with the same keys; flags win\n"
          "  --stats-json FILE       figures written at exit\n"
          "  --verbose               a progress line per second\n";
@@ -155,6 +177,7 @@ absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>&
   ASSIGN_OR_RETURN(options.processing.registration, ParseMode(flags, "registration"));
   ASSIGN_OR_RETURN(options.drain_timeout_s, flags.GetDouble("drain-timeout-s", 10.0));
   options.stats_json = flags.GetOr("stats-json", "");
+  RETURN_IF_ERROR(ParseAnchor(flags, &options.anchor));
   if (!std::isfinite(options.max_seconds) || !std::isfinite(options.drain_timeout_s)) {
     return absl::InvalidArgumentError("--max-seconds and --drain-timeout-s must be finite");
   }

@@ -139,9 +139,34 @@ absl::StatusOr<std::unique_ptr<TakeRecorder>> TakeRecorder::ResumeUnfinished(
   return recorder;
 }
 
+void TakeRecorder::HoldOpen() {
+  std::lock_guard<std::mutex> lock(open_mutex_);
+  if (!open_sent_) open_held_ = true;
+}
+
+void TakeRecorder::ReleaseOpen(const std::vector<v1::SensorCalibration>& sensors) {
+  std::lock_guard<std::mutex> lock(open_mutex_);
+  if (open_sent_ || !open_held_) return;
+  open_held_ = false;
+  for (v1::SensorCalibration& calibration : *open_->mutable_sensors()) {
+    for (const v1::SensorCalibration& replacement : sensors) {
+      if (replacement.sensor_id() == calibration.sensor_id()) calibration = replacement;
+    }
+  }
+  if (held_start_stamp_ns_) SendOpenLocked(*held_start_stamp_ns_);
+}
+
 void TakeRecorder::SendOpen(int64_t start_stamp_ns) {
   std::lock_guard<std::mutex> lock(open_mutex_);
   if (open_sent_) return;
+  if (open_held_) {
+    if (!held_start_stamp_ns_) held_start_stamp_ns_ = start_stamp_ns;
+    return;
+  }
+  SendOpenLocked(held_start_stamp_ns_.value_or(start_stamp_ns));
+}
+
+void TakeRecorder::SendOpenLocked(int64_t start_stamp_ns) {
   open_sent_ = true;
   open_->mutable_info()->set_start_stamp_ns(start_stamp_ns);
   // Without open.pb a restarted daemon could not resume the take; the
@@ -219,6 +244,10 @@ void TakeRecorder::Stop(const std::string& reason) {
     stopped_ = true;
     last = last_sequence_;
     cv_.notify_all();
+  }
+  {
+    std::lock_guard<std::mutex> lock(open_mutex_);
+    open_held_ = false;  // A take never stays unopened.
   }
   SendOpen(WallNowNs());
   v1::CloseTake close;

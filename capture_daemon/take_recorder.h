@@ -81,6 +81,15 @@ class TakeRecorder {
 
   ~TakeRecorder();
 
+  // Holds the take's OpenTake back (sets are spooled meanwhile) until
+  // ReleaseOpen or Stop; call before the first Add. For calibrations that are
+  // still being measured when the take starts (the board anchoring).
+  void HoldOpen();
+  // Replaces the calibrations of the held OpenTake by those of `sensors`
+  // with the same sensor_id, and lets it go to the server. No-op when the
+  // open was not held or is already sent.
+  void ReleaseOpen(const std::vector<v1::SensorCalibration>& sensors);
+
   // Appends one set (its sequence is replaced by the take's next one; frames
   // of sensors not in the take are removed). ResourceExhausted when the spool
   // is full (the set is refused and counted; with wait_when_full only after
@@ -111,6 +120,7 @@ class TakeRecorder {
   TakeRecorder(const TakeRecorderOptions& options, std::string take_id);
   void OnAck(uint64_t durable_sequence, int64_t arrival_ns);
   void SendOpen(int64_t start_stamp_ns);
+  void SendOpenLocked(int64_t start_stamp_ns);
 
   TakeRecorderOptions options_;
   std::string take_id_;
@@ -119,6 +129,8 @@ class TakeRecorder {
   std::optional<v1::OpenTake> open_;  // Before SendOpen: the template.
   std::mutex open_mutex_;
   bool open_sent_ = false;
+  bool open_held_ = false;
+  std::optional<int64_t> held_start_stamp_ns_;  // The first set's, while held.
   std::set<std::string> sensor_ids_;
 
   mutable std::mutex mutex_;

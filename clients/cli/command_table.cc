@@ -14,7 +14,8 @@ std::vector<Command> BuildCommandTable() {
        RunMotionJoints},
       {{"synth"},
        "--motion FILE.bvh|FILE.amc|builtin:NAME [--asf FILE] --body procedural|makehuman:DIR "
-       "[--shape mean|random[:SEED]] --sensors 1|2 --seconds S --out take.mcap [--json]",
+       "[--shape mean|random[:SEED]] --sensors 1|2 --seconds S --out take.mcap [--board [SPEC]] "
+       "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--json]",
        "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors",
        RunSynth},
       {{"board"},

@@ -5,16 +5,32 @@
 
 #include "absl/strings/numbers.h"
 #include "clients/cli/commands.h"
-#include "common/base/flags.h"
 #include "clients/cli/progress_bar.h"
+#include "common/base/flags.h"
+#include "common/board/board_spec.h"
 #include "common/synth/synthesizer.h"
 
 namespace reenact::cli {
+namespace {
+
+// `--board` may stand without a value (the default board): it then gets
+// kDefaultBoardSpecText, so that the flag parser sees `--board=SPEC`.
+std::vector<std::string> ExpandBareBoardFlag(std::vector<std::string> args) {
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] != "--board") continue;
+    const bool bare = i + 1 == args.size() || args[i + 1].rfind("--", 0) == 0;
+    if (bare) args[i] = std::string("--board=") + board::kDefaultBoardSpecText;
+  }
+  return args;
+}
+
+}  // namespace
 
 int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args,
+  auto flags = Flags::Parse(ExpandBareBoardFlag(args),
                             {"motion", "asf", "body", "shape", "sensors", "seconds", "fps", "out",
-                             "color-width", "color-height", "jpeg-quality", "seed", "distance"},
+                             "color-width", "color-height", "jpeg-quality", "seed", "distance",
+                             "yaw-deg", "board", "board-x-m", "board-z-m", "board-yaw-deg"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -27,9 +43,14 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto height = flags->GetInt("color-height", options.color_height);
   auto quality = flags->GetInt("jpeg-quality", options.jpeg_quality);
   auto distance = flags->GetDouble("distance", options.sensor_distance_m);
-  for (const absl::Status& s : {out_path.status(), motion.status(), sensors.status(), seconds.status(),
-                                fps.status(), width.status(), height.status(), quality.status(),
-                                distance.status()}) {
+  auto yaw_deg = flags->GetDouble("yaw-deg", options.yaw_deg);
+  auto board_x_m = flags->GetDouble("board-x-m", options.board_x_m);
+  auto board_z_m = flags->GetDouble("board-z-m", options.board_z_m);
+  auto board_yaw_deg = flags->GetDouble("board-yaw-deg", options.board_yaw_deg);
+  for (const absl::Status& s :
+       {out_path.status(), motion.status(), sensors.status(), seconds.status(), fps.status(),
+        width.status(), height.status(), quality.status(), distance.status(), yaw_deg.status(),
+        board_x_m.status(), board_z_m.status(), board_yaw_deg.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   options.motion = *motion;
@@ -43,9 +64,15 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   options.color_height = *height;
   options.jpeg_quality = *quality;
   if (auto seed = flags->Get("seed"); seed && !absl::SimpleAtoi(*seed, &options.seed)) {
-    return ReportError(absl::InvalidArgumentError("--seed: not an unsigned integer: " + *seed), err);
+    return ReportError(absl::InvalidArgumentError("--seed: not an unsigned integer: " + *seed),
+                       err);
   }
   options.sensor_distance_m = *distance;
+  options.yaw_deg = *yaw_deg;
+  options.board = flags->GetOr("board", "");
+  options.board_x_m = *board_x_m;
+  options.board_z_m = *board_z_m;
+  options.board_yaw_deg = *board_yaw_deg;
   options.depth_noise.enabled = !flags->Has("no-depth-noise");
   options.ground_truth_mesh = !flags->Has("no-mesh");
   const bool json = flags->Has("json");

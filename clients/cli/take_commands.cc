@@ -42,7 +42,9 @@ nlohmann::json TakeInfoJson(const std::string& path, const TakeReader& take) {
                                        calibration.depth_intrinsics().height_px()}},
                             {"color", {calibration.color_intrinsics().width_px(),
                                        calibration.color_intrinsics().height_px()}},
-                            {"clock_offset_ns", calibration.clock_offset_ns()}});
+                            {"clock_offset_ns", calibration.clock_offset_ns()},
+                            {"world_anchor", calibration.world_anchor()},
+                            {"world_anchor_rms_px", calibration.world_anchor_rms_px()}});
   }
   for (const TakeChannel& c : take.channels()) {
     j["channels"].push_back({{"topic", c.topic}, {"type", c.message_type}, {"messages", c.message_count}});
@@ -67,7 +69,10 @@ void PrintTakeInfo(const nlohmann::json& j, std::ostream& out) {
   for (const auto& s : j.value("sensors", nlohmann::json::array())) {
     out << "  sensor     " << s["id"].get<std::string>() << " " << s["model"].get<std::string>()
         << " depth " << s["depth"][0] << "x" << s["depth"][1] << " colour " << s["color"][0] << "x"
-        << s["color"][1] << "\n";
+        << s["color"][1];
+    const std::string anchor = s.value("world_anchor", "");
+    if (!anchor.empty()) out << " world " << anchor << " (RMS " << s["world_anchor_rms_px"] << " px)";
+    out << "\n";
   }
   for (const auto& c : j.value("channels", nlohmann::json::array())) {
     out << "  channel    " << c["topic"].get<std::string>() << "  " << c["messages"] << " x "

@@ -85,9 +85,9 @@ absl::StatusOr<int64_t> TakesClient::Download(const std::string& take_id,
   while (reader->Read(&chunk)) {
     if (chunk.offset() != received || (total >= 0 && chunk.total_bytes() != total) ||
         chunk.total_bytes() < received + static_cast<int64_t>(chunk.data().size())) {
-      failure = absl::DataLossError(absl::StrCat(
-          options_.address, ": download of ", take_id, " sent bytes at offset ", chunk.offset(),
-          " of ", chunk.total_bytes(), " after ", received, " bytes"));
+      failure = absl::DataLossError(
+          absl::StrCat(options_.address, ": download of ", take_id, " sent bytes at offset ",
+                       chunk.offset(), " of ", chunk.total_bytes(), " after ", received, " bytes"));
       context.TryCancel();
       break;
     }
@@ -119,9 +119,9 @@ absl::StatusOr<int64_t> TakesClient::Download(const std::string& take_id,
   if (!out) return discard(absl::DataLossError(absl::StrCat(partial, ": write failed")));
   if (total < 0) total = 0;
   if (received != total) {
-    return discard(absl::DataLossError(absl::StrCat(options_.address, ": download of ", take_id,
-                                                    " ended after ", received, " of ", total,
-                                                    " bytes")));
+    return discard(
+        absl::DataLossError(absl::StrCat(options_.address, ": download of ", take_id,
+                                         " ended after ", received, " of ", total, " bytes")));
   }
   std::error_code ec;
   std::filesystem::rename(partial, out_path, ec);
@@ -130,7 +130,9 @@ absl::StatusOr<int64_t> TakesClient::Download(const std::string& take_id,
 }
 
 CaptureClient::CaptureClient(const ConnectionOptions& options)
-    : options_(options), stub_(v1::CaptureControl::NewStub(MakeChannel(options))) {}
+    : options_(options),
+      channel_(MakeChannel(options)),
+      stub_(v1::CaptureControl::NewStub(channel_)) {}
 
 absl::StatusOr<std::vector<v1::SensorInfo>> CaptureClient::ListSensors() const {
   grpc::ClientContext context;
@@ -173,6 +175,34 @@ absl::StatusOr<v1::DaemonStatus> CaptureClient::Status() const {
   const grpc::Status status = stub_->Status(&context, {}, &response);
   if (!status.ok()) return WithAddress(status, options_.address);
   return response;
+}
+
+absl::Status CaptureClient::StreamFrames(
+    const v1::StreamFramesRequest& request,
+    const std::function<bool(const v1::LiveFrameSet&)>& callback) const {
+  const auto connect_deadline =
+      std::chrono::system_clock::now() +
+      std::chrono::microseconds(static_cast<int64_t>(options_.timeout_s * 1e6));
+  if (!channel_->WaitForConnected(connect_deadline)) {
+    return WithAddress(absl::UnavailableError("cannot reach the capture daemon"), options_.address);
+  }
+  grpc::ClientContext context;
+  std::unique_ptr<grpc::ClientReader<v1::LiveFrameSet>> reader =
+      stub_->StreamFrames(&context, request);
+  v1::LiveFrameSet set;
+  bool stopped = false;
+  while (reader->Read(&set)) {
+    if (!callback(set)) {
+      stopped = true;
+      context.TryCancel();
+      break;
+    }
+  }
+  while (stopped && reader->Read(&set)) {
+  }
+  const grpc::Status status = reader->Finish();
+  if (stopped) return absl::OkStatus();
+  return WithAddress(status, options_.address);
 }
 
 absl::StatusOr<v1::TakeState> ParseTakeState(const std::string& name) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -61,9 +62,18 @@ class CaptureClient {
                                         double max_seconds) const;
   absl::StatusOr<v1::StopTakeResponse> StopTake() const;
   absl::StatusOr<v1::DaemonStatus> Status() const;
+  // The daemon's live frame sets (CaptureControl.StreamFrames): `callback`
+  // gets each set in order and returns false to stop. Returns when the
+  // stream ends (OK: the daemon ended it, or the callback stopped it) or
+  // fails (InvalidArgument for an unknown sensor id, Unavailable when the
+  // daemon cannot be reached within timeout_s). No deadline otherwise: the
+  // stream lasts as long as both sides want.
+  absl::Status StreamFrames(const v1::StreamFramesRequest& request,
+                            const std::function<bool(const v1::LiveFrameSet&)>& callback) const;
 
  private:
   ConnectionOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::CaptureControl::Stub> stub_;
 };
 

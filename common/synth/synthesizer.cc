@@ -19,6 +19,8 @@
 #include "common/base/status_macros.h"
 #include "common/base/thread_pool.h"
 #include "common/base/time.h"
+#include "common/board/board_image.h"
+#include "common/board/board_spec.h"
 #include "common/body/body_model.h"
 #include "common/body/model_spec.h"
 #include "common/body/retarget.h"
@@ -106,6 +108,24 @@ void CenterMotion(body::RetargetedMotion* motion, int used_frames) {
   mean /= std::max(n, 1);
   mean.y() = 0;
   for (auto& pose : motion->poses) pose.root_translation_m -= mean;
+}
+
+// Turns every pose by `yaw_deg` about the vertical through the world origin.
+// The root's world transform G_root = [R_root | J_root + t] becomes
+// Y * G_root, i.e. R_root' = Y R_root and t' = Y (J_root + t) - J_root, where
+// J_root is the shaped model's rest root joint; the children follow.
+absl::Status TurnMotion(const body::BodyModel& model, const Eigen::VectorXd& shape, double yaw_deg,
+                        body::RetargetedMotion* motion) {
+  if (yaw_deg == 0.0) return absl::OkStatus();
+  ASSIGN_OR_RETURN(const auto rest_joints_m, body::RestJointPositions(model, shape));
+  const Eigen::Vector3d root_m = rest_joints_m[body::Index(body::KinectV2Joint::kSpineBase)];
+  const Eigen::Quaterniond yaw(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()));
+  const int root = body::Index(body::KinectV2Joint::kSpineBase);
+  for (body::BodyPose& pose : motion->poses) {
+    pose.local_rotation[root] = (yaw * pose.local_rotation[root]).normalized();
+    pose.root_translation_m = yaw * (root_m + pose.root_translation_m) - root_m;
+  }
+  return absl::OkStatus();
 }
 
 // --------------------------------------------------------- virtual sensors
@@ -311,10 +331,34 @@ absl::Status SynthOptions::Validate() const {
   if (color_width < 16 || color_height < 16 || color_width > 4096 || color_height > 4096) {
     return absl::InvalidArgumentError("colour size must be within 16..4096 px");
   }
+  if (!(std::abs(yaw_deg) <= 360.0)) {
+    return absl::InvalidArgumentError("--yaw-deg must be a finite angle within [-360, 360]");
+  }
   if (color_noise_sigma < 0 || skeleton_jitter_m < 0) {
     return absl::InvalidArgumentError("noise levels must be >= 0");
   }
+  RETURN_IF_ERROR(ValidateBoard());
   return depth_noise.Validate();
+}
+
+absl::Status SynthOptions::ValidateBoard() const {
+  if (board.empty()) return absl::OkStatus();
+  if (absl::StatusOr<board::BoardSpec> spec = board::ParseBoardSpec(board); !spec.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("--board: ", spec.status().message()));
+  }
+  if (!(std::hypot(board_x_m, board_z_m) <= 4.0)) {
+    return absl::InvalidArgumentError("the board must lie within 4 m of the origin");
+  }
+  if (!(std::abs(board_yaw_deg) <= 360.0)) {
+    return absl::InvalidArgumentError("--board-yaw-deg must be a finite angle within [-360, 360]");
+  }
+  return absl::OkStatus();
+}
+
+Rigid3d WorldFromBoard(const SynthOptions& options) {
+  const double yaw_rad = options.board_yaw_deg * M_PI / 180.0;
+  return Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitY())),
+                 Eigen::Vector3d(options.board_x_m, 0.0, options.board_z_m));
 }
 
 namespace {
@@ -343,6 +387,7 @@ absl::StatusOr<Actor> PrepareActor(const SynthOptions& options) {
   if (options.center_motion) {
     CenterMotion(&actor.motion, static_cast<int>(std::ceil(seconds * motion.fps())) + 1);
   }
+  RETURN_IF_ERROR(TurnMotion(actor.model, actor.shape, options.yaw_deg, &actor.motion));
   return actor;
 }
 
@@ -365,7 +410,45 @@ render::ShadingOptions SceneShading() {
   return shading;
 }
 
-absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, int max_height) {
+// A flat sheet in the board frame's y = 0 plane, facing +Y, with the
+// texture's top row at -Z (board::BoardTexture's layout).
+render::MeshData BoardSheet(double width_m, double depth_m) {
+  const float hw = static_cast<float>(0.5 * width_m);
+  const float hd = static_cast<float>(0.5 * depth_m);
+  render::MeshData mesh;
+  mesh.positions_m.resize(3, 4);
+  mesh.positions_m << -hw, -hw, hw, hw,  // Corners: -X-Z, -X+Z, +X+Z, +X-Z.
+      0, 0, 0, 0,                        //
+      -hd, hd, hd, -hd;
+  mesh.uvs.resize(2, 4);
+  mesh.uvs << 0, 0, 1, 1,  //
+      1, 0, 0, 1;
+  mesh.normals = Eigen::Matrix3Xf::Zero(3, 4);
+  mesh.normals.row(1).setOnes();
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};  // Counter-clockwise seen from +Y.
+  return mesh;
+}
+
+// Lays the printed board of `options` on the floor: a textured sheet at
+// y = 0 that wins over the floor (drawn as an underlay), part of the
+// background (label 0).
+absl::Status AddBoard(const SynthOptions& options, Scene* scene) {
+  if (options.board.empty()) return absl::OkStatus();
+  ASSIGN_OR_RETURN(const board::BoardSpec spec, board::ParseBoardSpec(options.board));
+  ASSIGN_OR_RETURN(const board::BoardTexture texture, board::RenderBoardTexture(spec));
+  render::DrawItem sheet;
+  ASSIGN_OR_RETURN(sheet.mesh,
+                   scene->renderer->UploadMesh(BoardSheet(texture.width_m, texture.depth_m)));
+  ASSIGN_OR_RETURN(sheet.texture, scene->renderer->UploadTexture(texture.image_srgb));
+  sheet.world_from_model = Eigen::Isometry3d(WorldFromBoard(options).ToMatrix4());
+  sheet.label = 0;
+  scene->items.front().underlay = true;  // The floor (MakeRoom's first part).
+  scene->items.insert(scene->items.begin() + 1, sheet);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, const SynthOptions& options,
+                                 int max_width, int max_height) {
   Scene scene;
   render::RendererOptions renderer_options;
   renderer_options.max_width = max_width;
@@ -379,6 +462,7 @@ absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, int max_width, in
     item.label = 0;
     scene.items.push_back(item);
   }
+  RETURN_IF_ERROR(AddBoard(options, &scene));
   ASSIGN_OR_RETURN(render::MeshData body_mesh,
                    render::MeshFromCornerUvs(model.template_vertices_m.cast<float>(),
                                              model.triangles, model.uvs, model.uv_triangles));
@@ -448,6 +532,14 @@ v1::TakeInfo MakeTakeInfo(const SynthOptions& options, const std::string& out_pa
       "(axial, lateral, flying pixels, range and incidence limits); colour with Gaussian sensor "
       "noise; the skeleton channel is the true joints plus jitter, standing in for a vendor "
       "tracker. Ground truth on /ground_truth/*.");
+  if (options.yaw_deg != 0.0) {
+    info.set_notes(absl::StrCat(info.notes(), " The performance is turned by ", options.yaw_deg,
+                                " degrees about the vertical through the origin."));
+  }
+  if (!options.board.empty()) {
+    info.set_notes(absl::StrCat(info.notes(), " The board ", options.board,
+                                " lies on the floor (GroundTruthTopology.world_from_board)."));
+  }
   return info;
 }
 
@@ -498,8 +590,8 @@ absl::StatusOr<std::string> EncodePng(const RgbImage& image) {
 // The truth's triangles and its appearance: uvs per triangle corner, the
 // clothing texture (albedo) and the room light of SceneShading, so that a
 // novel view of the truth renders as the sensors saw it.
-absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model,
-                           const RgbImage& albedo) {
+absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model, const RgbImage& albedo,
+                           const SynthOptions& options) {
   v1::GroundTruthTopology topology;
   topology.set_model_name(model.name);
   topology.set_vertex_count(model.num_vertices());
@@ -522,6 +614,11 @@ absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model,
       ToProto(Eigen::Vector3d(shading.direction_to_light_in_world.normalized()));
   topology.set_ambient(shading.ambient);
   topology.set_diffuse(shading.diffuse);
+  if (!options.board.empty()) {
+    ASSIGN_OR_RETURN(const board::BoardSpec spec, board::ParseBoardSpec(options.board));
+    topology.set_board_spec(board::FormatBoardSpec(spec));
+    *topology.mutable_world_from_board() = ToProto(WorldFromBoard(options));
+  }
   return writer->WriteGroundTruthTopology(topology);
 }
 
@@ -558,9 +655,10 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
   rig_options.seed = options.seed;
   ASSIGN_OR_RETURN(std::vector<VirtualSensor> sensors, MakeSensorRig(rig_options));
   const DistortionMap distortion = MakeDistortionMap(sensors[0].depth_intrinsics);
-  ASSIGN_OR_RETURN(Scene scene,
-                   BuildScene(actor.model, std::max(options.color_width, distortion.canvas.width),
-                              std::max(options.color_height, distortion.canvas.height)));
+  ASSIGN_OR_RETURN(
+      Scene scene,
+      BuildScene(actor.model, options, std::max(options.color_width, distortion.canvas.width),
+                 std::max(options.color_height, distortion.canvas.height)));
   summary->renderer = scene.renderer->Description();
 
   const int64_t start_ns = (WallNowNs() / kNanosPerSecond) * kNanosPerSecond;
@@ -568,7 +666,7 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
   for (const VirtualSensor& sensor : sensors) {
     RETURN_IF_ERROR(writer->AddSensor(MakeCalibration(sensor, options.fps)));
   }
-  RETURN_IF_ERROR(WriteTopology(writer.get(), actor.model, scene.body_texture));
+  RETURN_IF_ERROR(WriteTopology(writer.get(), actor.model, scene.body_texture, options));
 
   ThreadPool pool(2);
   std::deque<PendingShot> pending;

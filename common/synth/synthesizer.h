@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
+#include "common/geometry/transforms.h"
 #include "common/synth/depth_noise.h"
 
 namespace reenact::synth {
@@ -24,32 +25,56 @@ struct SynthOptions {
   // "mean", or "random" / "random:SEED": shape coefficients drawn from the
   // model's shape space (standard normal, clamped to +-2 sigma).
   std::string shape = "mean";
-  int num_sensors = 2;            // 1..8, evenly spaced round the actor.
+  int num_sensors = 2;             // 1..8, evenly spaced round the actor.
   double sensor_distance_m = 2.5;  // From the actor's starting position.
-  double seconds = 10.0;          // Length of the take (clipped to a file motion's length).
-  double fps = 30.0;              // Frame rate of every sensor.
-  int color_width = 1920;         // Colour resolution (Kinect v2: 1920x1080).
+  double seconds = 10.0;           // Length of the take (clipped to a file motion's length).
+  double fps = 30.0;               // Frame rate of every sensor.
+  int color_width = 1920;          // Colour resolution (Kinect v2: 1920x1080).
   int color_height = 1080;
-  int jpeg_quality = 90;          // 1..100.
-  double color_noise_sigma = 2.0;  // Sensor noise of colour, 8-bit levels.
-  DepthNoiseOptions depth_noise;  // Kinect v2 time-of-flight noise.
+  int jpeg_quality = 90;            // 1..100.
+  double color_noise_sigma = 2.0;   // Sensor noise of colour, 8-bit levels.
+  DepthNoiseOptions depth_noise;    // Kinect v2 time-of-flight noise.
   double skeleton_jitter_m = 0.01;  // Noise of the "sensor skeleton", per axis.
-  bool center_motion = true;      // Centre the motion's mean floor position on the origin.
+  bool center_motion = true;        // Centre the motion's mean floor position on the origin.
+  // Turns the whole performance about the vertical (+Y) through the world
+  // origin (after centring), degrees, counter-clockwise seen from above: the
+  // actor turns to their own left, so 90 makes a motion that faces +Z face
+  // +X. The sensors stay where they are; finite, within [-360, 360].
+  double yaw_deg = 0.0;
+  // A printed board (common/board/board_spec.h, e.g. kDefaultBoardSpecText)
+  // lying face up on the floor, drawn into the colour images so that the
+  // capture daemon can anchor the sensors on it; empty: none. Its pose goes
+  // to GroundTruthTopology.world_from_board.
+  std::string board;
+  // Where the board's centre lies on the floor, world metres. The default is
+  // beside the actor (+X, 1 m from the origin), where every sensor of the
+  // default rig sees it past the actor at 2.7 m; within 4 m of the origin.
+  double board_x_m = 1.0;
+  double board_z_m = 0.0;
+  // Turn of the board about the vertical, degrees, counter-clockwise seen
+  // from above (0: its columns along world +X); finite, within [-360, 360].
+  double board_yaw_deg = 0.0;
   bool ground_truth_mesh = true;  // Write the posed mesh of every frame.
   uint64_t seed = 1;              // Every random draw follows from it.
 
   absl::Status Validate() const;
+  // The board fields alone: InvalidArgument for a bad spec, position or yaw.
+  absl::Status ValidateBoard() const;
 };
 
+// The pose of the board of `options` (SynthOptions.board) in the world: its
+// centre at (board_x_m, 0, board_z_m), turned by board_yaw_deg about +Y.
+Rigid3d WorldFromBoard(const SynthOptions& options);
+
 struct SynthSummary {
-  int frames = 0;               // FrameSets (instants) written.
+  int frames = 0;  // FrameSets (instants) written.
   int sensors = 0;
   int body_vertices = 0;
   int body_shape_components = 0;
-  double motion_scale = 1.0;    // Retargeting scale (model / motion leg length).
+  double motion_scale = 1.0;  // Retargeting scale (model / motion leg length).
   int64_t file_bytes = 0;
-  double elapsed_s = 0.0;       // Wall time of the synthesis.
-  std::string renderer;         // GL_RENDERER / GL_VERSION of the context.
+  double elapsed_s = 0.0;  // Wall time of the synthesis.
+  std::string renderer;    // GL_RENDERER / GL_VERSION of the context.
 };
 
 // Synthesises the take into `out_path` (replaced if present; written through

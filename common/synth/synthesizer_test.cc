@@ -17,6 +17,8 @@
 #include <gtest/gtest.h>
 #include <Eigen/Core>
 
+#include "common/board/board_detector.h"
+#include "common/board/board_spec.h"
 #include "common/body/joint_set.h"
 #include "common/geometry/camera.h"
 #include "common/io/depth_codec.h"
@@ -549,6 +551,145 @@ TEST(SynthesizeTake, FailedRunKeepsExistingFile) {
   EXPECT_FALSE(SynthesizeTake(options, path).ok());
   EXPECT_EQ(ReadFile(path), sentinel);
   EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+}
+
+// The joints of a take, per frame, in world.
+std::vector<std::map<std::string, Eigen::Vector3d>> TruthJoints(const TakeReader& take) {
+  std::vector<std::map<std::string, Eigen::Vector3d>> frames;
+  auto joints = take.ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
+  EXPECT_TRUE(joints.ok()) << joints.status();
+  if (joints.ok()) {
+    for (const auto& j : *joints) frames.push_back(JointsByName(j));
+  }
+  return frames;
+}
+
+// Facing yaw in world (0 = +Z, +90 = +X) of the shoulder line, degrees.
+double ShoulderFacingDeg(const Eigen::Vector3d& shoulder_left,
+                         const Eigen::Vector3d& shoulder_right) {
+  const Eigen::Vector3d left = shoulder_left - shoulder_right;
+  const Eigen::Vector3d forward = left.cross(Eigen::Vector3d::UnitY());
+  return std::atan2(forward.x(), forward.z()) * 180.0 / M_PI;
+}
+
+TEST(SynthesizeTake, YawTurnsThePerformanceAboutTheVertical) {
+  const std::string dir = testing::MakeTempDir("synth_yaw");
+  SynthOptions options = ShortTakeOptions();
+  options.motion = "builtin:front-kick";
+  options.num_sensors = 1;
+  options.seconds = 0.2;
+  options.ground_truth_mesh = false;
+  ASSERT_TRUE(SynthesizeTake(options, dir + "/straight.mcap").ok());
+  options.yaw_deg = 90.0;
+  ASSERT_TRUE(SynthesizeTake(options, dir + "/turned.mcap").ok());
+  auto straight = TakeReader::Open(dir + "/straight.mcap");
+  auto turned = TakeReader::Open(dir + "/turned.mcap");
+  ASSERT_TRUE(straight.ok() && turned.ok());
+  const auto straight_joints = TruthJoints(**straight);
+  const auto turned_joints = TruthJoints(**turned);
+  ASSERT_EQ(straight_joints.size(), turned_joints.size());
+  ASSERT_FALSE(straight_joints.empty());
+  // Ground truth: every joint is the straight one turned by 90 degrees about
+  // +Y through the origin, i.e. (x, y, z) -> (z, y, -x).
+  const Eigen::Matrix3d yaw =
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  double worst_m = 0.0;
+  for (size_t f = 0; f < straight_joints.size(); ++f) {
+    for (const auto& [name, p] : straight_joints[f]) {
+      worst_m = std::max(worst_m, (yaw * p - turned_joints[f].at(name)).norm());
+    }
+  }
+  const std::string left = JointName(KinectV2Joint::kShoulderLeft);
+  const std::string right = JointName(KinectV2Joint::kShoulderRight);
+  const double straight_deg =
+      ShoulderFacingDeg(straight_joints[0].at(left), straight_joints[0].at(right));
+  const double turned_deg =
+      ShoulderFacingDeg(turned_joints[0].at(left), turned_joints[0].at(right));
+  std::cout << "yaw 90: worst joint off the turned straight take " << worst_m * 1e3
+            << " mm; ground-truth facing " << straight_deg << " -> " << turned_deg << " deg\n";
+  EXPECT_LT(worst_m, 1e-4);             // m
+  EXPECT_NEAR(straight_deg, 0.0, 5.0);  // deg: the built-in motions face +Z
+  EXPECT_NEAR(turned_deg, 90.0, 5.0);   // deg: now +X
+
+  // The sensor's skeleton channel sees the turned actor: its shoulder line,
+  // taken to world, faces +X as well, and its joints follow the truth.
+  const SensorGeometry g = GeometryOf((*turned)->sensors().at("k0"));
+  auto skeletons = (*turned)->ReadAll<v1::Skeleton>(SensorTopic("k0", "skeleton"));
+  ASSERT_TRUE(skeletons.ok()) << skeletons.status();
+  ASSERT_EQ(skeletons->size(), turned_joints.size());
+  double sum_deg = 0.0, sum_mm = 0.0;
+  int joints = 0;
+  for (const v1::Skeleton& skeleton : *skeletons) {
+    std::map<std::string, Eigen::Vector3d> in_world;
+    for (const auto& joint : skeleton.joints()) {
+      in_world[joint.name()] = g.world_from_depth * FromProto(joint.position_in_depth_m());
+      sum_mm +=
+          (in_world[joint.name()] - turned_joints[skeleton.frame_index()].at(joint.name())).norm() *
+          1e3;
+      ++joints;
+    }
+    sum_deg += ShoulderFacingDeg(in_world.at(left), in_world.at(right));
+  }
+  const double skeleton_deg = sum_deg / skeletons->size();
+  std::cout << "yaw 90: k0 skeleton channel facing " << skeleton_deg
+            << " deg, mean joint distance to the truth " << sum_mm / joints << " mm\n";
+  EXPECT_NEAR(skeleton_deg, 90.0, 5.0);  // deg
+  EXPECT_LT(sum_mm / joints, 50.0);      // mm (1 cm jitter, 3 cm where inferred)
+}
+
+TEST(SynthesizeTake, NonFiniteYawIsInvalidArgument) {
+  SynthOptions options = ShortTakeOptions();
+  options.yaw_deg = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);
+  options.yaw_deg = -90.0;
+  EXPECT_TRUE(options.Validate().ok());
+}
+
+TEST(SynthesizeTake, BoardLiesOnTheFloorWhereTheTruthSays) {
+  const std::string dir = testing::MakeTempDir("synth_board");
+  SynthOptions options = ShortTakeOptions();
+  options.num_sensors = 1;
+  options.seconds = 0.1;
+  options.color_width = 1920;  // Kinect v2 colour: the board is 2.7 m away.
+  options.color_height = 1080;
+  options.ground_truth_mesh = false;
+  options.board = board::kDefaultBoardSpecText;
+  ASSERT_TRUE(SynthesizeTake(options, dir + "/board.mcap").ok());
+  auto take = TakeReader::Open(dir + "/board.mcap");
+  ASSERT_TRUE(take.ok()) << take.status();
+  auto topology = (*take)->ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic);
+  ASSERT_TRUE(topology.ok() && topology->size() == 1u);
+  EXPECT_EQ(topology->front().board_spec(), board::kDefaultBoardSpecText);
+  auto world_from_board = FromProto(topology->front().world_from_board());
+  ASSERT_TRUE(world_from_board.ok());
+  EXPECT_NEAR((world_from_board->translation - Eigen::Vector3d(1.0, 0.0, 0.0)).norm(), 0.0, 1e-12);
+
+  // The sensor finds the board in its colour image where the truth puts it.
+  const SensorGeometry g = GeometryOf((*take)->sensors().at("k0"));
+  auto colours = (*take)->ReadAll<v1::ColorImage>(SensorTopic("k0", "color"));
+  ASSERT_TRUE(colours.ok() && !colours->empty());
+  auto image = DecodeJpeg(colours->front().data());
+  ASSERT_TRUE(image.ok()) << image.status();
+  auto found = board::DetectBoard(*image, g.color, *board::ParseBoardSpec(options.board));
+  ASSERT_TRUE(found.ok()) << found.status();
+  const Rigid3d world_from_colour = g.world_from_depth * g.color_from_depth.Inverse();
+  const Eigen::Isometry3d truth((world_from_colour.Inverse() * *world_from_board).ToMatrix4());
+  const Eigen::Isometry3d delta = found->camera_from_board * truth.inverse();
+  const double rotation_deg = Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI;
+  const double position_mm =
+      1e3 * (found->camera_from_board.translation() - truth.translation()).norm();
+  std::cout << "board in the synthetic colour: " << found->num_markers << " markers, RMS "
+            << found->reprojection_rms_px << " px, rotation error " << rotation_deg
+            << " deg, position error " << position_mm << " mm\n";
+  EXPECT_GE(found->num_markers, 3);  // Of 6; one is enough for a pose.
+  EXPECT_LT(rotation_deg, 1.0);  // deg
+  EXPECT_LT(position_mm, 20.0);  // mm
+
+  options.board = "aruco:DICT_4X4_50:0x2:110:22";
+  EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);
+  options.board = board::kDefaultBoardSpecText;
+  options.board_x_m = 9.0;
+  EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);
 }
 
 TEST(SynthesizeTake, SameSeedGivesSameDepth) {

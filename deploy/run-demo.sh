@@ -6,9 +6,11 @@
 # and draws its contact sheet; then submits a rigid body-part reconstruction
 # job (voxel-carved parts, thesis 3.4) and follows its progress bar, exports
 # the reenactment to glTF, evaluates it against the take's ground truth and
-# renders a novel-view video with reenact-viewer; then does the same with the statistical body model
-# (thesis ch. 4), whose fitted skeleton is also exported as BVH. Outputs go
-# to ./out/demo.
+# renders a novel-view video with reenact-viewer; then does the same with the
+# statistical body model (thesis ch. 4), whose fitted skeleton is also
+# exported as BVH; last, a synthetic learner practises the kick in front of
+# reenact-mirror (thesis 4.5.1) with the body-model teacher, which writes the
+# mirror video and a repetition report. Outputs go to ./out/demo.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/setup-debian.sh
@@ -79,6 +81,19 @@ reconstruct "" "$out/reenactment.glb" --method rigid-carved
 reconstruct body- "$out/body.glb" --method body --model procedural
 "$reenact" export --server "$server" --reenactment "$reenactment_id" --format bvh \
   --out "$out/body.bvh"
+
+# The magic mirror (thesis 4.5.1). The learner: another body shape, turned
+# 90 degrees to their left, standing in guard for 2 s, then doing the kick.
+# reenact-mirror reads their facing, and once it has held still for 2 s turns
+# the body-model teacher to it and plays it beside the learner's mirror image;
+# the repetition is graded part by part (time-aligned by DTW) into a report.
+"$reenact" synth --motion builtin:front-kick --body procedural --shape random:3 --sensors 1 \
+  --seconds 5.5 --lead-in-s 2 --yaw-deg 90 --color-width 960 --color-height 540 \
+  --out "$out/learner.mcap" --quiet
+rm -rf "$out/mirror" "$out/mirror-report"
+"$bin/reenact-mirror" --server "$server" --teacher "$reenactment_id" --cache "$out/cache" \
+  --learner-take "$out/learner.mcap" --dtw --render-to "$out/mirror" \
+  --report "$out/mirror-report" --width 960 --height 540
 kill -TERM $server_pid && wait $server_pid || true
 trap - EXIT
 echo
@@ -93,6 +108,9 @@ echo "demo: body job      $PWD/$out/body-job.json (body model)"
 echo "demo: body skeleton $PWD/$out/body.bvh (BVH, Kinect v2 joints, centimetres)"
 echo "demo: body eval     $PWD/$out/body-eval.json"
 echo "demo: body view     $PWD/$out/body-novel-view/video.mp4 (a full turn around the teacher; PNG frames beside it)"
+echo "demo: learner take  $PWD/$out/learner.mcap (synthetic, turned 90 degrees)"
+echo "demo: mirror        $PWD/$out/mirror/video.mp4 (the learner's mirror image beside the turned teacher)"
+echo "demo: mirror report $PWD/$out/mirror-report/rep-001.png (per-part error over time; .csv and .json beside it)"
 echo
 echo "demo: glTF 2.0 files (any glTF viewer opens them):"
 echo "demo: rigid-part reenactment glTF: $PWD/$out/reenactment.glb"

@@ -96,10 +96,11 @@ TEST(ViewerAr, TracksTheBoardAndDrawsTheTeacherWhereTheyStood) {
     auto writer = VideoWriter::Open(video, intrinsics.width, intrinsics.height, kFps);
     ASSERT_TRUE(writer.ok()) << writer.status();
     for (int i = 0; i < kFrames; ++i) {
-      ASSERT_TRUE((*writer)
-                      ->Append(scene->Render(board::testing::ToRenderCamera(intrinsics, path[i]),
-                                             2.0, static_cast<unsigned>(i)))
-                      .ok());
+      ASSERT_TRUE(
+          (*writer)
+              ->Append(scene->Render(render::RenderCameraFromIntrinsics(intrinsics, path[i]), 2.0,
+                                     static_cast<unsigned>(i)))
+              .ok());
     }
     ASSERT_TRUE((*writer)->Close().ok());
   }
@@ -168,7 +169,9 @@ TEST(ViewerAr, TracksTheBoardAndDrawsTheTeacherWhereTheyStood) {
     render::RenderOutputs truth;
     truth.requested = render::kRenderLabel;
     ASSERT_TRUE(
-        (*view)->Render(instant, board::testing::ToRenderCamera(intrinsics, path[i]), &truth).ok());
+        (*view)
+            ->Render(instant, render::RenderCameraFromIntrinsics(intrinsics, path[i]), &truth)
+            .ok());
     int64_t both = 0, either = 0;
     for (int y = 0; y < drawn.rows; ++y) {
       for (int x = 0; x < drawn.cols; ++x) {

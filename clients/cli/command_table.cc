@@ -14,9 +14,15 @@ std::vector<Command> BuildCommandTable() {
        RunMotionJoints},
       {{"synth"},
        "--motion FILE.bvh|FILE.amc|builtin:NAME [--asf FILE] --body procedural|makehuman:DIR "
-       "[--shape mean|random[:SEED]] --sensors 1|2 --seconds S --out take.mcap [--board [SPEC]] "
-       "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--json]",
-       "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors",
+       "[--shape mean|random[:SEED]] --sensors 1|2 --seconds S --out take.mcap [--fps F] "
+       "[--yaw-deg D] [--lead-in-s S] [--distance M] [--color-width W --color-height H] "
+       "[--jpeg-quality Q] "
+       "[--seed N] [--no-depth-noise] [--no-mesh] [--board [SPEC]] "
+       "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--quiet] [--json]",
+       "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors "
+       "(--yaw-deg turns the performer about the vertical; --lead-in-s holds the first pose "
+       "that long before moving; --board lays the printed board on the floor as the world "
+       "frame)",
        RunSynth},
       {{"board"},
        "--out board.png [--spec aruco:DICT:COLSxROWS:MARKER_MM:GAP_MM] [--dpi N] "

@@ -27,11 +27,12 @@ std::vector<std::string> ExpandBareBoardFlag(std::vector<std::string> args) {
 }  // namespace
 
 int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(ExpandBareBoardFlag(args),
-                            {"motion", "asf", "body", "shape", "sensors", "seconds", "fps", "out",
-                             "color-width", "color-height", "jpeg-quality", "seed", "distance",
-                             "yaw-deg", "board", "board-x-m", "board-z-m", "board-yaw-deg"},
-                            {"json", "quiet", "no-depth-noise", "no-mesh"});
+  auto flags =
+      Flags::Parse(ExpandBareBoardFlag(args),
+                   {"motion", "asf", "body", "shape", "sensors", "seconds", "fps", "out",
+                    "color-width", "color-height", "jpeg-quality", "seed", "distance", "yaw-deg",
+                    "lead-in-s", "board", "board-x-m", "board-z-m", "board-yaw-deg"},
+                   {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
   auto out_path = flags->Required("out");
@@ -44,13 +45,14 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto quality = flags->GetInt("jpeg-quality", options.jpeg_quality);
   auto distance = flags->GetDouble("distance", options.sensor_distance_m);
   auto yaw_deg = flags->GetDouble("yaw-deg", options.yaw_deg);
+  auto lead_in_s = flags->GetDouble("lead-in-s", options.lead_in_s);
   auto board_x_m = flags->GetDouble("board-x-m", options.board_x_m);
   auto board_z_m = flags->GetDouble("board-z-m", options.board_z_m);
   auto board_yaw_deg = flags->GetDouble("board-yaw-deg", options.board_yaw_deg);
   for (const absl::Status& s :
        {out_path.status(), motion.status(), sensors.status(), seconds.status(), fps.status(),
         width.status(), height.status(), quality.status(), distance.status(), yaw_deg.status(),
-        board_x_m.status(), board_z_m.status(), board_yaw_deg.status()}) {
+        lead_in_s.status(), board_x_m.status(), board_z_m.status(), board_yaw_deg.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   options.motion = *motion;
@@ -69,6 +71,7 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   }
   options.sensor_distance_m = *distance;
   options.yaw_deg = *yaw_deg;
+  options.lead_in_s = *lead_in_s;
   options.board = flags->GetOr("board", "");
   options.board_x_m = *board_x_m;
   options.board_z_m = *board_z_m;

@@ -132,6 +132,10 @@ absl::Status SteadinessOptions::Validate() const {
   if (!(hold_s >= 0.0 && std::isfinite(hold_s))) {
     return absl::InvalidArgumentError(absl::StrCat("facing hold_s must be >= 0: ", hold_s));
   }
+  if (!(smoothing_s >= 0.0 && std::isfinite(smoothing_s))) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("facing smoothing_s must be >= 0: ", smoothing_s));
+  }
   return absl::OkStatus();
 }
 
@@ -141,6 +145,7 @@ absl::StatusOr<SteadinessDetector> SteadinessDetector::Create(const SteadinessOp
 }
 
 void SteadinessDetector::Reset() {
+  raw_.clear();
   window_.clear();
   status_ = SteadinessStatus();
 }
@@ -167,10 +172,18 @@ void SteadinessDetector::UpdateStatus() {
 }
 
 const SteadinessStatus& SteadinessDetector::Add(int64_t stamp_ns, std::optional<double> yaw_deg) {
-  const bool went_back = !window_.empty() && stamp_ns < window_.back().stamp_ns;
+  const bool went_back = !raw_.empty() && stamp_ns < raw_.back().stamp_ns;
   if (!yaw_deg || !std::isfinite(*yaw_deg) || went_back) Reset();
   if (!yaw_deg || !std::isfinite(*yaw_deg)) return status_;
-  window_.push_back({stamp_ns, WrapDeg180(*yaw_deg)});
+  raw_.push_back({stamp_ns, WrapDeg180(*yaw_deg)});
+  const int64_t smoothing_ns = static_cast<int64_t>(std::llround(options_.smoothing_s * 1e9));
+  while (raw_.size() > 1 && raw_.front().stamp_ns <= stamp_ns - smoothing_ns) raw_.pop_front();
+  std::vector<double> recent_deg;
+  recent_deg.reserve(raw_.size());
+  for (const Sample& sample : raw_) recent_deg.push_back(sample.yaw_deg);
+  // Opposite facings that cancel out fall back to the newest one.
+  const double smoothed_deg = CircularMeanDeg(recent_deg).value_or(raw_.back().yaw_deg);
+  window_.push_back({stamp_ns, smoothed_deg});
   while (window_.size() > 1 && !WithinTolerance()) window_.pop_front();
   // Keep one sample at or before (newest - hold) so the window spans hold_s.
   const int64_t hold_ns = static_cast<int64_t>(std::llround(options_.hold_s * 1e9));

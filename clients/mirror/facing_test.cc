@@ -3,8 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <random>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
+
+#include "absl/strings/str_cat.h"
 
 #include "clients/mirror/mirror_test_util.h"
 
@@ -122,7 +127,8 @@ TEST(FacingYawInSensorDeg, TiltedSensorWithItsUpVector) {
 }
 
 SteadinessDetector MakeDetector() {
-  absl::StatusOr<SteadinessDetector> detector = SteadinessDetector::Create({});
+  // Raw facings, so that the timings below are exact.
+  absl::StatusOr<SteadinessDetector> detector = SteadinessDetector::Create({.smoothing_s = 0.0});
   EXPECT_TRUE(detector.ok());
   return *std::move(detector);
 }
@@ -178,10 +184,43 @@ TEST(SteadinessDetector, WrapsAroundOneHundredEighty) {
   EXPECT_NEAR(std::abs(WrapDeg180(*detector.status().mean_yaw_deg - 181.0)), 0.0, 0.5);
 }
 
+TEST(SteadinessDetector, SmoothingLocksAJitteryFacingSideOn) {
+  // A facing of 90 degrees with a side-on tracker's jitter: 7 degrees per
+  // frame (3 cm on each end of a 35 cm shoulder line), 30 frames/s.
+  std::mt19937 rng(11);
+  std::normal_distribution<double> jitter_deg(0.0, 7.0);
+  std::vector<double> yaws_deg;
+  for (int f = 0; f < 150; ++f) yaws_deg.push_back(90.0 + jitter_deg(rng));
+  std::optional<double> steady_after_s[2];
+  double locked_deg = 0.0;
+  for (const double smoothing_s : {0.0, 0.5}) {
+    absl::StatusOr<SteadinessDetector> detector =
+        SteadinessDetector::Create({.smoothing_s = smoothing_s});
+    ASSERT_TRUE(detector.ok());
+    for (int f = 0; f < 150; ++f) {
+      if (detector->Add(f * kFrameNs, yaws_deg[f]).steady) {
+        steady_after_s[smoothing_s > 0] = f * kFrameNs * 1e-9;
+        locked_deg = *detector->status().mean_yaw_deg;
+        break;
+      }
+    }
+  }
+  std::cout << "90 deg +- 7 deg jitter over 5 s: raw facings "
+            << (steady_after_s[0] ? absl::StrCat("steady after ", *steady_after_s[0], " s")
+                                  : std::string("never steady"))
+            << "; smoothed over 0.5 s steady after " << steady_after_s[1].value_or(-1)
+            << " s, locked at " << locked_deg << " deg\n";
+  EXPECT_FALSE(steady_after_s[0].has_value());
+  ASSERT_TRUE(steady_after_s[1].has_value());
+  EXPECT_NEAR(*steady_after_s[1], 2.0, 0.5);  // s
+  EXPECT_NEAR(locked_deg, 90.0, 3.0);         // deg
+}
+
 TEST(SteadinessOptions, RejectsBadValues) {
   EXPECT_FALSE(SteadinessDetector::Create({.tolerance_deg = 0.0}).ok());
   EXPECT_FALSE(SteadinessDetector::Create({.tolerance_deg = 10.0, .hold_s = -1.0}).ok());
   EXPECT_TRUE(SteadinessDetector::Create({.tolerance_deg = 5.0, .hold_s = 0.0}).ok());
+  EXPECT_FALSE(SteadinessDetector::Create({.smoothing_s = -0.1}).ok());
 }
 
 // The teacher's facing relative to a camera, read the way the learner's is.

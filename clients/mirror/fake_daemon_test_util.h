@@ -60,7 +60,12 @@ class FakeDaemon final : public v1::CaptureControl::Service {
       if (context->IsCancelled()) break;
       set.set_set_index(++index);
       if (!writer->Write(set)) break;
-      if (pace_fps_ > 0) std::this_thread::sleep_for(std::chrono::duration<double>(1 / pace_fps_));
+      // The pause between sets ends early when the client cancels.
+      const auto next = std::chrono::steady_clock::now() +
+                        std::chrono::duration<double>(pace_fps_ > 0 ? 1 / pace_fps_ : 0.0);
+      while (std::chrono::steady_clock::now() < next && !context->IsCancelled()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
     }
     return grpc::Status::OK;
   }

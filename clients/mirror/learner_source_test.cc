@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 #include <sstream>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -15,6 +16,7 @@
 #include "clients/mirror/live_learner_source.h"
 #include "clients/mirror/mirror_app_test_util.h"
 #include "clients/mirror/mirror_cli.h"
+#include "clients/sdk/takes_client.h"
 #include "common/base/status_macros.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
@@ -273,6 +275,44 @@ TEST(LiveLearner, ReceivesTheDaemonsFramesLikeTheTakeSource) {
   std::cout << "live daemon feed: " << compared << " frames received (" << (*live)->frames_dropped()
             << " dropped), identical to the take source\n";
   EXPECT_EQ(compared + (*live)->frames_dropped(), static_cast<int64_t>(by_stamp.size()));
+}
+
+TEST(LiveLearner, StreamCancelEndsAStreamThatSendsNothing) {
+  const std::string path = LearnerTake(1.0, 0.0);
+  ASSERT_FALSE(path.empty());
+  testing::FakeDaemonServer daemon(path, /*pace_fps=*/0.02);  // A set, then 50 s of nothing.
+  const client::CaptureClient client({.address = daemon.address()});
+  client::StreamCancel cancel;
+  std::thread canceller;
+  int sets = 0;
+  const auto start = std::chrono::steady_clock::now();
+  const absl::Status status = client.StreamFrames(
+      v1::StreamFramesRequest(),
+      [&](const v1::LiveFrameSet&) {
+        if (++sets == 1) {
+          canceller = std::thread([&cancel] {
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+            cancel.Cancel();
+          });
+        }
+        return true;  // The callback never stops it: only the cancel can.
+      },
+      &cancel);
+  const double waited_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (canceller.joinable()) canceller.join();
+  EXPECT_TRUE(status.ok()) << status;
+  EXPECT_EQ(sets, 1);
+  std::cout << "cancelled a silent stream after " << waited_s << " s\n";
+  EXPECT_LT(waited_s, 25.0);  // Well before the daemon's next set at 50 s.
+  // Already cancelled: the next call returns at once, receiving nothing.
+  sets = 0;
+  EXPECT_TRUE(client
+                  .StreamFrames(
+                      v1::StreamFramesRequest(),
+                      [&](const v1::LiveFrameSet&) { return ++sets > 0; }, &cancel)
+                  .ok());
+  EXPECT_EQ(sets, 0);
 }
 
 TEST(LiveLearner, AbsentDaemonIsUnavailableNamingIt) {

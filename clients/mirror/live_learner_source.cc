@@ -18,9 +18,8 @@ namespace {
 constexpr size_t kLiveFramesKept = 2;
 
 // The daemon's CaptureControl service through the client SDK (ListSensors,
-// StreamFrames). CaptureClient::StreamFrames stops when its callback returns
-// false, so Cancel takes effect when the next set arrives (a stream that
-// sends nothing is left only when the daemon ends it).
+// StreamFrames). Cancel ends a running stream at once through the SDK's
+// StreamCancel, even when the daemon sends nothing.
 class DaemonFrameFeed : public LiveFrameFeed {
  public:
   explicit DaemonFrameFeed(const DaemonFeedOptions& options)
@@ -30,10 +29,9 @@ class DaemonFrameFeed : public LiveFrameFeed {
 
   absl::Status Stream(const std::string& sensor_id,
                       const std::function<bool(const v1::LiveFrameSet&)>& on_set) override {
-    if (cancelled_) return absl::OkStatus();
     const absl::Status status = client_.StreamFrames(
         Request(sensor_id),
-        [&](const v1::LiveFrameSet& set) { return !cancelled_ && on_set(set); });
+        [&](const v1::LiveFrameSet& set) { return !cancel_.cancelled() && on_set(set); }, &cancel_);
     if (status.code() == absl::StatusCode::kUnimplemented) {
       return absl::UnimplementedError(
           absl::StrCat("reenactd at ", options_.connection.address,
@@ -42,7 +40,7 @@ class DaemonFrameFeed : public LiveFrameFeed {
     return status;
   }
 
-  void Cancel() override { cancelled_ = true; }
+  void Cancel() override { cancel_.Cancel(); }
 
   std::string Describe() const override {
     return absl::StrCat("reenactd ", options_.connection.address);
@@ -60,7 +58,7 @@ class DaemonFrameFeed : public LiveFrameFeed {
 
   DaemonFeedOptions options_;
   client::CaptureClient client_;
-  std::atomic<bool> cancelled_{false};
+  client::StreamCancel cancel_;
 };
 
 bool Streams(const v1::SensorInfo& sensor) { return sensor.state() == v1::SENSOR_STATE_STREAMING; }

@@ -11,13 +11,10 @@
 #include <thread>
 #include <utility>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
+#include "common/io/png.h"
 #include "common/io/video_writer.h"
 #include "common/render/image_window.h"
 
@@ -42,16 +39,6 @@ class FrameSink {
   // A window needs the teacher's GL context released before each frame.
   virtual bool is_window() const = 0;
 };
-
-absl::Status WritePng(const RgbImage& image, const std::string& path) {
-  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<uint8_t*>(image.data.data()));
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  if (!cv::imwrite(path, bgr)) {
-    return absl::PermissionDeniedError(absl::StrCat(path, ": cannot write"));
-  }
-  return absl::OkStatus();
-}
 
 // frame_NNNNN.png for every n-th frame, and video.mp4 of all of them,
 // written on a thread of the sink while the next frames are drawn.
@@ -257,6 +244,7 @@ class MirrorLoop {
   StatusContext status_;
   MirrorAppSummary summary_;
   std::optional<int64_t> first_stamp_ns_;
+  int64_t last_stamp_ns_ = 0;
   Clock::time_point start_;
   double render_s_ = 0.0;
   double compose_s_ = 0.0;
@@ -315,6 +303,11 @@ absl::StatusOr<MirrorAppSummary> MirrorLoop::Run() {
     }
     if (!*go_on) break;
   }
+  // A repetition cut short (the take ended, --seconds, the window closed)
+  // still gets its report, marked incomplete.
+  if (failed.ok()) {
+    if (std::optional<MirrorFrame> ended = session_->EndEarly(last_stamp_ns_)) Record(*ended);
+  }
   const absl::Status finished = Finish();
   if (!failed.ok()) return failed;
   if (!finished.ok()) return finished;
@@ -323,6 +316,7 @@ absl::StatusOr<MirrorAppSummary> MirrorLoop::Run() {
 
 absl::StatusOr<bool> MirrorLoop::Step(const LearnerFrame& frame) {
   if (!first_stamp_ns_) first_stamp_ns_ = frame.stamp_ns;
+  last_stamp_ns_ = frame.stamp_ns;
   if (options_.run_seconds > 0 &&
       (frame.stamp_ns - *first_stamp_ns_) * 1e-9 >= options_.run_seconds) {
     summary_.stopped = "seconds";

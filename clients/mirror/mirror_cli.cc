@@ -26,14 +26,16 @@ const char kMirrorUsage[] =
     "                      (--learner-take FILE.mcap | --daemon HOST:PORT) [--sensor ID]\n"
     "                      [--layout side|ghost] [--ghost-alpha A] [--width W] [--height H]\n"
     "                      [--render-to DIR [--every N] [--no-mp4]] [--report DIR]\n"
-    "                      [--repetitions N] [--hold-s S] [--tolerance-deg D] [--dtw]\n"
+    "                      [--repetitions N] [--hold-s S] [--tolerance-deg D]\n"
+    "                      [--facing-smoothing-s S] [--dtw]\n"
     "                      [--speed X] [--challenge cycle|hardest [--views DEG,DEG,...]]\n"
     "                      [--seconds S] [--mode vdtm|baked] [--msaa 0|2|4|8] [--fixed-camera]\n"
     "                      [--no-hud] [--json]\n"
     "  The magic mirror: the learner's mirror image with their joints coloured by their\n"
     "  error, beside (side) or under (ghost) the teacher, turned to face the way the\n"
     "  learner faces once they hold still for --hold-s seconds (default 2) within\n"
-    "  --tolerance-deg (default 10); then the teacher plays (at --speed) and the\n"
+    "  --tolerance-deg (default 10; the facing is first averaged over\n"
+    "  --facing-smoothing-s, default 0.5); then the teacher plays (at --speed) and the\n"
     "  repetition is graded, part by part relative to the spine (--dtw: time-warped).\n"
     "  --report DIR writes rep-NNN.{csv,json,png} per repetition. --repetitions N\n"
     "  (default 1 for a take, 0 = forever for a daemon). --challenge: the mirror picks\n"
@@ -105,6 +107,8 @@ absl::Status SessionFromFlags(const Flags& flags, MirrorSessionOptions& session)
   ASSIGN_OR_RETURN(session.facing.hold_s, flags.GetDouble("hold-s", session.facing.hold_s));
   ASSIGN_OR_RETURN(session.facing.tolerance_deg,
                    flags.GetDouble("tolerance-deg", session.facing.tolerance_deg));
+  ASSIGN_OR_RETURN(session.facing.smoothing_s,
+                   flags.GetDouble("facing-smoothing-s", session.facing.smoothing_s));
   ASSIGN_OR_RETURN(session.playback_speed, flags.GetDouble("speed", session.playback_speed));
   session.use_dtw = flags.Has("dtw");
   ASSIGN_OR_RETURN(session.challenge, ParseChallenge(flags.GetOr("challenge", "off")));
@@ -183,6 +187,7 @@ nlohmann::json RepetitionsJson(const MirrorAppSummary& summary) {
                             {"teacher_turn_yaw_deg", report.teacher_turn_yaw_deg},
                             {"dtw", report.used_dtw},
                             {"compared_frames", report.frames.size()},
+                            {"complete", report.complete},
                             {"learner_frames", report.num_learner_frames}};
     repetitions.push_back(entry);
   }
@@ -246,8 +251,11 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
   for (size_t i = 0; i < summary.reports.size(); ++i) {
     const RepetitionReport& report = summary.reports[i];
     err << absl::StrFormat(
-        "reenact-mirror: repetition %d: mean error %s (facing %s, teacher turned %+.1f deg)%s\n",
+        "reenact-mirror: repetition %d%s: mean error %s (facing %s, teacher turned %+.1f deg)%s\n",
         report.repetition,
+        report.complete ? ""
+                        : absl::StrFormat(" (cut short after %d of %d teacher frames)",
+                                          report.teacher_frames_played, report.num_teacher_frames),
         report.mean_error_deg ? absl::StrFormat("%.1f deg", *report.mean_error_deg) : "-",
         report.learner_facing_yaw_deg ? absl::StrFormat("%+.1f deg", *report.learner_facing_yaw_deg)
                                       : "-",
@@ -266,10 +274,11 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
 }
 
 std::set<std::string> ValueFlags() {
-  return {"teacher", "server",    "cache",       "teacher-file", "learner-take",  "daemon",
-          "sensor",  "layout",    "ghost-alpha", "width",        "height",        "render-to",
-          "every",   "report",    "repetitions", "hold-s",       "tolerance-deg", "speed",
-          "seconds", "challenge", "views",       "mode",         "msaa"};
+  return {
+      "teacher", "server",    "cache",       "teacher-file", "learner-take",  "daemon",
+      "sensor",  "layout",    "ghost-alpha", "width",        "height",        "render-to",
+      "every",   "report",    "repetitions", "hold-s",       "tolerance-deg", "speed",
+      "seconds", "challenge", "views",       "mode",         "msaa",          "facing-smoothing-s"};
 }
 
 std::set<std::string> BoolFlags() {

@@ -171,8 +171,21 @@ void MirrorSession::UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3
   played_.push_back({stamp_ns, teacher_frame_, *learner});
 }
 
-void MirrorSession::FinishRepetition(int64_t stamp_ns, MirrorFrame& frame) {
-  RepetitionReport report = BuildReport(played_.empty() ? stamp_ns : played_.back().stamp_ns);
+std::optional<MirrorFrame> MirrorSession::EndEarly(int64_t stamp_ns) {
+  if (state_ != MirrorState::kPlaying || played_.empty()) return std::nullopt;
+  MirrorFrame frame;
+  frame.repetition = repetitions_done_ + 1;
+  frame.teacher_frame = teacher_frame_;
+  frame.teacher_turn = turn_;
+  FinishRepetition(std::max(stamp_ns, played_.back().stamp_ns), frame, /*complete=*/false);
+  state_ = MirrorState::kFinished;
+  frame.state = state_;
+  return frame;
+}
+
+void MirrorSession::FinishRepetition(int64_t stamp_ns, MirrorFrame& frame, bool complete) {
+  RepetitionReport report =
+      BuildReport(played_.empty() ? stamp_ns : played_.back().stamp_ns, complete);
   if (std::optional<int> view = ChallengeViewIndex(); view && report.mean_error_deg) {
     view_error_sum_deg_[*view] += *report.mean_error_deg;
     ++view_repetitions_[*view];
@@ -195,7 +208,7 @@ void MirrorSession::FinishRepetition(int64_t stamp_ns, MirrorFrame& frame) {
   }
 }
 
-RepetitionReport MirrorSession::BuildReport(int64_t end_stamp_ns) const {
+RepetitionReport MirrorSession::BuildReport(int64_t end_stamp_ns, bool complete) const {
   RepetitionReport report;
   report.repetition = repetitions_done_ + 1;
   report.challenge = options_.challenge != ChallengeMode::kOff;
@@ -208,20 +221,28 @@ RepetitionReport MirrorSession::BuildReport(int64_t end_stamp_ns) const {
   report.end_stamp_ns = end_stamp_ns;
   report.num_learner_frames = learner_frames_in_repetition_;
   report.num_teacher_frames = static_cast<int>(teacher_.size());
-  report.frames = PairedFrames(report.used_dtw);
+  report.complete = complete;
+  report.teacher_frames_played = complete
+                                     ? report.num_teacher_frames
+                                     : (played_.empty() ? 0 : played_.back().teacher_frame + 1);
+  report.frames = PairedFrames(report.teacher_frames_played, report.used_dtw);
   SummarizeErrors(report);
   return report;
 }
 
-std::vector<ComparedFrame> MirrorSession::PairedFrames(bool& used_dtw) const {
+std::vector<ComparedFrame> MirrorSession::PairedFrames(int teacher_frames_played,
+                                                       bool& used_dtw) const {
   Alignment alignment;
   used_dtw = false;
   if (options_.use_dtw && !played_.empty()) {
     std::vector<PerPart<Eigen::Vector3d>> learner;
     learner.reserve(played_.size());
     for (const PlayedFrame& played : played_) learner.push_back(played.directions);
-    absl::StatusOr<Alignment> dtw =
-        AlignDirectionsByDtw(learner, teacher_directions_, options_.dtw);
+    // An incomplete repetition is aligned with the part of the action that
+    // was played, so that its end is not pulled to the teacher's last frame.
+    const std::vector<PerPart<Eigen::Vector3d>> played_teacher(
+        teacher_directions_.begin(), teacher_directions_.begin() + teacher_frames_played);
+    absl::StatusOr<Alignment> dtw = AlignDirectionsByDtw(learner, played_teacher, options_.dtw);
     if (dtw.ok()) {
       alignment = *std::move(dtw);
       used_dtw = true;

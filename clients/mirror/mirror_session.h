@@ -173,6 +173,15 @@ class MirrorSession {
   absl::StatusOr<MirrorFrame> Update(int64_t stamp_ns,
                                      const std::optional<body::SkeletonPose>& learner_in_sensor);
 
+  // Ends a repetition that is playing when the learner stops early (a take
+  // ends, the app is told to stop): its report covers the teacher frames
+  // played so far and is marked incomplete (RepetitionReport::complete), and
+  // is written to report_dir like any other. Returns the frame carrying the
+  // report (state kFinished), or nullopt, with nothing changed, when nothing
+  // is playing or no learner frame was compared yet. Update must not be
+  // called afterwards.
+  std::optional<MirrorFrame> EndEarly(int64_t stamp_ns);
+
   MirrorState state() const { return state_; }
   const TeacherFacing& teacher_facing() const { return teacher_facing_; }
   const Eigen::Isometry3d& world_from_virtual_camera() const { return world_from_camera_; }
@@ -193,9 +202,10 @@ class MirrorSession {
   void UpdateReadingFacing(int64_t stamp_ns, const std::optional<double>& yaw_deg);
   void StartPlaying(int64_t stamp_ns);
   void UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3d>* learner, MirrorFrame& frame);
-  void FinishRepetition(int64_t stamp_ns, MirrorFrame& frame);
-  RepetitionReport BuildReport(int64_t end_stamp_ns) const;
-  std::vector<ComparedFrame> PairedFrames(bool& used_dtw) const;
+  void FinishRepetition(int64_t stamp_ns, MirrorFrame& frame, bool complete = true);
+  RepetitionReport BuildReport(int64_t end_stamp_ns, bool complete) const;
+  // The compared pairs over teacher frames [0, teacher_frames_played).
+  std::vector<ComparedFrame> PairedFrames(int teacher_frames_played, bool& used_dtw) const;
   // Index into challenge_view_yaws_deg of the view for the coming (or
   // playing) repetition; nullopt when challenge mode is off.
   std::optional<int> ChallengeViewIndex() const;

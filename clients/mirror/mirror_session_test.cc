@@ -219,6 +219,55 @@ TEST(MirrorSession, DtwForgivesALaggingLearner) {
   EXPECT_LT(mean_deg[1], mean_deg[0]);
 }
 
+TEST(MirrorSession, RepetitionCutShortGetsAnIncompleteReportOverThePlayedFrames) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_EQ(teacher.size(), 90u);
+  for (bool use_dtw : {false, true}) {
+    MirrorSessionOptions options;
+    options.repetitions = 1;
+    options.use_dtw = use_dtw;
+    options.report_dir =
+        reenact::testing::MakeTempDir(use_dtw ? "mirror_short_dtw" : "mirror_short");
+    MirrorSession session = MakeSession(teacher, options);
+    // Nothing plays yet: nothing to end.
+    EXPECT_FALSE(session.EndEarly(0).has_value());
+    // The 2 s hold, then 1.5 s of the 3 s action: the learner stops at 3.5 s.
+    const DriveLog run = Drive(session, teacher, Learner{}, /*max_s=*/3.5);
+    ASSERT_EQ(session.state(), MirrorState::kPlaying);
+    const int64_t last_ns = (static_cast<int64_t>(run.frames.size()) - 1) * kFrameNs;
+    const std::optional<MirrorFrame> ended = session.EndEarly(last_ns);
+    ASSERT_TRUE(ended.has_value());
+    EXPECT_EQ(ended->state, MirrorState::kFinished);
+    ASSERT_TRUE(ended->finished_report.has_value());
+    EXPECT_TRUE(ended->report_status.ok()) << ended->report_status;
+    const RepetitionReport& report = *ended->finished_report;
+    EXPECT_FALSE(report.complete);
+    EXPECT_EQ(report.used_dtw, use_dtw);
+    EXPECT_NEAR(report.teacher_frames_played, 45, 2);
+    EXPECT_EQ(report.num_teacher_frames, 90);
+    ASSERT_TRUE(report.mean_error_deg.has_value());
+    std::cout << (use_dtw ? "DTW" : "one to one") << ": cut short after "
+              << report.teacher_frames_played << " of 90 teacher frames, " << report.frames.size()
+              << " pairs, mean error " << *report.mean_error_deg << " deg\n";
+    // The learner copies the teacher: aligned with the played part only, the
+    // error stays near zero (DTW against all 90 frames would pull the last
+    // learner frame to teacher frame 89).
+    EXPECT_LT(*report.mean_error_deg, 1.0);  // deg
+    int max_teacher_frame = 0;
+    for (const ComparedFrame& frame : report.frames) {
+      max_teacher_frame = std::max(max_teacher_frame, frame.teacher_frame);
+    }
+    EXPECT_LT(max_teacher_frame, report.teacher_frames_played);
+    const nlohmann::json json =
+        nlohmann::json::parse(*ReadFileToString(options.report_dir + "/rep-001.json"));
+    EXPECT_FALSE(json["complete"].get<bool>());
+    EXPECT_EQ(json["teacher_frames_played"].get<int>(), report.teacher_frames_played);
+    // Ended: nothing more to end.
+    EXPECT_FALSE(session.EndEarly(last_ns + kFrameNs).has_value());
+  }
+}
+
 TEST(MirrorSession, ChallengeCycleShowsTheListedViews) {
   REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
   const std::vector<SkeletonPose> teacher = Teacher();

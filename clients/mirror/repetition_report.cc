@@ -92,6 +92,8 @@ std::string RepetitionJson(const RepetitionReport& report) {
       {"duration_s", (report.end_stamp_ns - report.start_stamp_ns) * 1e-9},
       {"num_learner_frames", report.num_learner_frames},
       {"num_teacher_frames", report.num_teacher_frames},
+      {"complete", report.complete},
+      {"teacher_frames_played", report.teacher_frames_played},
       {"num_compared_frames", static_cast<int>(report.frames.size())},
       {"files", {{"csv", stem + ".csv"}, {"png", stem + ".png"}}},
   };

@@ -63,6 +63,11 @@ struct RepetitionReport {
   int num_learner_frames = 0;
   // Frames of the teacher's action.
   int num_teacher_frames = 0;
+  // False when the learner stopped (the take ended, the app was stopped)
+  // before the teacher's last frame: the report covers teacher frames
+  // [0, teacher_frames_played) only.
+  bool complete = true;
+  int teacher_frames_played = 0;
   // The compared pairs, in order.
   std::vector<ComparedFrame> frames;
   // Per part: mean of its error over the frames where it is present.

@@ -151,8 +151,12 @@ absl::StatusOr<std::string> RepetitionPlotPng(const RepetitionReport& report) {
   const std::string mean =
       report.mean_error_deg ? absl::StrFormat("%.1f deg", *report.mean_error_deg) : "-";
   PutText(image,
-          absl::StrFormat("repetition %d: mean error %s, view %.0f deg, %s", report.repetition,
-                          mean, report.view_yaw_deg, report.used_dtw ? "DTW" : "one to one"),
+          absl::StrFormat("repetition %d: mean error %s, view %.0f deg, %s%s", report.repetition,
+                          mean, report.view_yaw_deg, report.used_dtw ? "DTW" : "one to one",
+                          report.complete ? ""
+                                          : absl::StrFormat(" (cut short: %d of %d frames)",
+                                                            report.teacher_frames_played,
+                                                            report.num_teacher_frames)),
           {kPlotArea.x, 30}, 0.7);
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png)) {

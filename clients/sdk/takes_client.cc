@@ -177,9 +177,32 @@ absl::StatusOr<v1::DaemonStatus> CaptureClient::Status() const {
   return response;
 }
 
+void StreamCancel::Cancel() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  cancelled_ = true;
+  if (context_ != nullptr) context_->TryCancel();
+}
+
+bool StreamCancel::cancelled() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return cancelled_;
+}
+
+bool StreamCancel::Attach(grpc::ClientContext* context) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (cancelled_) return false;
+  context_ = context;
+  return true;
+}
+
+void StreamCancel::Detach() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  context_ = nullptr;
+}
+
 absl::Status CaptureClient::StreamFrames(
     const v1::StreamFramesRequest& request,
-    const std::function<bool(const v1::LiveFrameSet&)>& callback) const {
+    const std::function<bool(const v1::LiveFrameSet&)>& callback, StreamCancel* cancel) const {
   const auto connect_deadline =
       std::chrono::system_clock::now() +
       std::chrono::microseconds(static_cast<int64_t>(options_.timeout_s * 1e6));
@@ -187,6 +210,7 @@ absl::Status CaptureClient::StreamFrames(
     return WithAddress(absl::UnavailableError("cannot reach the capture daemon"), options_.address);
   }
   grpc::ClientContext context;
+  if (cancel != nullptr && !cancel->Attach(&context)) return absl::OkStatus();
   std::unique_ptr<grpc::ClientReader<v1::LiveFrameSet>> reader =
       stub_->StreamFrames(&context, request);
   v1::LiveFrameSet set;
@@ -201,6 +225,10 @@ absl::Status CaptureClient::StreamFrames(
   while (stopped && reader->Read(&set)) {
   }
   const grpc::Status status = reader->Finish();
+  if (cancel != nullptr) {
+    cancel->Detach();
+    if (cancel->cancelled()) stopped = true;
+  }
   if (stopped) return absl::OkStatus();
   return WithAddress(status, options_.address);
 }

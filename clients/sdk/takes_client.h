@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,27 @@ class TakesClient {
   std::unique_ptr<v1::Takes::Stub> stub_;
 };
 
+// Ends a running CaptureClient::StreamFrames from another thread at once,
+// even while the daemon sends nothing (a sensor that stopped, a paused
+// stream). Cancel may come before, during or after the call; a cancelled
+// stream returns OK. One StreamCancel serves one call at a time.
+class StreamCancel {
+ public:
+  void Cancel();
+  bool cancelled() const;
+
+ private:
+  friend class CaptureClient;
+  // Registers the call's context; false (nothing registered) when already
+  // cancelled.
+  bool Attach(grpc::ClientContext* context);
+  void Detach();
+
+  mutable std::mutex mutex_;
+  grpc::ClientContext* context_ = nullptr;
+  bool cancelled_ = false;
+};
+
 class CaptureClient {
  public:
   explicit CaptureClient(const ConnectionOptions& options);
@@ -67,9 +89,11 @@ class CaptureClient {
   // stream ends (OK: the daemon ended it, or the callback stopped it) or
   // fails (InvalidArgument for an unknown sensor id, Unavailable when the
   // daemon cannot be reached within timeout_s). No deadline otherwise: the
-  // stream lasts as long as both sides want.
+  // stream lasts as long as both sides want, or until `cancel` (optional)
+  // is cancelled.
   absl::Status StreamFrames(const v1::StreamFramesRequest& request,
-                            const std::function<bool(const v1::LiveFrameSet&)>& callback) const;
+                            const std::function<bool(const v1::LiveFrameSet&)>& callback,
+                            StreamCancel* cancel = nullptr) const;
 
  private:
   ConnectionOptions options_;

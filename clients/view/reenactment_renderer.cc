@@ -12,6 +12,7 @@
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
+#include "common/render/intrinsics_camera.h"
 #include "common/render/mesh_data.h"
 
 namespace reenact::view {
@@ -453,17 +454,8 @@ absl::StatusOr<render::RenderCamera> SensorRenderCamera(const v1::SensorCalibrat
   ASSIGN_OR_RETURN(Rigid3d color_from_depth, FromProto(calibration.color_from_depth()));
   ASSIGN_OR_RETURN(Rigid3d world_from_depth, FromProto(calibration.world_from_depth()));
   const Rigid3d world_from_color = world_from_depth * color_from_depth.Inverse();
-  render::RenderCamera camera;
-  camera.width = width;
-  camera.height = height;
-  camera.fx = k.fx;
-  camera.fy = k.fy;
-  // CameraIntrinsics put pixel centres on integers; the renderer on +0.5.
-  camera.cx = k.cx + 0.5;
-  camera.cy = k.cy + 0.5;
-  camera.world_from_camera = Eigen::Isometry3d(world_from_color.ToMatrix4());
-  camera.near_m = 0.1;
-  camera.far_m = 30.0;
+  const render::RenderCamera camera = render::RenderCameraFromIntrinsics(
+      k, Eigen::Isometry3d(world_from_color.ToMatrix4()), /*near_m=*/0.1, /*far_m=*/30.0);
   RETURN_IF_ERROR(camera.Validate());
   return camera;
 }

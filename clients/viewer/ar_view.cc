@@ -7,7 +7,6 @@
 #include <memory>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
 #include "absl/strings/match.h"
@@ -18,8 +17,10 @@
 #include "common/base/status_macros.h"
 #include "common/board/board_detector.h"
 #include "common/board/intrinsics_file.h"
+#include "common/io/png.h"
 #include "common/io/video_writer.h"
 #include "common/render/image_window.h"
+#include "common/render/intrinsics_camera.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact::viewer {
@@ -60,34 +61,6 @@ RgbImage FromBgr(const cv::Mat& bgr) {
     }
   }
   return image;
-}
-
-absl::Status WritePng(const RgbImage& image, const std::string& path) {
-  cv::Mat bgr(image.height, image.width, CV_8UC3);
-  for (int y = 0; y < image.height; ++y) {
-    for (int x = 0; x < image.width; ++x) {
-      for (int c = 0; c < 3; ++c) bgr.at<cv::Vec3b>(y, x)[2 - c] = image.at(x, y, c);
-    }
-  }
-  if (!cv::imwrite(path, bgr)) return absl::PermissionDeniedError(path + ": cannot write");
-  return absl::OkStatus();
-}
-
-// The renderer's camera for `intrinsics` (pixel centres at +0.5; the lens
-// distortion is not drawn) at `world_from_camera`.
-render::RenderCamera ViewerCamera(const CameraIntrinsics& intrinsics,
-                                  const Eigen::Isometry3d& world_from_camera) {
-  render::RenderCamera camera;
-  camera.width = intrinsics.width;
-  camera.height = intrinsics.height;
-  camera.fx = intrinsics.fx;
-  camera.fy = intrinsics.fy;
-  camera.cx = intrinsics.cx + 0.5;
-  camera.cy = intrinsics.cy + 0.5;
-  camera.world_from_camera = world_from_camera;
-  camera.near_m = 0.05;
-  camera.far_m = 50.0;
-  return camera;
 }
 
 // Where the board lies in the reenactment's world (see the file comment).
@@ -162,8 +135,9 @@ absl::Status Composite(const ReenactmentData& data, int instant,
   const Eigen::Isometry3d world_from_camera = run->world_from_board * camera_from_board.inverse();
   render::RenderOutputs out;
   out.requested = render::kRenderColour | render::kRenderLabel;
-  RETURN_IF_ERROR(run->view->Render(data.frames[instant].frame_index(),
-                                    ViewerCamera(run->intrinsics, world_from_camera), &out));
+  RETURN_IF_ERROR(run->view->Render(
+      data.frames[instant].frame_index(),
+      render::RenderCameraFromIntrinsics(run->intrinsics, world_from_camera, 0.05, 50.0), &out));
   for (size_t i = 0; i < out.label.data.size(); ++i) {
     if (out.label.data[i] == 0) continue;
     for (int c = 0; c < 3; ++c) frame->data[3 * i + c] = out.colour.data[3 * i + c];

@@ -4,13 +4,11 @@
 #include <filesystem>
 #include <memory>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "clients/viewer/viewer_camera.h"
 #include "common/base/status_macros.h"
+#include "common/io/png.h"
 #include "common/io/video_writer.h"
 #include "common/render/offscreen_renderer.h"
 
@@ -21,26 +19,6 @@ using Clock = std::chrono::steady_clock;
 
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-// RGB, or RGBA with the silhouette (label > 0) as alpha; OpenCV's BGR(A).
-absl::Status WritePng(const render::RenderOutputs& out, bool alpha, const std::string& path) {
-  const RgbImage& rgb = out.colour;
-  cv::Mat image(rgb.height, rgb.width, alpha ? CV_8UC4 : CV_8UC3);
-  for (int y = 0; y < rgb.height; ++y) {
-    uint8_t* row = image.ptr<uint8_t>(y);
-    for (int x = 0; x < rgb.width; ++x) {
-      uint8_t* px = row + x * image.channels();
-      px[0] = rgb.at(x, y, 2);
-      px[1] = rgb.at(x, y, 1);
-      px[2] = rgb.at(x, y, 0);
-      if (alpha) px[3] = out.label.at(x, y) > 0 ? 255 : 0;
-    }
-  }
-  if (!cv::imwrite(path, image)) {
-    return absl::PermissionDeniedError(absl::StrCat(path, ": cannot write"));
-  }
-  return absl::OkStatus();
 }
 
 }  // namespace
@@ -116,7 +94,9 @@ absl::StatusOr<HeadlessSummary> RenderToDir(const ReenactmentData& data, const s
                                                                             ? shots[i].frame
                                                                             : static_cast<int>(i)))
             .string();
-    RETURN_IF_ERROR(WritePng(out, options.alpha, path));
+    // RGB, or RGBA with the silhouette (label > 0) as alpha.
+    RETURN_IF_ERROR(
+        WritePng(out.colour, path, {.alpha_mask = options.alpha ? &out.label : nullptr}));
     if (i == 0) summary.first_image = path;
     if (video != nullptr) {
       if (absl::Status appended = video->Append(out.colour); !appended.ok()) {

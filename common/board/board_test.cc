@@ -210,8 +210,8 @@ TEST(DetectBoard, HandheldViewsWithinOneDegreeAndTenMillimetres) {
   PoseErrorStats stats;
   double worst_rms_px = 0.0;
   for (size_t i = 0; i < path.size(); ++i) {
-    const RgbImage image =
-        scene->Render(testing::ToRenderCamera(intrinsics, path[i]), 2.0, static_cast<unsigned>(i));
+    const RgbImage image = scene->Render(render::RenderCameraFromIntrinsics(intrinsics, path[i]),
+                                         2.0, static_cast<unsigned>(i));
     auto found = DetectBoard(image, intrinsics, spec);
     ASSERT_TRUE(found.ok()) << "frame " << i << ": " << found.status();
     const testing::PoseError error = testing::ComparePose(found->camera_from_board, path[i]);
@@ -247,8 +247,8 @@ TEST(DetectBoard, KinectViewsAtTwoToThreeMetres) {
         const Eigen::Vector3d eye(distance_m * std::sin(a), height_m, distance_m * std::cos(a));
         const Eigen::Isometry3d world_from_camera =
             testing::LookAt(eye, Eigen::Vector3d(0.0, 0.8, 0.0), 0.0);
-        const RgbImage image =
-            scene->Render(testing::ToRenderCamera(intrinsics, world_from_camera), 2.0, ++seed);
+        const RgbImage image = scene->Render(
+            render::RenderCameraFromIntrinsics(intrinsics, world_from_camera), 2.0, ++seed);
         auto found = DetectBoard(image, intrinsics, spec);
         ASSERT_TRUE(found.ok()) << distance_m << " m, " << height_m << " m: " << found.status();
         const testing::PoseError error =
@@ -314,9 +314,10 @@ TEST(DetectBoard, UsesLensDistortion) {
   lenient.max_reprojection_rms_px = 50.0;
   lenient.outlier_threshold_px = 50.0;
   for (size_t i = 0; i < path.size(); ++i) {
-    const RgbImage image = Distort(
-        scene->Render(testing::ToRenderCamera(intrinsics, path[i]), 1.0, static_cast<unsigned>(i)),
-        intrinsics);
+    const RgbImage image =
+        Distort(scene->Render(render::RenderCameraFromIntrinsics(intrinsics, path[i]), 1.0,
+                              static_cast<unsigned>(i)),
+                intrinsics);
     auto found = DetectBoard(image, intrinsics, spec);
     ASSERT_TRUE(found.ok()) << "frame " << i << ": " << found.status();
     with_model.Add(testing::ComparePose(found->camera_from_board, path[i]));
@@ -342,7 +343,8 @@ TEST(DetectBoard, BoardOutOfViewIsNotFound) {
   // Looking at the floor 2 m to the side of the board.
   const Eigen::Isometry3d away =
       testing::LookAt(Eigen::Vector3d(2.5, 1.5, 1.0), Eigen::Vector3d(2.5, 0.0, -0.5), 0.0);
-  const RgbImage image = scene->Render(testing::ToRenderCamera(intrinsics, away), 2.0, 7);
+  const RgbImage image =
+      scene->Render(render::RenderCameraFromIntrinsics(intrinsics, away), 2.0, 7);
   auto found = DetectBoard(image, intrinsics, spec);
   EXPECT_TRUE(absl::IsNotFound(found.status())) << found.status();
 }
@@ -398,7 +400,7 @@ TEST(BoardTracker, ForgetsThePoseWhenTheBoardLeavesTheView) {
       testing::LookAt(Eigen::Vector3d(2.5, 1.5, 1.0), Eigen::Vector3d(2.5, 0.0, -0.5), 0.0);
   const auto track = [&](const Eigen::Isometry3d& world_from_camera) {
     return tracker->Track(
-        scene->Render(testing::ToRenderCamera(intrinsics, world_from_camera), 2.0, 11));
+        scene->Render(render::RenderCameraFromIntrinsics(intrinsics, world_from_camera), 2.0, 11));
   };
   ASSERT_TRUE(track(path[10]).ok());
   auto second = track(path[11]);

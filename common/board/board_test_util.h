@@ -16,6 +16,7 @@
 #include "common/board/board_image.h"
 #include "common/board/board_spec.h"
 #include "common/geometry/camera.h"
+#include "common/render/intrinsics_camera.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact::board::testing {
@@ -33,23 +34,6 @@ inline CameraIntrinsics PhoneIntrinsics() {
   intrinsics.cx = 641.3;
   intrinsics.cy = 357.8;
   return intrinsics;
-}
-
-// The renderer's camera for `intrinsics` at `world_from_camera` (its pixel
-// centres sit at +0.5, see render::RenderCamera).
-inline render::RenderCamera ToRenderCamera(const CameraIntrinsics& intrinsics,
-                                           const Eigen::Isometry3d& world_from_camera) {
-  render::RenderCamera camera;
-  camera.width = intrinsics.width;
-  camera.height = intrinsics.height;
-  camera.fx = intrinsics.fx;
-  camera.fy = intrinsics.fy;
-  camera.cx = intrinsics.cx + 0.5;
-  camera.cy = intrinsics.cy + 0.5;
-  camera.world_from_camera = world_from_camera;
-  camera.near_m = 0.05;
-  camera.far_m = 30.0;
-  return camera;
 }
 
 // A camera at `eye_in_world` looking at `target_in_world`, rolled by

@@ -44,8 +44,9 @@ std::string WriteVideo(const std::string& path, const BoardSpec& spec,
   EXPECT_TRUE(writer.ok()) << writer.status();
   if (scene == nullptr || !writer.ok()) return "";
   for (size_t i = 0; i < world_from_camera.size(); ++i) {
-    const RgbImage frame = scene->Render(testing::ToRenderCamera(intrinsics, world_from_camera[i]),
-                                         2.0, static_cast<unsigned>(i));
+    const RgbImage frame =
+        scene->Render(render::RenderCameraFromIntrinsics(intrinsics, world_from_camera[i]), 2.0,
+                      static_cast<unsigned>(i));
     EXPECT_TRUE((*writer)->Append(frame).ok());
   }
   EXPECT_TRUE((*writer)->Close().ok());

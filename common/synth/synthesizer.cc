@@ -29,6 +29,7 @@
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
+#include "common/render/intrinsics_camera.h"
 #include "common/render/offscreen_renderer.h"
 #include "common/synth/builtin_motions.h"
 #include "common/synth/clothing.h"
@@ -172,18 +173,8 @@ DistortionMap MakeDistortionMap(const CameraIntrinsics& k) {
 }
 
 render::RenderCamera ToRenderCamera(const CameraIntrinsics& k, const Rigid3d& world_from_camera) {
-  render::RenderCamera camera;
-  camera.width = k.width;
-  camera.height = k.height;
-  camera.fx = k.fx;
-  camera.fy = k.fy;
-  // Our intrinsics put pixel centres on integers; the renderer's on +0.5.
-  camera.cx = k.cx + 0.5;
-  camera.cy = k.cy + 0.5;
-  camera.world_from_camera = Eigen::Isometry3d(world_from_camera.ToMatrix4());
-  camera.near_m = 0.2;
-  camera.far_m = 12.0;
-  return camera;
+  return render::RenderCameraFromIntrinsics(k, Eigen::Isometry3d(world_from_camera.ToMatrix4()),
+                                            /*near_m=*/0.2, /*far_m=*/12.0);
 }
 
 // What one sensor saw at one instant, before noise and encoding.
@@ -334,6 +325,9 @@ absl::Status SynthOptions::Validate() const {
   if (!(std::abs(yaw_deg) <= 360.0)) {
     return absl::InvalidArgumentError("--yaw-deg must be a finite angle within [-360, 360]");
   }
+  if (!(lead_in_s >= 0.0 && lead_in_s < 3600.0)) {
+    return absl::InvalidArgumentError("--lead-in-s must be within [0, 3600) seconds");
+  }
   if (color_noise_sigma < 0 || skeleton_jitter_m < 0) {
     return absl::InvalidArgumentError("noise levels must be >= 0");
   }
@@ -370,6 +364,12 @@ struct Actor {
   Eigen::VectorXd shape;
   body::RetargetedMotion motion;
   int num_frames = 0;  // Take frames to synthesise.
+  double lead_in_s = 0.0;
+
+  // The motion's pose at take time t_s: its first pose during the lead-in.
+  body::BodyPose PoseAt(double t_s) const {
+    return SamplePose(motion, std::max(0.0, t_s - lead_in_s));
+  }
 };
 
 absl::StatusOr<Actor> PrepareActor(const SynthOptions& options) {
@@ -382,10 +382,13 @@ absl::StatusOr<Actor> PrepareActor(const SynthOptions& options) {
   }
   ASSIGN_OR_RETURN(actor.motion, body::RetargetMotion(motion, actor.model, actor.shape));
   const double motion_seconds = (motion.num_frames() - 1) / motion.fps();
-  const double seconds = std::min(options.seconds, motion_seconds + 0.5 / options.fps);
+  actor.lead_in_s = options.lead_in_s;
+  const double seconds =
+      std::min(options.seconds, options.lead_in_s + motion_seconds + 0.5 / options.fps);
   actor.num_frames = std::max(1, static_cast<int>(std::floor(seconds * options.fps)));
   if (options.center_motion) {
-    CenterMotion(&actor.motion, static_cast<int>(std::ceil(seconds * motion.fps())) + 1);
+    const double moving_s = std::max(0.0, seconds - options.lead_in_s);
+    CenterMotion(&actor.motion, static_cast<int>(std::ceil(moving_s * motion.fps())) + 1);
   }
   RETURN_IF_ERROR(TurnMotion(actor.model, actor.shape, options.yaw_deg, &actor.motion));
   return actor;
@@ -682,7 +685,7 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
   std::uniform_int_distribution<int64_t> latency_ns(20'000'000, 26'000'000);
   const double period_s = 1.0 / options.fps;
   for (int f = 0; f < actor.num_frames; ++f) {
-    const body::BodyPose pose = SamplePose(actor.motion, f * period_s);
+    const body::BodyPose pose = actor.PoseAt(f * period_s);
     ASSIGN_OR_RETURN(body::PosedBody posed, body::PoseBody(actor.model, pose, actor.shape));
     const int64_t stamp_ns = start_ns + SecondsToNs(f * period_s);
     RETURN_IF_ERROR(
@@ -690,9 +693,8 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
     for (const VirtualSensor& sensor : sensors) {
       // Each sensor exposes at its own phase and sees the body at that instant.
       const double exposure_s = f * period_s + sensor.phase_ns * 1e-9;
-      ASSIGN_OR_RETURN(
-          body::PosedBody seen,
-          body::PoseBody(actor.model, SamplePose(actor.motion, exposure_s), actor.shape));
+      ASSIGN_OR_RETURN(body::PosedBody seen,
+                       body::PoseBody(actor.model, actor.PoseAt(exposure_s), actor.shape));
       RETURN_IF_ERROR(
           scene.renderer->UpdateMeshPositions(scene.body_mesh, seen.vertices_m.cast<float>()));
       SensorShot shot;

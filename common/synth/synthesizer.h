@@ -41,6 +41,10 @@ struct SynthOptions {
   // actor turns to their own left, so 90 makes a motion that faces +Z face
   // +X. The sensors stay where they are; finite, within [-360, 360].
   double yaw_deg = 0.0;
+  // The performer stands still in the motion's first pose for this many
+  // seconds before the motion starts (a learner getting ready in front of
+  // the mirror); counted in `seconds`. Within [0, 3600).
+  double lead_in_s = 0.0;
   // A printed board (common/board/board_spec.h, e.g. kDefaultBoardSpecText)
   // lying face up on the floor, drawn into the colour images so that the
   // capture daemon can anchor the sensors on it; empty: none. Its pose goes

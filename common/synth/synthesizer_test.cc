@@ -645,6 +645,47 @@ TEST(SynthesizeTake, NonFiniteYawIsInvalidArgument) {
   EXPECT_TRUE(options.Validate().ok());
 }
 
+TEST(SynthesizeTake, LeadInHoldsTheFirstPoseThenPlaysTheMotionLater) {
+  const std::string dir = testing::MakeTempDir("synth_lead_in");
+  SynthOptions options = ShortTakeOptions();
+  options.motion = "builtin:arm-raise";  // Moves from its first frame on.
+  options.num_sensors = 1;
+  options.fps = 10.0;
+  options.seconds = 0.8;
+  options.ground_truth_mesh = false;
+  ASSERT_TRUE(SynthesizeTake(options, dir + "/straight.mcap").ok());
+  options.lead_in_s = 0.5;
+  options.seconds = 1.3;
+  ASSERT_TRUE(SynthesizeTake(options, dir + "/lead-in.mcap").ok());
+  auto straight = TakeReader::Open(dir + "/straight.mcap");
+  auto lead_in = TakeReader::Open(dir + "/lead-in.mcap");
+  ASSERT_TRUE(straight.ok() && lead_in.ok());
+  const auto straight_joints = TruthJoints(**straight);
+  const auto lead_in_joints = TruthJoints(**lead_in);
+  ASSERT_EQ(straight_joints.size(), 8u);
+  ASSERT_EQ(lead_in_joints.size(), 13u);
+  // Frames 0..5 (0 to 0.5 s) show the first pose; frame 5 + k shows frame k.
+  double still_m = 0.0, shifted_m = 0.0;
+  for (size_t f = 0; f < lead_in_joints.size(); ++f) {
+    const size_t k = f < 5 ? 0 : f - 5;
+    for (const auto& [name, p] : lead_in_joints[f]) {
+      double& worst_m = f < 5 ? still_m : shifted_m;
+      worst_m = std::max(worst_m, (p - straight_joints[k].at(name)).norm());
+    }
+  }
+  const std::string hand = JointName(KinectV2Joint::kHandLeft);
+  const double moved_m = (straight_joints[7].at(hand) - straight_joints[0].at(hand)).norm();
+  std::cout << "lead-in 0.5 s: still frames within " << still_m * 1e3
+            << " mm of the first pose, later frames within " << shifted_m * 1e3
+            << " mm of the motion 0.5 s earlier; the left hand moves " << moved_m * 1e3
+            << " mm over the first 0.7 s of the motion\n";
+  EXPECT_LT(still_m, 1e-4);    // m
+  EXPECT_LT(shifted_m, 1e-4);  // m
+  EXPECT_GT(moved_m, 0.05);    // m: so that a missing lead-in would show
+  options.lead_in_s = -1.0;
+  EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(SynthesizeTake, BoardLiesOnTheFloorWhereTheTruthSays) {
   const std::string dir = testing::MakeTempDir("synth_board");
   SynthOptions options = ShortTakeOptions();
@@ -682,8 +723,8 @@ TEST(SynthesizeTake, BoardLiesOnTheFloorWhereTheTruthSays) {
             << found->reprojection_rms_px << " px, rotation error " << rotation_deg
             << " deg, position error " << position_mm << " mm\n";
   EXPECT_GE(found->num_markers, 3);  // Of 6; one is enough for a pose.
-  EXPECT_LT(rotation_deg, 1.0);  // deg
-  EXPECT_LT(position_mm, 20.0);  // mm
+  EXPECT_LT(rotation_deg, 1.0);      // deg
+  EXPECT_LT(position_mm, 20.0);      // mm
 
   options.board = "aruco:DICT_4X4_50:0x2:110:22";
   EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument);

@@ -387,6 +387,7 @@ absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCame
     item.mesh = body_->gpu_mesh;
     item.texture = body_->atlas;
     item.lit = !body_->atlas.valid();  // The atlas already carries the light.
+    item.cull_back_faces = true;       // The body model is a closed surface.
     item.colour_srgb = options_.untextured_srgb;
     item.label = 1;
     items.push_back(item);

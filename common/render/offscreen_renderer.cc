@@ -459,9 +459,11 @@ void OffscreenRenderer::Impl::DrawItems(const RenderCamera& camera,
       glEnable(GL_POLYGON_OFFSET_FILL);
       glPolygonOffset(1.0f, 4.0f);
     }
+    if (item.cull_back_faces) glEnable(GL_CULL_FACE);
     glBindVertexArray(mesh.vao);
     glDrawElements(GL_TRIANGLES, mesh.num_indices, GL_UNSIGNED_INT, nullptr);
     if (item.underlay) glDisable(GL_POLYGON_OFFSET_FILL);
+    if (item.cull_back_faces) glDisable(GL_CULL_FACE);
   }
   glBindVertexArray(0);
 }

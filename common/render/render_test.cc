@@ -128,6 +128,34 @@ TEST(OffscreenRendererSilhouette, SphereAreaMatchesProjectedCone) {
   EXPECT_NEAR(area_px, expected_px, 0.02 * expected_px);
 }
 
+TEST(OffscreenRendererCulling, BackFacesOfAClosedMeshAreSkippedWhenAsked) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  auto sphere = renderer->UploadMesh(MakeUvSphere(0.3f, 64, 32));
+  ASSERT_TRUE(sphere.ok());
+  const RenderCamera camera = TestCamera();
+  // Pixels drawn with the sphere `distance_m` ahead (0: the camera inside it).
+  auto area_px = [&](double distance_m, bool cull) {
+    DrawItem item;
+    item.mesh = *sphere;
+    item.cull_back_faces = cull;
+    item.world_from_model.translation() = Eigen::Vector3d(0, 0, distance_m);
+    RenderOutputs out;
+    out.requested = kRenderLabel;
+    EXPECT_TRUE(renderer->Render(camera, {item}, &out).ok());
+    int area = 0;
+    for (uint8_t label : out.label.data) area += label == 1;
+    return area;
+  };
+  // Seen from outside, only hidden faces go: the same silhouette.
+  const int outside = area_px(2.0, false);
+  EXPECT_GT(outside, 1000);
+  EXPECT_EQ(area_px(2.0, true), outside);
+  // From inside every face points away: all of them are culled.
+  EXPECT_EQ(area_px(0.0, false), camera.width * camera.height);
+  EXPECT_EQ(area_px(0.0, true), 0);
+}
+
 // The rendered left/top edges of a rectangle whose corner projects to several
 // sub-pixel positions: pixel (u, v) is drawn iff its centre (u + 0.5, v + 0.5)
 // is inside, so the first drawn column c satisfies |u_corner - c| <= 0.5.

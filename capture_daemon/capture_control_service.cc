@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "proto/grpc_status.h"
+#include "proto/write_pump.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
 
 namespace reenact::capture {
@@ -22,42 +23,24 @@ namespace {
 // The reactor of one StreamFrames call: keeps the newest set not yet
 // written (an older one is dropped and counted), writes one at a time, and
 // ends OK when the daemon ends the stream, CANCELLED when the client goes.
-class FrameStream final : public grpc::ServerWriteReactor<v1::LiveFrameSet> {
+class FrameStream final : public PumpedWriteReactor<v1::LiveFrameSet> {
  public:
   FrameStream(CaptureController* controller, const v1::StreamFramesRequest& request)
-      : controller_(controller) {
+      : PumpedWriteReactor("the stream"), controller_(controller) {
     absl::StatusOr<uint64_t> id = controller_->SubscribeFrames(
         request, [this](std::shared_ptr<const v1::LiveFrameSet> set) { OnSet(std::move(set)); });
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (id.ok()) {
-        subscription_ = *id;
-        return;
-      }
-      finished_ = true;
+    if (!id.ok()) {
+      FinishNow(ToGrpcStatus(id.status()));
+      return;
     }
-    Finish(ToGrpcStatus(id.status()));
+    std::lock_guard<std::mutex> lock(mutex());
+    subscription_ = *id;
   }
 
-  void OnWriteDone(bool ok) override {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      writing_ = false;
-      if (!ok) broken_ = true;
-    }
-    Pump();
-  }
-  void OnCancel() override {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      broken_ = true;
-    }
-    Pump();
-  }
   void OnDone() override {
     std::optional<uint64_t> subscription;
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(mutex());
       subscription = subscription_;
     }
     if (subscription) controller_->UnsubscribeFrames(*subscription);
@@ -67,56 +50,33 @@ class FrameStream final : public grpc::ServerWriteReactor<v1::LiveFrameSet> {
  private:
   void OnSet(std::shared_ptr<const v1::LiveFrameSet> set) {
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(mutex());
       if (set == nullptr) {
-        ended_ = true;
-      } else {
+        MarkEndedLocked();
+        next_.reset();  // Nothing is written after the end.
+      } else if (!ended_locked()) {
         next_ = std::move(set);
       }
     }
     Pump();
   }
 
-  // Starts the next write, or finishes once the stream ended or broke.
-  void Pump() {
-    bool finish = false;
-    grpc::Status status;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (writing_ || finished_) return;
-      if (next_ != nullptr && !broken_ && !ended_) {
-        in_flight_ = *next_;
-        next_.reset();
-        if (first_index_ == 0) first_index_ = in_flight_.set_index();
-        ++written_;
-        in_flight_.set_dropped_sets(in_flight_.set_index() - first_index_ + 1 - written_);
-        writing_ = true;
-      } else if (broken_ || ended_) {
-        finished_ = true;
-        finish = true;
-        if (broken_) status = grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled");
-      } else {
-        return;
-      }
-    }
-    if (finish) {
-      Finish(status);
-    } else {
-      StartWrite(&in_flight_);
-    }
+  bool TakeNextLocked(v1::LiveFrameSet* next) override {
+    if (next_ == nullptr) return false;
+    *next = *next_;
+    next_.reset();
+    if (first_index_ == 0) first_index_ = next->set_index();
+    ++written_;
+    next->set_dropped_sets(next->set_index() - first_index_ + 1 - written_);
+    return true;
   }
+  grpc::Status EndStatusLocked() override { return grpc::Status::OK; }
 
   CaptureController* controller_;
-  std::mutex mu_;
   std::optional<uint64_t> subscription_;
   std::shared_ptr<const v1::LiveFrameSet> next_;
-  v1::LiveFrameSet in_flight_;
   uint64_t first_index_ = 0;
   uint64_t written_ = 0;
-  bool writing_ = false;
-  bool broken_ = false;
-  bool ended_ = false;
-  bool finished_ = false;
 };
 
 // Callback-API handlers; each finishes its reactor at once (the controller

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "proto/grpc_status.h"
+#include "proto/write_pump.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/live/live_hub.h"
 
@@ -27,16 +28,17 @@ std::string NotFollowingMessage(const v1::Job& job) {
                       " was not being recorded when it was submitted, or has stopped");
 }
 
-class FollowStream final : public grpc::ServerWriteReactor<v1::FollowEvent> {
+class FollowStream final : public PumpedWriteReactor<v1::FollowEvent> {
  public:
-  FollowStream(ServerContext& context, const v1::FollowRequest& request) : context_(context) {
+  FollowStream(ServerContext& context, const v1::FollowRequest& request)
+      : PumpedWriteReactor("the follow"), context_(context) {
     if (context_.jobs == nullptr) {
-      FinishNow(absl::UnavailableError("this server runs no jobs"));
+      FinishNow(ToGrpcStatus(absl::UnavailableError("this server runs no jobs")));
       return;
     }
     const absl::StatusOr<v1::Job> job = context_.jobs->Get(request.job_id());
     if (!job.ok()) {
-      FinishNow(job.status());
+      FinishNow(ToGrpcStatus(job.status()));
       return;
     }
     absl::StatusOr<uint64_t> id = absl::NotFoundError("no live hub");
@@ -51,56 +53,34 @@ class FollowStream final : public grpc::ServerWriteReactor<v1::FollowEvent> {
       OnEvent(end, /*last=*/true);
       return;
     }
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(mutex());
     subscription_ = *id;
   }
 
-  void OnWriteDone(bool ok) override {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      writing_ = false;
-      if (!ok) broken_ = true;
-    }
-    Pump();
-  }
-  void OnCancel() override {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      broken_ = true;
-    }
-    Pump();
-  }
   void OnDone() override {
     uint64_t subscription = 0;
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(mutex());
       // After the FollowEnd the hub has dropped the subscription already.
-      if (!ended_) subscription = subscription_;
+      if (!ended_locked()) subscription = subscription_;
     }
     if (subscription != 0) context_.live->Unsubscribe(subscription);
     delete this;
   }
 
  private:
-  void FinishNow(const absl::Status& status) {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      finished_ = true;
-    }
-    Finish(ToGrpcStatus(status));
-  }
-
-  // From the hub (its subscriber lock held): queue and write.
+  // From the hub (its subscriber lock held): queue and write. Frames beyond
+  // kFollowMaxQueuedFrames drop the oldest queued frame; other events stay.
   void OnEvent(const v1::FollowEvent& event, bool last) {
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(mutex());
       if (event.has_frame()) {
         if (queued_frames_ >= kFollowMaxQueuedFrames) DropOldestFrame();
         ++queued_frames_;
       }
       outbox_.push_back(event);
       if (last) {
-        ended_ = true;
+        MarkEndedLocked();
         if (event.end().reason() == v1::FOLLOW_END_REASON_SHUTDOWN) {
           end_status_ = grpc::Status(grpc::StatusCode::UNAVAILABLE, event.end().message());
         }
@@ -119,46 +99,20 @@ class FollowStream final : public grpc::ServerWriteReactor<v1::FollowEvent> {
     }
   }
 
-  // Starts the next write, or finishes once the end is out (or the client
-  // is gone).
-  void Pump() {
-    grpc::Status status;
-    bool finish = false;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (writing_ || finished_) return;
-      if (!outbox_.empty() && !broken_) {
-        in_flight_ = std::move(outbox_.front());
-        outbox_.pop_front();
-        if (in_flight_.has_frame()) --queued_frames_;
-        writing_ = true;
-      } else if (broken_ || ended_) {
-        finished_ = true;
-        finish = true;
-        status = broken_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the follow was cancelled")
-                         : end_status_;
-      } else {
-        return;
-      }
-    }
-    if (finish) {
-      Finish(status);
-    } else {
-      StartWrite(&in_flight_);
-    }
+  bool TakeNextLocked(v1::FollowEvent* next) override {
+    if (outbox_.empty()) return false;
+    *next = std::move(outbox_.front());
+    outbox_.pop_front();
+    if (next->has_frame()) --queued_frames_;
+    return true;
   }
+  grpc::Status EndStatusLocked() override { return end_status_; }
 
   ServerContext& context_;
-  std::mutex mu_;
   uint64_t subscription_ = 0;
   std::deque<v1::FollowEvent> outbox_;
   int queued_frames_ = 0;
-  v1::FollowEvent in_flight_;
-  bool writing_ = false;
-  bool broken_ = false;
-  bool ended_ = false;
   grpc::Status end_status_;  // OK, or UNAVAILABLE at a server shutdown.
-  bool finished_ = false;
 };
 
 }  // namespace

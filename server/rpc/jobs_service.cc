@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
+#include "proto/write_pump.h"
 #include "server/jobs/job_scheduler.h"
 
 namespace reenact::server {
@@ -15,44 +16,26 @@ namespace {
 
 // One Watch stream: events from the scheduler are merged into one pending
 // event (the latest job, every log line) and written one at a time.
-class WatchStream final : public grpc::ServerWriteReactor<v1::JobEvent> {
+class WatchStream final : public PumpedWriteReactor<v1::JobEvent> {
  public:
-  WatchStream(ServerContext& context, const v1::WatchJobRequest& request) : context_(context) {
+  WatchStream(ServerContext& context, const v1::WatchJobRequest& request)
+      : PumpedWriteReactor("the watch"), context_(context) {
     const absl::StatusOr<uint64_t> id = context_.jobs->Watch(
         request.job_id(), [this](const v1::JobEvent& event, bool last, const absl::Status& end) {
           OnEvent(event, last, end);
         });
     if (!id.ok()) {
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        finished_ = true;
-      }
-      Finish(ToGrpcStatus(id.status()));
+      FinishNow(ToGrpcStatus(id.status()));
       return;
     }
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(mutex());
     watch_id_ = *id;
   }
 
-  void OnWriteDone(bool ok) override {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      writing_ = false;
-      if (!ok) broken_ = true;
-    }
-    Pump();
-  }
-  void OnCancel() override {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      broken_ = true;
-    }
-    Pump();
-  }
   void OnDone() override {
     uint64_t watch_id = 0;
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(mutex());
       watch_id = watch_id_;
     }
     // After Unwatch no event comes any more.
@@ -63,7 +46,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::JobEvent> {
  private:
   void OnEvent(const v1::JobEvent& event, bool last, const absl::Status& end) {
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      std::lock_guard<std::mutex> lock(mutex());
       if (pending_.has_value()) {
         *pending_->mutable_job() = event.job();
         for (const std::string& line : event.log_lines()) pending_->add_log_lines(line);
@@ -71,50 +54,25 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::JobEvent> {
         pending_ = event;
       }
       if (last) {
-        ended_ = true;
+        MarkEndedLocked();
         end_ = end;
       }
     }
     Pump();
   }
 
-  // Starts the next write, or finishes once the last event is out.
-  void Pump() {
-    grpc::Status status;
-    bool finish = false;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (writing_ || finished_) return;
-      if (pending_.has_value() && !broken_) {
-        in_flight_ = std::move(*pending_);
-        pending_.reset();
-        writing_ = true;
-      } else if (broken_ || ended_) {
-        finished_ = true;
-        finish = true;
-        status = broken_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the watch was cancelled")
-                         : ToGrpcStatus(end_);
-      } else {
-        return;
-      }
-    }
-    if (finish) {
-      Finish(status);
-    } else {
-      StartWrite(&in_flight_);
-    }
+  bool TakeNextLocked(v1::JobEvent* next) override {
+    if (!pending_.has_value()) return false;
+    *next = std::move(*pending_);
+    pending_.reset();
+    return true;
   }
+  grpc::Status EndStatusLocked() override { return ToGrpcStatus(end_); }
 
   ServerContext& context_;
-  std::mutex mu_;
   uint64_t watch_id_ = 0;
   std::optional<v1::JobEvent> pending_;
-  v1::JobEvent in_flight_;
-  bool writing_ = false;
-  bool broken_ = false;
-  bool ended_ = false;
   absl::Status end_;
-  bool finished_ = false;
 };
 
 }  // namespace

@@ -223,15 +223,6 @@ TEST(SteadinessOptions, RejectsBadValues) {
   EXPECT_FALSE(SteadinessDetector::Create({.smoothing_s = -0.1}).ok());
 }
 
-// The teacher's facing relative to a camera, read the way the learner's is.
-double FacingRelativeToCamera(const SkeletonPose& teacher_in_world,
-                              const Eigen::Isometry3d& world_from_camera) {
-  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
-  return FacingYawInSensorDeg(TransformPose(camera_from_world, teacher_in_world),
-                              camera_from_world.linear() * Eigen::Vector3d::UnitY())
-      .value_or(1e9);
-}
-
 TEST(ComputeTeacherTurn, TeacherFacesTheVirtualCameraAsRequested) {
   REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
   const std::vector<SkeletonPose> teacher = testing::LoadCmuTeacher(4, 60);
@@ -248,8 +239,8 @@ TEST(ComputeTeacherTurn, TeacherFacesTheVirtualCameraAsRequested) {
       absl::StatusOr<TeacherTurn> turn = ComputeTeacherTurn(*facing, view_deg, *camera);
       ASSERT_TRUE(turn.ok());
       const SkeletonPose turned = TransformPose(turn->turned_from_original, teacher[0]);
-      const double relative_deg = FacingRelativeToCamera(turned, *camera);
-      const double unturned_deg = FacingRelativeToCamera(teacher[0], *camera);
+      const double relative_deg = testing::FacingRelativeToCamera(turned, *camera);
+      const double unturned_deg = testing::FacingRelativeToCamera(teacher[0], *camera);
       std::cout << "camera bearing +" << bearing_offset_deg << ", view " << view_deg << ": turn "
                 << turn->turn_yaw_deg << " deg, teacher faces the camera at " << relative_deg
                 << " deg\n";

@@ -240,9 +240,14 @@ std::vector<ComparedFrame> MirrorSession::PairedFrames(int teacher_frames_played
     for (const PlayedFrame& played : played_) learner.push_back(played.directions);
     // An incomplete repetition is aligned with the part of the action that
     // was played, so that its end is not pulled to the teacher's last frame.
-    const std::vector<PerPart<Eigen::Vector3d>> played_teacher(
-        teacher_directions_.begin(), teacher_directions_.begin() + teacher_frames_played);
-    absl::StatusOr<Alignment> dtw = AlignDirectionsByDtw(learner, played_teacher, options_.dtw);
+    const bool whole = teacher_frames_played == static_cast<int>(teacher_directions_.size());
+    const std::vector<PerPart<Eigen::Vector3d>> played_teacher =
+        whole
+            ? std::vector<PerPart<Eigen::Vector3d>>()
+            : std::vector<PerPart<Eigen::Vector3d>>(
+                  teacher_directions_.begin(), teacher_directions_.begin() + teacher_frames_played);
+    absl::StatusOr<Alignment> dtw =
+        AlignDirectionsByDtw(learner, whole ? teacher_directions_ : played_teacher, options_.dtw);
     if (dtw.ok()) {
       alignment = *std::move(dtw);
       used_dtw = true;

@@ -82,15 +82,6 @@ MirrorSession MakeSession(const std::vector<SkeletonPose>& teacher,
   return *std::move(session);
 }
 
-// The teacher's facing relative to the virtual camera, read like a learner's.
-double FacingRelativeToCamera(const SkeletonPose& teacher_in_world,
-                              const Eigen::Isometry3d& world_from_camera) {
-  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
-  return FacingYawInSensorDeg(TransformPose(camera_from_world, teacher_in_world),
-                              camera_from_world.linear() * Eigen::Vector3d::UnitY())
-      .value_or(1e9);
-}
-
 const MirrorFrame* FirstPlayingFrame(const DriveLog& run) {
   for (const MirrorFrame& frame : run.frames) {
     if (frame.state == MirrorState::kPlaying) return &frame;
@@ -174,7 +165,7 @@ TEST(MirrorSession, LearnerFacingNinetyDegreesTurnsTheTeacherNinetyDegrees) {
     // facing relative to the virtual camera the same way.
     std::vector<double> relative_deg_per_frame;
     for (int f = 0; f < 15; ++f) {
-      relative_deg_per_frame.push_back(FacingRelativeToCamera(
+      relative_deg_per_frame.push_back(testing::FacingRelativeToCamera(
           TransformPose(playing->teacher_turn.turned_from_original, teacher[f]),
           session.world_from_virtual_camera()));
     }

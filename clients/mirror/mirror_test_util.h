@@ -62,6 +62,17 @@ inline Eigen::Isometry3d SensorInFrontOf(const SkeletonPose& pose_in_world) {
   return PlaceVirtualCamera(target, facing_deg, 2.5, 1.0)->inverse();
 }
 
+// The teacher's facing yaw relative to a camera (world_from_camera, OpenCV
+// convention), read the way a learner's is relative to the sensor; 1e9 when
+// it cannot be read.
+inline double FacingRelativeToCamera(const SkeletonPose& teacher_in_world,
+                                     const Eigen::Isometry3d& world_from_camera) {
+  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
+  return FacingYawInSensorDeg(TransformPose(camera_from_world, teacher_in_world),
+                              camera_from_world.linear() * Eigen::Vector3d::UnitY())
+      .value_or(1e9);
+}
+
 // True when `joint` is `ancestor` or lies below it in the Kinect v2 tree.
 inline bool IsAtOrBelow(KinectV2Joint joint, KinectV2Joint ancestor) {
   for (std::optional<KinectV2Joint> j = joint; j; j = body::KinectV2Parent(*j)) {

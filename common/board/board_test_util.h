@@ -17,6 +17,7 @@
 #include "common/board/board_spec.h"
 #include "common/geometry/camera.h"
 #include "common/render/intrinsics_camera.h"
+#include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact::board::testing {
@@ -69,25 +70,6 @@ inline std::vector<Eigen::Isometry3d> HandheldPath(int frames) {
     path.push_back(LookAt(eye, target, 0.17 * std::sin(4.0 * t)));
   }
   return path;
-}
-
-// A flat quad in the y = 0 plane spanning [-w/2, w/2] x [-d/2, d/2] with the
-// texture's top row at -Z (BoardTexture's layout), facing +Y.
-inline render::MeshData FloorQuad(double width_m, double depth_m) {
-  const float hw = static_cast<float>(0.5 * width_m);
-  const float hd = static_cast<float>(0.5 * depth_m);
-  render::MeshData mesh;
-  mesh.positions_m.resize(3, 4);
-  mesh.positions_m << -hw, -hw, hw, hw,  // Corners: -X-Z, -X+Z, +X+Z, +X-Z.
-      0, 0, 0, 0,                        //
-      -hd, hd, hd, -hd;
-  mesh.uvs.resize(2, 4);
-  mesh.uvs << 0, 0, 1, 1,  //
-      1, 0, 0, 1;
-  mesh.normals = Eigen::Matrix3Xf::Zero(3, 4);
-  mesh.normals.row(1).setOnes();
-  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};  // Counter-clockwise seen from +Y.
-  return mesh;
 }
 
 // Renders the board (printed with a 20 mm white border) on a grey floor.
@@ -176,8 +158,8 @@ class BoardScene {
   bool Upload(const BoardTexture& texture) {
     render::ShadingOptions shading;
     shading.background_srgb = {0.25f, 0.27f, 0.3f};
-    auto sheet = renderer_->UploadMesh(FloorQuad(texture.width_m, texture.depth_m));
-    auto floor = renderer_->UploadMesh(FloorQuad(8.0, 8.0));
+    auto sheet = renderer_->UploadMesh(render::MakeFloorQuad(texture.width_m, texture.depth_m));
+    auto floor = renderer_->UploadMesh(render::MakeFloorQuad(8.0, 8.0));
     auto image = renderer_->UploadTexture(texture.image_srgb);
     if (!sheet.ok() || !floor.ok() || !image.ok() || !renderer_->SetShading(shading).ok()) {
       ADD_FAILURE() << "uploading the board scene failed";

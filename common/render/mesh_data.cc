@@ -165,4 +165,21 @@ MeshData MakeUvSphere(float radius_m, int num_segments, int num_rings) {
   return mesh;
 }
 
+MeshData MakeFloorQuad(double width_m, double depth_m) {
+  const float hw = static_cast<float>(0.5 * width_m);
+  const float hd = static_cast<float>(0.5 * depth_m);
+  MeshData mesh;
+  mesh.positions_m.resize(3, 4);
+  mesh.positions_m << -hw, -hw, hw, hw,  // Corners: -X-Z, -X+Z, +X+Z, +X-Z.
+      0, 0, 0, 0,                        //
+      -hd, hd, hd, -hd;
+  mesh.uvs.resize(2, 4);
+  mesh.uvs << 0, 0, 1, 1,  //
+      1, 0, 0, 1;
+  mesh.normals = Eigen::Matrix3Xf::Zero(3, 4);
+  mesh.normals.row(1).setOnes();
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};  // Counter-clockwise seen from +Y.
+  return mesh;
+}
+
 }  // namespace reenact::render

@@ -67,4 +67,10 @@ absl::StatusOr<MeshData> MeshFromCornerUvs(const Eigen::Matrix3Xf& positions_m,
 // continuous.
 MeshData MakeUvSphere(float radius_m, int num_segments, int num_rings);
 
+// A flat quad in the model's y = 0 plane spanning [-w/2, w/2] x [-d/2, d/2],
+// facing +Y (normals +Y, counter-clockwise seen from above), with uvs that
+// put a texture's top row at -Z and its left column at -X: a printed sheet or
+// a floor lying face up.
+MeshData MakeFloorQuad(double width_m, double depth_m);
+
 }  // namespace reenact::render

@@ -30,6 +30,7 @@
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
 #include "common/render/intrinsics_camera.h"
+#include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
 #include "common/synth/builtin_motions.h"
 #include "common/synth/clothing.h"
@@ -413,25 +414,6 @@ render::ShadingOptions SceneShading() {
   return shading;
 }
 
-// A flat sheet in the board frame's y = 0 plane, facing +Y, with the
-// texture's top row at -Z (board::BoardTexture's layout).
-render::MeshData BoardSheet(double width_m, double depth_m) {
-  const float hw = static_cast<float>(0.5 * width_m);
-  const float hd = static_cast<float>(0.5 * depth_m);
-  render::MeshData mesh;
-  mesh.positions_m.resize(3, 4);
-  mesh.positions_m << -hw, -hw, hw, hw,  // Corners: -X-Z, -X+Z, +X+Z, +X-Z.
-      0, 0, 0, 0,                        //
-      -hd, hd, hd, -hd;
-  mesh.uvs.resize(2, 4);
-  mesh.uvs << 0, 0, 1, 1,  //
-      1, 0, 0, 1;
-  mesh.normals = Eigen::Matrix3Xf::Zero(3, 4);
-  mesh.normals.row(1).setOnes();
-  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};  // Counter-clockwise seen from +Y.
-  return mesh;
-}
-
 // Lays the printed board of `options` on the floor: a textured sheet at
 // y = 0 that wins over the floor (drawn as an underlay), part of the
 // background (label 0).
@@ -440,8 +422,8 @@ absl::Status AddBoard(const SynthOptions& options, Scene* scene) {
   ASSIGN_OR_RETURN(const board::BoardSpec spec, board::ParseBoardSpec(options.board));
   ASSIGN_OR_RETURN(const board::BoardTexture texture, board::RenderBoardTexture(spec));
   render::DrawItem sheet;
-  ASSIGN_OR_RETURN(sheet.mesh,
-                   scene->renderer->UploadMesh(BoardSheet(texture.width_m, texture.depth_m)));
+  ASSIGN_OR_RETURN(sheet.mesh, scene->renderer->UploadMesh(
+                                   render::MakeFloorQuad(texture.width_m, texture.depth_m)));
   ASSIGN_OR_RETURN(sheet.texture, scene->renderer->UploadTexture(texture.image_srgb));
   sheet.world_from_model = Eigen::Isometry3d(WorldFromBoard(options).ToMatrix4());
   sheet.label = 0;

@@ -18,11 +18,15 @@
 #include "common/body/procedural_body.h"
 #include "common/synth/synthesizer.h"
 #include "server/recon/body/body_cloud.h"
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 #include "server/recon/take_frames.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::bodyfit {
 namespace {
+
+using recon::CloudBuilder;
+using recon::TakeFrames;
+using recon::TakeFramesOptions;
 
 struct Setup {
   std::unique_ptr<TakeFrames> take;
@@ -130,6 +134,6 @@ void BM_FitFrame(benchmark::State& state) {
 BENCHMARK(BM_FitFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(5.0);
 
 }  // namespace
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::bodyfit
 
 BENCHMARK_MAIN();

@@ -3,6 +3,11 @@
 # REENACT_WERROR=ON turns warnings into errors (CI does this).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+# ccache, when installed, keeps rebuilds of unchanged sources cheap.
+launcher=()
+if command -v ccache >/dev/null 2>&1; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+fi
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${launcher[@]}" \
   -DREENACT_WERROR="${REENACT_WERROR:-OFF}" >/dev/null
 ninja -C build -j"$(nproc)"

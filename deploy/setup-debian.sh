@@ -15,7 +15,7 @@ else
 fi
 
 packages=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git ccache
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libabsl-dev libeigen3-dev libboost-dev libceres-dev libpcl-dev libopencv-dev
   libusb-1.0-0-dev libfreenect-dev libopenni2-dev

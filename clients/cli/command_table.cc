@@ -38,6 +38,33 @@ std::vector<Command> BuildCommandTable() {
        "FILE --out sheet.png [--frames N]",
        "contact sheet: colour with skeleton, depth and mask of a few frames per sensor",
        RunTakeSheet},
+      {{"take", "skeletons"},
+       "TAKE.mcap --truth SYNTH.mcap [--json]",
+       "measure a take's skeletons against a synthetic take's ground truth (TAKE itself, or the "
+       "synthetic take a daemon streamed into the stored TAKE): MPJPE, PCK@10cm and per-joint "
+       "errors per sensor and fused over the sensors (left/right swaps fixed, lost joints "
+       "down-weighted)",
+       RunTakeSkeletons},
+      {{"track"},
+       "--depth FILE [--size WxH] --intrinsics kinect1|kinect2|FX,FY,CX,CY [--forest F] "
+       "[--no-refine] [--json]",
+       "the people in one depth image (16-bit PNG in mm, or raw little-endian uint16 mm with "
+       "--size), each with the 25 Kinect v2 joints: position in the camera frame, pixel, "
+       "confidence and state",
+       RunTrack},
+      {{"tracker", "train"},
+       "[--out models/tracker/body_parts.rtf] [--data DIR] [--images N] [--seed S] "
+       "[--bodies procedural,makehuman:DIR] [--shapes N] [--trees T] [--depth D] [--pixels P] "
+       "[--features F] [--threads N] [--quiet] [--json]",
+       "train the body tracker's forest on depth synthesised from DIR/mocap/cmu-train and the "
+       "body models (deterministic for a seed)",
+       RunTrackerTrain},
+      {{"tracker", "eval"},
+       "[--forest F] [--data DIR] [--images N] [--seed S] [--bodies ...] [--min-distance M] "
+       "[--max-distance M] [--stride N] [--json]",
+       "measure the tracker on frames of held-out motions (DIR/mocap/cmu) and shapes: MPJPE, "
+       "PCK@10cm, per-joint errors, time per frame",
+       RunTrackerEval},
       {{"takes", "list"},
        "[--server HOST:PORT] [--state recording|complete|interrupted|all] [--json]",
        "takes stored on a reenact-server, newest first",

@@ -26,6 +26,9 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
 int RunTakeInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// skeleton_commands.cc
+int RunTakeSkeletons(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 // remote_commands.cc
 int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
@@ -55,5 +58,12 @@ int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostr
 // view_commands.cc
 int RunRender(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunEval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// track_command.cc
+int RunTrack(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// tracker_commands.cc
+int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTrackerEval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace reenact::cli

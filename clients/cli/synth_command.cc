@@ -27,12 +27,14 @@ std::vector<std::string> ExpandBareBoardFlag(std::vector<std::string> args) {
 }  // namespace
 
 int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags =
-      Flags::Parse(ExpandBareBoardFlag(args),
-                   {"motion", "asf", "body", "shape", "sensors", "seconds", "fps", "out",
-                    "color-width", "color-height", "jpeg-quality", "seed", "distance", "yaw-deg",
-                    "lead-in-s", "board", "board-x-m", "board-z-m", "board-yaw-deg"},
-                   {"json", "quiet", "no-depth-noise", "no-mesh"});
+  auto flags = Flags::Parse(ExpandBareBoardFlag(args),
+                            {"motion",       "asf",   "joint-map",   "metres-per-unit",
+                             "body",         "shape", "sensors",     "seconds",
+                             "fps",          "out",   "color-width", "color-height",
+                             "jpeg-quality", "seed",  "distance",    "yaw-deg",
+                             "lead-in-s",    "board", "board-x-m",   "board-z-m",
+                             "board-yaw-deg"},
+                            {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
   auto out_path = flags->Required("out");
@@ -49,14 +51,22 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto board_x_m = flags->GetDouble("board-x-m", options.board_x_m);
   auto board_z_m = flags->GetDouble("board-z-m", options.board_z_m);
   auto board_yaw_deg = flags->GetDouble("board-yaw-deg", options.board_yaw_deg);
+  auto metres_per_unit = flags->GetDouble("metres-per-unit", options.metres_per_unit);
   for (const absl::Status& s :
        {out_path.status(), motion.status(), sensors.status(), seconds.status(), fps.status(),
         width.status(), height.status(), quality.status(), distance.status(), yaw_deg.status(),
-        lead_in_s.status(), board_x_m.status(), board_z_m.status(), board_yaw_deg.status()}) {
+        lead_in_s.status(), board_x_m.status(), board_z_m.status(), board_yaw_deg.status(),
+        metres_per_unit.status()}) {
     if (!s.ok()) return ReportError(s, err);
+  }
+  if (flags->Has("metres-per-unit") && !(*metres_per_unit > 0)) {
+    return ReportError(
+        absl::InvalidArgumentError("--metres-per-unit must be a length > 0 (metres)"), err);
   }
   options.motion = *motion;
   options.asf_path = flags->GetOr("asf", "");
+  options.joint_map_path = flags->GetOr("joint-map", "");
+  options.metres_per_unit = *metres_per_unit;
   options.body = flags->GetOr("body", options.body);
   options.shape = flags->GetOr("shape", options.shape);
   options.num_sensors = *sensors;

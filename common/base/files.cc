@@ -23,6 +23,20 @@ absl::StatusOr<std::string> ReadFileToString(const std::string& path) {
   return std::move(buffer).str();
 }
 
+absl::StatusOr<std::string> ReadFileToString(const std::string& path, uint64_t max_bytes) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": not a regular file"));
+  }
+  const uintmax_t bytes = std::filesystem::file_size(path, ec);
+  if (!ec && bytes > max_bytes) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": ", bytes, " bytes, more than the ", max_bytes, " bytes allowed"));
+  }
+  return ReadFileToString(path);
+}
+
 absl::Status WriteFileAtomically(const std::string& path, const std::string& contents) {
   const std::string tmp = path + ".tmp";
   {

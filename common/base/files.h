@@ -13,6 +13,11 @@ namespace reenact {
 // Reads the whole file at `path`. NotFound when it does not exist.
 absl::StatusOr<std::string> ReadFileToString(const std::string& path);
 
+// As above for input that may be hostile: InvalidArgument naming the file
+// when it holds more than `max_bytes` or is not a regular file (a folder, a
+// FIFO, a device), before anything is read.
+absl::StatusOr<std::string> ReadFileToString(const std::string& path, uint64_t max_bytes);
+
 // Writes `contents` to `path` through a temporary file and a rename, so that a
 // reader never sees a half-written file.
 absl::Status WriteFileAtomically(const std::string& path, const std::string& contents);

@@ -510,6 +510,9 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
   if (!std::isfinite(options.frames_per_second) || options.frames_per_second <= 0) {
     return absl::InvalidArgumentError("AsfAmcOptions::frames_per_second must be > 0");
   }
+  if (!std::isfinite(options.metres_per_unit)) {
+    return absl::InvalidArgumentError("AsfAmcOptions::metres_per_unit must be finite");
+  }
   ASSIGN_OR_RETURN(const std::string asf_text, ReadFileToString(asf_path));
   ASSIGN_OR_RETURN(const std::string amc_text, ReadFileToString(amc_path));
   AsfParser asf_parser(asf_path, asf_text);
@@ -521,6 +524,10 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
   info.fps = options.frames_per_second;
   info.metres_per_unit = kMetresPerInch / skeleton.length_multiplier;
   info.unit_source = UnitSource::kAsfHeader;
+  if (options.metres_per_unit > 0) {
+    info.metres_per_unit = options.metres_per_unit;
+    info.unit_source = UnitSource::kGiven;
+  }
 
   JointLayout layout;
   layout.joints.push_back({"root", -1, Eigen::Vector3d::Zero()});
@@ -531,13 +538,15 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
   }
 
   std::vector<std::string> names;
-  for (const MotionJoint& j : layout.joints) names.push_back(j.name);
-  const std::optional<JointSetId> set = DetectJointSet(names);
-  if (!set) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(asf_path, ": bone names match no known joint set (CMU ASF naming)"));
+  std::vector<int> parents;
+  for (const MotionJoint& j : layout.joints) {
+    names.push_back(j.name);
+    parents.push_back(j.parent);
   }
-  info.joint_set = *set;
+  ASSIGN_OR_RETURN(const JointSetMatch match,
+                   MatchJointSet(names, parents, options.joint_map, asf_path));
+  info.joint_set = match.set;
+  info.joint_map = options.joint_map;
 
   AmcParser amc_parser(amc_path, asf_path, skeleton, layout, info.metres_per_unit);
   ASSIGN_OR_RETURN(AmcFrames frames, amc_parser.Parse(amc_text));

@@ -5,15 +5,24 @@
 // channels were declared, angles in degrees.
 //
 // Rotation channels compose in the order declared: "Zrotation Xrotation
-// Yrotation" gives parent_from_joint rotation R = Rz * Rx * Ry. Position
-// channels are supported on the root only; the root's world translation is its
-// OFFSET plus its position channels.
+// Yrotation" gives parent_from_joint rotation R = Rz * Rx * Ry. The root's
+// world translation is its OFFSET plus its position channels. Other joints'
+// position channels (MakeHuman writes six channels everywhere, zeros for the
+// translations) add to their OFFSET and must keep one value through the clip.
+//
+// Joint names: MatchJointSet (a recognised naming, a user's joint map, or
+// both). Up axis: Blender and MakeHuman write Z-up files; when the rest
+// pose's spine (SpineBase to the highest of Head, Neck, SpineShoulder) points
+// mostly along +Z, every offset and rotation is turned by C = Rx(-90 deg),
+// (x, y, z) -> (x, z, -y): offsets o' = C o, rotations R' = C R C^T, root
+// translations t' = C t, so that every joint's world position becomes C p.
 //
 // Length unit: BvhOptions::metres_per_unit when > 0 (UnitSource::kGiven).
 // Otherwise it is detected from stature (UnitSource::kDetectedFromStature):
 // the rest pose (all rotations identity) is built in file units, its vertical
 // extent along +Y, from the highest joint or end site (the top of the head) to
 // the lowest (the sole of the lower foot), is taken to be kAssumedStatureM.
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -61,6 +70,7 @@ struct BvhJoint {
   Eigen::Vector3d offset_units{0, 0, 0};
   std::vector<Channel> channels;
   int first_channel = 0;  // Column of its first channel in a frame line.
+  int channels_line = 0;  // Line of its CHANNELS keyword.
 };
 
 // Splits `text` into lines (without '\r' or '\n'); line i is numbered i + 1.
@@ -151,8 +161,9 @@ class BvhParser {
     return offset;
   }
 
-  absl::Status Channels(BvhJoint& joint, bool is_root) {
+  absl::Status Channels(BvhJoint& joint) {
     RETURN_IF_ERROR(Expect("CHANNELS"));
+    joint.channels_line = tokens_[pos_ - 1].line;
     const Token* count_token = Next();
     ASSIGN_OR_RETURN(const double count, Number(count_token, "the CHANNELS count"));
     if (count < 0 || count > 6 || count != std::floor(count)) {
@@ -164,10 +175,6 @@ class BvhParser {
       if (t == nullptr) return Error(CurrentLine(), "CHANNELS list ends early");
       const std::optional<Channel> channel = ChannelFromName(t->text);
       if (!channel) return Error(t->line, absl::StrCat("unknown channel '", t->text, "'"));
-      if (!is_root && !IsRotation(*channel)) {
-        return Error(t->line, absl::StrCat("position channel on joint '", joint.name,
-                                           "' (only the root may translate)"));
-      }
       joint.channels.push_back(*channel);
     }
     num_channels_ += static_cast<int>(count);
@@ -195,7 +202,7 @@ class BvhParser {
     joint.parent = parent;
     RETURN_IF_ERROR(Expect("{"));
     ASSIGN_OR_RETURN(joint.offset_units, Offset());
-    RETURN_IF_ERROR(Channels(joint, parent < 0));
+    RETURN_IF_ERROR(Channels(joint));
     const int index = static_cast<int>(joints_.size());
     joints_.push_back(std::move(joint));
     while (true) {
@@ -252,7 +259,10 @@ class BvhParser {
                    "expected 'Frame Time: seconds' (> 0) after Frames");
     }
     ++i;
-    values_.reserve(static_cast<size_t>(num_frames_) * static_cast<size_t>(num_channels_));
+    // A frame takes a line: never reserve more than the lines left (a hostile
+    // "Frames:" count must not allocate).
+    const size_t frames_possible = std::min(static_cast<size_t>(num_frames_), lines_.size() - i);
+    values_.reserve(frames_possible * static_cast<size_t>(num_channels_));
     int frame = 0;
     for (; i < lines_.size(); ++i) {
       words = SplitWords(lines_[i]);
@@ -309,19 +319,143 @@ Eigen::Quaterniond AxisRotation(Channel c, double degrees) {
   }
 }
 
-// Vertical extent (file units) of the rest pose: highest minus lowest joint.
-double RestHeightUnits(const std::vector<BvhJoint>& joints) {
+// Rest positions (file units) of every joint: offsets summed down the tree.
+std::vector<Eigen::Vector3d> RestPositionsUnits(const std::vector<BvhJoint>& joints) {
   std::vector<Eigen::Vector3d> position(joints.size(), Eigen::Vector3d::Zero());
-  double min_y = 0.0;
-  double max_y = 0.0;
   for (size_t j = 0; j < joints.size(); ++j) {
     if (joints[j].parent >= 0) {
       position[j] = position[static_cast<size_t>(joints[j].parent)] + joints[j].offset_units;
     }
-    min_y = std::min(min_y, position[j].y());
-    max_y = std::max(max_y, position[j].y());
+  }
+  return position;
+}
+
+// Vertical extent (file units) of the rest pose: highest minus lowest joint.
+double RestHeightUnits(const std::vector<BvhJoint>& joints) {
+  double min_y = 0.0;
+  double max_y = 0.0;
+  for (const Eigen::Vector3d& p : RestPositionsUnits(joints)) {
+    min_y = std::min(min_y, p.y());
+    max_y = std::max(max_y, p.y());
   }
   return max_y - min_y;
+}
+
+// Value of channel `c` of `joint` at `frame`.
+double ChannelValue(const BvhParser& parser, const BvhJoint& joint, size_t c, int frame) {
+  return parser.values()[static_cast<size_t>(frame) * static_cast<size_t>(parser.num_channels()) +
+                         static_cast<size_t>(joint.first_channel) + c];
+}
+
+// Adds the position channels of every joint but the root to its offset; an
+// error when one changes by more than a thousandth of the rest height.
+absl::Status FoldJointTranslations(const std::string& path, const BvhParser& parser,
+                                   std::vector<BvhJoint>& joints) {
+  const double tolerance_units = 1e-3 * RestHeightUnits(joints);
+  for (size_t j = 1; j < joints.size(); ++j) {
+    BvhJoint& joint = joints[j];
+    for (size_t c = 0; c < joint.channels.size(); ++c) {
+      if (IsRotation(joint.channels[c]) || parser.num_frames() == 0) continue;
+      const double first = ChannelValue(parser, joint, c, 0);
+      for (int f = 1; f < parser.num_frames(); ++f) {
+        if (std::abs(ChannelValue(parser, joint, c, f) - first) > tolerance_units) {
+          return absl::InvalidArgumentError(
+              absl::StrCat(path, ":", joint.channels_line, ": joint '", joint.name,
+                           "' translates during the clip (frame ", f,
+                           "); only the root may move, bones that stretch are not supported"));
+        }
+      }
+      joint.offset_units[static_cast<int>(joint.channels[c]) - static_cast<int>(Channel::kXpos)] +=
+          first;
+    }
+  }
+  return absl::OkStatus();
+}
+
+// C = Rx(-90 deg): file (x, y, z) -> (x, z, -y).
+Eigen::Matrix3d YUpFromZUp() {
+  Eigen::Matrix3d c;
+  c << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return c;
+}
+
+// Whether the rest pose's spine points mostly along +Z: from SpineBase to the
+// highest-ranked of Head, Neck, SpineShoulder that the match places.
+bool IsZUp(const std::vector<BvhJoint>& joints, const CanonicalSources& sources) {
+  const std::vector<Eigen::Vector3d> rest = RestPositionsUnits(joints);
+  const auto at = [&](KinectV2Joint joint) -> std::optional<Eigen::Vector3d> {
+    const CanonicalSource& s = sources[static_cast<size_t>(Index(joint))];
+    if (s.joint < 0) return std::nullopt;
+    Eigen::Vector3d p = rest[static_cast<size_t>(s.joint)];
+    if (s.toward >= 0) p += s.fraction * joints[static_cast<size_t>(s.toward)].offset_units;
+    return p;
+  };
+  const std::optional<Eigen::Vector3d> base = at(KinectV2Joint::kSpineBase);
+  if (!base) return false;
+  for (KinectV2Joint top :
+       {KinectV2Joint::kHead, KinectV2Joint::kNeck, KinectV2Joint::kSpineShoulder}) {
+    if (const std::optional<Eigen::Vector3d> p = at(top)) {
+      const Eigen::Vector3d up = *p - *base;
+      return up.z() > std::abs(up.y()) && up.z() > std::abs(up.x());
+    }
+  }
+  return false;
+}
+
+// The file's length unit: given, or the rest pose's height taken as
+// kAssumedStatureM.
+absl::Status SetUnit(const std::string& path, const std::vector<BvhJoint>& joints,
+                     const BvhOptions& options, MotionInfo& info) {
+  if (options.metres_per_unit > 0) {
+    info.metres_per_unit = options.metres_per_unit;
+    info.unit_source = UnitSource::kGiven;
+    return absl::OkStatus();
+  }
+  const double height_units = RestHeightUnits(joints);
+  if (!(height_units > 0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path,
+                     ": the rest pose has no height along +Y, so its length unit cannot be "
+                     "detected; give it explicitly"));
+  }
+  info.metres_per_unit = kAssumedStatureM / height_units;
+  info.unit_source = UnitSource::kDetectedFromStature;
+  return absl::OkStatus();
+}
+
+// Local rotations of every frame and the root's translations (metres), turned
+// by `turn` (identity, or YUpFromZUp for a Z-up file).
+struct BvhFrames {
+  std::vector<std::vector<Eigen::Quaterniond>> rotations;  // [frame][joint]
+  std::vector<Eigen::Vector3d> root_translations_m;        // [frame]
+};
+
+BvhFrames ComputeFrames(const BvhParser& parser, const std::vector<BvhJoint>& joints,
+                        const Eigen::Matrix3d& turn, double metres_per_unit) {
+  const int num_frames = parser.num_frames();
+  const Eigen::Quaterniond turn_q(turn);
+  BvhFrames frames;
+  frames.rotations.assign(static_cast<size_t>(num_frames),
+                          std::vector<Eigen::Quaterniond>(joints.size()));
+  frames.root_translations_m.resize(static_cast<size_t>(num_frames));
+  for (int f = 0; f < num_frames; ++f) {
+    Eigen::Vector3d root_units = joints[0].offset_units;
+    for (size_t j = 0; j < joints.size(); ++j) {
+      Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+      for (size_t c = 0; c < joints[j].channels.size(); ++c) {
+        const double value = ChannelValue(parser, joints[j], c, f);
+        const Channel channel = joints[j].channels[c];
+        if (IsRotation(channel)) {
+          rotation = rotation * AxisRotation(channel, value);
+        } else if (j == 0) {
+          root_units[static_cast<int>(channel) - static_cast<int>(Channel::kXpos)] += value;
+        }
+      }
+      frames.rotations[static_cast<size_t>(f)][j] = turn_q * rotation * turn_q.conjugate();
+    }
+    frames.root_translations_m[static_cast<size_t>(f)] = turn * root_units * metres_per_unit;
+  }
+  return frames;
 }
 
 }  // namespace
@@ -330,71 +464,41 @@ absl::StatusOr<Motion> ReadBvh(const std::string& path, const BvhOptions& option
   if (!std::isfinite(options.metres_per_unit)) {
     return absl::InvalidArgumentError("BvhOptions::metres_per_unit must be finite");
   }
-  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, kMaxBvhBytes));
   BvhParser parser(path, text);
   RETURN_IF_ERROR(parser.Parse());
-  const std::vector<BvhJoint>& bvh_joints = parser.joints();
+  std::vector<BvhJoint> bvh_joints = parser.joints();
+  RETURN_IF_ERROR(FoldJointTranslations(path, parser, bvh_joints));
+
+  std::vector<std::string> names;
+  std::vector<int> parents;
+  for (const BvhJoint& j : bvh_joints) {
+    names.push_back(j.name);
+    parents.push_back(j.parent);
+  }
+  ASSIGN_OR_RETURN(const JointSetMatch match,
+                   MatchJointSet(names, parents, options.joint_map, path));
 
   MotionInfo info;
   info.path = path;
   info.format = "bvh";
   info.num_frames = parser.num_frames();
   info.fps = 1.0 / parser.frame_time_s();
-  if (options.metres_per_unit > 0) {
-    info.metres_per_unit = options.metres_per_unit;
-    info.unit_source = UnitSource::kGiven;
-  } else {
-    const double height_units = RestHeightUnits(bvh_joints);
-    if (!(height_units > 0)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(path,
-                       ": the rest pose has no height along +Y, so its length unit cannot be "
-                       "detected; give it explicitly"));
-    }
-    info.metres_per_unit = kAssumedStatureM / height_units;
-    info.unit_source = UnitSource::kDetectedFromStature;
-  }
+  info.joint_set = match.set;
+  info.joint_map = options.joint_map;
+  info.turned_from_z_up = IsZUp(bvh_joints, match.sources);
+  const Eigen::Matrix3d turn =
+      info.turned_from_z_up ? YUpFromZUp() : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
+  for (BvhJoint& joint : bvh_joints) joint.offset_units = turn * joint.offset_units;
+  RETURN_IF_ERROR(SetUnit(path, bvh_joints, options, info));
 
   std::vector<MotionJoint> joints;
-  std::vector<std::string> names;
   for (const BvhJoint& j : bvh_joints) {
     joints.push_back({j.name, j.parent, j.offset_units * info.metres_per_unit});
-    names.push_back(j.name);
   }
-  const std::optional<JointSetId> set = DetectJointSet(names);
-  if (!set) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        path, ": joint names match no known joint set (CMU cgspeed or 3dsMax naming, Kinect)"));
-  }
-  info.joint_set = *set;
-
-  const int num_frames = parser.num_frames();
-  const int num_channels = parser.num_channels();
-  std::vector<std::vector<Eigen::Quaterniond>> rotations(
-      static_cast<size_t>(num_frames),
-      std::vector<Eigen::Quaterniond>(bvh_joints.size(), Eigen::Quaterniond::Identity()));
-  std::vector<Eigen::Vector3d> root_translations_m(static_cast<size_t>(num_frames));
-  for (int f = 0; f < num_frames; ++f) {
-    const double* row = parser.values().data() + static_cast<size_t>(f) * num_channels;
-    Eigen::Vector3d root_units = bvh_joints[0].offset_units;
-    for (size_t j = 0; j < bvh_joints.size(); ++j) {
-      const BvhJoint& joint = bvh_joints[j];
-      Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-      for (size_t c = 0; c < joint.channels.size(); ++c) {
-        const double value = row[joint.first_channel + static_cast<int>(c)];
-        const Channel channel = joint.channels[c];
-        if (IsRotation(channel)) {
-          rotation = rotation * AxisRotation(channel, value);
-        } else {
-          root_units[static_cast<int>(channel) - static_cast<int>(Channel::kXpos)] += value;
-        }
-      }
-      rotations[static_cast<size_t>(f)][j] = rotation;
-    }
-    root_translations_m[static_cast<size_t>(f)] = root_units * info.metres_per_unit;
-  }
-  return Motion(std::move(info), std::move(joints), std::move(rotations),
-                std::move(root_translations_m));
+  BvhFrames frames = ComputeFrames(parser, bvh_joints, turn, info.metres_per_unit);
+  return Motion(std::move(info), std::move(joints), std::move(frames.rotations),
+                std::move(frames.root_translations_m));
 }
 
 }  // namespace reenact::body

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
 
 namespace reenact::body {
 
@@ -28,13 +29,20 @@ Motion::Motion(MotionInfo info, std::vector<MotionJoint> joints,
       joints_(std::move(joints)),
       local_rotations_(std::move(local_rotations)),
       root_translations_m_(std::move(root_translations_m)) {
-  canonical_to_source_.fill(-1);
-  for (const JointMapping& row : JointMappingTable(info_.joint_set)) {
-    for (size_t i = 0; i < joints_.size(); ++i) {
-      if (joints_[i].name == row.source_name) {
-        canonical_to_source_[Index(row.target)] = static_cast<int>(i);
-        break;
-      }
+  std::vector<std::string> names;
+  std::vector<int> parents;
+  for (const MotionJoint& joint : joints_) {
+    names.push_back(joint.name);
+    parents.push_back(joint.parent);
+  }
+  const CanonicalSources sources =
+      ResolveJointSet(info_.joint_set, info_.joint_map, names, parents);
+  for (size_t c = 0; c < sources.size(); ++c) {
+    canonical_to_source_[c] = sources[c].joint;
+    canonical_in_source_m_[c].setZero();
+    if (sources[c].toward >= 0) {
+      canonical_in_source_m_[c] =
+          sources[c].fraction * joints_[static_cast<size_t>(sources[c].toward)].offset_m;
     }
   }
 }
@@ -79,29 +87,52 @@ std::vector<Eigen::Isometry3d> Motion::RestWorldFromJoints() const {
 }
 
 SkeletonPose Motion::CanonicalPose(int frame) const {
-  const std::vector<Eigen::Isometry3d> world_from_joint = WorldFromJoints(frame);
+  return CanonicalPoseFrom(WorldFromJoints(frame));
+}
+
+SkeletonPose Motion::CanonicalPoseFrom(
+    const std::vector<Eigen::Isometry3d>& world_from_joint) const {
   SkeletonPose pose;
-  for (int c = 0; c < kNumKinectV2Joints; ++c) {
-    const int source = canonical_to_source_[static_cast<size_t>(c)];
-    pose.valid[static_cast<size_t>(c)] = source >= 0;
-    pose.position_m[static_cast<size_t>(c)] =
-        source >= 0 ? Eigen::Vector3d(world_from_joint[static_cast<size_t>(source)].translation())
-                    : Eigen::Vector3d::Zero();
+  for (size_t c = 0; c < canonical_to_source_.size(); ++c) {
+    const int source = canonical_to_source_[c];
+    pose.valid[c] = source >= 0;
+    pose.position_m[c] = source >= 0
+                             ? Eigen::Vector3d(world_from_joint[static_cast<size_t>(source)] *
+                                               canonical_in_source_m_[c])
+                             : Eigen::Vector3d::Zero();
   }
   return pose;
 }
 
 absl::StatusOr<Motion> ReadMotion(const std::string& path, const std::string& asf_path) {
+  return ReadMotion(path, MotionReadOptions{.asf_path = asf_path});
+}
+
+absl::Status MotionReadOptions::Validate() const {
+  if (!(metres_per_unit <= kMaxMetresPerUnit)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("metres per unit must be a finite length of at most ", kMaxMetresPerUnit,
+                     " m, got ", metres_per_unit));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Motion> ReadMotion(const std::string& path, const MotionReadOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
   std::string extension = std::filesystem::path(path).extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (extension == ".bvh") return ReadBvh(path);
+  if (extension == ".bvh") {
+    return ReadBvh(path,
+                   {.metres_per_unit = options.metres_per_unit, .joint_map = options.joint_map});
+  }
   if (extension == ".amc") {
-    if (asf_path.empty()) {
+    if (options.asf_path.empty()) {
       return absl::InvalidArgumentError(
           absl::StrCat(path, ": an AMC motion needs its ASF skeleton (--asf)"));
     }
-    return ReadAsfAmc(asf_path, path);
+    return ReadAsfAmc(options.asf_path, path,
+                      {.metres_per_unit = options.metres_per_unit, .joint_map = options.joint_map});
   }
   return absl::InvalidArgumentError(
       absl::StrCat(path, ": unknown motion format '", extension, "' (expected .bvh or .amc)"));

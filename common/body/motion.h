@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -42,6 +43,13 @@ struct MotionInfo {
   double metres_per_unit = 1.0;  // Scale applied to file lengths.
   UnitSource unit_source = UnitSource::kGiven;
   JointSetId joint_set = JointSetId::kCmuBvhCgspeed;
+  // A user's joint map (ReadJointMap), whose rows come before joint_set's
+  // table when the canonical joints are found.
+  std::vector<JointMapping> joint_map;
+  // The file was Z-up (Blender, MakeHuman exports): its lengths and
+  // rotations were turned by -90 degrees about X, file (x, y, z) -> (x, z,
+  // -y), so that +Y is up and a figure facing -Y faces +Z.
+  bool turned_from_z_up = false;
 };
 
 class Motion {
@@ -64,13 +72,25 @@ class Motion {
   // World rest pose (all local rotations identity, root at the origin).
   std::vector<Eigen::Isometry3d> RestWorldFromJoints() const;
 
-  // Source joint index of each canonical joint, -1 where the set has none.
+  // Source joint index of each canonical joint, -1 where the set has none:
+  // the joint whose frame carries it (it may sit part of the way along that
+  // joint's bone, see JointMapping::toward).
   const std::array<int, kNumKinectV2Joints>& canonical_to_source() const {
     return canonical_to_source_;
   }
 
+  // Where each canonical joint sits in its source joint's frame, metres
+  // (zero: on the joint itself).
+  const std::array<Eigen::Vector3d, kNumKinectV2Joints>& canonical_in_source_m() const {
+    return canonical_in_source_m_;
+  }
+
   // Canonical joint positions at `frame` (metres, file's world frame).
   SkeletonPose CanonicalPose(int frame) const;
+
+  // Canonical joint positions given every source joint's world_from_joint
+  // (as WorldFromJoints or RestWorldFromJoints return them).
+  SkeletonPose CanonicalPoseFrom(const std::vector<Eigen::Isometry3d>& world_from_joint) const;
 
   // Construction, used by the readers.
   Motion(MotionInfo info, std::vector<MotionJoint> joints,
@@ -83,19 +103,33 @@ class Motion {
   std::vector<std::vector<Eigen::Quaterniond>> local_rotations_;  // [frame][joint]
   std::vector<Eigen::Vector3d> root_translations_m_;              // [frame]
   std::array<int, kNumKinectV2Joints> canonical_to_source_{};
+  std::array<Eigen::Vector3d, kNumKinectV2Joints> canonical_in_source_m_{};
 };
+
+// Largest BVH file ReadBvh reads (its frames take about three times as much
+// memory once parsed).
+inline constexpr uint64_t kMaxBvhBytes = uint64_t{512} << 20;
 
 struct BvhOptions {
   // Metres per file unit; <= 0 means detect it from the stature of the rest
   // pose (a standing adult is taken to be 1.7 m tall).
   double metres_per_unit = 0.0;
+  // A user's joint map (ReadJointMap): its rows come before the recognised
+  // naming's table, and it alone may name a skeleton no table knows.
+  std::vector<JointMapping> joint_map = {};
 };
 
 // Reads a BVH file. Errors name the file and line.
 // Unit rule when options.metres_per_unit <= 0: the rest pose's vertical extent
 // (highest joint or end site minus lowest) is taken as kAssumedStatureM.
-// End sites become joints named "<parent>_end". Fails when the joint names
-// match no known joint set (DetectJointSet).
+// Up axis: when the rest pose's spine points along +Z (Blender, MakeHuman),
+// the motion is turned to +Y up (MotionInfo::turned_from_z_up) before the
+// unit is detected. End sites become joints named "<parent>_end". Position
+// channels on joints other than the root add to the joint's OFFSET and must
+// hold one value through the clip (MakeHuman writes zeros); bones that
+// stretch are refused. Fails when the joint names, with options.joint_map,
+// do not cover the core canonical joints (MatchJointSet: the error lists the
+// missing joints and the names seen), or for a file over kMaxBvhBytes.
 absl::StatusOr<Motion> ReadBvh(const std::string& path, const BvhOptions& options = {});
 
 struct BvhWriteOptions {
@@ -125,6 +159,10 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
 struct AsfAmcOptions {
   // Frame rate of the AMC motion, which the files do not state (CMU: 120).
   double frames_per_second = 120.0;
+  // Metres per file unit; <= 0 means the ASF header's unit.
+  double metres_per_unit = 0.0;
+  // A user's joint map (as BvhOptions::joint_map), for the bone names.
+  std::vector<JointMapping> joint_map = {};
 };
 
 // As above, with options (the two-argument form uses the defaults).
@@ -133,5 +171,25 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
 
 // Dispatches on the extension: .bvh, or .amc with `asf_path`.
 absl::StatusOr<Motion> ReadMotion(const std::string& path, const std::string& asf_path = "");
+
+// What ReadMotion passes on to the reader of either format.
+struct MotionReadOptions {
+  std::string asf_path;  // The ASF skeleton of an .amc motion.
+  // Metres per file unit, overriding the ASF header or the BVH stature
+  // detection; <= 0: the file's own. Finite.
+  double metres_per_unit = 0.0;
+  // A user's joint map (ReadJointMap), see BvhOptions::joint_map.
+  std::vector<JointMapping> joint_map = {};
+
+  // InvalidArgument unless metres_per_unit is 0 (or below) or within
+  // (0, kMaxMetresPerUnit].
+  absl::Status Validate() const;
+};
+
+// Largest length unit MotionReadOptions accepts, metres (a kilometre per
+// unit is already absurd; it guards against typing errors).
+inline constexpr double kMaxMetresPerUnit = 1000.0;
+
+absl::StatusOr<Motion> ReadMotion(const std::string& path, const MotionReadOptions& options);
 
 }  // namespace reenact::body

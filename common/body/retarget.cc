@@ -99,11 +99,10 @@ MotionFrame ReadMotionFrame(const Motion& motion, int frame,
                             const std::vector<Eigen::Isometry3d>& rest) {
   const std::vector<Eigen::Isometry3d> world = motion.WorldFromJoints(frame);
   MotionFrame out;
+  out.pose = motion.CanonicalPoseFrom(world);
   for (int c = 0; c < kNumKinectV2Joints; ++c) {
     const int source = motion.canonical_to_source()[c];
-    out.pose.valid[c] = source >= 0;
     if (source < 0) continue;
-    out.pose.position_m[c] = world[source].translation();
     out.rotation[c] = world[source].linear() * rest[source].linear().transpose();
   }
   return out;
@@ -143,15 +142,15 @@ absl::StatusOr<Setup> Prepare(const Motion& motion, const BodyModel& model,
   Setup setup;
   ASSIGN_OR_RETURN(setup.model_rest_m, RestJointPositions(model, shape));
   setup.motion_rest = motion.RestWorldFromJoints();
+  const SkeletonPose motion_rest_pose = motion.CanonicalPoseFrom(setup.motion_rest);
   Joints motion_rest_m;
   for (J joint : kLegJoints) {
-    const int source = motion.canonical_to_source()[Index(joint)];
-    if (source < 0) {
+    if (!motion_rest_pose.valid[Index(joint)]) {
       return absl::FailedPreconditionError(absl::StrCat(motion.info().path, ": motion has no ",
                                                         std::string(KinectV2JointName(joint)),
                                                         " to scale by"));
     }
-    motion_rest_m[Index(joint)] = setup.motion_rest[source].translation();
+    motion_rest_m[Index(joint)] = motion_rest_pose.position_m[Index(joint)];
   }
   const double motion_leg_m = LegLength(motion_rest_m);
   if (!(motion_leg_m > kMinBoneLengthM)) {

@@ -61,7 +61,13 @@ absl::StatusOr<body::Motion> LoadMotion(const SynthOptions& options) {
     return MakeBuiltinMotion(options.motion.substr(8), options.seconds + 1.0 / options.fps,
                              options.fps);
   }
-  return body::ReadMotion(options.motion, options.asf_path);
+  body::MotionReadOptions read_options;
+  read_options.asf_path = options.asf_path;
+  read_options.metres_per_unit = options.metres_per_unit;
+  if (!options.joint_map_path.empty()) {
+    ASSIGN_OR_RETURN(read_options.joint_map, body::ReadJointMap(options.joint_map_path));
+  }
+  return body::ReadMotion(options.motion, read_options);
 }
 
 absl::StatusOr<Eigen::VectorXd> MakeShape(const std::string& spec, const body::BodyModel& model,
@@ -310,6 +316,14 @@ absl::StatusOr<SensorMessages> EncodeShot(SensorShot shot, const SynthOptions& o
 
 absl::Status SynthOptions::Validate() const {
   if (motion.empty()) return absl::InvalidArgumentError("--motion is required");
+  if (!(metres_per_unit >= 0.0 && metres_per_unit <= body::kMaxMetresPerUnit)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--metres-per-unit must be within (0, ", body::kMaxMetresPerUnit, "] metres"));
+  }
+  if (absl::StartsWith(motion, "builtin:") && (!joint_map_path.empty() || metres_per_unit > 0)) {
+    return absl::InvalidArgumentError(
+        "--joint-map and --metres-per-unit apply to a motion file, not to a builtin motion");
+  }
   if (!(seconds > 0 && seconds <= 3600)) {
     return absl::InvalidArgumentError("--seconds must be in (0, 3600]");
   }

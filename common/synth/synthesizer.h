@@ -20,6 +20,14 @@ struct SynthOptions {
   std::string motion = "builtin:arm-raise";
   // The ASF skeleton of an .amc motion.
   std::string asf_path;
+  // A file motion's joint map (body::ReadJointMap: JSON of "their joint
+  // name": "Kinect v2 joint name"), for namings the readers do not
+  // recognise; empty: none. Not for builtin motions.
+  std::string joint_map_path;
+  // A file motion's length unit, metres per file unit, overriding the ASF
+  // header or the BVH's stature detection; 0: the file's own. Within
+  // [0, body::kMaxMetresPerUnit]; not for builtin motions.
+  double metres_per_unit = 0.0;
   // "procedural" (built by our code) or "makehuman:DIR" (MakeHuman assets).
   std::string body = "procedural";
   // "mean", or "random" / "random:SEED": shape coefficients drawn from the

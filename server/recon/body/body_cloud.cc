@@ -3,7 +3,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::recon {
 
 absl::Status CloudOptions::Validate() const {
   if (step < 1 || step > 16) {
@@ -26,11 +26,11 @@ absl::StatusOr<std::unique_ptr<CloudBuilder>> CloudBuilder::Create(const TakeFra
   return builder;
 }
 
-absl::StatusOr<PointCloud> CloudBuilder::Build(int instant) const {
+absl::StatusOr<bodyfit::PointCloud> CloudBuilder::Build(int instant) const {
   if (instant < 0 || instant >= take_.num_instants()) {
     return absl::InvalidArgumentError(absl::StrCat("instant ", instant, " out of range"));
   }
-  PointCloud cloud;
+  bodyfit::PointCloud cloud;
   for (int s = 0; s < take_.num_sensors(); ++s) {
     if (!take_.instant(instant).views[s].present) continue;
     ASSIGN_OR_RETURN(DepthImageMm depth, take_.LoadDepth(instant, s));
@@ -49,4 +49,4 @@ absl::StatusOr<PointCloud> CloudBuilder::Build(int instant) const {
   return cloud;
 }
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::recon

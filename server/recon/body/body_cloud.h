@@ -8,11 +8,11 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 #include "server/recon/carving/sensor_frame.h"
 #include "server/recon/take_frames.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::recon {
 
 struct CloudOptions {
   int step = 2;             // Depth pixel decimation (>= 1).
@@ -27,7 +27,7 @@ class CloudBuilder {
                                                               const CloudOptions& options = {});
   // The merged cloud of `instant` (sensors without a frame add nothing).
   // Errors of the take's decoders (DataLoss for corrupt frames).
-  absl::StatusOr<PointCloud> Build(int instant) const;
+  absl::StatusOr<bodyfit::PointCloud> Build(int instant) const;
 
  private:
   CloudBuilder(const TakeFrames& take, const CloudOptions& options)
@@ -37,4 +37,4 @@ class CloudBuilder {
   std::vector<carving::PosedCamera> cameras_;
 };
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::recon

@@ -15,7 +15,7 @@
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "server/recon/body/body_cloud.h"
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/method_util.h"
 
@@ -106,8 +106,8 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
   const double model_s = SecondsSince(start);
 
   // Merged clouds of every instant (thesis 4.3, Fig. 4.3a).
-  ASSIGN_OR_RETURN(const std::unique_ptr<bodyfit::CloudBuilder> builder,
-                   bodyfit::CloudBuilder::Create(take));
+  ASSIGN_OR_RETURN(const std::unique_ptr<CloudBuilder> builder,
+                   CloudBuilder::Create(take));
   std::vector<bodyfit::PointCloud> clouds(n);
   {
     std::mutex mutex;
@@ -220,8 +220,8 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
   }
   const auto texture_start = std::chrono::steady_clock::now();
   ASSIGN_OR_RETURN(
-      const bodyfit::AtlasResult atlas,
-      bodyfit::BakeBodyAtlas(take, decoded, posed, o.atlas, stages.ForStage("texture")));
+      const AtlasResult atlas,
+      BakeBodyAtlas(take, decoded, posed, o.atlas, stages.ForStage("texture")));
   ASSIGN_OR_RETURN(std::string atlas_jpeg, EncodeJpeg(atlas.atlas, 90));
   body_mesh.set_atlas_jpeg(std::move(atlas_jpeg));
   const double texture_s = SecondsSince(texture_start);

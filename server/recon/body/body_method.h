@@ -28,7 +28,7 @@
 #include "common/base/progress.h"
 #include "common/body/body_model.h"
 #include "common/io/reenactment_file.h"
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/method_util.h"
 #include "server/recon/methods.h"
@@ -40,7 +40,7 @@ namespace reenact::recon {
 struct BodyMethodOptions {
   std::string model = "procedural";
   bodyfit::BodyFitOptions fit;
-  bodyfit::AtlasOptions atlas;
+  AtlasOptions atlas;
   // InvalidArgument naming the key for a value that does not parse or fit.
   absl::Status Read(OptionReader& reader);
 };

@@ -9,7 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::recon {
 namespace {
 
 // One atlas texel: the surface point it shows.
@@ -295,4 +295,4 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
   return result;
 }
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::recon

@@ -34,7 +34,7 @@
 #include "common/io/body_reenactment.h"
 #include "server/recon/take_frames.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::recon {
 
 struct AtlasOptions {
   int size_px = 1024;                    // Atlas side, pixels.
@@ -68,4 +68,4 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
                                           const AtlasOptions& options = {},
                                           const ProgressCallback& progress = {});
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::recon

@@ -9,7 +9,7 @@
 #include "common/body/model_spec.h"
 #include "common/io/body_reenactment.h"
 #include "server/recon/body/body_cloud.h"
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 #include "server/recon/body/body_method.h"
 #include "server/recon/method_util.h"
 #include "server/recon/take_frames.h"
@@ -19,7 +19,7 @@ namespace reenact::recon {
 struct LiveBodyFollower::State {
   body::BodyModel model;
   std::unique_ptr<TakeFrames> take;
-  std::unique_ptr<bodyfit::CloudBuilder> builder;
+  std::unique_ptr<CloudBuilder> builder;
   std::unique_ptr<bodyfit::BodyFitter> fitter;
   // The shape is fitted off the Push path, by its own fitter on a thread of
   // its own; frames are posed with the mean shape meanwhile.
@@ -65,7 +65,7 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
   frames.load_color = false;
   frames.num_threads = 1;
   ASSIGN_OR_RETURN(s.take, TakeFrames::CreateLive(info, sensors, frames));
-  ASSIGN_OR_RETURN(s.builder, bodyfit::CloudBuilder::Create(*s.take));
+  ASSIGN_OR_RETURN(s.builder, CloudBuilder::Create(*s.take));
   return follower;
 }
 

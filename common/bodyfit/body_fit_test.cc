@@ -1,4 +1,4 @@
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 
 #include <cmath>
 #include <memory>
@@ -9,9 +9,9 @@
 #include <gtest/gtest.h>
 
 #include "common/body/procedural_body.h"
-#include "server/recon/body/body_terms.h"
+#include "common/bodyfit/body_terms.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::bodyfit {
 namespace {
 
 using body::KinectV2Joint;
@@ -228,4 +228,4 @@ TEST(BodyFitOptions, RejectsBadValues) {
 }
 
 }  // namespace
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::bodyfit

@@ -65,7 +65,7 @@
 #include "absl/status/statusor.h"
 #include "common/body/body_model.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::bodyfit {
 
 // A merged point cloud of one instant, world frame (metres), with unit
 // normals facing the sensor that saw each point.
@@ -210,4 +210,4 @@ class BodyFitter {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> refine_solver_;
 };
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::bodyfit

@@ -1,4 +1,4 @@
-#include "server/recon/body/body_terms.h"
+#include "common/bodyfit/body_terms.h"
 
 #include <cmath>
 #include <utility>
@@ -7,7 +7,7 @@
 
 #include "common/body/joint_set.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::bodyfit {
 namespace {
 
 Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
@@ -381,4 +381,4 @@ ceres::CostFunction* NewShapePrior(int num_shape, double weight) {
   return new ShapePrior(num_shape, weight);
 }
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::bodyfit

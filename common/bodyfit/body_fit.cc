@@ -1,4 +1,4 @@
-#include "server/recon/body/body_fit.h"
+#include "common/bodyfit/body_fit.h"
 
 #include <algorithm>
 #include <cmath>
@@ -14,9 +14,9 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
-#include "server/recon/body/body_terms.h"
+#include "common/bodyfit/body_terms.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::bodyfit {
 namespace {
 
 using body::KinectV2Joint;
@@ -551,4 +551,4 @@ absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body:
   return fit;
 }
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::bodyfit

@@ -25,7 +25,7 @@
 
 #include "common/body/body_model.h"
 
-namespace reenact::recon::bodyfit {
+namespace reenact::bodyfit {
 
 inline constexpr int kJoints = body::kNumKinectV2Joints;
 
@@ -117,4 +117,4 @@ ceres::CostFunction* NewSmoothnessTerm(const Eigen::Matrix3d& previous_rotation,
 // Shape prior: sqrt(weight) beta, K residuals; one parameter block of K.
 ceres::CostFunction* NewShapePrior(int num_shape, double weight);
 
-}  // namespace reenact::recon::bodyfit
+}  // namespace reenact::bodyfit

@@ -1,0 +1,360 @@
+#include "common/tracking/body_tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/status_macros.h"
+#include "common/tracking/body_part_forest.h"
+
+namespace reenact::tracking {
+namespace {
+
+struct Vote {
+  Eigen::Vector3f position_m;
+  float weight;
+};
+
+// Undistorted normalised rays of every pixel, cached per intrinsics.
+class RayCache {
+ public:
+  const std::vector<Eigen::Vector2f>& Get(const CameraIntrinsics& k) {
+    if (k.width == k_.width && k.height == k_.height && k.fx == k_.fx && k.fy == k_.fy &&
+        k.cx == k_.cx && k.cy == k_.cy && k.k1 == k_.k1 && k.k2 == k_.k2 && k.k3 == k_.k3 &&
+        k.p1 == k_.p1 && k.p2 == k_.p2) {
+      return rays_;
+    }
+    k_ = k;
+    rays_.resize(static_cast<size_t>(k.width) * k.height);
+    for (int y = 0; y < k.height; ++y) {
+      for (int x = 0; x < k.width; ++x) {
+        const Eigen::Vector2d distorted((x - k.cx) / k.fx, (y - k.cy) / k.fy);
+        const Eigen::Vector2d n =
+            k.HasDistortion() ? k.Undistort(distorted).value_or(distorted) : distorted;
+        rays_[static_cast<size_t>(y) * k.width + x] = n.cast<float>();
+      }
+    }
+    return rays_;
+  }
+
+ private:
+  CameraIntrinsics k_;
+  std::vector<Eigen::Vector2f> rays_;
+};
+
+// One person's pixels: a crop of the depth (metres, background elsewhere).
+struct PersonView {
+  int label = 0;
+  int x0 = 0, y0 = 0;
+  FloatImage depth_m;  // Crop, kBackgroundDepthM off the person.
+};
+
+std::vector<PersonView> CutPeople(const DepthImageMm& depth, const MaskImage& labels) {
+  std::map<int, std::array<int, 4>> boxes;  // label -> x0, y0, x1, y1.
+  for (int y = 0; y < depth.height; ++y) {
+    for (int x = 0; x < depth.width; ++x) {
+      const int l = labels.at(x, y);
+      if (l == 0 || depth.at(x, y) == 0) continue;
+      auto [it, fresh] = boxes.try_emplace(l, std::array<int, 4>{x, y, x, y});
+      auto& b = it->second;
+      b = {std::min(b[0], x), std::min(b[1], y), std::max(b[2], x), std::max(b[3], y)};
+    }
+  }
+  std::vector<PersonView> people;
+  for (const auto& [label, b] : boxes) {
+    PersonView view{label, b[0], b[1],
+                    FloatImage(b[2] - b[0] + 1, b[3] - b[1] + 1, kBackgroundDepthM)};
+    for (int y = b[1]; y <= b[3]; ++y) {
+      for (int x = b[0]; x <= b[2]; ++x) {
+        if (labels.at(x, y) == label && depth.at(x, y) != 0) {
+          view.depth_m.at(x - b[0], y - b[1]) = depth.at(x, y) * 0.001f;
+        }
+      }
+    }
+    people.push_back(std::move(view));
+  }
+  return people;
+}
+
+// Girshick et al. sec. 3.2: mean shift with a Gaussian kernel from a few of
+// the heaviest votes; the mode of largest density wins. Returns the mode and
+// its density over the votes' total weight.
+std::pair<Eigen::Vector3f, float> VoteMode(std::vector<Vote>* votes, int max_votes,
+                                           float bandwidth_m) {
+  if (static_cast<int>(votes->size()) > max_votes) {
+    std::nth_element(votes->begin(), votes->begin() + max_votes, votes->end(),
+                     [](const Vote& a, const Vote& b) { return a.weight > b.weight; });
+    votes->resize(static_cast<size_t>(max_votes));
+  }
+  std::sort(votes->begin(), votes->end(),
+            [](const Vote& a, const Vote& b) { return a.weight > b.weight; });
+  float total = 0;
+  for (const Vote& v : *votes) total += v.weight;
+  const float inv_2b2 = 1.0f / (2 * bandwidth_m * bandwidth_m);
+  Eigen::Vector3f best = (*votes)[0].position_m;
+  float best_density = -1;
+  const size_t seeds = std::min<size_t>(votes->size(), 5);
+  const size_t seed_step = std::max<size_t>(1, votes->size() / 10);
+  for (size_t s = 0; s < seeds; ++s) {
+    Eigen::Vector3f mode = (*votes)[s * seed_step % votes->size()].position_m;
+    float density = 0;
+    for (int it = 0; it < 8; ++it) {
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      density = 0;
+      for (const Vote& v : *votes) {
+        const float w = v.weight * std::exp(-(v.position_m - mode).squaredNorm() * inv_2b2);
+        sum += w * v.position_m;
+        density += w;
+      }
+      if (density <= 0) break;
+      const Eigen::Vector3f next = sum / density;
+      const bool settled = (next - mode).squaredNorm() < 1e-6f;
+      mode = next;
+      if (settled) break;
+    }
+    if (density > best_density) best_density = density, best = mode;
+  }
+  return {best, total > 0 ? std::max(0.0f, best_density) / total : 0.0f};
+}
+
+}  // namespace
+
+std::string DefaultForestPath() {
+  if (const char* env = std::getenv("REENACT_TRACKER_FOREST"); env && *env) return env;
+  return REENACT_DEFAULT_TRACKER_FOREST;
+}
+
+absl::Status BodyTrackerOptions::Validate() const {
+  if (pixel_stride < 1 || pixel_stride > 16) {
+    return absl::InvalidArgumentError("tracker: pixel stride must be 1..16");
+  }
+  if (!(vote_bandwidth_m > 0 && vote_bandwidth_m < 1) || max_votes_per_joint < 1) {
+    return absl::InvalidArgumentError("tracker: bad vote bandwidth or count");
+  }
+  if (!(min_tracked_confidence >= 0 && min_tracked_confidence <= 1) ||
+      !(max_behind_surface_m > 0) || !(max_id_jump_m > 0)) {
+    return absl::InvalidArgumentError("tracker: bad confidence, surface or id distance");
+  }
+  if (!(min_prior_confidence >= 0 && min_prior_confidence <= 1)) {
+    return absl::InvalidArgumentError("tracker: prior confidence must be within [0, 1]");
+  }
+  if (refine) RETURN_IF_ERROR(refinement.Validate());
+  return segmentation.Validate();
+}
+
+struct BodyTracker::Impl {
+  BodyTrackerOptions options;
+  std::shared_ptr<const BodyPartForest> forest;
+  RayCache rays;
+  std::vector<TrackedPerson> previous;
+  int next_id = 1;
+  std::unique_ptr<BodyModelRefiner> refiner;
+
+  TrackedPerson TrackPerson(const PersonView& view, const DepthImageMm& depth,
+                            const MaskImage& labels, const CameraIntrinsics& k);
+  void AssignIds(std::vector<TrackedPerson>* people);
+  void SetState(const DepthImageMm& depth, const MaskImage& labels, const CameraIntrinsics& k,
+                int label, TrackedJoint* joint) const;
+  absl::Status Refine(const PersonView& view, const CameraIntrinsics& k, TrackedPerson* person);
+};
+
+// The person's points with normals from their depth neighbours, oriented
+// towards the camera; every `stride`-th pixel.
+PersonCloud MakeCloud(const PersonView& view, const std::vector<Eigen::Vector2f>& ray,
+                      const CameraIntrinsics& k, int stride) {
+  const auto point = [&](int cx, int cy) {
+    const float z = view.depth_m.at(cx, cy);
+    const Eigen::Vector2f& r = ray[static_cast<size_t>(cy + view.y0) * k.width + cx + view.x0];
+    return Eigen::Vector3f(r.x() * z, r.y() * z, z);
+  };
+  PersonCloud cloud;
+  const float max_step_m = 0.05f;
+  for (int cy = 0; cy + stride < view.depth_m.height; cy += stride) {
+    for (int cx = 0; cx + stride < view.depth_m.width; cx += stride) {
+      const float z = view.depth_m.at(cx, cy);
+      if (z >= kBackgroundDepthM) continue;
+      if (std::abs(view.depth_m.at(cx + stride, cy) - z) > max_step_m ||
+          std::abs(view.depth_m.at(cx, cy + stride) - z) > max_step_m) {
+        continue;  // An edge (or a flying pixel): no reliable normal.
+      }
+      const Eigen::Vector3f p = point(cx, cy);
+      Eigen::Vector3f n = (point(cx + stride, cy) - p).cross(point(cx, cy + stride) - p);
+      if (n.squaredNorm() < 1e-12f) continue;
+      n.normalize();
+      if (n.dot(p) > 0) n = -n;
+      cloud.points_m.push_back(p);
+      cloud.normals.push_back(n);
+    }
+  }
+  return cloud;
+}
+
+absl::Status BodyTracker::Impl::Refine(const PersonView& view, const CameraIntrinsics& k,
+                                       TrackedPerson* person) {
+  TrackedPerson prior = *person;
+  for (TrackedJoint& joint : prior.joints) {
+    if (joint.confidence < options.min_prior_confidence) joint.state = JointState::kNotTracked;
+  }
+  const PersonCloud cloud = MakeCloud(view, rays.Get(k), k, options.pixel_stride);
+  if (cloud.points_m.size() < 50) return absl::OkStatus();
+  ASSIGN_OR_RETURN(const bool fitted, refiner->Refine(cloud, &prior));
+  if (!fitted) return absl::OkStatus();
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    person->joints[j].position_in_camera_m = prior.joints[j].position_in_camera_m;
+  }
+  return absl::OkStatus();
+}
+
+TrackedPerson BodyTracker::Impl::TrackPerson(const PersonView& view, const DepthImageMm& depth,
+                                             const MaskImage& labels, const CameraIntrinsics& k) {
+  const std::vector<Eigen::Vector2f>& ray = rays.Get(k);
+  const DepthProbe probe{view.depth_m.data.data(), view.depth_m.width, view.depth_m.height,
+                         static_cast<float>(k.fx), static_cast<float>(k.fy)};
+  std::array<std::vector<Vote>, body::kNumKinectV2Joints> votes;
+  TrackedPerson person;
+  person.mask_label = view.label;
+  const int stride = options.pixel_stride;
+  for (int cy = 0; cy < view.depth_m.height; cy += stride) {
+    for (int cx = 0; cx < view.depth_m.width; cx += stride) {
+      const float z = view.depth_m.at(cx, cy);
+      if (z >= kBackgroundDepthM) continue;
+      const int x = cx + view.x0, y = cy + view.y0;
+      const Eigen::Vector2f& r = ray[static_cast<size_t>(y) * k.width + x];
+      const Eigen::Vector3f point(r.x() * z, r.y() * z, z);
+      person.centroid_in_camera_m += point.cast<double>();
+      ++person.num_pixels;
+      for (const DecisionTree& tree : forest->trees()) {
+        const ForestLeaf& leaf = DescendTree(tree, probe, cx, cy, z);
+        for (const JointVote& v : leaf.votes) {
+          if (v.joint == kNoJoint) break;
+          votes[v.joint].push_back(Vote{point + v.offset_m, v.weight * z * z});  // Shotton Eq. 5.
+        }
+      }
+    }
+  }
+  if (person.num_pixels > 0) person.centroid_in_camera_m /= person.num_pixels;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    if (votes[j].empty()) continue;
+    const auto [mode, share] = VoteMode(&votes[j], options.max_votes_per_joint,
+                                        static_cast<float>(options.vote_bandwidth_m));
+    TrackedJoint& joint = person.joints[j];
+    joint.position_in_camera_m = mode.cast<double>();
+    joint.confidence = std::clamp(static_cast<double>(share), 0.0, 1.0);
+    joint.state = JointState::kInferred;
+  }
+  return person;
+}
+
+void BodyTracker::Impl::SetState(const DepthImageMm& depth, const MaskImage& labels,
+                                 const CameraIntrinsics& k, int label, TrackedJoint* joint) const {
+  joint->state = JointState::kInferred;
+  if (joint->confidence < options.min_tracked_confidence || !k.IsInside(joint->pixel)) return;
+  const int x = static_cast<int>(std::lround(joint->pixel.x()));
+  const int y = static_cast<int>(std::lround(joint->pixel.y()));
+  if (labels.at(x, y) != label || depth.at(x, y) == 0) return;
+  const double behind_m = joint->position_in_camera_m.z() - depth.at(x, y) * 0.001;
+  if (behind_m > -0.05 && behind_m < options.max_behind_surface_m) {
+    joint->state = JointState::kTracked;
+  }
+}
+
+// Each person keeps the id of the nearest person of the previous frame
+// within max_id_jump_m (closest pairs first); the rest get new ids.
+void BodyTracker::Impl::AssignIds(std::vector<TrackedPerson>* people) {
+  std::vector<std::tuple<double, size_t, size_t>> pairs;
+  for (size_t i = 0; i < people->size(); ++i) {
+    for (size_t p = 0; p < previous.size(); ++p) {
+      const double d =
+          ((*people)[i].centroid_in_camera_m - previous[p].centroid_in_camera_m).norm();
+      if (d <= options.max_id_jump_m) pairs.emplace_back(d, i, p);
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  std::vector<bool> person_done(people->size(), false), previous_done(previous.size(), false);
+  for (const auto& [d, i, p] : pairs) {
+    if (person_done[i] || previous_done[p]) continue;
+    (*people)[i].person_id = previous[p].person_id;
+    person_done[i] = previous_done[p] = true;
+  }
+  for (size_t i = 0; i < people->size(); ++i) {
+    if (!person_done[i]) (*people)[i].person_id = next_id++;
+  }
+}
+
+BodyTracker::BodyTracker(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+BodyTracker::~BodyTracker() = default;
+
+absl::StatusOr<std::unique_ptr<BodyTracker>> BodyTracker::Create(
+    const BodyTrackerOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
+  const std::string path = options.forest_path.empty() ? DefaultForestPath() : options.forest_path;
+  ASSIGN_OR_RETURN(BodyPartForest forest, BodyPartForest::Load(path));
+  return Create(std::make_shared<const BodyPartForest>(std::move(forest)), options);
+}
+
+absl::StatusOr<std::unique_ptr<BodyTracker>> BodyTracker::Create(
+    std::shared_ptr<const BodyPartForest> forest, const BodyTrackerOptions& options) {
+  RETURN_IF_ERROR(options.Validate());
+  if (!forest) return absl::InvalidArgumentError("tracker: no forest");
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  impl->forest = std::move(forest);
+  if (options.refine) {
+    ASSIGN_OR_RETURN(impl->refiner, BodyModelRefiner::Create(options.refinement));
+  }
+  return std::unique_ptr<BodyTracker>(new BodyTracker(std::move(impl)));
+}
+
+absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm& depth,
+                                                              const CameraIntrinsics& intrinsics,
+                                                              const MaskImage* labels) {
+  RETURN_IF_ERROR(intrinsics.Validate());
+  if (depth.width != intrinsics.width || depth.height != intrinsics.height ||
+      depth.data.size() != depth.num_pixels()) {
+    return absl::InvalidArgumentError(absl::StrCat("tracker: the depth image is ", depth.width, "x",
+                                                   depth.height, " but the intrinsics are for ",
+                                                   intrinsics.width, "x", intrinsics.height));
+  }
+  MaskImage own_labels;
+  if (labels == nullptr) {
+    ASSIGN_OR_RETURN(PersonSegmentation segmentation,
+                     SegmentPeople(depth, intrinsics, impl_->options.segmentation));
+    own_labels = std::move(segmentation.labels);
+    labels = &own_labels;
+  } else if (labels->width != depth.width || labels->height != depth.height ||
+             labels->data.size() != depth.num_pixels()) {
+    return absl::InvalidArgumentError("tracker: the label image and the depth differ in size");
+  }
+  std::vector<TrackedPerson> people;
+  const std::vector<PersonView> views = CutPeople(depth, *labels);
+  for (const PersonView& view : views) {
+    people.push_back(impl_->TrackPerson(view, depth, *labels, intrinsics));
+  }
+  impl_->AssignIds(&people);
+  std::vector<int> ids;
+  for (size_t i = 0; i < people.size(); ++i) {
+    TrackedPerson& person = people[i];
+    ids.push_back(person.person_id);
+    if (impl_->refiner) RETURN_IF_ERROR(impl_->Refine(views[i], intrinsics, &person));
+    for (TrackedJoint& joint : person.joints) {
+      if (joint.state == JointState::kNotTracked) continue;
+      if (auto pixel = intrinsics.Project(joint.position_in_camera_m)) joint.pixel = *pixel;
+      impl_->SetState(depth, *labels, intrinsics, person.mask_label, &joint);
+    }
+  }
+  if (impl_->refiner) impl_->refiner->Keep(ids);
+  impl_->previous = people;
+  return people;
+}
+
+void BodyTracker::Reset() {
+  impl_->previous.clear();
+  if (impl_->refiner) impl_->refiner->Keep({});
+  impl_->next_id = 1;
+}
+
+const BodyTrackerOptions& BodyTracker::options() const { return impl_->options; }
+
+}  // namespace reenact::tracking

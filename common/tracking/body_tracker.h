@@ -1,0 +1,103 @@
+// Skeletons from depth on the CPU: the 25 Kinect v2 joints of every person in
+// a depth image, with no vendor SDK.
+//
+// Discriminative step after Shotton et al., "Real-Time Human Pose Recognition
+// in Parts from Single Depth Images", CVPR 2011, and Girshick et al.,
+// "Efficient Regression of General-Activity Human Poses from Depth Images",
+// ICCV 2011: a randomised decision forest (body_part_forest.h) reads
+// depth-difference features at every (subsampled) pixel of a person; each
+// leaf holds a distribution over body parts and, per joint, a vote (offset
+// from the pixel's 3D point to the joint). Votes are weighted by the pixel's
+// world area (z^2, Shotton Eq. 5) and aggregated per joint by mean shift
+// with a Gaussian kernel (Girshick sec. 3.2); the densest mode is the joint.
+// A temporal step keeps person ids across frames.
+//
+// The forest is trained by `reenact tracker train` (tracker_training.h) on
+// depth the project synthesises from the CMU motions and our body models;
+// no weights come from anywhere else.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "common/base/image.h"
+#include "common/geometry/camera.h"
+#include "common/tracking/model_refinement.h"
+#include "common/tracking/person_segmentation.h"
+#include "common/tracking/tracking_types.h"
+
+namespace reenact::tracking {
+
+class BodyPartForest;
+
+struct BodyTrackerOptions {
+  // The trained forest (.rtf); empty: DefaultForestPath().
+  std::string forest_path;
+  // Every `pixel_stride`-th pixel in x and y is classified (1: all).
+  int pixel_stride = 2;
+  // Mean-shift bandwidth of the joint votes, metres (Girshick's b).
+  double vote_bandwidth_m = 0.05;
+  // Votes kept per joint (the heaviest), before mean shift.
+  int max_votes_per_joint = 300;
+  // Joints whose best mode holds less than this share of the joint's vote
+  // weight are inferred even where the surface is seen.
+  double min_tracked_confidence = 0.15;
+  // A joint is tracked when it projects onto the person and lies at most
+  // this far behind the surface seen there, metres.
+  double max_behind_surface_m = 0.15;
+  // Used when Track is given no label image.
+  PersonSegmentationOptions segmentation;
+  // Largest distance between a person's centroids in consecutive frames
+  // that keeps their id, metres.
+  double max_id_jump_m = 0.5;
+  // The generative step (model_refinement.h): the body model fitted to each
+  // person's points from the forest's joints and the person's previous fit.
+  bool refine = true;
+  ModelRefinementOptions refinement;
+  // Forest joints below this confidence do not enter the fit as priors
+  // (their position comes from the points and the previous frame).
+  double min_prior_confidence = 0.1;
+
+  absl::Status Validate() const;
+};
+
+// The forest shipped with the source tree (models/tracker/body_parts.rtf), or
+// $REENACT_TRACKER_FOREST when set.
+std::string DefaultForestPath();
+
+class BodyTracker {
+ public:
+  // Loads the forest: NotFound / DataLoss / InvalidArgument with the path
+  // when it is missing, corrupt or of another version.
+  static absl::StatusOr<std::unique_ptr<BodyTracker>> Create(
+      const BodyTrackerOptions& options = {});
+  // Wraps an already loaded forest (tests, benchmarks).
+  static absl::StatusOr<std::unique_ptr<BodyTracker>> Create(
+      std::shared_ptr<const BodyPartForest> forest, const BodyTrackerOptions& options = {});
+  ~BodyTracker();
+
+  // People in one depth image (millimetres, 0 = no measurement) seen through
+  // `intrinsics`. `labels`, when given, marks the people (the actor mask:
+  // 0 background, k > 0 body k; same size as the depth); otherwise the
+  // tracker segments the image itself (SegmentPeople). Person ids continue
+  // those of the previous call. InvalidArgument for mismatched sizes or bad
+  // intrinsics; an image with nobody gives an empty vector.
+  absl::StatusOr<std::vector<TrackedPerson>> Track(const DepthImageMm& depth,
+                                                   const CameraIntrinsics& intrinsics,
+                                                   const MaskImage* labels = nullptr);
+
+  // Forgets the people of earlier frames (new ids from 1).
+  void Reset();
+
+  const BodyTrackerOptions& options() const;
+
+ private:
+  struct Impl;
+  explicit BodyTracker(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace reenact::tracking

@@ -42,6 +42,8 @@ const Setup& GetSetup() {
     const std::string path =
         (std::filesystem::temp_directory_path() / "reenact_body_fit_bench.mcap").string();
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in).
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = std::string(REENACT_TEST_DATA_DIR) + "/mocap/cmu/131_01.bvh";
     options.shape = "random:7";
     options.seconds = 3.0;

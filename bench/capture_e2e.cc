@@ -6,6 +6,11 @@
 // server, and bytes per FrameSet.
 //
 //   build/bench/capture_e2e [--seconds 60] [--source take.mcap] [--work DIR] [--json FILE]
+//                           [--tracker auto|on|off] [--tracker-refine on|off]
+//
+// The synthesised source carries no skeleton, so reenactd's body tracker
+// runs on every frame of both sensors (--tracker auto), as with real depth
+// cameras.
 //
 // Without --source it synthesises a 2 s 2-sensor take once (cached in
 // --work) and the daemon loops it in real time.
@@ -41,7 +46,8 @@ using bench::ReadText;
 
 int Run(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  auto flags = Flags::Parse(args, {"seconds", "source", "work", "json", "bin"}, {});
+  auto flags = Flags::Parse(
+      args, {"seconds", "source", "work", "json", "bin", "tracker", "tracker-refine"}, {});
   if (!flags.ok()) {
     std::cerr << "capture_e2e: " << flags.status().message() << "\n";
     return 2;
@@ -105,7 +111,8 @@ int Run(int argc, char** argv) {
   auto daemon = Subprocess::Start(
       {bin + "/reenactd", "--server", address, "--source", "playback:" + source, "--loop",
        "--max-seconds", absl::StrFormat("%g", seconds), "--once", "--spool", work + "/spool",
-       "--control", "127.0.0.1:0", "--stats-json", work + "/stats.json"},
+       "--control", "127.0.0.1:0", "--stats-json", work + "/stats.json", "--tracker",
+       flags->GetOr("tracker", "auto"), "--tracker-refine", flags->GetOr("tracker-refine", "off")},
       daemon_options);
   if (!daemon.ok()) {
     std::cerr << "capture_e2e: " << daemon.status().message() << "\n";

@@ -58,6 +58,9 @@ absl::StatusOr<std::string> SourceTake(const Flags& flags, const std::string& wo
   if (fs::exists(path)) return path;
   std::cerr << "live_e2e: synthesising a " << seconds << " s 2-sensor take into " << path << "\n";
   synth::SynthOptions options;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in):
+  // these floors are the methods' own, apart from the tracker's accuracy.
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.motion = "builtin:front-kick";
   options.num_sensors = 2;
   options.seconds = seconds;

@@ -56,6 +56,9 @@ int Run(int argc, char** argv) {
       std::cerr << "recon_e2e: synthesising a " << *seconds << " s 2-sensor take into " << source
                 << "\n";
       synth::SynthOptions options;
+      // The sensors carry the jittered true skeleton (a device SDK stand-in):
+      // these floors are the methods' own, apart from the tracker's accuracy.
+      options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
       options.motion = "builtin:front-kick";
       options.num_sensors = 2;
       options.seconds = *seconds;

@@ -114,6 +114,8 @@ const std::string& BoardTakePath() {
   static const std::string path = [] {
     const std::string file = reenact::testing::MakeTempDir("capture_board_take") + "/take.mcap";
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in).
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = "builtin:arm-raise";
     options.num_sensors = 2;
     options.seconds = 0.4;

@@ -21,8 +21,11 @@ bin=build/bin
 reenact=$bin/reenact
 viewer=$bin/reenact-viewer
 
+# The synthetic sensors carry the jittered true skeleton (a stand-in for a
+# device's own): the daemon's tracker (--tracker auto) runs only on sensors
+# that give none, such as the Kinect v1 and OpenNI2 backends.
 "$reenact" synth --motion builtin:front-kick --body procedural --sensors 2 --seconds 3 \
-  --out "$out/source.mcap"
+  --sensor-skeleton truth --out "$out/source.mcap"
 
 rm -rf "$out/server" "$out/spool" "$out/server.port"
 "$bin/reenact-server" --data "$out/server" --listen 127.0.0.1:0 --port-file "$out/server.port" \
@@ -89,7 +92,7 @@ reconstruct body- "$out/body.glb" --method body --model procedural
 # the repetition is graded part by part (time-aligned by DTW) into a report.
 "$reenact" synth --motion builtin:front-kick --body procedural --shape random:3 --sensors 1 \
   --seconds 5.5 --lead-in-s 2 --yaw-deg 90 --color-width 960 --color-height 540 \
-  --out "$out/learner.mcap" --quiet
+  --sensor-skeleton truth --out "$out/learner.mcap" --quiet
 rm -rf "$out/mirror" "$out/mirror-report"
 "$bin/reenact-mirror" --server "$server" --teacher "$reenactment_id" --cache "$out/cache" \
   --learner-take "$out/learner.mcap" --dtw --render-to "$out/mirror" \

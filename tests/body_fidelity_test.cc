@@ -35,6 +35,9 @@ class BodyFidelity : public ::testing::Test {
     }
     dir_ = new std::string(testing::MakeTempDir("body_fidelity"));
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in):
+    // these floors are the methods' own, apart from the tracker's accuracy.
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = clip;
     options.body = "makehuman:" + makehuman;
     options.shape = "random:5";

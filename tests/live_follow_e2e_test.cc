@@ -98,6 +98,9 @@ class LiveFollowEndToEnd : public ::testing::Test {
 
 TEST_F(LiveFollowEndToEnd, LiveBodyJobFollowsATakeWhileItIsRecorded) {
   synth::SynthOptions synth;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in):
+  // these floors are the methods' own, apart from the tracker's accuracy.
+  synth.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   synth.motion = "builtin:front-kick";
   synth.num_sensors = 2;
   synth.seconds = 2.5;

@@ -55,6 +55,9 @@ class ReenactmentEndToEnd : public ::testing::Test {
     fs::remove_all(*dir_);
     fs::create_directories(*dir_);
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in):
+    // these floors are the methods' own, apart from the tracker's accuracy.
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = "builtin:front-kick";
     options.num_sensors = 2;
     options.seconds = 2.0;

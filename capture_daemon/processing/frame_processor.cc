@@ -38,6 +38,9 @@ absl::Status ProcessingOptions::Validate() const {
   if (absl::Status s = tuning.Validate(); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("segmentation_tuning: ", s.message()));
   }
+  if (absl::Status s = tracker.Validate(); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("tracker: ", s.message()));
+  }
   return absl::OkStatus();
 }
 
@@ -107,7 +110,7 @@ class FrameProcessorImpl : public FrameProcessor {
         segmenter_.emplace(std::move(segmenter));
       }
     }
-    return absl::OkStatus();
+    return InitTracker();
   }
 
   absl::Status Process(CapturedFrame& frame) override {
@@ -125,7 +128,9 @@ class FrameProcessorImpl : public FrameProcessor {
     } else {
       RETURN_IF_ERROR(CheckEncoded(frame));
     }
-    RETURN_IF_ERROR(MaybeSegment(frame, std::move(depth_for_mask)));
+    std::optional<MaskImage> mask;
+    RETURN_IF_ERROR(MaybeSegment(frame, depth_for_mask, mask));
+    RETURN_IF_ERROR(MaybeTrack(frame, depth_for_mask, mask));
     frame.depth_mm.reset();
     frame.color.reset();
     const double ms = (SteadyNowNs() - begin_ns) * 1e-6;
@@ -244,20 +249,28 @@ class FrameProcessorImpl : public FrameProcessor {
     return absl::OkStatus();
   }
 
-  absl::Status MaybeSegment(CapturedFrame& frame, std::optional<DepthImageMm> depth) {
+  // Decodes the frame's depth into `depth` unless it holds it already.
+  absl::Status EnsureDepth(const v1::Frame& f, std::optional<DepthImageMm>& depth) const {
+    if (depth) return absl::OkStatus();
+    auto decoded = DecodeDepth(f.depth().data());
+    if (!decoded.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": frame ", f.frame_index(),
+                                                     ": ", decoded.status().message()));
+    }
+    depth = *std::move(decoded);
+    return absl::OkStatus();
+  }
+
+  // Segments the actor when the policy says so; `mask_out` receives the mask
+  // it made.
+  absl::Status MaybeSegment(CapturedFrame& frame, std::optional<DepthImageMm>& depth,
+                            std::optional<MaskImage>& mask_out) {
     using Mode = ProcessingOptions::Mode;
     if (!segmenter_) return absl::OkStatus();
     v1::Frame& f = frame.frame;
     const bool has_mask = f.has_mask() && !f.mask().data().empty();
     if (options_.segmentation == Mode::kAuto && has_mask) return absl::OkStatus();
-    if (!depth) {
-      auto decoded = DecodeDepth(f.depth().data());
-      if (!decoded.ok()) {
-        return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": frame ", f.frame_index(),
-                                                       ": ", decoded.status().message()));
-      }
-      depth = *std::move(decoded);
-    }
+    RETURN_IF_ERROR(EnsureDepth(f, depth));
     auto mask = segmenter_->Segment(*depth, f.host_stamp_ns());
     if (!mask.ok()) {
       return absl::InvalidArgumentError(
@@ -270,6 +283,91 @@ class FrameProcessorImpl : public FrameProcessor {
     m->set_encoding("rle");
     m->set_data(EncodeMaskRle(*mask));
     ++stats_.segmented;
+    if (std::any_of(mask->data.begin(), mask->data.end(), [](uint8_t v) { return v != 0; })) {
+      mask_out = *std::move(mask);
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status InitTracker() {
+    using Mode = ProcessingOptions::Mode;
+    if (options_.tracking == Mode::kOff) return absl::OkStatus();
+    if (options_.tracking == Mode::kAuto && info_.provides_skeleton()) return absl::OkStatus();
+    if (!depth_k_) {
+      if (options_.tracking == Mode::kOn) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            info_.sensor_id(), ": tracking is on but the calibration lacks valid depth intrinsics"));
+      }
+      return absl::OkStatus();
+    }
+    auto tracker = tracking::BodyTracker::Create(options_.tracker);
+    if (!tracker.ok()) {
+      return absl::Status(tracker.status().code(),
+                          absl::StrCat(info_.sensor_id(), ": body tracker: ",
+                                       tracker.status().message()));
+    }
+    tracker_ = *std::move(tracker);
+    return absl::OkStatus();
+  }
+
+  // Tracks the people of the frame when the policy says so.
+  absl::Status MaybeTrack(CapturedFrame& frame, std::optional<DepthImageMm>& depth,
+                          std::optional<MaskImage>& mask) {
+    using Mode = ProcessingOptions::Mode;
+    if (!tracker_) return absl::OkStatus();
+    v1::Frame& f = frame.frame;
+    if (options_.tracking == Mode::kAuto && f.skeletons_size() > 0) return absl::OkStatus();
+    RETURN_IF_ERROR(EnsureDepth(f, depth));
+    if (depth->width != depth_k_->width || depth->height != depth_k_->height) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          info_.sensor_id(), ": frame ", f.frame_index(), ": depth of ", depth->width, "x",
+          depth->height, " px; the calibration says ", depth_k_->width, "x", depth_k_->height));
+    }
+    if (!mask && f.has_mask() && !f.mask().data().empty()) {
+      // The source's own mask (or one segmented before this processor).
+      auto decoded = DecodeMask(f.mask().encoding(), f.mask().data());
+      if (decoded.ok() && decoded->width == depth->width && decoded->height == depth->height) {
+        mask = *std::move(decoded);
+      }
+    }
+    const int64_t begin_ns = SteadyNowNs();
+    auto people = tracker_->Track(*depth, *depth_k_, mask ? &*mask : nullptr);
+    stats_.tracking_ms += (SteadyNowNs() - begin_ns) * 1e-6;
+    if (!people.ok()) {
+      // The frame still streams, with no skeleton (as a frame with nobody).
+      ++stats_.tracking_errors;
+      stats_.last_tracking_error = std::string(people.status().message());
+      if (options_.tracking == Mode::kOn) f.clear_skeletons();
+      return absl::OkStatus();
+    }
+    ++stats_.tracked;
+    f.clear_skeletons();
+    for (const tracking::TrackedPerson& person : *people) {
+      v1::Skeleton* skeleton = f.add_skeletons();
+      SetStamps(f, skeleton);
+      skeleton->set_body_index(std::max(1, person.mask_label));
+      skeleton->set_person_id(person.person_id);
+      skeleton->set_source(kTrackerSource);
+      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+        const tracking::TrackedJoint& tj = person.joints[j];
+        v1::Joint* joint = skeleton->add_joints();
+        joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
+        *joint->mutable_position_in_depth_m() = ToProto(tj.position_in_camera_m);
+        joint->set_confidence(static_cast<float>(tj.confidence));
+        switch (tj.state) {
+          case tracking::JointState::kTracked:
+            joint->set_tracking_state(v1::TRACKING_STATE_TRACKED);
+            break;
+          case tracking::JointState::kInferred:
+            joint->set_tracking_state(v1::TRACKING_STATE_INFERRED);
+            break;
+          case tracking::JointState::kNotTracked:
+            joint->set_tracking_state(v1::TRACKING_STATE_NOT_TRACKED);
+            break;
+        }
+      }
+      ++stats_.tracked_people;
+    }
     return absl::OkStatus();
   }
 
@@ -280,6 +378,7 @@ class FrameProcessorImpl : public FrameProcessor {
   CameraIntrinsics raw_depth_k_;             // Of the raw depth, when registering.
   std::optional<DepthToColorRegistration> registration_;
   std::optional<ActorSegmenter> segmenter_;
+  std::unique_ptr<tracking::BodyTracker> tracker_;
   ProcessingStats stats_;
 };
 

@@ -29,6 +29,15 @@
 //   body index 1), empty during the first background_seconds. kOn replaces a
 //   source's mask. Segmentation needs valid depth intrinsics; without them
 //   kAuto skips it and kOn fails at Create.
+// - Tracking (common/tracking/body_tracker.h) runs when the mode is kOn, or
+//   kAuto and the frame carries no skeleton: the people in the output depth
+//   (the frame's mask marks them when there is one, else the tracker
+//   segments by itself) become Skeletons with source kTrackerSource, their
+//   body_index the mask's value and person_id stable across frames. kOn
+//   replaces a source's skeletons. A frame with nobody gets no skeleton. The
+//   tracker's forest is loaded at Create: a missing or corrupt forest fails
+//   Create under kOn, and under kAuto for a sensor that gives no skeleton of
+//   its own; tracking needs valid depth intrinsics like segmentation.
 #pragma once
 
 #include <cstdint>
@@ -38,9 +47,13 @@
 #include "absl/status/status.h"
 #include "capture_daemon/processing/actor_segmenter.h"
 #include "capture_daemon/sensors/sensor.h"
+#include "common/tracking/body_tracker.h"
 #include "reenact/v1/frame.pb.h"
 
 namespace reenact::capture {
+
+// v1::Skeleton.source of the skeletons the daemon's tracker produces.
+inline constexpr char kTrackerSource[] = "reenact-tracker";
 
 struct ProcessingOptions {
   enum class Mode { kAuto, kOn, kOff };
@@ -62,6 +75,10 @@ struct ProcessingOptions {
   // Tuning of the segmentation; its background_seconds is replaced by the
   // field above and its noise_model by the sensor's model.
   SegmenterOptions segmentation_tuning;
+  // kAuto: track skeletons when the source gives none.
+  Mode tracking = Mode::kAuto;
+  // The tracker (its forest_path empty: the shipped forest).
+  tracking::BodyTrackerOptions tracker;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -72,6 +89,11 @@ struct ProcessingStats {
   int64_t frames = 0;       // Frames processed successfully.
   int64_t registered = 0;   // Frames whose depth was registered.
   int64_t segmented = 0;    // Frames that got a mask from segmentation.
+  int64_t tracked = 0;      // Frames that went through the tracker.
+  int64_t tracked_people = 0;  // Skeletons the tracker produced.
+  double tracking_ms = 0.0;    // Wall time spent in the tracker.
+  int64_t tracking_errors = 0;  // Frames the tracker refused (they stream without skeleton).
+  std::string last_tracking_error;
   double total_ms = 0.0;    // Wall time spent in Process.
   double max_ms = 0.0;      // Longest Process call.
   bool background_ready = false;

@@ -300,12 +300,15 @@ struct SyntheticCapture {
   std::vector<DepthImageMm> background;
   std::vector<v1::DepthImage> depth;
   std::vector<v1::ActorMask> mask;
+  std::vector<v1::GroundTruthJoints> joints;  // Parallel to depth.
 };
 
 const SyntheticCapture& Capture() {
   static const SyntheticCapture* capture = [] {
     auto* c = new SyntheticCapture;
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in).
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = "builtin:front-kick";
     options.num_sensors = 1;
     options.seconds = 0.6;
@@ -327,6 +330,7 @@ const SyntheticCapture& Capture() {
     const std::string id = c->calibration.sensor_id();
     c->depth = *(*reader)->ReadAll<v1::DepthImage>(SensorTopic(id, "depth"));
     c->mask = *(*reader)->ReadAll<v1::ActorMask>(SensorTopic(id, "mask"));
+    c->joints = *(*reader)->ReadAll<v1::GroundTruthJoints>(std::string(kGroundTruthJointsTopic));
     c->background = RenderEmptyRoom(c->calibration, kBackgroundFrames);
     return c;
   }();
@@ -430,6 +434,112 @@ TEST(ActorSegmenter, NoiseModelMatchesTheSynthesizer) {
         << z;
   }
   EXPECT_NEAR(ActorSegmenter::AxialSigmaMm("kinect_v1", 2.0), 5.7, 0.01);
+}
+
+TEST(FrameProcessor, TracksSkeletonsWhereTheSourceGivesNone) {
+  const SyntheticCapture& capture = Capture();
+  ASSERT_FALSE(capture.depth.empty());
+  ASSERT_EQ(capture.joints.size(), capture.depth.size());
+  v1::SensorInfo info = InfoFor(capture.calibration, "playback");
+  info.set_provides_skeleton(false);
+  auto processor = FrameProcessor::Create(info, ProcessingOptions{});
+  ASSERT_TRUE(processor.ok()) << processor.status();
+  auto world_from_depth = FromProto(capture.calibration.world_from_depth());
+  ASSERT_TRUE(world_from_depth.ok());
+  // The take's own masks mark the person; the tracker runs on every frame.
+  double torso_error_sum = 0.0;
+  int torso_joints = 0, person_ids = 0;
+  for (size_t f = 0; f < capture.depth.size(); ++f) {
+    CapturedFrame frame;
+    frame.frame.set_sensor_id(info.sensor_id());
+    frame.frame.set_frame_index(static_cast<int64_t>(f));
+    frame.frame.set_host_stamp_ns(capture.depth[f].host_stamp_ns());
+    *frame.frame.mutable_depth() = capture.depth[f];
+    *frame.frame.mutable_mask() = capture.mask[f];
+    ASSERT_TRUE((*processor)->Process(frame).ok());
+    ASSERT_EQ(frame.frame.skeletons_size(), 1) << "frame " << f;
+    const v1::Skeleton& skeleton = frame.frame.skeletons(0);
+    EXPECT_EQ(skeleton.source(), kTrackerSource);
+    EXPECT_EQ(skeleton.body_index(), 1);
+    EXPECT_EQ(skeleton.host_stamp_ns(), capture.depth[f].host_stamp_ns());
+    ASSERT_EQ(skeleton.joints_size(), body::kNumKinectV2Joints);
+    person_ids += skeleton.person_id() == 1 ? 1 : 0;
+    const v1::GroundTruthJoints& truth = capture.joints[f];
+    for (int t = 0; t < truth.joint_names_size(); ++t) {
+      if (truth.joint_names(t) != "SpineBase" && truth.joint_names(t) != "SpineMid" &&
+          truth.joint_names(t) != "SpineShoulder") {
+        continue;
+      }
+      for (const v1::Joint& joint : skeleton.joints()) {
+        if (joint.name() != truth.joint_names(t)) continue;
+        const Eigen::Vector3d tracked = *world_from_depth * FromProto(joint.position_in_depth_m());
+        torso_error_sum += (tracked - FromProto(truth.positions_in_world_m(t))).norm();
+        ++torso_joints;
+      }
+    }
+  }
+  // The torso of a person 2.5 m away is found within 6 cm on average, and
+  // the person keeps one id.
+  ASSERT_GT(torso_joints, 0);
+  const double torso_mm = 1000.0 * torso_error_sum / torso_joints;
+  std::printf("torso joints %d: mean error %.1f mm\n", torso_joints, torso_mm);
+  EXPECT_LT(torso_mm, 60.0);
+  EXPECT_EQ(person_ids, static_cast<int>(capture.depth.size()));
+  const ProcessingStats stats = (*processor)->stats();
+  EXPECT_EQ(stats.tracked, static_cast<int64_t>(capture.depth.size()));
+  EXPECT_EQ(stats.tracking_errors, 0);
+}
+
+TEST(FrameProcessor, TrackingKeepsADevicesSkeletonInAutoAndReplacesItWhenOn) {
+  const SyntheticCapture& capture = Capture();
+  ASSERT_FALSE(capture.depth.empty());
+  for (const ProcessingOptions::Mode mode :
+       {ProcessingOptions::Mode::kAuto, ProcessingOptions::Mode::kOn}) {
+    v1::SensorInfo info = InfoFor(capture.calibration, "playback");
+    info.set_provides_skeleton(true);
+    ProcessingOptions options;
+    options.tracking = mode;
+    auto processor = FrameProcessor::Create(info, options);
+    ASSERT_TRUE(processor.ok()) << processor.status();
+    CapturedFrame frame;
+    frame.frame.set_sensor_id(info.sensor_id());
+    *frame.frame.mutable_depth() = capture.depth.back();
+    *frame.frame.mutable_mask() = capture.mask.back();
+    frame.frame.add_skeletons()->set_source("device");
+    ASSERT_TRUE((*processor)->Process(frame).ok());
+    ASSERT_EQ(frame.frame.skeletons_size(), 1);
+    EXPECT_EQ(frame.frame.skeletons(0).source(),
+              mode == ProcessingOptions::Mode::kOn ? kTrackerSource : "device");
+  }
+}
+
+TEST(FrameProcessor, TrackingAFrameWithNobodyOrGarbageKeepsStreaming) {
+  const SyntheticCapture& capture = Capture();
+  ASSERT_FALSE(capture.background.empty());
+  v1::SensorInfo info = InfoFor(capture.calibration, "playback");
+  ProcessingOptions options;
+  options.segmentation = ProcessingOptions::Mode::kOff;
+  auto processor = FrameProcessor::Create(info, options);
+  ASSERT_TRUE(processor.ok()) << processor.status();
+  // The empty room: no skeleton.
+  CapturedFrame empty;
+  empty.frame.set_sensor_id(info.sensor_id());
+  empty.frame.mutable_depth()->set_encoding("rvl");
+  empty.frame.mutable_depth()->set_data(*EncodeDepth(capture.background[0], {}));
+  ASSERT_TRUE((*processor)->Process(empty).ok());
+  EXPECT_EQ(empty.frame.skeletons_size(), 0);
+  // No depth at all, and depth of the wrong size: clear errors, no crash.
+  CapturedFrame small;
+  small.frame.set_sensor_id(info.sensor_id());
+  small.frame.mutable_depth()->set_encoding("rvl");
+  small.frame.mutable_depth()->set_data(*EncodeDepth(DepthImageMm(8, 8, 1500), {}));
+  const absl::Status s = (*processor)->Process(small);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << s;
+  // A forest that does not exist fails Create with the path.
+  options.tracker.forest_path = "/nonexistent/forest.rtf";
+  auto missing = FrameProcessor::Create(info, options);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.status().message().find("/nonexistent/forest.rtf"), std::string::npos);
 }
 
 }  // namespace

@@ -20,6 +20,8 @@ inline const std::string& SyntheticTakePath() {
     const std::string dir = reenact::testing::MakeTempDir("capture_synthetic_take");
     const std::string file = dir + "/take.mcap";
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in).
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = "builtin:arm-raise";
     options.num_sensors = 2;
     options.seconds = 0.5;

@@ -18,11 +18,13 @@ std::vector<Command> BuildCommandTable() {
        "[--yaw-deg D] [--lead-in-s S] [--distance M] [--color-width W --color-height H] "
        "[--jpeg-quality Q] "
        "[--seed N] [--no-depth-noise] [--no-mesh] [--board [SPEC]] "
-       "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--quiet] [--json]",
+       "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--sensor-skeleton none|truth] "
+       "[--quiet] [--json]",
        "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors "
        "(--yaw-deg turns the performer about the vertical; --lead-in-s holds the first pose "
        "that long before moving; --board lays the printed board on the floor as the world "
-       "frame)",
+       "frame; the sensors carry no skeleton unless --sensor-skeleton truth, as real depth "
+       "cameras: the capture daemon tracks them)",
        RunSynth},
       {{"board"},
        "--out board.png [--spec aruco:DICT:COLSxROWS:MARKER_MM:GAP_MM] [--dpi N] "

@@ -29,6 +29,8 @@ const std::string& SmallTake() {
   static const std::string* path = [] {
     auto* p = new std::string(testing::MakeTempDir("take_skeletons") + "/take.mcap");
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in).
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = "builtin:arm-raise";
     options.seconds = 0.5;
     options.num_sensors = 2;

@@ -33,7 +33,7 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
                              "fps",          "out",   "color-width", "color-height",
                              "jpeg-quality", "seed",  "distance",    "yaw-deg",
                              "lead-in-s",    "board", "board-x-m",   "board-z-m",
-                             "board-yaw-deg"},
+                             "board-yaw-deg", "sensor-skeleton"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -87,6 +87,14 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   options.board_z_m = *board_z_m;
   options.board_yaw_deg = *board_yaw_deg;
   options.depth_noise.enabled = !flags->Has("no-depth-noise");
+  if (const std::string skeleton = flags->GetOr("sensor-skeleton", "none"); skeleton == "truth") {
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
+  } else if (skeleton != "none") {
+    return ReportError(absl::InvalidArgumentError(
+                           "--sensor-skeleton: none (the daemon tracks) or truth, not \"" +
+                           skeleton + "\""),
+                       err);
+  }
   options.ground_truth_mesh = !flags->Has("no-mesh");
   const bool json = flags->Has("json");
   ProgressBar bar(err, !json && !flags->Has("quiet"));

@@ -31,6 +31,8 @@ inline const std::string& TestDir() {
 
 inline synth::SynthOptions TakeOptions(double seconds, double yaw_deg, uint64_t seed) {
   synth::SynthOptions options;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in).
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.motion = kMotion;
   options.num_sensors = 1;
   options.seconds = seconds;

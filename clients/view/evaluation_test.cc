@@ -28,6 +28,8 @@ const SharedTake& Take() {
   static const SharedTake* take = [] {
     auto* t = new SharedTake;
     synth::SynthOptions options;
+    // The sensors carry the jittered true skeleton (a device SDK stand-in).
+    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
     options.motion = "builtin:arm-raise";
     options.num_sensors = 2;
     options.seconds = 0.5;

@@ -1,6 +1,9 @@
 #include "common/io/mask_codec.h"
 
+#include <algorithm>
+
 #include "absl/strings/str_cat.h"
+#include "common/io/depth_codec.h"
 #include "common/io/mcap_format.h"
 
 namespace reenact {
@@ -76,6 +79,21 @@ absl::StatusOr<MaskImage> DecodeMaskRle(std::string_view bytes) {
   if (mask.data.size() != pixels) {
     return Malformed(bytes.size(),
                      absl::StrCat("runs cover ", mask.data.size(), " of ", pixels, " pixels"));
+  }
+  return mask;
+}
+
+absl::StatusOr<MaskImage> DecodeMask(std::string_view encoding, std::string_view bytes) {
+  if (encoding == "rle") return DecodeMaskRle(bytes);
+  if (encoding != "rvl") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("mask encoding \"", std::string(encoding), "\" unknown (\"rle\" or \"rvl\")"));
+  }
+  auto decoded = DecodeDepth(bytes);
+  if (!decoded.ok()) return absl::InvalidArgumentError(decoded.status().message());
+  MaskImage mask(decoded->width, decoded->height);
+  for (size_t i = 0; i < decoded->data.size(); ++i) {
+    mask.data[i] = static_cast<uint8_t>(std::min<int>(decoded->data[i], 255));
   }
   return mask;
 }

@@ -22,4 +22,9 @@ std::string EncodeMaskRle(const MaskImage& mask);
 // the stated size.
 absl::StatusOr<MaskImage> DecodeMaskRle(std::string_view bytes);
 
+// Decodes a mask in either encoding of reenact.v1.ActorMask: "rle" (above)
+// or "rvl" (depth_codec.h; values above 255 saturate). InvalidArgument for
+// malformed bytes or another encoding.
+absl::StatusOr<MaskImage> DecodeMask(std::string_view encoding, std::string_view bytes);
+
 }  // namespace reenact

@@ -621,11 +621,12 @@ absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model, con
   return writer->WriteGroundTruthTopology(topology);
 }
 
-absl::Status WriteSensorMessages(TakeWriter* writer, const SensorMessages& m) {
+absl::Status WriteSensorMessages(TakeWriter* writer, const SensorMessages& m,
+                                 bool with_skeleton) {
   RETURN_IF_ERROR(writer->WriteDepth(m.depth));
   RETURN_IF_ERROR(writer->WriteColor(m.color));
   RETURN_IF_ERROR(writer->WriteMask(m.mask));
-  RETURN_IF_ERROR(writer->WriteSkeleton(m.skeleton));
+  if (with_skeleton) RETURN_IF_ERROR(writer->WriteSkeleton(m.skeleton));
   return writer->WriteGroundTruthDepth(m.ground_truth_depth);
 }
 
@@ -673,7 +674,9 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
     while (pending.size() > keep) {
       ASSIGN_OR_RETURN(SensorMessages messages, pending.front().get());
       pending.pop_front();
-      RETURN_IF_ERROR(WriteSensorMessages(writer.get(), messages));
+      RETURN_IF_ERROR(WriteSensorMessages(
+          writer.get(), messages,
+          options.sensor_skeleton == SynthOptions::SensorSkeleton::kTruth));
     }
     return absl::OkStatus();
   };

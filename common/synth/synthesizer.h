@@ -42,7 +42,15 @@ struct SynthOptions {
   int jpeg_quality = 90;            // 1..100.
   double color_noise_sigma = 2.0;   // Sensor noise of colour, 8-bit levels.
   DepthNoiseOptions depth_noise;    // Kinect v2 time-of-flight noise.
-  double skeleton_jitter_m = 0.01;  // Noise of the "sensor skeleton", per axis.
+  // Whether each sensor's stream carries a skeleton. kNone (the default): it
+  // carries none, as the depth cameras a user has (Kinect v1, OpenNI2,
+  // Kinect v2 without its SDK), and the capture daemon's tracker makes them.
+  // kTruth: the true joints as this sensor sees them plus skeleton_jitter_m,
+  // a stand-in for a vendor SDK (for tests of what comes after tracking).
+  // The true joints are always in the ground-truth channels.
+  enum class SensorSkeleton { kNone, kTruth };
+  SensorSkeleton sensor_skeleton = SensorSkeleton::kNone;
+  double skeleton_jitter_m = 0.01;  // Noise of the kTruth "sensor skeleton", per axis.
   bool center_motion = true;        // Centre the motion's mean floor position on the origin.
   // Turns the whole performance about the vertical (+Y) through the world
   // origin (after centring), degrees, counter-clockwise seen from above: the

@@ -40,6 +40,8 @@ constexpr int kColorHeight = 270;
 // A short two-sensor take at reduced colour resolution.
 SynthOptions ShortTakeOptions() {
   SynthOptions options;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in).
+  options.sensor_skeleton = SynthOptions::SensorSkeleton::kTruth;
   options.motion = "builtin:arm-raise";
   options.num_sensors = 2;
   options.seconds = 0.4;

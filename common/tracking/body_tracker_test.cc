@@ -1,1 +1,265 @@
-// (being written)
+#include "common/tracking/body_tracker.h"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/testing/test_data.h"
+#include "common/tracking/tracker_evaluation.h"
+#include "common/tracking/training_data.h"
+
+namespace reenact::tracking {
+namespace {
+
+using body::KinectV2Joint;
+
+const TrackedJoint& Joint(const TrackedPerson& person, KinectV2Joint joint) {
+  return person.joints[body::Index(joint)];
+}
+
+DepthImageMm ReadDepthPng(const std::string& path) {
+  const cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
+  DepthImageMm depth;
+  if (image.empty() || image.type() != CV_16UC1) return depth;
+  depth = DepthImageMm(image.cols, image.rows);
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) depth.at(x, y) = image.at<uint16_t>(y, x);
+  }
+  return depth;
+}
+
+CameraIntrinsics Intrinsics(int w, int h, double f, double cx, double cy) {
+  CameraIntrinsics k;
+  k.width = w, k.height = h, k.fx = f, k.fy = f, k.cx = cx, k.cy = cy;
+  return k;
+}
+
+// The measured depth (metres) in a 5x5 window round `pixel`: the median of the
+// valid values, 0 when none.
+double DepthAround(const DepthImageMm& depth, const Eigen::Vector2d& pixel) {
+  std::vector<int> values;
+  const int u = static_cast<int>(std::lround(pixel.x())), v = static_cast<int>(std::lround(pixel.y()));
+  for (int y = v - 2; y <= v + 2; ++y) {
+    for (int x = u - 2; x <= u + 2; ++x) {
+      if (x < 0 || y < 0 || x >= depth.width || y >= depth.height || depth.at(x, y) == 0) continue;
+      values.push_back(depth.at(x, y));
+    }
+  }
+  if (values.empty()) return 0.0;
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2] / 1000.0;
+}
+
+// Whether `joint` projects onto a measured pixel within `max_gap_m` of the
+// joint's depth (a joint lies a few centimetres behind the surface it is
+// seen through).
+bool OnTheSurface(const DepthImageMm& depth, const TrackedJoint& joint, double max_gap_m) {
+  const double surface = DepthAround(depth, joint.pixel);
+  return surface > 0.0 && std::abs(joint.position_in_camera_m.z() - surface) <= max_gap_m;
+}
+
+// The head on the person and above the SpineBase (image y down); returns how
+// many of the two hands lie on the surface too.
+int ExpectHeadOnThePerson(const DepthImageMm& depth, const TrackedPerson& person, double max_gap_m,
+                          const std::string& where) {
+  const TrackedJoint& head = Joint(person, KinectV2Joint::kHead);
+  const TrackedJoint& spine = Joint(person, KinectV2Joint::kSpineBase);
+  EXPECT_LT(head.position_in_camera_m.y(), spine.position_in_camera_m.y()) << where;
+  EXPECT_TRUE(OnTheSurface(depth, head, max_gap_m)) << where << " head";
+  int hands = 0;
+  for (KinectV2Joint j : {KinectV2Joint::kHead, KinectV2Joint::kHandLeft, KinectV2Joint::kHandRight}) {
+    const TrackedJoint& joint = Joint(person, j);
+    std::printf("%s: %s at px (%.0f, %.0f), %.3f m; surface %.3f m\n", where.c_str(),
+                std::string(body::KinectV2JointName(j)).c_str(), joint.pixel.x(), joint.pixel.y(),
+                joint.position_in_camera_m.z(), DepthAround(depth, joint.pixel));
+    if (j != KinectV2Joint::kHead) hands += OnTheSurface(depth, joint, max_gap_m) ? 1 : 0;
+  }
+  return hands;
+}
+
+std::unique_ptr<BodyTracker> MakeTracker(bool refine = true) {
+  BodyTrackerOptions options;
+  options.refine = refine;
+  auto tracker = BodyTracker::Create(options);
+  EXPECT_TRUE(tracker.ok()) << tracker.status();
+  return tracker.ok() ? std::move(*tracker) : nullptr;
+}
+
+TEST(BodyTracker, FindsTheFivePeopleOfARealKinectFrame) {
+  const std::string path = testing::TestDataPath("rgbd/pcl-five-people/derived/five_people_depth_mm.png");
+  REENACT_REQUIRE_TEST_FILE(path);
+  const DepthImageMm depth = ReadDepthPng(path);
+  ASSERT_EQ(depth.width, 640);
+  auto tracker = MakeTracker();
+  ASSERT_NE(tracker, nullptr);
+  auto people = tracker->Track(depth, Intrinsics(640, 480, 525.0, 319.5, 239.5));
+  ASSERT_TRUE(people.ok()) << people.status();
+  ASSERT_EQ(people->size(), 5u);
+  int hands = 0;
+  for (const TrackedPerson& person : *people) {
+    // Standing 1.5-3 m away; the hands within arm's reach of the body.
+    EXPECT_GT(person.centroid_in_camera_m.z(), 1.5);
+    EXPECT_LT(person.centroid_in_camera_m.z(), 3.0);
+    hands += ExpectHeadOnThePerson(depth, person, 0.35,
+                                   "five-people person " + std::to_string(person.person_id));
+    const Eigen::Vector3d& head = Joint(person, KinectV2Joint::kHead).position_in_camera_m;
+    const Eigen::Vector3d& spine = Joint(person, KinectV2Joint::kSpineBase).position_in_camera_m;
+    EXPECT_GT((head - spine).norm(), 0.35);
+    EXPECT_LT((head - spine).norm(), 0.95);
+  }
+  // Most hands land on their person (one of ten fell on the wall behind
+  // when this was written).
+  EXPECT_GE(hands, 8);
+}
+
+TEST(BodyTracker, FindsTheStandingPersonOfARealAzureKinectFrame) {
+  for (const char* name : {"person_frame0_320x288_mm.png", "person_frame1_320x288_mm.png"}) {
+    const std::string path = testing::TestDataPath(std::string("rgbd/azure-kinect-person/") + name);
+    REENACT_REQUIRE_TEST_FILE(path);
+    const DepthImageMm depth = ReadDepthPng(path);
+    ASSERT_EQ(depth.width, 320);
+    // No intrinsics come with the frames: the Azure Kinect's nominal NFOV
+    // 2x2-binned depth camera (75 x 65 degrees over 320x288).
+    const double f = 160.0 / std::tan(0.5 * 75.0 * M_PI / 180.0);
+    auto tracker = MakeTracker();
+    ASSERT_NE(tracker, nullptr);
+    auto people = tracker->Track(depth, Intrinsics(320, 288, f, 159.5, 143.5));
+    ASSERT_TRUE(people.ok()) << people.status();
+    ASSERT_GE(people->size(), 1u) << name;
+    // The person is the largest body found, 1.0-2.0 m away (1.3 m with
+    // these nominal intrinsics).
+    const TrackedPerson* person = &people->front();
+    for (const TrackedPerson& p : *people) {
+      if (p.num_pixels > person->num_pixels) person = &p;
+    }
+    EXPECT_NEAR(person->centroid_in_camera_m.z(), 1.5, 0.5) << name;
+    EXPECT_EQ(ExpectHeadOnThePerson(depth, *person, 0.35, name), 2) << name;
+  }
+}
+
+TEST(BodyTracker, FindsTheUpperBodyOfARealRealSenseFrame) {
+  const std::string path = testing::TestDataPath("rgbd/realsense-person/0_M11_depth_0.png");
+  REENACT_REQUIRE_TEST_FILE(path);
+  const DepthImageMm depth = ReadDepthPng(path);
+  ASSERT_EQ(depth.width, 640);
+  auto tracker = MakeTracker();
+  ASSERT_NE(tracker, nullptr);
+  auto people = tracker->Track(depth, Intrinsics(640, 360, 481.94, 315.16, 174.97));
+  ASSERT_TRUE(people.ok()) << people.status();
+  ASSERT_GE(people->size(), 1u);
+  const TrackedPerson& person = people->front();
+  EXPECT_NEAR(person.centroid_in_camera_m.z(), 1.2, 0.4);
+  // The head is found on the person; the hands of an upper body at 1 m may
+  // leave the image, so only the head is held to the surface here.
+  const TrackedJoint& head = Joint(person, KinectV2Joint::kHead);
+  const double surface = DepthAround(depth, head.pixel);
+  std::printf("realsense: Head at px (%.0f, %.0f), %.3f m; surface %.3f m\n", head.pixel.x(),
+              head.pixel.y(), head.position_in_camera_m.z(), surface);
+  EXPECT_GT(surface, 0.0);
+  EXPECT_NEAR(head.position_in_camera_m.z(), surface, 0.35);
+}
+
+// Accuracy on a take-like sequence of a motion and a body shape that training
+// never saw (CMU 131_03, a random MakeHuman-free procedural shape of another
+// seed), Kinect v2 noise, 2.5 m away. The figures are printed; the bounds
+// hold the shipped forest to what it measured with some margin.
+TEST(BodyTracker, HeldOutSequenceIsTrackedWithinItsMeasuredError) {
+  const std::string motion = testing::TestDataPath("mocap/cmu/131_03.bvh");
+  REENACT_REQUIRE_TEST_FILE(motion);
+  const TrainingDataOptions o = SequenceOptions(motion, 40, 2.0, 3.0, 4242);
+  auto images = SynthesizeTrainingImages(o, /*keep_full_frames=*/true);
+  ASSERT_TRUE(images.ok()) << images.status();
+  for (const bool refine : {false, true}) {
+    auto tracker = MakeTracker(refine);
+    ASSERT_NE(tracker, nullptr);
+    auto result = EvaluateTracker(*tracker, *images, /*sequence=*/true);
+    ASSERT_TRUE(result.ok()) << result.status();
+    std::printf("held-out sequence, %s: %d frames, MPJPE %.1f mm, PCK@10cm %.1f %%\n",
+                refine ? "forest + refinement" : "forest alone", result->all.frames,
+                result->all.mpjpe_mm, 100.0 * result->all.pck);
+    EXPECT_EQ(result->all.frames, 40);
+    // Measured: 110.7 mm / 80.0 % alone, 124.4 mm / 62.6 % refined (the fit
+    // follows a wrong left/right labelling on this motion).
+    EXPECT_LT(result->all.mpjpe_mm, 160.0);
+    EXPECT_GT(result->all.pck, refine ? 0.50 : 0.65);
+    // The torso is where the forest is sure: SpineBase within 6 cm.
+    EXPECT_LT(result->all.joint_mean_mm[body::Index(KinectV2Joint::kSpineBase)], 60.0);
+  }
+}
+
+TEST(BodyTracker, BadInputIsAnErrorOrNobody) {
+  auto tracker = MakeTracker();
+  ASSERT_NE(tracker, nullptr);
+  const CameraIntrinsics k = Intrinsics(64, 48, 50.0, 32.0, 24.0);
+  // Empty depth.
+  EXPECT_EQ(tracker->Track(DepthImageMm(), k).status().code(), absl::StatusCode::kInvalidArgument);
+  // A depth image of another size than the intrinsics.
+  EXPECT_EQ(tracker->Track(DepthImageMm(32, 24, 2000), k).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // NaN intrinsics.
+  CameraIntrinsics nan_k = k;
+  nan_k.fx = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(tracker->Track(DepthImageMm(64, 48, 2000), nan_k).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // Labels of another size.
+  MaskImage labels(10, 10, 1);
+  EXPECT_EQ(tracker->Track(DepthImageMm(64, 48, 2000), k, &labels).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // Nobody: no measurement at all, and a flat wall.
+  auto none = tracker->Track(DepthImageMm(64, 48, 0), k);
+  ASSERT_TRUE(none.ok()) << none.status();
+  EXPECT_TRUE(none->empty());
+  auto wall = tracker->Track(DepthImageMm(64, 48, 3000), k);
+  ASSERT_TRUE(wall.ok()) << wall.status();
+  EXPECT_TRUE(wall->empty());
+  // A missing forest names its path.
+  BodyTrackerOptions options;
+  options.forest_path = "/nonexistent/forest.rtf";
+  auto missing = BodyTracker::Create(options);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.status().message().find("/nonexistent/forest.rtf"), std::string::npos);
+}
+
+TEST(BodyTracker, PersonCutByTheBorderGivesFiniteJoints) {
+  const std::string motion = testing::TestDataPath("mocap/cmu/01_01.bvh");
+  REENACT_REQUIRE_TEST_FILE(motion);
+  TrainingDataOptions o;
+  o.motion_paths = {motion};
+  o.asf_paths = {""};
+  o.num_images = 6;
+  o.sequence = true;
+  o.seed = 99;
+  auto images = SynthesizeTrainingImages(o, /*keep_full_frames=*/true);
+  ASSERT_TRUE(images.ok()) << images.status();
+  auto tracker = MakeTracker();
+  ASSERT_NE(tracker, nullptr);
+  for (const TrainingImage& image : *images) {
+    // Only the left 45 % of the image is measured: the person is cut.
+    DepthImageMm depth = image.full_depth_mm;
+    MaskImage mask = image.full_mask;
+    for (int y = 0; y < depth.height; ++y) {
+      for (int x = depth.width * 45 / 100; x < depth.width; ++x) depth.at(x, y) = 0, mask.at(x, y) = 0;
+    }
+    auto people = tracker->Track(depth, image.full_intrinsics, &mask);
+    ASSERT_TRUE(people.ok()) << people.status();
+    // The cut may split the person into pieces (arms apart from the body);
+    // whatever is found has sane joints.
+    EXPECT_LE(people->size(), 3u);
+    for (const TrackedPerson& person : *people) {
+      for (const TrackedJoint& joint : person.joints) {
+        if (joint.state == JointState::kNotTracked) continue;
+        EXPECT_TRUE(joint.position_in_camera_m.allFinite());
+        EXPECT_GE(joint.confidence, 0.0);
+        EXPECT_LE(joint.confidence, 1.0);
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace reenact::tracking

@@ -358,4 +358,20 @@ DepthImageMm ApplyStructuredLightNoise(const FloatImage& ideal, uint64_t seed) {
   return out;
 }
 
+TrainingDataOptions SequenceOptions(const std::string& motion_path, int frames,
+                                    double min_distance_m, double max_distance_m, uint64_t seed) {
+  TrainingDataOptions o;
+  o.motion_paths = {motion_path};
+  o.asf_paths = {""};
+  o.num_images = frames;
+  o.sequence = true;
+  o.min_distance_m = min_distance_m;
+  o.max_distance_m = max_distance_m;
+  o.close_up_fraction = 0.0;
+  o.off_centre_fraction = 0.0;
+  o.structured_light_fraction = 0.0;
+  o.seed = seed;
+  return o;
+}
+
 }  // namespace reenact::tracking

@@ -85,6 +85,12 @@ struct TrainingImage {
   CameraIntrinsics full_intrinsics;
 };
 
+// Options for `frames` consecutive frames of one motion (a BVH) seen by a
+// fixed Kinect v2 camera `min_distance_m`..`max_distance_m` away, ToF noise
+// only, no close-ups: a take-like sequence for tests and benchmarks.
+TrainingDataOptions SequenceOptions(const std::string& motion_path, int frames,
+                                    double min_distance_m, double max_distance_m, uint64_t seed);
+
 // Synthesises `options.num_images` images (deterministic for a seed).
 // `keep_full_frames` also keeps the uncropped noisy depth and mask.
 absl::StatusOr<std::vector<TrainingImage>> SynthesizeTrainingImages(

@@ -18,6 +18,8 @@ namespace reenact::recon::testing {
 // horizontal over the take), two sensors, 1.5 s at 15 fps, 640x360 colour.
 inline synth::SynthOptions SharedTakeOptions() {
   synth::SynthOptions options;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in).
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.motion = "builtin:arm-raise";
   options.num_sensors = 2;
   options.seconds = 1.5;

@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -16,6 +17,7 @@
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
+#include "common/tracking/skeleton_fusion.h"
 
 namespace reenact::recon {
 
@@ -58,10 +60,11 @@ bool Tracked(v1::TrackingState state) {
 }
 
 // Picks the skeleton with the most tracked joints and fills the view's
-// skeleton fields (joints not tracked, or inferred when `inferred` is off,
-// stay NaN; inferred ones are kept in `inferred_in_world`).
+// skeleton fields (joints not tracked or inferred stay NaN there) and
+// `fusion_input`, the sensor's joints for the fusion (inferred ones
+// included, with their state and confidence).
 void SetSkeleton(const std::vector<v1::Skeleton>& skeletons, const TakeSensor& sensor,
-                 SensorView* view, JointArray* inferred_in_world) {
+                 SensorView* view, std::optional<tracking::SensorSkeleton>* fusion_input) {
   const v1::Skeleton* best = nullptr;
   int best_count = -1;
   for (const v1::Skeleton& s : skeletons) {
@@ -72,51 +75,59 @@ void SetSkeleton(const std::vector<v1::Skeleton>& skeletons, const TakeSensor& s
       best_count = count;
     }
   }
-  *inferred_in_world = MissingJoints();
+  fusion_input->reset();
   if (best == nullptr) return;
   view->has_skeleton = true;
   view->body_index = best->body_index();
+  tracking::SensorSkeleton input;
+  input.sensor_id = sensor.sensor_id;
+  input.world_from_camera = sensor.world_from_depth;
   for (const v1::Joint& j : best->joints()) {
     const auto id = body::KinectV2JointFromName(j.name());
     if (!id || j.tracking_state() == v1::TRACKING_STATE_NOT_TRACKED) continue;
     const Eigen::Vector3d p = FromProto(j.position_in_depth_m());
     if (!p.allFinite()) continue;
     const int index = body::Index(*id);
-    const Eigen::Vector3d p_world = sensor.world_from_depth * p;
+    tracking::TrackedJoint& joint = input.joints[index];
+    joint.position_in_camera_m = p;
+    // Device SDKs give no confidence (0): full confidence in their state.
+    const float confidence = j.confidence();
+    joint.confidence = confidence > 0.0f && confidence <= 1.0f ? confidence : 1.0;
     if (Tracked(j.tracking_state())) {
+      joint.state = tracking::JointState::kTracked;
       view->joints_in_depth_m[index] = p;
-      view->joints_in_world_m[index] = p_world;
+      view->joints_in_world_m[index] = sensor.world_from_depth * p;
       ++view->tracked_joint_count;
     } else {
-      (*inferred_in_world)[index] = p_world;
+      joint.state = tracking::JointState::kInferred;
     }
   }
+  *fusion_input = std::move(input);
 }
 
-// Mean of the views' tracked joints; where none tracked a joint, the mean of
-// the inferred ones (when allowed).
-void FuseSkeleton(const std::vector<JointArray>& inferred, bool use_inferred, Instant* instant) {
-  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    int n = 0;
-    for (const SensorView& view : instant->views) {
-      if (IsJointValid(view.joints_in_world_m[j])) {
-        sum += view.joints_in_world_m[j];
-        ++n;
-      }
-    }
-    if (n == 0 && use_inferred) {
-      for (const JointArray& joints : inferred) {
-        if (IsJointValid(joints[j])) {
-          sum += joints[j];
-          ++n;
+// The instant's world skeleton from its sensors' skeletons
+// (tracking::FuseSkeletons: confidence-weighted robust mean, left/right swaps
+// fixed, lost limbs down-weighted, the previous instant carried by
+// `fusion`). Inferred joints count only when `use_inferred`.
+void FuseSkeleton(std::vector<tracking::SensorSkeleton> inputs, bool use_inferred,
+                  tracking::SequentialSkeletonFusion* fusion, Instant* instant) {
+  if (inputs.empty()) return;
+  if (!use_inferred) {
+    for (tracking::SensorSkeleton& input : inputs) {
+      for (tracking::TrackedJoint& joint : input.joints) {
+        if (joint.state == tracking::JointState::kInferred) {
+          joint.state = tracking::JointState::kNotTracked;
         }
       }
     }
-    if (n > 0) {
-      instant->joints_in_world_m[j] = sum / n;
-      instant->valid = true;
-    }
+  }
+  absl::StatusOr<tracking::SkeletonFusionSummary> fused = fusion->Fuse(inputs, instant->stamp_ns);
+  if (!fused.ok()) return;  // More sensors than the fusion takes: no skeleton.
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    const tracking::FusedJoint& joint = fused->skeleton.joints[j];
+    if (joint.state == tracking::JointState::kNotTracked) continue;
+    instant->joints_in_world_m[j] = joint.position_in_world_m;
+    instant->valid = true;
   }
 }
 
@@ -175,7 +186,7 @@ class TakeFramesLoader {
     Instant instant;
     instant.views.resize(frames->sensors_.size());
     instant.stamp_ns = set.stamp_ns();
-    std::vector<JointArray> inferred;
+    std::vector<tracking::SensorSkeleton> skeletons;
     for (const v1::Frame& frame : set.frames()) {
       const int s = frames->SensorIndex(frame.sensor_id());
       if (s < 0 || !frame.has_depth()) continue;
@@ -191,11 +202,11 @@ class TakeFramesLoader {
         f.color = frame.color();
       }
       f.skeletons.assign(frame.skeletons().begin(), frame.skeletons().end());
-      JointArray inferred_joints;
-      instant.views[s] = MakeView(s, f, &inferred_joints);
-      inferred.push_back(inferred_joints);
+      std::optional<tracking::SensorSkeleton> skeleton;
+      instant.views[s] = MakeView(s, f, &skeleton);
+      if (skeleton) skeletons.push_back(*std::move(skeleton));
     }
-    FuseSkeleton(inferred, options_.use_inferred_joints, &instant);
+    FuseSkeleton(std::move(skeletons), options_.use_inferred_joints, &fusion_, &instant);
     frames->instants_.push_back(std::move(instant));
     (void)frames_.release();
   }
@@ -364,7 +375,8 @@ class TakeFramesLoader {
   }
 
   // Moves one raw frame into a view.
-  SensorView MakeView(int sensor, RawFrame& f, JointArray* inferred) {
+  SensorView MakeView(int sensor, RawFrame& f,
+                      std::optional<tracking::SensorSkeleton>* skeleton) {
     SensorView view;
     view.present = true;
     view.frame_index = f.depth.frame_index();
@@ -379,7 +391,7 @@ class TakeFramesLoader {
       view.color_jpeg = std::move(*f.color.mutable_data());
       view.color_host_stamp_ns = f.color.host_stamp_ns();
     }
-    SetSkeleton(f.skeletons, frames_->sensors_[sensor], &view, inferred);
+    SetSkeleton(f.skeletons, frames_->sensors_[sensor], &view, skeleton);
     return view;
   }
 
@@ -389,23 +401,23 @@ class TakeFramesLoader {
     const int num_sensors = static_cast<int>(raw_.size());
     Instant instant;
     instant.views.resize(num_sensors);
-    std::vector<JointArray> inferred;
+    std::vector<tracking::SensorSkeleton> skeletons;
     double stamp_sum = 0;
     int stamp_n = 0;
     for (int s = 0; s < num_sensors; ++s) {
       if (!chosen[s]) continue;
       auto it = raw_[s].find(*chosen[s]);
       if (it == raw_[s].end() || !it->second.has_depth) continue;
-      JointArray inferred_joints;
-      instant.views[s] = MakeView(s, it->second, &inferred_joints);
-      inferred.push_back(inferred_joints);
+      std::optional<tracking::SensorSkeleton> skeleton;
+      instant.views[s] = MakeView(s, it->second, &skeleton);
+      if (skeleton) skeletons.push_back(*std::move(skeleton));
       stamp_sum += static_cast<double>(instant.views[s].host_stamp_ns);
       ++stamp_n;
     }
     if (stamp_n == 0) return;
     instant.stamp_ns =
         stamp_ns ? *stamp_ns : static_cast<int64_t>(std::llround(stamp_sum / stamp_n));
-    FuseSkeleton(inferred, options_.use_inferred_joints, &instant);
+    FuseSkeleton(std::move(skeletons), options_.use_inferred_joints, &fusion_, &instant);
     frames_->instants_.push_back(std::move(instant));
   }
 
@@ -493,6 +505,7 @@ class TakeFramesLoader {
 
   TakeFramesOptions options_;
   ProgressCallback progress_;
+  tracking::SequentialSkeletonFusion fusion_;
   std::unique_ptr<TakeReader> reader_;
   std::unique_ptr<TakeFrames> frames_;
   std::map<std::string, TopicRoute> routes_;
@@ -602,25 +615,13 @@ absl::StatusOr<MaskImage> TakeFrames::LoadActorMask(int instant, int sensor) con
     for (size_t i = 0; i < depth.data.size(); ++i) actor.data[i] = depth.data[i] > 0 ? 1 : 0;
     return actor;
   }
-  MaskImage mask;
-  if (view.mask_encoding == "rvl") {
-    auto decoded = DecodeDepth(view.mask_data);
-    if (!decoded.ok()) {
-      return absl::DataLossError(
-          absl::StrCat(ViewName(*this, instant, sensor), ": mask: ", decoded.status().message()));
-    }
-    mask = MaskImage(decoded->width, decoded->height);
-    for (size_t i = 0; i < decoded->data.size(); ++i) {
-      mask.data[i] = static_cast<uint8_t>(std::min<int>(decoded->data[i], 255));
-    }
-  } else {
-    auto decoded = DecodeMaskRle(view.mask_data);
-    if (!decoded.ok()) {
-      return absl::DataLossError(
-          absl::StrCat(ViewName(*this, instant, sensor), ": mask: ", decoded.status().message()));
-    }
-    mask = std::move(*decoded);
+  auto decoded_mask =
+      DecodeMask(view.mask_encoding == "rvl" ? "rvl" : "rle", view.mask_data);
+  if (!decoded_mask.ok()) {
+    return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor), ": mask: ",
+                                            decoded_mask.status().message()));
   }
+  MaskImage mask = *std::move(decoded_mask);
   if (mask.width != depth.width || mask.height != depth.height) {
     return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor), ": mask is ",
                                             mask.width, "x", mask.height, ", depth is ",

@@ -88,8 +88,9 @@ struct SensorView {
 struct Instant {
   int64_t stamp_ns = 0;           // Take timeline (host clock).
   std::vector<SensorView> views;  // One per sensor, in TakeFrames::sensors() order.
-  // Mean of the sensors' valid joints in the world frame; NaN where no
-  // sensor has the joint.
+  // The sensors' skeletons fused in the world frame (tracking::FuseSkeletons:
+  // confidence-weighted robust mean with left/right swaps fixed); NaN where
+  // no sensor has the joint.
   JointArray joints_in_world_m = MissingJoints();
   // False when no sensor has a skeleton at this instant (methods skip it or
   // mark its parts invalid).

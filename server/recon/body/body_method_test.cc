@@ -60,6 +60,8 @@ TEST(RunBody, ProceduralBodyFittedWithTheProceduralModelMeetsTheJointFloor) {
   const std::string clip = reenact::testing::TestDataPath("mocap/cmu/131_01.bvh");
   if (!std::filesystem::exists(clip)) GTEST_SKIP() << "no CMU clip at " << clip;
   synth::SynthOptions options;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in).
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.motion = clip;
   options.body = "procedural";
   options.shape = "random:7";

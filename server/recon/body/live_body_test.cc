@@ -53,6 +53,8 @@ std::vector<v1::FrameSet> FrameSetsOf(const TakeReader& take) {
 TEST(LiveBodyFollower, FollowsASyntheticTakeFrameSetByFrameSet) {
   const std::string dir = reenact::testing::MakeTempDir("live_body");
   synth::SynthOptions options;
+  // The sensors carry the jittered true skeleton (a device SDK stand-in).
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.motion = "builtin:front-kick";
   options.shape = "random:3";
   options.seconds = 2.0;

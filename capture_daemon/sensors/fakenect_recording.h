@@ -57,42 +57,59 @@ inline void WriteFile(const std::string& path, const std::string& header, const 
   out.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
 }
 
-// Writes a recording in fakenect's format: INDEX.txt lists one file per line,
+// One frame of a recording: kW x kH depth in millimetres (0: no
+// measurement) and kW x kH RGB bytes.
+struct Frame {
+  std::vector<uint16_t> depth_mm;
+  std::vector<uint8_t> rgb;
+};
+
+// Writes `frames` in fakenect's format: INDEX.txt lists one file per line,
 // named <type>-<seconds>-<device ticks>.<ext>; depth files are a one-line PGM
 // header followed by 640x480 native-endian uint16 raw disparities, colour
 // files a one-line PPM header followed by 640x480 RGB bytes. Depth and colour
-// alternate in order, the colour first on odd frames.
-inline void WriteRecording(const std::string& dir) {
+// alternate in order, the colour first on odd frames. Frames are 4 ms apart
+// in host time (played fast) and 1/30 s apart in device ticks.
+inline void WriteFrames(const std::string& dir, const std::vector<Frame>& frames) {
   std::ofstream index(dir + "/INDEX.txt");
-  for (int i = 0; i < kFrames; ++i) {
+  for (size_t i = 0; i < frames.size(); ++i) {
     const uint32_t depth_ticks = kFirstTicks + static_cast<uint32_t>(i) * 2'000'000u;
     const uint32_t color_ticks = depth_ticks + 30'000u;  // 0.5 ms later.
-    const double t_s = 0.004 * i;
+    const double t_s = 0.004 * static_cast<double>(i);
     std::vector<uint16_t> raw(kW * kH);
-    for (int y = 0; y < kH; ++y) {
-      for (int x = 0; x < kW; ++x) {
-        const double mm = SceneMm(i, x, y);
-        raw[y * kW + x] = mm > 0 ? RawForMm(mm) : kKinectV1RawNoValue;
-      }
-    }
-    std::vector<uint8_t> rgb(kW * kH * 3);
-    for (int y = 0; y < kH; ++y) {
-      for (int x = 0; x < kW; ++x) {
-        for (int c = 0; c < 3; ++c) rgb[(y * kW + x) * 3 + c] = ColorValue(i, x, y, c);
-      }
+    for (size_t p = 0; p < raw.size(); ++p) {
+      const uint16_t mm = frames[i].depth_mm[p];
+      raw[p] = mm > 0 ? RawForMm(mm) : kKinectV1RawNoValue;
     }
     const std::string depth_name = absl::StrFormat("d-%f-%u.pgm", t_s, depth_ticks);
     const std::string color_name = absl::StrFormat("r-%f-%u.ppm", t_s + 0.001, color_ticks);
     WriteFile(dir + "/" + depth_name, absl::StrCat("P5 ", kW, " ", kH, " 65535\n"), raw.data(),
               raw.size() * 2);
-    WriteFile(dir + "/" + color_name, absl::StrCat("P6 ", kW, " ", kH, " 255\n"), rgb.data(),
-              rgb.size());
+    WriteFile(dir + "/" + color_name, absl::StrCat("P6 ", kW, " ", kH, " 255\n"),
+              frames[i].rgb.data(), frames[i].rgb.size());
     if (i % 2 == 0) {
       index << depth_name << "\n" << color_name << "\n";
     } else {
       index << color_name << "\n" << depth_name << "\n";
     }
   }
+}
+
+// Writes the known scene of SceneMm / ColorValue, kFrames frames.
+inline void WriteRecording(const std::string& dir) {
+  std::vector<Frame> frames(kFrames);
+  for (int i = 0; i < kFrames; ++i) {
+    Frame& f = frames[i];
+    f.depth_mm.resize(kW * kH);
+    f.rgb.resize(kW * kH * 3);
+    for (int y = 0; y < kH; ++y) {
+      for (int x = 0; x < kW; ++x) {
+        f.depth_mm[y * kW + x] = static_cast<uint16_t>(std::lround(SceneMm(i, x, y)));
+        for (int c = 0; c < 3; ++c) f.rgb[(y * kW + x) * 3 + c] = ColorValue(i, x, y, c);
+      }
+    }
+  }
+  WriteFrames(dir, frames);
 }
 
 }  // namespace reenact::capture::fakenect

@@ -116,6 +116,11 @@ Shot PlaceCamera(const TrainingDataOptions& o, const Eigen::Vector3d& root_m,
   shot.intrinsics.p1 = shot.intrinsics.p2 = 0;
   const double focal = uniform(330, 540);
   shot.intrinsics.fx = shot.intrinsics.fy = focal;
+  if (o.camera) {
+    shot.intrinsics = *o.camera;
+    shot.intrinsics.k1 = shot.intrinsics.k2 = shot.intrinsics.k3 = 0;
+    shot.intrinsics.p1 = shot.intrinsics.p2 = 0;
+  }
   shot.wall_distance_m = distance + uniform(0.8, 3.0);
   shot.structured_light = u01(*rng) < o.structured_light_fraction;
   return shot;
@@ -286,6 +291,12 @@ std::vector<uint8_t> VertexParts(const body::BodyModel& model) {
 absl::Status TrainingDataOptions::Validate() const {
   if (motion_paths.empty()) return absl::InvalidArgumentError("no motions to train on");
   if (bodies.empty() || shapes_per_body < 1) return absl::InvalidArgumentError("no bodies");
+  if (camera) {
+    if (absl::Status s = camera->Validate(); !s.ok()) return s;
+    if (camera->width > 4096 || camera->height > 4096) {
+      return absl::InvalidArgumentError("camera larger than 4096 px");
+    }
+  }
   if (num_images < 1 || num_images > 1000000) {
     return absl::InvalidArgumentError("images must be 1..1000000");
   }

@@ -19,6 +19,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,9 @@ struct TrainingDataOptions {
   // A take instead of a shuffle: image i is the i-th sampled frame of the
   // first motion on the first actor, seen by one camera that stays put.
   bool sequence = false;
+  // When set, every image is taken by this camera (its distortion ignored);
+  // otherwise by a 512x424 Kinect v2 depth camera of a random focal length.
+  std::optional<CameraIntrinsics> camera;
   uint64_t seed = 1;
 
   absl::Status Validate() const;

@@ -478,12 +478,13 @@ TEST(FrameProcessor, TracksSkeletonsWhereTheSourceGivesNone) {
       }
     }
   }
-  // The torso of a person 2.5 m away is found within 6 cm on average, and
+  // The torso of a person 2.5 m away is found within 4.5 cm on average
+  // (measured: 23.6 mm), and
   // the person keeps one id.
   ASSERT_GT(torso_joints, 0);
   const double torso_mm = 1000.0 * torso_error_sum / torso_joints;
   std::printf("torso joints %d: mean error %.1f mm\n", torso_joints, torso_mm);
-  EXPECT_LT(torso_mm, 60.0);
+  EXPECT_LT(torso_mm, 45.0);
   EXPECT_EQ(person_ids, static_cast<int>(capture.depth.size()));
   const ProcessingStats stats = (*processor)->stats();
   EXPECT_EQ(stats.tracked, static_cast<int64_t>(capture.depth.size()));

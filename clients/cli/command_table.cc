@@ -57,7 +57,7 @@ std::vector<Command> BuildCommandTable() {
       {{"tracker", "train"},
        "[--out models/tracker/body_parts.rtf] [--data DIR] [--images N] [--seed S] "
        "[--bodies procedural,makehuman:DIR] [--shapes N] [--trees T] [--depth D] [--pixels P] "
-       "[--features F] [--threads N] [--quiet] [--json]",
+       "[--features F] [--min-samples-leaf M] [--threads N] [--quiet] [--json]",
        "train the body tracker's forest on depth synthesised from DIR/mocap/cmu-train and the "
        "body models (deterministic for a seed)",
        RunTrackerTrain},

@@ -108,7 +108,7 @@ nlohmann::json ErrorsJson(const tracking::TrackerEvaluation& e) {
 int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args,
                             {"out", "data", "images", "seed", "shapes", "bodies", "trees", "depth",
-                             "pixels", "features", "threads"},
+                             "pixels", "features", "threads", "min-samples-leaf"},
                             {"json", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto common = ParseCommon(*flags, 3000, 1);
@@ -119,10 +119,12 @@ int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std
   auto pixels = flags->GetInt("pixels", forest.pixels_per_image);
   auto features = flags->GetInt("features", forest.features_per_node);
   auto threads = flags->GetInt("threads", forest.threads);
-  for (const absl::Status& s :
-       {trees.status(), depth.status(), pixels.status(), features.status(), threads.status()}) {
+  auto min_leaf = flags->GetInt("min-samples-leaf", forest.min_samples_leaf);
+  for (const absl::Status& s : {trees.status(), depth.status(), pixels.status(),
+                                features.status(), threads.status(), min_leaf.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
+  forest.min_samples_leaf = *min_leaf;
   forest.num_trees = *trees, forest.max_depth = *depth, forest.pixels_per_image = *pixels;
   forest.features_per_node = *features, forest.threads = *threads;
   forest.seed = common->images.seed;
@@ -147,7 +149,7 @@ int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std
       absl::StrJoin(common->images.bodies, " "), " x ", common->images.shapes_per_body,
       " shapes, motions ", absl::StrJoin(names, " "), "; ", forest.num_trees, " trees, depth ",
       forest.max_depth, ", ", forest.pixels_per_image, " px/image, ", forest.features_per_node,
-      " features/node");
+      " features/node, leaves of >= ", forest.min_samples_leaf, " samples");
   tracking::ForestTrainingSummary summary;
   auto trained = tracking::TrainForest(*images, forest, description, &summary, bar.AsCallback());
   if (!trained.ok()) return ReportError(trained.status(), err);

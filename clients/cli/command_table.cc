@@ -63,9 +63,11 @@ std::vector<Command> BuildCommandTable() {
        RunTrackerTrain},
       {{"tracker", "eval"},
        "[--forest F] [--data DIR] [--images N] [--seed S] [--bodies ...] [--min-distance M] "
-       "[--max-distance M] [--stride N] [--json]",
+       "[--max-distance M] [--stride N] [--motions-dir DIR] [--sequence [--frame-stride K]] "
+       "[--no-refine] [--json]",
        "measure the tracker on frames of held-out motions (DIR/mocap/cmu) and shapes: MPJPE, "
-       "PCK@10cm, per-joint errors, time per frame",
+       "PCK@10cm, per-joint errors, time per frame (--sequence: consecutive frames of one "
+       "motion seen by a fixed camera, as in a take; --no-refine: the forest alone)",
        RunTrackerEval},
       {{"takes", "list"},
        "[--server HOST:PORT] [--state recording|complete|interrupted|all] [--json]",

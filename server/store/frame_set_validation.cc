@@ -173,6 +173,10 @@ absl::Status CheckSkeleton(const std::string& where, const v1::Skeleton& skeleto
       return Invalid(where, absl::StrCat("joint \"", joint.name(), "\" position (", p.x(), ", ",
                                          p.y(), ", ", p.z(), ") m is not finite"));
     }
+    if (!(joint.confidence() >= 0.0f && joint.confidence() <= 1.0f)) {
+      return Invalid(where, absl::StrCat("joint \"", joint.name(), "\" confidence ",
+                                         joint.confidence(), " is not within [0, 1]"));
+    }
   }
   return absl::OkStatus();
 }

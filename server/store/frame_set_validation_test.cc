@@ -114,6 +114,17 @@ TEST(ValidateFrameSet, RefusesEachKindOfBadSet) {
              ->set_x(std::numeric_limits<double>::quiet_NaN());
        },
        "not finite"},
+      {"joint confidence",
+       [](v1::FrameSet& s) {
+         s.mutable_frames(0)->mutable_skeletons(0)->mutable_joints(0)->set_confidence(
+             std::numeric_limits<float>::quiet_NaN());
+       },
+       "confidence"},
+      {"joint confidence above one",
+       [](v1::FrameSet& s) {
+         s.mutable_frames(0)->mutable_skeletons(0)->mutable_joints(0)->set_confidence(7.0f);
+       },
+       "confidence"},
       {"negative stamp", [](v1::FrameSet& s) { s.set_stamp_ns(-1); }, "negative"},
       {"missing names a framed sensor", [](v1::FrameSet& s) { s.add_missing_sensor_ids("k0"); },
        "missing_sensor_ids"},

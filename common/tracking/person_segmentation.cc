@@ -694,7 +694,27 @@ void CollectPeople(const Cloud& cloud, const cv::Mat& kept,
 
 }  // namespace
 
-absl::Status PersonSegmentationOptions::Validate() const { return absl::OkStatus(); }
+absl::Status PersonSegmentationOptions::Validate() const {
+  auto bad = [](const char* field) {
+    return absl::InvalidArgumentError(absl::StrCat("person segmentation: bad ", field));
+  };
+  if (!(min_range_m >= 0.0 && max_range_m > min_range_m && max_range_m <= 20.0)) {
+    return bad("min_range_m / max_range_m (0 <= min < max <= 20)");
+  }
+  if (!(max_floor_tilt_deg >= 0.0 && max_floor_tilt_deg <= 90.0)) return bad("max_floor_tilt_deg");
+  if (!(floor_inlier_m > 0.0 && floor_inlier_m <= 1.0)) return bad("floor_inlier_m");
+  if (!(floor_distance_m >= 0.0 && floor_distance_m <= 1.0)) return bad("floor_distance_m");
+  if (!(min_floor_fraction >= 0.0 && min_floor_fraction <= 1.0)) return bad("min_floor_fraction");
+  if (floor_iterations < 0 || floor_iterations > 100000) return bad("floor_iterations");
+  if (!(depth_step_m > 0.0 && depth_step_m <= 2.0)) return bad("depth_step_m");
+  if (!(min_height_m >= 0.0 && max_height_m > min_height_m && max_height_m <= 10.0)) {
+    return bad("min_height_m / max_height_m");
+  }
+  if (!(max_width_m > 0.0 && max_width_m <= 10.0)) return bad("max_width_m");
+  if (!(max_depth_extent_m > 0.0 && max_depth_extent_m <= 10.0)) return bad("max_depth_extent_m");
+  if (min_points < 1) return bad("min_points (>= 1)");
+  return absl::OkStatus();
+}
 
 absl::StatusOr<PersonSegmentation> SegmentPeople(const DepthImageMm& depth,
                                                  const CameraIntrinsics& intrinsics,

@@ -64,7 +64,8 @@ std::optional<CameraIntrinsics> ValidIntrinsics(const v1::SensorCalibration& c, 
 
 // The automatic registered grid: the colour size divided by the smallest
 // integer that brings its width to max(640, depth width) or less.
-std::pair<int, int> AutoRegisteredSize(const CameraIntrinsics& depth, const CameraIntrinsics& color) {
+std::pair<int, int> AutoRegisteredSize(const CameraIntrinsics& depth,
+                                       const CameraIntrinsics& color) {
   const int limit = std::max(640, depth.width);
   const int factor = std::max(1, (color.width + limit - 1) / limit);
   return {color.width / factor, color.height / factor};
@@ -98,15 +99,17 @@ class FrameProcessorImpl : public FrameProcessor {
       if (!depth_k_) {
         if (options_.segmentation == Mode::kOn) {
           return absl::InvalidArgumentError(absl::StrCat(
-              info_.sensor_id(), ": segmentation is on but the calibration lacks valid depth intrinsics"));
+              info_.sensor_id(),
+              ": segmentation is on but the calibration lacks valid depth intrinsics"));
         }
       } else {
         SegmenterOptions tuning = options_.segmentation_tuning;
         tuning.background_seconds = options_.background_seconds;
         tuning.noise_model = info_.model().empty() ? calibration_.model() : info_.model();
         auto world_from_depth = FromProto(calibration_.world_from_depth());
-        ASSIGN_OR_RETURN(ActorSegmenter segmenter,
-                         ActorSegmenter::Create(*depth_k_, world_from_depth.value_or(Rigid3d()), tuning));
+        ASSIGN_OR_RETURN(
+            ActorSegmenter segmenter,
+            ActorSegmenter::Create(*depth_k_, world_from_depth.value_or(Rigid3d()), tuning));
         segmenter_.emplace(std::move(segmenter));
       }
     }
@@ -158,10 +161,12 @@ class FrameProcessorImpl : public FrameProcessor {
       reg_options.color_width = options_.registered_width_px;
       reg_options.color_height = options_.registered_height_px;
     } else {
-      std::tie(reg_options.color_width, reg_options.color_height) = AutoRegisteredSize(depth_k, color_k);
+      std::tie(reg_options.color_width, reg_options.color_height) =
+          AutoRegisteredSize(depth_k, color_k);
     }
-    ASSIGN_OR_RETURN(DepthToColorRegistration registration,
-                     DepthToColorRegistration::Create(depth_k, color_k, *color_from_depth, reg_options));
+    ASSIGN_OR_RETURN(
+        DepthToColorRegistration registration,
+        DepthToColorRegistration::Create(depth_k, color_k, *color_from_depth, reg_options));
     registration_.emplace(std::move(registration));
     raw_depth_k_ = depth_k;
     // The registered depth camera is the colour camera at the output size.
@@ -185,11 +190,13 @@ class FrameProcessorImpl : public FrameProcessor {
                                                      depth.data.size(), " values for ", depth.width,
                                                      "x", depth.height, " px"));
     }
-    const CameraIntrinsics* expected = registration_ ? &raw_depth_k_ : (depth_k_ ? &*depth_k_ : nullptr);
-    if (expected != nullptr && (depth.width != expected->width || depth.height != expected->height)) {
-      return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": depth frame of ", depth.width,
-                                                     "x", depth.height, " px; the calibration says ",
-                                                     expected->width, "x", expected->height));
+    const CameraIntrinsics* expected =
+        registration_ ? &raw_depth_k_ : (depth_k_ ? &*depth_k_ : nullptr);
+    if (expected != nullptr &&
+        (depth.width != expected->width || depth.height != expected->height)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(info_.sensor_id(), ": depth frame of ", depth.width, "x", depth.height,
+                       " px; the calibration says ", expected->width, "x", expected->height));
     }
     DepthImageMm out_depth;
     if (registration_) {
@@ -212,8 +219,8 @@ class FrameProcessorImpl : public FrameProcessor {
       const RgbImage& color = *frame.color;
       if (color.data.size() != color.num_pixels() * 3 || color.width <= 0) {
         return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": raw colour holds ",
-                                                       color.data.size(), " bytes for ", color.width,
-                                                       "x", color.height, " px"));
+                                                       color.data.size(), " bytes for ",
+                                                       color.width, "x", color.height, " px"));
       }
       if (info_.color_width_px() > 0 &&
           (color.width != info_.color_width_px() || color.height != info_.color_height_px())) {
@@ -273,8 +280,8 @@ class FrameProcessorImpl : public FrameProcessor {
     RETURN_IF_ERROR(EnsureDepth(f, depth));
     auto mask = segmenter_->Segment(*depth, f.host_stamp_ns());
     if (!mask.ok()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(info_.sensor_id(), ": frame ", f.frame_index(), ": ", mask.status().message()));
+      return absl::InvalidArgumentError(absl::StrCat(info_.sensor_id(), ": frame ", f.frame_index(),
+                                                     ": ", mask.status().message()));
     }
     v1::ActorMask* m = f.mutable_mask();
     SetStamps(f, m);
@@ -295,16 +302,17 @@ class FrameProcessorImpl : public FrameProcessor {
     if (options_.tracking == Mode::kAuto && info_.provides_skeleton()) return absl::OkStatus();
     if (!depth_k_) {
       if (options_.tracking == Mode::kOn) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            info_.sensor_id(), ": tracking is on but the calibration lacks valid depth intrinsics"));
+        return absl::InvalidArgumentError(
+            absl::StrCat(info_.sensor_id(),
+                         ": tracking is on but the calibration lacks valid depth intrinsics"));
       }
       return absl::OkStatus();
     }
     auto tracker = tracking::BodyTracker::Create(options_.tracker);
     if (!tracker.ok()) {
-      return absl::Status(tracker.status().code(),
-                          absl::StrCat(info_.sensor_id(), ": body tracker: ",
-                                       tracker.status().message()));
+      return absl::Status(
+          tracker.status().code(),
+          absl::StrCat(info_.sensor_id(), ": body tracker: ", tracker.status().message()));
     }
     tracker_ = *std::move(tracker);
     return absl::OkStatus();

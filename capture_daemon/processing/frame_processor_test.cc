@@ -190,9 +190,10 @@ TEST(FrameProcessor, RegistersKinectV1DepthToColour) {
   ASSERT_GT(m, 1000);
   centroid /= m;
   const double error_px = (centroid - expected).norm();
-  std::printf("registration: square centroid %.2f px from its projection through the calibration, "
-              "depth %.1f mm vs %.1f mm\n",
-              error_px, z_sum / m, expected_z_mm);
+  std::printf(
+      "registration: square centroid %.2f px from its projection through the calibration, "
+      "depth %.1f mm vs %.1f mm\n",
+      error_px, z_sum / m, expected_z_mm);
   EXPECT_LT(error_px, 1.0);
   EXPECT_NEAR(z_sum / m, expected_z_mm, 3.0);
   EXPECT_EQ((*processor)->stats().registered, 1);
@@ -387,9 +388,10 @@ TEST(FrameProcessor, SegmentsTheActorOfASyntheticTake) {
   }
   const double n = static_cast<double>(capture.depth.size());
   const ProcessingStats stats = (*processor)->stats();
-  std::printf("segmentation: %zu frames, mask IoU vs ground truth mean %.3f min %.3f; "
-              "%.1f ms per frame (decode + segment + encode mask); floor found %d\n",
-              capture.depth.size(), iou_sum / n, iou_min, ms_sum / n, stats.floor_found);
+  std::printf(
+      "segmentation: %zu frames, mask IoU vs ground truth mean %.3f min %.3f; "
+      "%.1f ms per frame (decode + segment + encode mask); floor found %d\n",
+      capture.depth.size(), iou_sum / n, iou_min, ms_sum / n, stats.floor_found);
   EXPECT_TRUE(stats.background_ready);
   EXPECT_TRUE(stats.floor_found);
   // Measured: mean 0.977, min 0.975 (front-kick, procedural body, 18 frames).

@@ -65,7 +65,8 @@ TEST(RunTrack, RawDepthOfTheStatedSizeIsReadAndNobodyIsAnEmptyList) {
       out.put(static_cast<char>(mm >> 8));
     }
   }
-  const Result r = Track({"--depth", path, "--size", "512x424", "--intrinsics", "kinect2", "--json"});
+  const Result r =
+      Track({"--depth", path, "--size", "512x424", "--intrinsics", "kinect2", "--json"});
   ASSERT_EQ(r.code, kExitOk) << r.err;
   EXPECT_TRUE(nlohmann::json::parse(r.out)["people"].empty());
   // The wrong size, a hostile size and bad intrinsics are clear errors.

@@ -120,8 +120,8 @@ int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std
   auto features = flags->GetInt("features", forest.features_per_node);
   auto threads = flags->GetInt("threads", forest.threads);
   auto min_leaf = flags->GetInt("min-samples-leaf", forest.min_samples_leaf);
-  for (const absl::Status& s : {trees.status(), depth.status(), pixels.status(),
-                                features.status(), threads.status(), min_leaf.status()}) {
+  for (const absl::Status& s : {trees.status(), depth.status(), pixels.status(), features.status(),
+                                threads.status(), min_leaf.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   forest.min_samples_leaf = *min_leaf;

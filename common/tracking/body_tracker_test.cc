@@ -43,7 +43,8 @@ CameraIntrinsics Intrinsics(int w, int h, double f, double cx, double cy) {
 // valid values, 0 when none.
 double DepthAround(const DepthImageMm& depth, const Eigen::Vector2d& pixel) {
   std::vector<int> values;
-  const int u = static_cast<int>(std::lround(pixel.x())), v = static_cast<int>(std::lround(pixel.y()));
+  const int u = static_cast<int>(std::lround(pixel.x())),
+            v = static_cast<int>(std::lround(pixel.y()));
   for (int y = v - 2; y <= v + 2; ++y) {
     for (int x = u - 2; x <= u + 2; ++x) {
       if (x < 0 || y < 0 || x >= depth.width || y >= depth.height || depth.at(x, y) == 0) continue;
@@ -72,7 +73,8 @@ int ExpectHeadOnThePerson(const DepthImageMm& depth, const TrackedPerson& person
   EXPECT_LT(head.position_in_camera_m.y(), spine.position_in_camera_m.y()) << where;
   EXPECT_TRUE(OnTheSurface(depth, head, max_gap_m)) << where << " head";
   int hands = 0;
-  for (KinectV2Joint j : {KinectV2Joint::kHead, KinectV2Joint::kHandLeft, KinectV2Joint::kHandRight}) {
+  for (KinectV2Joint j :
+       {KinectV2Joint::kHead, KinectV2Joint::kHandLeft, KinectV2Joint::kHandRight}) {
     const TrackedJoint& joint = Joint(person, j);
     std::printf("%s: %s at px (%.0f, %.0f), %.3f m; surface %.3f m\n", where.c_str(),
                 std::string(body::KinectV2JointName(j)).c_str(), joint.pixel.x(), joint.pixel.y(),
@@ -91,7 +93,8 @@ std::unique_ptr<BodyTracker> MakeTracker(bool refine = true) {
 }
 
 TEST(BodyTracker, FindsTheFivePeopleOfARealKinectFrame) {
-  const std::string path = testing::TestDataPath("rgbd/pcl-five-people/derived/five_people_depth_mm.png");
+  const std::string path =
+      testing::TestDataPath("rgbd/pcl-five-people/derived/five_people_depth_mm.png");
   REENACT_REQUIRE_TEST_FILE(path);
   const DepthImageMm depth = ReadDepthPng(path);
   ASSERT_EQ(depth.width, 640);
@@ -243,7 +246,8 @@ TEST(BodyTracker, PersonCutByTheBorderGivesFiniteJoints) {
     DepthImageMm depth = image.full_depth_mm;
     MaskImage mask = image.full_mask;
     for (int y = 0; y < depth.height; ++y) {
-      for (int x = depth.width * 45 / 100; x < depth.width; ++x) depth.at(x, y) = 0, mask.at(x, y) = 0;
+      for (int x = depth.width * 45 / 100; x < depth.width; ++x)
+        depth.at(x, y) = 0, mask.at(x, y) = 0;
     }
     auto people = tracker->Track(depth, image.full_intrinsics, &mask);
     ASSERT_TRUE(people.ok()) << people.status();

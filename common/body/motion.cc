@@ -29,6 +29,20 @@ Motion::Motion(MotionInfo info, std::vector<MotionJoint> joints,
       joints_(std::move(joints)),
       local_rotations_(std::move(local_rotations)),
       root_translations_m_(std::move(root_translations_m)) {
+  const int n = static_cast<int>(joints_.size());
+  std::vector<bool> placed(joints_.size(), false);
+  for (bool progress = true; progress;) {
+    progress = false;
+    for (int j = 0; j < n; ++j) {
+      const int parent = joints_[j].parent;
+      if (placed[j] || (parent >= 0 && parent < n && !placed[parent])) continue;
+      parents_first_.push_back(j);
+      placed[j] = progress = true;
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    if (!placed[j]) parents_first_.push_back(j);
+  }
   std::vector<std::string> names;
   std::vector<int> parents;
   for (const MotionJoint& joint : joints_) {
@@ -55,16 +69,16 @@ const Eigen::Vector3d& Motion::root_translation_m(int frame) const {
   return root_translations_m_[static_cast<size_t>(frame)];
 }
 
-// Parents precede their children in joints_ (both readers emit depth-first
-// order), so one pass composes world_from_parent * parent_from_joint.
+// One pass in parents-first order composes world_from_parent *
+// parent_from_joint.
 std::vector<Eigen::Isometry3d> Motion::WorldFromJoints(int frame) const {
   const std::vector<Eigen::Quaterniond>& rotations = local_rotations(frame);
   std::vector<Eigen::Isometry3d> world_from_joint(joints_.size(), Eigen::Isometry3d::Identity());
-  for (size_t j = 0; j < joints_.size(); ++j) {
+  for (int j : parents_first_) {
     Eigen::Isometry3d parent_from_joint = Eigen::Isometry3d::Identity();
     parent_from_joint.linear() = rotations[j].normalized().toRotationMatrix();
     const int parent = joints_[j].parent;
-    if (parent < 0) {
+    if (parent < 0 || parent >= static_cast<int>(joints_.size())) {
       parent_from_joint.translation() = root_translation_m(frame);
       world_from_joint[j] = parent_from_joint;
     } else {
@@ -77,9 +91,9 @@ std::vector<Eigen::Isometry3d> Motion::WorldFromJoints(int frame) const {
 
 std::vector<Eigen::Isometry3d> Motion::RestWorldFromJoints() const {
   std::vector<Eigen::Isometry3d> world_from_joint(joints_.size(), Eigen::Isometry3d::Identity());
-  for (size_t j = 0; j < joints_.size(); ++j) {
+  for (int j : parents_first_) {
     const int parent = joints_[j].parent;
-    if (parent < 0) continue;
+    if (parent < 0 || parent >= static_cast<int>(joints_.size())) continue;
     world_from_joint[j] =
         world_from_joint[static_cast<size_t>(parent)] * Eigen::Translation3d(joints_[j].offset_m);
   }

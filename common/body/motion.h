@@ -100,6 +100,11 @@ class Motion {
  private:
   MotionInfo info_;
   std::vector<MotionJoint> joints_;
+  // Joint indices with every parent before its children (the readers emit
+  // that order already; a motion built in another order, such as the Kinect
+  // v2 joint order, gets it here). Joints on a parent cycle come last and
+  // hang from the world.
+  std::vector<int> parents_first_;
   std::vector<std::vector<Eigen::Quaterniond>> local_rotations_;  // [frame][joint]
   std::vector<Eigen::Vector3d> root_translations_m_;              // [frame]
   std::array<int, kNumKinectV2Joints> canonical_to_source_{};

@@ -7,7 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include "common/body/body_model.h"
 #include "common/body/joint_set.h"
+#include "common/body/procedural_body.h"
+#include "common/body/retarget.h"
 
 namespace reenact::synth {
 namespace {
@@ -99,4 +102,43 @@ TEST(MakeBuiltinMotion, UnknownNameIsNotFoundListingNames) {
 }
 
 }  // namespace
+
+// Retargeted onto the procedural body, every bone of a built-in motion points
+// where the motion's bone points (the synthetic teacher's ground truth is
+// the posed body's joints).
+TEST(MakeBuiltinMotion, RetargetedOntoTheProceduralBodyEveryBonePointsAsInTheMotion) {
+  auto model = body::BuildProceduralBody();
+  ASSERT_TRUE(model.ok()) << model.status();
+  const Eigen::VectorXd shape = Eigen::VectorXd::Zero(model->num_shape_components());
+  for (const std::string& name : BuiltinMotionNames()) {
+    auto motion = MakeBuiltinMotion(name, 4.0, kFps);
+    ASSERT_TRUE(motion.ok()) << name << ": " << motion.status();
+    auto retargeted = body::RetargetMotion(*motion, *model, shape);
+    ASSERT_TRUE(retargeted.ok()) << name << ": " << retargeted.status();
+    double worst_deg = 0.0;
+    std::string worst_bone;
+    for (int f = 0; f < motion->num_frames(); f += 5) {
+      auto posed = body::PoseBody(*model, retargeted->poses[f], shape);
+      ASSERT_TRUE(posed.ok()) << posed.status();
+      const body::SkeletonPose truth = motion->CanonicalPose(f);
+      for (int j = 1; j < body::kNumKinectV2Joints; ++j) {
+        const auto parent = body::KinectV2Parent(static_cast<J>(j));
+        const int p = body::Index(*parent);
+        const Eigen::Vector3d a = truth.position_m[j] - truth.position_m[p];
+        const Eigen::Vector3d b = posed->joints_m[j] - posed->joints_m[p];
+        if (a.norm() < 0.03 || b.norm() < 0.03) continue;
+        const double deg =
+            std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+        if (deg > worst_deg) {
+          worst_deg = deg;
+          worst_bone = std::string(body::KinectV2JointName(static_cast<J>(j)));
+        }
+      }
+    }
+    std::cout << name << ": worst bone direction off by " << worst_deg << " deg (" << worst_bone
+              << ")\n";
+    EXPECT_LT(worst_deg, 30.0) << name << " " << worst_bone;  // degrees
+  }
+}
+
 }  // namespace reenact::synth

@@ -41,11 +41,11 @@ std::vector<Command> BuildCommandTable() {
        "contact sheet: colour with skeleton, depth and mask of a few frames per sensor",
        RunTakeSheet},
       {{"take", "skeletons"},
-       "TAKE.mcap --truth SYNTH.mcap [--json]",
+       "TAKE.mcap --truth SYNTH.mcap [--track [--forest F] [--no-refine]] [--json]",
        "measure a take's skeletons against a synthetic take's ground truth (TAKE itself, or the "
        "synthetic take a daemon streamed into the stored TAKE): MPJPE, PCK@10cm and per-joint "
        "errors per sensor and fused over the sensors (left/right swaps fixed, lost joints "
-       "down-weighted)",
+       "down-weighted); --track: of skeletons tracked afresh from the take's depth",
        RunTakeSkeletons},
       {{"track"},
        "--depth FILE [--size WxH] --intrinsics kinect1|kinect2|FX,FY,CX,CY [--forest F] "

@@ -30,8 +30,11 @@
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
+#include "common/io/depth_codec.h"
+#include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
+#include "common/tracking/body_tracker.h"
 #include "common/tracking/skeleton_errors.h"
 #include "common/tracking/skeleton_fusion.h"
 
@@ -184,8 +187,94 @@ absl::StatusOr<std::vector<SensorInput>> ReadSensors(const TakeReader& take,
   return sensors;
 }
 
+// A TrackedPerson as the daemon streams it (capture_daemon's frame
+// processor): joints by Kinect v2 name with state and confidence.
+v1::Skeleton ToSkeletonMessage(const tracking::TrackedPerson& person, int64_t frame_index,
+                               int64_t device_stamp_ns) {
+  v1::Skeleton skeleton;
+  skeleton.set_frame_index(frame_index);
+  skeleton.set_device_stamp_ns(device_stamp_ns);
+  skeleton.set_person_id(person.person_id);
+  skeleton.set_body_index(std::max(1, person.mask_label));
+  skeleton.set_source("reenact-tracker");
+  for (int j = 0; j < kNumJoints; ++j) {
+    const tracking::TrackedJoint& tj = person.joints[j];
+    v1::Joint* joint = skeleton.add_joints();
+    joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
+    const bool finite = tj.position_in_camera_m.allFinite() && std::isfinite(tj.confidence);
+    *joint->mutable_position_in_depth_m() =
+        ToProto(finite ? tj.position_in_camera_m : Eigen::Vector3d::Zero());
+    joint->set_confidence(finite ? static_cast<float>(std::clamp(tj.confidence, 0.0, 1.0)) : 0.f);
+    joint->set_tracking_state(
+        !finite                                       ? v1::TRACKING_STATE_NOT_TRACKED
+        : tj.state == tracking::JointState::kTracked  ? v1::TRACKING_STATE_TRACKED
+        : tj.state == tracking::JointState::kInferred ? v1::TRACKING_STATE_INFERRED
+                                                      : v1::TRACKING_STATE_NOT_TRACKED);
+  }
+  return skeleton;
+}
+
+// --track: the sensors' skeletons tracked afresh from the take's depth (and
+// its actor masks, where it has them), frame by frame in stream order, as
+// reenactd's tracker would; the skeletons the take stores are ignored.
+absl::StatusOr<std::vector<SensorInput>> TrackSensors(const TakeReader& take,
+                                                      const TakeReader& truth,
+                                                      const tracking::BodyTrackerOptions& options,
+                                                      const std::string& path) {
+  std::vector<SensorInput> sensors;
+  for (const auto& [id, calibration] : take.sensors()) {
+    absl::StatusOr<CameraIntrinsics> k = FromProto(calibration.depth_intrinsics());
+    if (!k.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ": sensor ", id, ": depth intrinsics: ", k.status().message()));
+    }
+    std::map<int64_t, v1::ActorMask> masks;
+    RETURN_IF_ERROR(
+        take.ForEach<v1::ActorMask>(SensorTopic(id, "mask"), [&](const v1::ActorMask& m) {
+          masks[m.frame_index()] = m;
+          return absl::OkStatus();
+        }));
+    ASSIGN_OR_RETURN(std::unique_ptr<tracking::BodyTracker> tracker,
+                     tracking::BodyTracker::Create(options));
+    SensorInput sensor;
+    sensor.id = id;
+    RETURN_IF_ERROR(take.ForEach<v1::DepthImage>(
+        SensorTopic(id, "depth"), [&](const v1::DepthImage& m) -> absl::Status {
+          absl::StatusOr<DepthImageMm> depth = DecodeDepth(m.data());
+          if (!depth.ok()) {
+            return absl::DataLossError(absl::StrCat(
+                path, ": sensor ", id, " frame ", m.frame_index(), ": ", depth.status().message()));
+          }
+          std::optional<MaskImage> mask;
+          if (auto found = masks.find(m.frame_index()); found != masks.end()) {
+            auto decoded = DecodeMask(found->second.encoding(), found->second.data());
+            if (decoded.ok() && decoded->width == depth->width &&
+                decoded->height == depth->height) {
+              mask = *std::move(decoded);
+            }
+          }
+          auto people = tracker->Track(*depth, *k, mask ? &*mask : nullptr);
+          if (!people.ok()) return absl::OkStatus();  // A frame without skeleton, as in reenactd.
+          for (const tracking::TrackedPerson& person : *people) {
+            sensor.skeletons[m.frame_index()].push_back(
+                ToSkeletonMessage(person, m.frame_index(), m.device_stamp_ns()));
+          }
+          return absl::OkStatus();
+        }));
+    if (sensor.skeletons.empty()) continue;
+    RETURN_IF_ERROR(SetCalibration(take, truth, &sensor));
+    sensors.push_back(std::move(sensor));
+  }
+  if (sensors.empty()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(path, ": the tracker found nobody in the depth of any of its ",
+                     take.sensors().size(), " sensors"));
+  }
+  return sensors;
+}
+
 // The joints of a Skeleton message by name; a joint of unspecified state
-// counts as not tracked. The message has no confidence: 1 for every joint.
+// counts as not tracked. A joint without confidence (a device's) gets 1.
 SkeletonJoints FromSkeleton(const v1::Skeleton& skeleton) {
   SkeletonJoints joints;
   for (const v1::Joint& m : skeleton.joints()) {
@@ -193,7 +282,7 @@ SkeletonJoints FromSkeleton(const v1::Skeleton& skeleton) {
     if (!joint) continue;
     tracking::TrackedJoint& out = joints[body::Index(*joint)];
     out.position_in_camera_m = FromProto(m.position_in_depth_m());
-    out.confidence = 1.0;
+    out.confidence = m.confidence() > 0.0f ? m.confidence() : 1.0;
     out.state = m.tracking_state() == v1::TRACKING_STATE_TRACKED ? tracking::JointState::kTracked
                 : m.tracking_state() == v1::TRACKING_STATE_INFERRED
                     ? tracking::JointState::kInferred
@@ -404,15 +493,21 @@ void PrintEvaluation(const nlohmann::json& j, std::ostream& out) {
   }
 }
 
-absl::StatusOr<nlohmann::json> TakeSkeletons(const std::string& take_path,
-                                             const std::string& truth_path) {
+absl::StatusOr<nlohmann::json> TakeSkeletons(
+    const std::string& take_path, const std::string& truth_path,
+    const std::optional<tracking::BodyTrackerOptions>& track) {
   ASSIGN_OR_RETURN(std::unique_ptr<TakeReader> take, TakeReader::Open(take_path));
   std::unique_ptr<TakeReader> truth_reader;
   if (truth_path != take_path) {
     ASSIGN_OR_RETURN(truth_reader, TakeReader::Open(truth_path));
   }
   const TakeReader& truth_take = truth_reader ? *truth_reader : *take;
-  ASSIGN_OR_RETURN(std::vector<SensorInput> inputs, ReadSensors(*take, truth_take, take_path));
+  std::vector<SensorInput> inputs;
+  if (track) {
+    ASSIGN_OR_RETURN(inputs, TrackSensors(*take, truth_take, *track, take_path));
+  } else {
+    ASSIGN_OR_RETURN(inputs, ReadSensors(*take, truth_take, take_path));
+  }
   ASSIGN_OR_RETURN(Truth truth, ReadTruth(truth_take, truth_path));
   ASSIGN_OR_RETURN(Evaluation evaluation, Evaluate(inputs, truth));
   return EvaluationJson(take_path, truth_path, inputs, truth, evaluation);
@@ -421,15 +516,23 @@ absl::StatusOr<nlohmann::json> TakeSkeletons(const std::string& take_path,
 }  // namespace
 
 int RunTakeSkeletons(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"truth"}, {"json"});
+  auto flags = Flags::Parse(args, {"truth", "forest"}, {"json", "track", "no-refine"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto truth = flags->Required("truth");
   if (!truth.ok()) return ReportError(truth.status(), err);
+  std::optional<tracking::BodyTrackerOptions> track;
+  if (flags->Has("track")) {
+    track.emplace();
+    track->forest_path = flags->Get("forest").value_or("");
+    track->refine = !flags->Has("no-refine");
+  } else if (flags->Has("no-refine") || flags->Has("forest")) {
+    return ReportError(absl::InvalidArgumentError("--no-refine and --forest go with --track"), err);
+  }
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("take skeletons needs exactly one TAKE file"),
                        err);
   }
-  absl::StatusOr<nlohmann::json> result = TakeSkeletons(flags->positional()[0], *truth);
+  absl::StatusOr<nlohmann::json> result = TakeSkeletons(flags->positional()[0], *truth, track);
   if (!result.ok()) {
     ReportError(result.status(), err);
     return kExitFailure;  // Bad files, not bad usage.

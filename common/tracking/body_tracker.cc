@@ -78,11 +78,9 @@ std::vector<PersonView> CutPeople(const DepthImageMm& depth, const MaskImage& la
   return people;
 }
 
-// Girshick et al. sec. 3.2: mean shift with a Gaussian kernel from a few of
-// the heaviest votes; the mode of largest density wins. Returns the mode and
-// its density over the votes' total weight.
-std::pair<Eigen::Vector3f, float> VoteMode(std::vector<Vote>* votes, int max_votes,
-                                           float bandwidth_m) {
+// Keeps the `max_votes` heaviest votes, heaviest first; returns their total
+// weight.
+float KeepHeaviest(std::vector<Vote>* votes, int max_votes) {
   if (static_cast<int>(votes->size()) > max_votes) {
     std::nth_element(votes->begin(), votes->begin() + max_votes, votes->end(),
                      [](const Vote& a, const Vote& b) { return a.weight > b.weight; });
@@ -92,18 +90,41 @@ std::pair<Eigen::Vector3f, float> VoteMode(std::vector<Vote>* votes, int max_vot
             [](const Vote& a, const Vote& b) { return a.weight > b.weight; });
   float total = 0;
   for (const Vote& v : *votes) total += v.weight;
+  return total;
+}
+
+// Kernel density of the votes at `point` over their total weight.
+float ShareAt(const std::vector<Vote>& votes, float total, const Eigen::Vector3f& point,
+              float inv_2b2) {
+  if (!(total > 0)) return 0.0f;
+  float density = 0;
+  for (const Vote& v : votes) {
+    density += v.weight * std::exp(-(v.position_m - point).squaredNorm() * inv_2b2);
+  }
+  return std::clamp(density / total, 0.0f, 1.0f);
+}
+
+// Girshick et al. sec. 3.2: mean shift with a Gaussian kernel from several
+// of the heaviest votes. Returns up to `max_modes` distinct modes, densest
+// first, each with its density over the votes' total weight.
+std::vector<JointMode> VoteModes(const std::vector<Vote>& votes, float total, float bandwidth_m,
+                                 int max_modes) {
+  std::vector<JointMode> modes;
+  if (votes.empty() || !(total > 0)) return modes;
   const float inv_2b2 = 1.0f / (2 * bandwidth_m * bandwidth_m);
-  Eigen::Vector3f best = (*votes)[0].position_m;
-  float best_density = -1;
-  const size_t seeds = std::min<size_t>(votes->size(), 5);
-  const size_t seed_step = std::max<size_t>(1, votes->size() / 10);
+  const size_t seeds = std::min<size_t>(votes.size(), 8);
+  const size_t seed_step = std::max<size_t>(1, votes.size() / 12);
   for (size_t s = 0; s < seeds; ++s) {
-    Eigen::Vector3f mode = (*votes)[s * seed_step % votes->size()].position_m;
+    Eigen::Vector3f mode = votes[s * seed_step % votes.size()].position_m;
+    // A seed near a mode found already converges to it.
+    bool known = false;
+    for (const JointMode& m : modes) known |= (m.position_m - mode).norm() < bandwidth_m;
+    if (known) continue;
     float density = 0;
     for (int it = 0; it < 8; ++it) {
       Eigen::Vector3f sum = Eigen::Vector3f::Zero();
       density = 0;
-      for (const Vote& v : *votes) {
+      for (const Vote& v : votes) {
         const float w = v.weight * std::exp(-(v.position_m - mode).squaredNorm() * inv_2b2);
         sum += w * v.position_m;
         density += w;
@@ -114,9 +135,20 @@ std::pair<Eigen::Vector3f, float> VoteMode(std::vector<Vote>* votes, int max_vot
       mode = next;
       if (settled) break;
     }
-    if (density > best_density) best_density = density, best = mode;
+    if (!(density > 0)) continue;
+    bool merged = false;
+    for (JointMode& m : modes) {
+      if ((m.position_m - mode).norm() < bandwidth_m) {
+        merged = true;
+        if (density / total > m.share) m = {mode, density / total};
+      }
+    }
+    if (!merged) modes.push_back({mode, std::clamp(density / total, 0.0f, 1.0f)});
   }
-  return {best, total > 0 ? std::max(0.0f, best_density) / total : 0.0f};
+  std::sort(modes.begin(), modes.end(),
+            [](const JointMode& a, const JointMode& b) { return a.share > b.share; });
+  if (static_cast<int>(modes.size()) > max_modes) modes.resize(static_cast<size_t>(max_modes));
+  return modes;
 }
 
 }  // namespace
@@ -141,6 +173,12 @@ absl::Status BodyTrackerOptions::Validate() const {
     return absl::InvalidArgumentError("tracker: prior confidence must be within [0, 1]");
   }
   if (refine) RETURN_IF_ERROR(refinement.Validate());
+  if (assemble) {
+    if (modes_per_joint < 1 || modes_per_joint > 8) {
+      return absl::InvalidArgumentError("tracker: modes per joint must be 1..8");
+    }
+    RETURN_IF_ERROR(assembly.Validate());
+  }
   return segmentation.Validate();
 }
 
@@ -235,15 +273,36 @@ TrackedPerson BodyTracker::Impl::TrackPerson(const PersonView& view, const Depth
     }
   }
   if (person.num_pixels > 0) person.centroid_in_camera_m /= person.num_pixels;
+  const float bandwidth = static_cast<float>(options.vote_bandwidth_m);
+  const float inv_2b2 = 1.0f / (2 * bandwidth * bandwidth);
+  std::array<float, body::kNumKinectV2Joints> totals{};
+  JointEvidence evidence;
   for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    if (votes[j].empty()) continue;
-    const auto [mode, share] = VoteMode(&votes[j], options.max_votes_per_joint,
-                                        static_cast<float>(options.vote_bandwidth_m));
-    TrackedJoint& joint = person.joints[j];
-    joint.position_in_camera_m = mode.cast<double>();
-    joint.confidence = std::clamp(static_cast<double>(share), 0.0, 1.0);
-    joint.state = JointState::kInferred;
+    totals[j] = KeepHeaviest(&votes[j], options.max_votes_per_joint);
+    evidence.modes[j] =
+        VoteModes(votes[j], totals[j], bandwidth, options.assemble ? options.modes_per_joint : 1);
   }
+  if (!options.assemble) {
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      if (evidence.modes[j].empty()) continue;
+      TrackedJoint& joint = person.joints[j];
+      joint.position_in_camera_m = evidence.modes[j][0].position_m.cast<double>();
+      joint.confidence = std::clamp(static_cast<double>(evidence.modes[j][0].share), 0.0, 1.0);
+      joint.state = JointState::kInferred;
+    }
+    return person;
+  }
+  evidence.share_at = [&](int joint, const Eigen::Vector3f& point) {
+    return ShareAt(votes[joint], totals[joint], point, inv_2b2);
+  };
+  // The same person in the frame before: the nearest previous centroid.
+  const TrackedPerson* before = nullptr;
+  double nearest = options.max_id_jump_m;
+  for (const TrackedPerson& p : previous) {
+    const double d = (p.centroid_in_camera_m - person.centroid_in_camera_m).norm();
+    if (d <= nearest) nearest = d, before = &p;
+  }
+  person.joints = AssembleSkeleton(evidence, before ? &before->joints : nullptr, options.assembly);
   return person;
 }
 

@@ -27,6 +27,7 @@
 #include "common/geometry/camera.h"
 #include "common/tracking/model_refinement.h"
 #include "common/tracking/person_segmentation.h"
+#include "common/tracking/skeleton_assembly.h"
 #include "common/tracking/tracking_types.h"
 
 namespace reenact::tracking {
@@ -48,6 +49,11 @@ struct BodyTrackerOptions {
   // A joint is tracked when it projects onto the person and lies at most
   // this far behind the surface seen there, metres.
   double max_behind_surface_m = 0.15;
+  // Limbs assembled from several vote modes per joint (skeleton_assembly.h);
+  // false: each joint's densest mode, as in Girshick et al.
+  bool assemble = true;
+  int modes_per_joint = 3;
+  SkeletonAssemblyOptions assembly;
   // Used when Track is given no label image.
   PersonSegmentationOptions segmentation;
   // Largest distance between a person's centroids in consecutive frames

@@ -21,11 +21,12 @@ bin=build/bin
 reenact=$bin/reenact
 viewer=$bin/reenact-viewer
 
-# The synthetic sensors carry the jittered true skeleton (a stand-in for a
-# device's own): the daemon's tracker (--tracker auto) runs only on sensors
-# that give none, such as the Kinect v1 and OpenNI2 backends.
+# Like real depth cameras, the synthetic sensors carry no skeleton: the
+# daemon's body tracker (--tracker auto, with the body-model refinement on)
+# finds it in each sensor's depth, and every job and the mirror use those
+# tracked skeletons. The true joints stay on /ground_truth for evaluation.
 "$reenact" synth --motion builtin:front-kick --body procedural --sensors 2 --seconds 3 \
-  --sensor-skeleton truth --out "$out/source.mcap"
+  --out "$out/source.mcap"
 
 rm -rf "$out/server" "$out/spool" "$out/server.port"
 "$bin/reenact-server" --data "$out/server" --listen 127.0.0.1:0 --port-file "$out/server.port" \
@@ -40,7 +41,7 @@ echo "demo: reenact-server listening on $server (data in $out/server)"
 # played back in real time) and exits once the server has all of it on disk.
 "$bin/reenactd" --server "$server" --source "playback:$out/source.mcap" --once \
   --take-name front-kick --spool "$out/spool" --control 127.0.0.1:0 \
-  --stats-json "$out/capture-stats.json"
+  --tracker auto --tracker-refine on --stats-json "$out/capture-stats.json"
 
 "$reenact" takes list --server "$server"
 take_id=$("$reenact" takes list --server "$server" --json | \
@@ -48,6 +49,8 @@ take_id=$("$reenact" takes list --server "$server" --json | \
 "$reenact" takes show "$take_id" --server "$server"
 "$reenact" takes download "$take_id" --server "$server" --out "$out/take.mcap" --quiet
 "$reenact" take info "$out/take.mcap"
+# How well the daemon's tracker found the teacher, against the true joints.
+"$reenact" take skeletons "$out/take.mcap" --truth "$out/source.mcap"
 "$reenact" take sheet "$out/take.mcap" --out "$out/sheet.png"
 
 # Reconstruction: a job on the server, run by a reenact-worker process; the
@@ -90,9 +93,19 @@ reconstruct body- "$out/body.glb" --method body --model procedural
 # reenact-mirror reads their facing, and once it has held still for 2 s turns
 # the body-model teacher to it and plays it beside the learner's mirror image;
 # the repetition is graded part by part (time-aligned by DTW) into a report.
+# The learner's sensor gives no skeleton either: the daemon records them and
+# tracks them as it did the teacher, and the mirror reads the stored take.
 "$reenact" synth --motion builtin:front-kick --body procedural --shape random:3 --sensors 1 \
   --seconds 5.5 --lead-in-s 2 --yaw-deg 90 --color-width 960 --color-height 540 \
-  --sensor-skeleton truth --out "$out/learner.mcap" --quiet
+  --out "$out/learner-source.mcap" --quiet
+rm -rf "$out/learner-spool"
+"$bin/reenactd" --server "$server" --source "playback:$out/learner-source.mcap" --once \
+  --take-name learner --spool "$out/learner-spool" --control 127.0.0.1:0 \
+  --tracker auto --tracker-refine on
+learner_id=$("$reenact" takes list --server "$server" --json | \
+  sed -n 's/.*"take_id": "\([^"]*-learner-[^"]*\)".*/\1/p' | head -n 1)
+"$reenact" takes download "$learner_id" --server "$server" --out "$out/learner.mcap" --quiet
+"$reenact" take skeletons "$out/learner.mcap" --truth "$out/learner-source.mcap"
 rm -rf "$out/mirror" "$out/mirror-report"
 "$bin/reenact-mirror" --server "$server" --teacher "$reenactment_id" --cache "$out/cache" \
   --learner-take "$out/learner.mcap" --dtw --render-to "$out/mirror" \
@@ -111,7 +124,7 @@ echo "demo: body job      $PWD/$out/body-job.json (body model)"
 echo "demo: body skeleton $PWD/$out/body.bvh (BVH, Kinect v2 joints, centimetres)"
 echo "demo: body eval     $PWD/$out/body-eval.json"
 echo "demo: body view     $PWD/$out/body-novel-view/video.mp4 (a full turn around the teacher; PNG frames beside it)"
-echo "demo: learner take  $PWD/$out/learner.mcap (synthetic, turned 90 degrees)"
+echo "demo: learner take  $PWD/$out/learner.mcap (synthetic, turned 90 degrees; tracked by reenactd)"
 echo "demo: mirror        $PWD/$out/mirror/video.mp4 (the learner's mirror image beside the turned teacher)"
 echo "demo: mirror report $PWD/$out/mirror-report/rep-001.png (per-part error over time; .csv and .json beside it)"
 echo

@@ -73,9 +73,13 @@ TEST(ScoreRepresentative, PrefersArmsOutAndLegsUncrossed) {
 
 TEST(CylinderOptions, ReadsAndValidatesOptions) {
   CylinderOptions options;
-  const std::map<std::string, std::string> good = {
-      {"lambda", "1.5"}, {"segments", "12"}, {"keyframe_stride", "3"}, {"color_scale", "2"},
-      {"bake", "false"}, {"representative_instant", "4"}, {"representative_sensor", "1"}};
+  const std::map<std::string, std::string> good = {{"lambda", "1.5"},
+                                                   {"segments", "12"},
+                                                   {"keyframe_stride", "3"},
+                                                   {"color_scale", "2"},
+                                                   {"bake", "false"},
+                                                   {"representative_instant", "4"},
+                                                   {"representative_sensor", "1"}};
   OptionReader reader(good);
   ASSERT_TRUE(options.Read(reader).ok());
   EXPECT_TRUE(reader.Finish().ok());
@@ -85,9 +89,12 @@ TEST(CylinderOptions, ReadsAndValidatesOptions) {
   EXPECT_EQ(options.texturing.color_scale, 2);
   EXPECT_FALSE(options.texturing.bake);
   EXPECT_EQ(options.representative_instant, 4);
-  for (const auto& [key, value] : std::map<std::string, std::string>{
-           {"color_scale", "3"}, {"lambda", "-1"}, {"segments", "2"}, {"rings", "x"},
-           {"representative_instant", "4"}}) {
+  for (const auto& [key, value] :
+       std::map<std::string, std::string>{{"color_scale", "3"},
+                                          {"lambda", "-1"},
+                                          {"segments", "2"},
+                                          {"rings", "x"},
+                                          {"representative_instant", "4"}}) {
     CylinderOptions o;
     const std::map<std::string, std::string> one = {{key, value}};
     OptionReader r(one);
@@ -101,8 +108,8 @@ struct Cylinder {
   double r;
 };
 
-void Render(const std::vector<Cylinder>& cylinders, const CameraIntrinsics& k,
-            DepthImageMm* depth, MaskImage* mask) {
+void Render(const std::vector<Cylinder>& cylinders, const CameraIntrinsics& k, DepthImageMm* depth,
+            MaskImage* mask) {
   *depth = DepthImageMm(k.width, k.height, 4000);  // A wall 4 m away.
   *mask = MaskImage(k.width, k.height, 0);
   for (int y = 0; y < k.height; ++y) {
@@ -200,8 +207,7 @@ TEST(MakeCylinderGeometry, ClosedOutwardCounterClockwise) {
 }
 
 // Nearest point parameter of p on segment a-b and the distance to it.
-std::pair<double, double> SegmentDistance(const Vector3d& p, const Vector3d& a,
-                                          const Vector3d& b) {
+std::pair<double, double> SegmentDistance(const Vector3d& p, const Vector3d& a, const Vector3d& b) {
   const Vector3d ab = b - a;
   const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
   return {t, (p - (a + t * ab)).norm()};
@@ -218,8 +224,8 @@ double TrueRadius(BodyPart part, const std::vector<Vector3d>& vertices, const Jo
     double nearest_d = 1e9, nearest_t = 0;
     for (int p = 0; p < kNumBodyParts; ++p) {
       const BodyPartInfo& info = BodyParts()[p];
-      auto [t, d] = SegmentDistance(v, joints[body::Index(info.proximal)],
-                                    joints[body::Index(info.distal)]);
+      auto [t, d] =
+          SegmentDistance(v, joints[body::Index(info.proximal)], joints[body::Index(info.distal)]);
       if (d < nearest_d) {
         nearest_d = d;
         nearest = p;
@@ -243,14 +249,13 @@ TEST(FitCylinderModel, RadiiMatchTheGroundTruthMesh) {
   ASSERT_TRUE(model.ok()) << model.status();
   const int rep = model->representative.instant;
   const int64_t frame_index = (*take)->instant(rep).views[model->representative.sensor].frame_index;
-  std::printf("[ figures  ] representative frame: instant %d of %d, sensor %d, E = %.3f "
-              "(theta L/R %.0f/%.0f deg, |a| L/R %.2f/%.2f, g %.0f)\n",
-              rep, (*take)->num_instants(), model->representative.sensor,
-              model->representative.score.e,
-              model->representative.score.theta_left_rad * 180 / M_PI,
-              model->representative.score.theta_right_rad * 180 / M_PI,
-              model->representative.score.a_left, model->representative.score.a_right,
-              model->representative.score.g);
+  std::printf(
+      "[ figures  ] representative frame: instant %d of %d, sensor %d, E = %.3f "
+      "(theta L/R %.0f/%.0f deg, |a| L/R %.2f/%.2f, g %.0f)\n",
+      rep, (*take)->num_instants(), model->representative.sensor, model->representative.score.e,
+      model->representative.score.theta_left_rad * 180 / M_PI,
+      model->representative.score.theta_right_rad * 180 / M_PI, model->representative.score.a_left,
+      model->representative.score.a_right, model->representative.score.g);
   // The arm raise lifts the arms over the take: the best frame is late.
   EXPECT_GT(rep, (*take)->num_instants() / 2);
 
@@ -260,22 +265,19 @@ TEST(FitCylinderModel, RadiiMatchTheGroundTruthMesh) {
   std::vector<Vector3d> vertices;
   JointArray truth = MissingJoints();
   ASSERT_TRUE((*reader)
-                  ->ForEach<v1::GroundTruthMesh>(kGroundTruthMeshTopic,
-                                                 [&](const v1::GroundTruthMesh& m) {
-                                                   if (m.frame_index() != frame_index) {
-                                                     return absl::OkStatus();
-                                                   }
-                                                   auto floats = UnpackFloats(
-                                                       m.positions_in_world_m_f32());
-                                                   if (!floats.ok()) return floats.status();
-                                                   for (size_t i = 0; i + 2 < floats->size();
-                                                        i += 3) {
-                                                     vertices.emplace_back((*floats)[i],
-                                                                           (*floats)[i + 1],
-                                                                           (*floats)[i + 2]);
-                                                   }
-                                                   return absl::OkStatus();
-                                                 })
+                  ->ForEach<v1::GroundTruthMesh>(
+                      kGroundTruthMeshTopic,
+                      [&](const v1::GroundTruthMesh& m) {
+                        if (m.frame_index() != frame_index) {
+                          return absl::OkStatus();
+                        }
+                        auto floats = UnpackFloats(m.positions_in_world_m_f32());
+                        if (!floats.ok()) return floats.status();
+                        for (size_t i = 0; i + 2 < floats->size(); i += 3) {
+                          vertices.emplace_back((*floats)[i], (*floats)[i + 1], (*floats)[i + 2]);
+                        }
+                        return absl::OkStatus();
+                      })
                   .ok());
   ASSERT_TRUE((*reader)
                   ->ForEach<v1::GroundTruthJoints>(
@@ -300,10 +302,11 @@ TEST(FitCylinderModel, RadiiMatchTheGroundTruthMesh) {
     const double true_r = TrueRadius(part, vertices, truth);
     ASSERT_GT(true_r, 0.01) << GetBodyPartInfo(part).name;
     const double error_mm = 1e3 * (fit.radius_m - true_r);
-    std::printf("[ figures  ] %-16s fitted r %.1f mm (%s, %d lines), true mean r %.1f mm, "
-                "error %+.1f mm\n",
-                std::string(GetBodyPartInfo(part).name).c_str(), 1e3 * fit.radius_m,
-                fit.fitted ? "measured" : "default", fit.lines, 1e3 * true_r, error_mm);
+    std::printf(
+        "[ figures  ] %-16s fitted r %.1f mm (%s, %d lines), true mean r %.1f mm, "
+        "error %+.1f mm\n",
+        std::string(GetBodyPartInfo(part).name).c_str(), 1e3 * fit.radius_m,
+        fit.fitted ? "measured" : "default", fit.lines, 1e3 * true_r, error_mm);
     EXPECT_TRUE(fit.fitted) << GetBodyPartInfo(part).name;
     worst_mm = std::max(worst_mm, std::abs(error_mm));
   }

@@ -375,8 +375,7 @@ class TakeFramesLoader {
   }
 
   // Moves one raw frame into a view.
-  SensorView MakeView(int sensor, RawFrame& f,
-                      std::optional<tracking::SensorSkeleton>* skeleton) {
+  SensorView MakeView(int sensor, RawFrame& f, std::optional<tracking::SensorSkeleton>* skeleton) {
     SensorView view;
     view.present = true;
     view.frame_index = f.depth.frame_index();
@@ -436,8 +435,10 @@ class TakeFramesLoader {
     }
   }
 
-  // Each record is an instant; per listed sensor the nearest unused depth
-  // frame within skew + half a frame period of the record's stamp.
+  // Each record is an instant; per listed sensor the frame it names
+  // (FrameSetRecord.frame_indices) or, in takes without them, the nearest
+  // unused depth frame within skew + half a frame period of the record's
+  // stamp.
   void GroupByFrameSets() {
     std::sort(records_.begin(), records_.end(),
               [](const auto& a, const auto& b) { return a.sequence() < b.sequence(); });
@@ -455,9 +456,18 @@ class TakeFramesLoader {
     for (const v1::FrameSetRecord& record : records_) {
       std::vector<std::optional<int64_t>> chosen(raw_.size());
       const int64_t tolerance_ns = std::max<int64_t>(record.skew_ns(), 0) + half_period_ns;
-      for (const std::string& id : record.sensor_ids()) {
-        const int s = frames_->SensorIndex(id);
+      const bool indexed = record.frame_indices_size() == record.sensor_ids_size();
+      for (int k = 0; k < record.sensor_ids_size(); ++k) {
+        const int s = frames_->SensorIndex(record.sensor_ids(k));
         if (s < 0) continue;
+        if (indexed) {
+          // The clock-corrected set stamp may lie more than half a period
+          // from a frame's host stamp (irregular device clocks); the index
+          // names the frame itself.
+          const auto it = raw_[s].find(record.frame_indices(k));
+          if (it != raw_[s].end() && it->second.has_depth) chosen[s] = it->first;
+          continue;
+        }
         const auto& list = by_stamp[s];
         size_t best = list.size();
         int64_t best_dt = std::numeric_limits<int64_t>::max();
@@ -615,11 +625,10 @@ absl::StatusOr<MaskImage> TakeFrames::LoadActorMask(int instant, int sensor) con
     for (size_t i = 0; i < depth.data.size(); ++i) actor.data[i] = depth.data[i] > 0 ? 1 : 0;
     return actor;
   }
-  auto decoded_mask =
-      DecodeMask(view.mask_encoding == "rvl" ? "rvl" : "rle", view.mask_data);
+  auto decoded_mask = DecodeMask(view.mask_encoding == "rvl" ? "rvl" : "rle", view.mask_data);
   if (!decoded_mask.ok()) {
-    return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor), ": mask: ",
-                                            decoded_mask.status().message()));
+    return absl::DataLossError(absl::StrCat(ViewName(*this, instant, sensor),
+                                            ": mask: ", decoded_mask.status().message()));
   }
   MaskImage mask = *std::move(decoded_mask);
   if (mask.width != depth.width || mask.height != depth.height) {

@@ -96,9 +96,10 @@ TEST(TakeFrames, FusedSkeletonMatchesGroundTruth) {
   }
   const double fused_mm = 1e3 * fused_sum / fused_n;
   const double single_mm = 1e3 * single_sum / single_n;
-  std::printf("[ figures  ] fused skeleton mean error %.1f mm over %d joints; sensor k0 alone "
-              "(tracked joints) %.1f mm\n",
-              fused_mm, fused_n, single_mm);
+  std::printf(
+      "[ figures  ] fused skeleton mean error %.1f mm over %d joints; sensor k0 alone "
+      "(tracked joints) %.1f mm\n",
+      fused_mm, fused_n, single_mm);
   EXPECT_LT(fused_mm, 16.0);
   EXPECT_LT(single_mm, 22.0);
 }
@@ -122,8 +123,8 @@ TEST(TakeFrames, DecodesDepthMaskAndColour) {
       EXPECT_GT(depth->data[i], 0);
     }
   }
-  EXPECT_GT(actor, 2000);          // A person at 2.5 m covers ~10k depth pixels.
-  EXPECT_LT(actor, with_depth);    // The room is not the actor.
+  EXPECT_GT(actor, 2000);        // A person at 2.5 m covers ~10k depth pixels.
+  EXPECT_LT(actor, with_depth);  // The room is not the actor.
   auto actor_depth = t.LoadActorDepth(3, 1);
   ASSERT_TRUE(actor_depth.ok());
   int nonzero = 0;
@@ -145,8 +146,7 @@ TEST(TakeFrames, DecodesDepthMaskAndColour) {
   EXPECT_EQ(t.LoadColor(3, 0, 3).status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(t.LoadDepth(-1, 0).status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(t.LoadDepth(0, 2).status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(t.LoadDepth(t.num_instants(), 0).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(t.LoadDepth(t.num_instants(), 0).status().code(), absl::StatusCode::kInvalidArgument);
 
   std::atomic<int> views{0};
   ASSERT_TRUE(t.ParallelForViews([&](int i, int s) {
@@ -186,96 +186,102 @@ TEST(TakeFrames, LoadOptions) {
 }
 
 // A take as the server's ingest writes it: frame-set records after each
-// set's frames; sensor k1 misses the third set.
+// set's frames; sensor k1 misses the third set. Records name their frames
+// (frame_indices), whose host stamps may lie far from the set's
+// clock-corrected stamp; older takes have no indices and are matched by
+// stamp.
 TEST(TakeFrames, GroupsByFrameSetRecords) {
   RECON_REQUIRE_SHARED_TAKE();
-  auto source = TakeReader::Open(GetSharedTake().path);
-  ASSERT_TRUE(source.ok()) << source.status();
-  const std::string path = reenact::testing::MakeTempDir("recon_frame_sets") + "/take.mcap";
-  auto writer = TakeWriter::Open(path, (*source)->info());
-  ASSERT_TRUE(writer.ok()) << writer.status();
-  for (const auto& [id, calibration] : (*source)->sensors()) {
-    ASSERT_TRUE((*writer)->AddSensor(calibration).ok());
-  }
-  // Frames per sensor and index.
-  std::map<std::pair<std::string, int64_t>, v1::DepthImage> depth;
-  std::map<std::pair<std::string, int64_t>, v1::Skeleton> skeletons;
-  ASSERT_TRUE((*source)
-                  ->ForEach<v1::DepthImage>(SensorTopic("k0", "depth"),
-                                            [&](const v1::DepthImage& m) {
-                                              depth[{"k0", m.frame_index()}] = m;
-                                              return absl::OkStatus();
-                                            })
-                  .ok());
-  ASSERT_TRUE((*source)
-                  ->ForEach<v1::DepthImage>(SensorTopic("k1", "depth"),
-                                            [&](const v1::DepthImage& m) {
-                                              depth[{"k1", m.frame_index()}] = m;
-                                              return absl::OkStatus();
-                                            })
-                  .ok());
-  for (const char* id : {"k0", "k1"}) {
+  for (const bool indexed : {false, true}) {
+    SCOPED_TRACE(indexed ? "records with frame indices, stamps 40 ms off" : "records by stamp");
+    auto source = TakeReader::Open(GetSharedTake().path);
+    ASSERT_TRUE(source.ok()) << source.status();
+    const std::string path = reenact::testing::MakeTempDir("recon_frame_sets") +
+                             (indexed ? "/indexed.mcap" : "/take.mcap");
+    auto writer = TakeWriter::Open(path, (*source)->info());
+    ASSERT_TRUE(writer.ok()) << writer.status();
+    for (const auto& [id, calibration] : (*source)->sensors()) {
+      ASSERT_TRUE((*writer)->AddSensor(calibration).ok());
+    }
+    // Frames per sensor and index.
+    std::map<std::pair<std::string, int64_t>, v1::DepthImage> depth;
+    std::map<std::pair<std::string, int64_t>, v1::Skeleton> skeletons;
     ASSERT_TRUE((*source)
-                    ->ForEach<v1::Skeleton>(SensorTopic(id, "skeleton"),
-                                            [&](const v1::Skeleton& m) {
-                                              skeletons[{id, m.frame_index()}] = m;
-                                              return absl::OkStatus();
-                                            })
+                    ->ForEach<v1::DepthImage>(SensorTopic("k0", "depth"),
+                                              [&](const v1::DepthImage& m) {
+                                                depth[{"k0", m.frame_index()}] = m;
+                                                return absl::OkStatus();
+                                              })
                     .ok());
-  }
-  constexpr int kSets = 6;
-  for (int f = 0; f < kSets; ++f) {
-    v1::FrameSetRecord record;
-    record.set_sequence(f + 1);
-    int64_t stamp_sum = 0;
-    int n = 0;
+    ASSERT_TRUE((*source)
+                    ->ForEach<v1::DepthImage>(SensorTopic("k1", "depth"),
+                                              [&](const v1::DepthImage& m) {
+                                                depth[{"k1", m.frame_index()}] = m;
+                                                return absl::OkStatus();
+                                              })
+                    .ok());
     for (const char* id : {"k0", "k1"}) {
-      if (f == 2 && std::string(id) == "k1") {
-        record.add_missing_sensor_ids(id);
-        continue;
+      ASSERT_TRUE((*source)
+                      ->ForEach<v1::Skeleton>(SensorTopic(id, "skeleton"),
+                                              [&](const v1::Skeleton& m) {
+                                                skeletons[{id, m.frame_index()}] = m;
+                                                return absl::OkStatus();
+                                              })
+                      .ok());
+    }
+    constexpr int kSets = 6;
+    for (int f = 0; f < kSets; ++f) {
+      v1::FrameSetRecord record;
+      record.set_sequence(f + 1);
+      int64_t stamp_sum = 0;
+      int n = 0;
+      for (const char* id : {"k0", "k1"}) {
+        if (f == 2 && std::string(id) == "k1") {
+          record.add_missing_sensor_ids(id);
+          continue;
+        }
+        const v1::DepthImage& d = depth.at({id, f});
+        ASSERT_TRUE((*writer)->WriteDepth(d).ok());
+        ASSERT_TRUE((*writer)->WriteSkeleton(skeletons.at({id, f})).ok());
+        record.add_sensor_ids(id);
+        if (indexed) record.add_frame_indices(f);
+        stamp_sum += d.host_stamp_ns() + (indexed ? 40'000'000 : 0);
+        ++n;
       }
-      const v1::DepthImage& d = depth.at({id, f});
-      ASSERT_TRUE((*writer)->WriteDepth(d).ok());
-      ASSERT_TRUE((*writer)->WriteSkeleton(skeletons.at({id, f})).ok());
-      record.add_sensor_ids(id);
-      stamp_sum += d.host_stamp_ns();
-      ++n;
+      record.set_stamp_ns(stamp_sum / n);
+      ASSERT_TRUE((*writer)->WriteFrameSetRecord(record).ok());
     }
-    record.set_stamp_ns(stamp_sum / n);
-    ASSERT_TRUE((*writer)->WriteFrameSetRecord(record).ok());
-  }
-  ASSERT_TRUE((*writer)->Close().ok());
+    ASSERT_TRUE((*writer)->Close().ok());
 
-  auto take = TakeFrames::Load(path);
-  ASSERT_TRUE(take.ok()) << take.status();
-  EXPECT_TRUE((*take)->grouped_by_frame_sets());
-  ASSERT_EQ((*take)->num_instants(), kSets);
-  for (int f = 0; f < kSets; ++f) {
-    const Instant& instant = (*take)->instant(f);
-    EXPECT_TRUE(instant.valid);
-    EXPECT_EQ(instant.views[0].frame_index, f);
-    EXPECT_EQ(instant.views[1].present, f != 2);
-    if (f != 2) {
-      EXPECT_EQ(instant.views[1].frame_index, f);
+    auto take = TakeFrames::Load(path);
+    ASSERT_TRUE(take.ok()) << take.status();
+    EXPECT_TRUE((*take)->grouped_by_frame_sets());
+    ASSERT_EQ((*take)->num_instants(), kSets);
+    for (int f = 0; f < kSets; ++f) {
+      const Instant& instant = (*take)->instant(f);
+      EXPECT_TRUE(instant.valid);
+      EXPECT_EQ(instant.views[0].frame_index, f);
+      EXPECT_EQ(instant.views[1].present, f != 2);
+      if (f != 2) {
+        EXPECT_EQ(instant.views[1].frame_index, f);
+      }
+      // No mask in this take: every pixel with depth counts as the actor.
+      auto mask = (*take)->LoadActorMask(f, 0);
+      auto d = (*take)->LoadDepth(f, 0);
+      ASSERT_TRUE(mask.ok() && d.ok());
+      for (size_t i = 0; i < d->data.size(); i += 97) {
+        EXPECT_EQ(mask->data[i] != 0, d->data[i] != 0);
+      }
+      // No colour in this take.
+      EXPECT_EQ((*take)->LoadColor(f, 0).status().code(), absl::StatusCode::kNotFound);
     }
-    // No mask in this take: every pixel with depth counts as the actor.
-    auto mask = (*take)->LoadActorMask(f, 0);
-    auto d = (*take)->LoadDepth(f, 0);
-    ASSERT_TRUE(mask.ok() && d.ok());
-    for (size_t i = 0; i < d->data.size(); i += 97) {
-      EXPECT_EQ(mask->data[i] != 0, d->data[i] != 0);
-    }
-    // No colour in this take.
-    EXPECT_EQ((*take)->LoadColor(f, 0).status().code(), absl::StatusCode::kNotFound);
   }
 }
 
 TEST(TakeFrames, BadInputIsAnErrorNotACrash) {
   const std::string dir = reenact::testing::MakeTempDir("recon_bad_takes");
   EXPECT_EQ(TakeFrames::Load(dir + "/missing.mcap").status().code(), absl::StatusCode::kNotFound);
-  {
-    std::ofstream(dir + "/garbage.mcap") << "this is not an mcap file at all";
-  }
+  { std::ofstream(dir + "/garbage.mcap") << "this is not an mcap file at all"; }
   auto garbage = TakeFrames::Load(dir + "/garbage.mcap");
   EXPECT_FALSE(garbage.ok());
   EXPECT_TRUE(absl::IsInvalidArgument(garbage.status()) || absl::IsDataLoss(garbage.status()))

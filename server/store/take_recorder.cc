@@ -139,6 +139,7 @@ absl::Status TakeRecorder::WriteFrameSet(const v1::FrameSet& set) {
       RETURN_IF_ERROR(writer_->WriteSkeleton(skeleton));
     }
     record.add_sensor_ids(frame.sensor_id());
+    record.add_frame_indices(frame.frame_index());
   }
   // Last, so that a chunk holding the record holds the whole set.
   RETURN_IF_ERROR(writer_->WriteFrameSetRecord(record));

@@ -22,12 +22,14 @@
 
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/fakenect_recording.h"
+#include "clients/sdk/jobs_client.h"
+#include "clients/sdk/reenactments_client.h"
 #include "clients/sdk/takes_client.h"
 #include "common/base/subprocess.h"
 #include "common/io/depth_codec.h"
+#include "common/io/proto_convert.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
-#include "common/io/proto_convert.h"
 #include "common/testing/test_data.h"
 #include "common/tracking/training_data.h"
 #include "tests/e2e_commands.h"
@@ -50,6 +52,27 @@ std::string WaitForLine(const std::string& path, double timeout_s, Subprocess* p
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return "";
+}
+
+// Mean, median and share within 10 cm of joint errors (metres).
+struct ErrorFigures {
+  double mean_mm = 0.0;
+  double median_mm = 0.0;
+  double within_10cm = 0.0;
+};
+ErrorFigures Figures(std::vector<double> errors_m) {
+  ErrorFigures f;
+  if (errors_m.empty()) return f;
+  std::sort(errors_m.begin(), errors_m.end());
+  double sum_m = 0.0;
+  for (const double e : errors_m) sum_m += e;
+  const double n = static_cast<double>(errors_m.size());
+  f.mean_mm = 1000.0 * sum_m / n;
+  f.median_mm = 1000.0 * errors_m[errors_m.size() / 2];
+  f.within_10cm = static_cast<double>(std::lower_bound(errors_m.begin(), errors_m.end(), 0.10) -
+                                      errors_m.begin()) /
+                  n;
+  return f;
 }
 
 // A reenact-server child on 127.0.0.1. Logs go to <dir>/server.log.
@@ -254,8 +277,8 @@ class CaptureIngestTest : public ::testing::Test {
   void RunFakenectDaemon(const std::string& address, const std::string& recording,
                          const std::string& take_name, const std::vector<std::string>& extra) {
     std::vector<std::string> argv = {Bin("reenactd"), "--control", "127.0.0.1:0", "--spool",
-                                     dir_ + "/spool", "--server", address, "--source",
-                                     "freenect:0", "--once", "--take-name", take_name};
+                                     dir_ + "/spool", "--server",  address,       "--source",
+                                     "freenect:0",    "--once",    "--take-name", take_name};
     argv.insert(argv.end(), extra.begin(), extra.end());
     SubprocessOptions options;
     options.env["LD_LIBRARY_PATH"] = FAKENECT_LIBRARY_DIR;
@@ -514,7 +537,9 @@ TEST_F(CaptureIngestTest, FakenectRecordingOfAPersonGetsTrackedSkeletons) {
   // A Kinect v1 recording of a person (depth synthesised from a motion that
   // training never saw, structured-light noise) through the Kinect v1
   // backend: reenactd registers the depth, segments nobody (the tracker
-  // finds the person itself) and tracks a skeleton in every frame.
+  // finds the person itself, and its segmentation becomes the frames'
+  // mask) and tracks a skeleton in every frame; a body job on the take
+  // fits the body model to it.
   const std::string fakenect_dir = FAKENECT_LIBRARY_DIR;
   if (!fs::exists(fakenect_dir + "/libfreenect.so.0.5")) {
     GTEST_SKIP() << "libfreenect's fakenect library is not installed in " << fakenect_dir;
@@ -559,8 +584,6 @@ TEST_F(CaptureIngestTest, FakenectRecordingOfAPersonGetsTrackedSkeletons) {
   auto skeletons = stored->ReadAll<v1::Skeleton>(SensorTopic(id, "skeleton"));
   ASSERT_TRUE(skeletons.ok()) << skeletons.status();
   EXPECT_EQ(static_cast<int>(skeletons->size()), static_cast<int>(frames.size())) << DaemonLog();
-  double torso_sum_m = 0.0;
-  int torso_n = 0;
   std::vector<double> torso_errors_m;
   for (const v1::Skeleton& skeleton : *skeletons) {
     EXPECT_EQ(skeleton.source(), "reenact-tracker");
@@ -576,28 +599,98 @@ TEST_F(CaptureIngestTest, FakenectRecordingOfAPersonGetsTrackedSkeletons) {
       }
       const Eigen::Vector3d p = *world_from_depth * FromProto(joint.position_in_depth_m());
       const double error_m = (p - (*images)[i].joints_in_camera_m[body::Index(*j)]).norm();
-      torso_sum_m += error_m;
       torso_errors_m.push_back(error_m);
-      ++torso_n;
     }
   }
-  ASSERT_GT(torso_n, 0);
-  const double torso_mm = 1000.0 * torso_sum_m / torso_n;
-  std::sort(torso_errors_m.begin(), torso_errors_m.end());
-  const double median_mm = 1000.0 * torso_errors_m[torso_errors_m.size() / 2];
-  const double within_10cm =
-      static_cast<double>(std::lower_bound(torso_errors_m.begin(), torso_errors_m.end(), 0.10) -
-                          torso_errors_m.begin()) /
-      static_cast<double>(torso_errors_m.size());
+  ASSERT_FALSE(torso_errors_m.empty());
+  const ErrorFigures torso = Figures(torso_errors_m);
   std::printf(
       "fakenect person: %zu skeletons for %zu frames, torso joints from the truth: mean %.1f mm, "
       "median %.1f mm, %.0f %% within 10 cm\n",
-      skeletons->size(), frames.size(), torso_mm, median_mm, 100.0 * within_10cm);
-  // Without a mask the tracker segments by itself, and in some frames the
-  // floor at the feet joins the person and pulls the torso down (measured:
-  // median 42 mm, 78 % within 10 cm, mean 115 mm).
-  EXPECT_LT(median_mm, 70.0);
-  EXPECT_GT(within_10cm, 0.65);
+      skeletons->size(), frames.size(), torso.mean_mm, torso.median_mm, 100.0 * torso.within_10cm);
+  // Without a mask the tracker segments by itself; the head behind the
+  // raised arm is a piece of its own that joins the person (step 4 of
+  // person_segmentation.h; without it: mean 115 mm, 78 % within 10 cm).
+  // Measured: mean 37.5 mm, median 37.7 mm, 100 % within 10 cm.
+  EXPECT_LT(torso.mean_mm, 60.0);
+  EXPECT_LT(torso.median_mm, 60.0);
+  EXPECT_GT(torso.within_10cm, 0.9);
+
+  // The tracker's segmentation went out as the frames' mask (the body index
+  // of each skeleton), so the body job sees the person apart from the room.
+  auto masks = stored->ReadAll<v1::ActorMask>(SensorTopic(id, "mask"));
+  ASSERT_TRUE(masks.ok()) << masks.status();
+  EXPECT_EQ(masks->size(), skeletons->size());
+
+  // A body job on the take: it succeeds, and its fitted joints lie on the
+  // synthesised person's.
+  client::ConnectionOptions connection;
+  connection.address = server.address();
+  client::JobsClient jobs(connection);
+  auto job = jobs.Submit(take.take_id(), "body");
+  ASSERT_TRUE(job.ok()) << job.status();
+  auto done = jobs.Watch(job->job_id(), [](const v1::JobEvent&) { return true; });
+  ASSERT_TRUE(done.ok()) << done.status();
+  ASSERT_EQ(done->state(), v1::JOB_STATE_SUCCEEDED) << done->error() << "\n"
+                                                    << ReadText(dir_ + "/server.log");
+  client::ReenactmentsClient reenactments(connection);
+  auto body = reenactments.Fetch(done->reenactment_id(), /*skip_keyframes=*/true);
+  ASSERT_TRUE(body.ok()) << body.status();
+  ASSERT_TRUE(body->is_body());
+  // Errors of the trunk and legs (which one Kinect v1 at 2 m sees) and of
+  // the arms (shoulders to hands: in this take the person stands side-on
+  // with the near arm raised before the face and the far arm hidden).
+  std::vector<double> seen_errors_m;
+  double arm_sum_m = 0.0;
+  int arm_n = 0, fitted = 0;
+  for (const v1::PartFrame& frame : body->frames) {
+    if (frame.joints_in_world_m_size() != body::kNumKinectV2Joints) continue;
+    // Instants follow the stored frames one to one (one sensor).
+    ASSERT_LT(frame.frame_index(), static_cast<int>(skeletons->size()));
+    const int64_t i = (*skeletons)[frame.frame_index()].frame_index();
+    ++fitted;
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      using body::KinectV2Joint;
+      const auto joint = static_cast<KinectV2Joint>(j);
+      // The take's world is the raw depth camera's frame (see above).
+      const double error_m =
+          (FromProto(frame.joints_in_world_m(j)) - (*images)[i].joints_in_camera_m[j]).norm();
+      switch (joint) {
+        case KinectV2Joint::kHandTipLeft:
+        case KinectV2Joint::kHandTipRight:
+        case KinectV2Joint::kThumbLeft:
+        case KinectV2Joint::kThumbRight:
+          break;
+        case KinectV2Joint::kShoulderLeft:
+        case KinectV2Joint::kElbowLeft:
+        case KinectV2Joint::kWristLeft:
+        case KinectV2Joint::kHandLeft:
+        case KinectV2Joint::kShoulderRight:
+        case KinectV2Joint::kElbowRight:
+        case KinectV2Joint::kWristRight:
+        case KinectV2Joint::kHandRight:
+          arm_sum_m += error_m;
+          ++arm_n;
+          break;
+        default:
+          seen_errors_m.push_back(error_m);
+      }
+    }
+  }
+  ASSERT_FALSE(seen_errors_m.empty());
+  ASSERT_GT(arm_n, 0);
+  const ErrorFigures seen = Figures(seen_errors_m);
+  const double arms_mm = 1000.0 * arm_sum_m / arm_n;
+  std::printf(
+      "fakenect person, body job: %d of %zu instants fitted; trunk and legs MPJPE %.1f mm, "
+      "PCK@10cm %.0f %%; arms %.1f mm\n",
+      fitted, frames.size(), seen.mean_mm, 100.0 * seen.within_10cm, arms_mm);
+  EXPECT_EQ(fitted, static_cast<int>(frames.size()));
+  // Measured: 47.7 mm, 88 %; the arms 393 mm (the tracker's own arms are
+  // as far off here: a side view with the arms before the face, which its
+  // training resolves poorly).
+  EXPECT_LT(seen.mean_mm, 70.0);
+  EXPECT_GT(seen.within_10cm, 0.8);
   server.Stop();
 }
 

@@ -339,7 +339,14 @@ class FrameProcessorImpl : public FrameProcessor {
       }
     }
     const int64_t begin_ns = SteadyNowNs();
-    auto people = tracker_->Track(*depth, *depth_k_, mask ? &*mask : nullptr);
+    // Without a mask the tracker segments the people itself; that
+    // segmentation becomes the frame's mask, so the methods downstream see
+    // the people apart from the floor and the room (as with a device's
+    // body index image).
+    MaskImage own_labels;
+    const bool segments_itself = !mask.has_value();
+    auto people = tracker_->Track(*depth, *depth_k_, mask ? &*mask : nullptr,
+                                  segments_itself ? &own_labels : nullptr);
     stats_.tracking_ms += (SteadyNowNs() - begin_ns) * 1e-6;
     if (!people.ok()) {
       // The frame still streams, with no skeleton (as a frame with nobody).
@@ -349,6 +356,16 @@ class FrameProcessorImpl : public FrameProcessor {
       return absl::OkStatus();
     }
     ++stats_.tracked;
+    if (segments_itself && !people->empty() && own_labels.width == depth->width &&
+        own_labels.height == depth->height) {
+      v1::ActorMask* m = f.mutable_mask();
+      SetStamps(f, m);
+      m->set_width_px(own_labels.width);
+      m->set_height_px(own_labels.height);
+      m->set_encoding("rle");
+      m->set_data(EncodeMaskRle(own_labels));
+      ++stats_.tracker_masks;
+    }
     f.clear_skeletons();
     for (const tracking::TrackedPerson& person : *people) {
       v1::Skeleton* skeleton = f.add_skeletons();

@@ -86,16 +86,19 @@ struct ProcessingOptions {
 
 // Figures of one processor since it was created.
 struct ProcessingStats {
-  int64_t frames = 0;       // Frames processed successfully.
-  int64_t registered = 0;   // Frames whose depth was registered.
-  int64_t segmented = 0;    // Frames that got a mask from segmentation.
-  int64_t tracked = 0;      // Frames that went through the tracker.
+  int64_t frames = 0;          // Frames processed successfully.
+  int64_t registered = 0;      // Frames whose depth was registered.
+  int64_t segmented = 0;       // Frames that got a mask from segmentation.
+  int64_t tracked = 0;         // Frames that went through the tracker.
   int64_t tracked_people = 0;  // Skeletons the tracker produced.
-  double tracking_ms = 0.0;    // Wall time spent in the tracker.
+  // Frames without a mask that got the tracker's own segmentation of the
+  // people it found as their mask (body index k: the skeleton's body_index).
+  int64_t tracker_masks = 0;
+  double tracking_ms = 0.0;     // Wall time spent in the tracker.
   int64_t tracking_errors = 0;  // Frames the tracker refused (they stream without skeleton).
   std::string last_tracking_error;
-  double total_ms = 0.0;    // Wall time spent in Process.
-  double max_ms = 0.0;      // Longest Process call.
+  double total_ms = 0.0;  // Wall time spent in Process.
+  double max_ms = 0.0;    // Longest Process call.
   bool background_ready = false;
   bool floor_found = false;
 };

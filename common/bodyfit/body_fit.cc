@@ -263,6 +263,7 @@ absl::Status BodyFitOptions::Validate() const {
     return bad("weights must be >= 0");
   }
   if (!(normal_epsilon > 1)) return bad("normal_epsilon must be > 1 (Eq. 4.8)");
+  if (!(lost_rms_mm > 0)) return bad("lost_rms_mm must be > 0");
   if (!(max_distance_m > 0) || !(refine_max_distance_m > 0) || !(huber_m > 0)) {
     return bad("distances must be > 0");
   }
@@ -445,6 +446,25 @@ absl::StatusOr<std::optional<body::BodyPose>> BodyFitter::InitialPose(
   }
   if (previous != nullptr) return FollowSkeleton(*previous, skeleton_m);
   return PoseFromSkeleton(skeleton_m);
+}
+
+absl::StatusOr<std::optional<BodyFitter::SequenceFit>> BodyFitter::FitNext(
+    const FitInput& input, const body::BodyPose* previous) {
+  ASSIGN_OR_RETURN(const std::optional<body::BodyPose> initial,
+                   InitialPose(previous, input.skeleton_m));
+  if (!initial.has_value()) return std::nullopt;
+  SequenceFit out;
+  ASSIGN_OR_RETURN(out.fit, FitFrame(input, *initial, previous));
+  if (previous == nullptr || !HasTorso(input.skeleton_m)) return out;
+  if (!(out.fit.point_rms_mm > options_.lost_rms_mm)) return out;
+  ASSIGN_OR_RETURN(const body::BodyPose from_skeleton, PoseFromSkeleton(input.skeleton_m));
+  ASSIGN_OR_RETURN(FrameFit again, FitFrame(input, from_skeleton, nullptr));
+  const bool better = again.point_rms_mm < out.fit.point_rms_mm;
+  if (better) {
+    out.fit = std::move(again);
+    out.restarted = true;
+  }
+  return out;
 }
 
 absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body::BodyPose& initial,

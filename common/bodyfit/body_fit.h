@@ -111,6 +111,8 @@ struct BodyFitOptions {
   bool refine_vertices = true;
   // Correspondences of step 2 farther than this are not used, metres.
   double refine_max_distance_m = 0.03;
+  // FitNext: a fit with a point RMS above this lost the body, mm.
+  double lost_rms_mm = 25.0;
 
   absl::Status Validate() const;
 };
@@ -195,6 +197,17 @@ class BodyFitter {
   // `previous` when given (Eq. 4.6), then step 2 when enabled.
   absl::StatusOr<FrameFit> FitFrame(const FitInput& input, const body::BodyPose& initial,
                                     const body::BodyPose* previous);
+
+  // One instant of a sequence: FitFrame from InitialPose, started again from
+  // the skeleton alone (PoseFromSkeleton) when the fit lost the body (point
+  // RMS above lost_rms_mm: fast motion), keeping the better of the two.
+  // nullopt when InitialPose has nothing to start from.
+  struct SequenceFit {
+    FrameFit fit;
+    bool restarted = false;  // The fit kept is the one started from the skeleton.
+  };
+  absl::StatusOr<std::optional<SequenceFit>> FitNext(const FitInput& input,
+                                                     const body::BodyPose* previous);
 
  private:
   BodyFitter(const body::BodyModel& model, const BodyFitOptions& options);

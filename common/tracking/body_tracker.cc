@@ -368,7 +368,8 @@ absl::StatusOr<std::unique_ptr<BodyTracker>> BodyTracker::Create(
 
 absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm& depth,
                                                               const CameraIntrinsics& intrinsics,
-                                                              const MaskImage* labels) {
+                                                              const MaskImage* labels,
+                                                              MaskImage* own_labels_out) {
   RETURN_IF_ERROR(intrinsics.Validate());
   if (depth.width != intrinsics.width || depth.height != intrinsics.height ||
       depth.data.size() != depth.num_pixels()) {
@@ -405,6 +406,7 @@ absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm
   }
   if (impl_->refiner) impl_->refiner->Keep(ids);
   impl_->previous = people;
+  if (own_labels_out != nullptr && labels == &own_labels) *own_labels_out = std::move(own_labels);
   return people;
 }
 

@@ -91,9 +91,14 @@ class BodyTracker {
   // tracker segments the image itself (SegmentPeople). Person ids continue
   // those of the previous call. InvalidArgument for mismatched sizes or bad
   // intrinsics; an image with nobody gives an empty vector.
+  // `own_labels_out`, when given and the tracker segmented the image itself,
+  // receives that segmentation (0 background, k the pixels of the person
+  // whose mask_label is k: a body index image, as a Kinect SDK gives one);
+  // it is left untouched when `labels` was given.
   absl::StatusOr<std::vector<TrackedPerson>> Track(const DepthImageMm& depth,
                                                    const CameraIntrinsics& intrinsics,
-                                                   const MaskImage* labels = nullptr);
+                                                   const MaskImage* labels = nullptr,
+                                                   MaskImage* own_labels_out = nullptr);
 
   // Forgets the people of earlier frames (new ids from 1).
   void Reset();

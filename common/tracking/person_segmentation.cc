@@ -53,6 +53,14 @@ constexpr double kMinWholeExtentM = 1.2;   // No floor: a whole person standing 
 constexpr double kHeadBinM = 0.06;
 constexpr double kMinHeadProminenceM = 0.15;
 constexpr double kMaxGroupWidthM = 8.0;  // Wider candidates are not split (walls).
+// Step 4 (pieces): a piece smaller than this is noise, not a limb.
+constexpr int kMinPiecePixels = 30;
+// A piece touches a person where one of its pixels has a person pixel within
+// this radius (the cut removed one pixel of rim) no farther than
+// attach_step_m away in depth; it needs this many such pixels.
+constexpr int kAttachRadiusPx = 2;
+constexpr int kMinContactPixels = 4;
+constexpr int kAttachPasses = 4;  // A hand can attach through its forearm.
 
 // A plane n . p + d = 0 with n unit, metres.
 using Plane = Eigen::Vector4d;
@@ -522,14 +530,14 @@ bool IsPerson(const Scene& scene, const Pixels& pixels) {
   return StandsLikePerson(shape, cuts, scene.has_floor, scene.options);
 }
 
-// The 8-connected components of `kept` with at least min_points pixels.
-std::vector<Pixels> LabelComponents(const cv::Mat& kept, const PersonSegmentationOptions& options) {
+// The 8-connected components of `kept` with at least `min_pixels` pixels.
+std::vector<Pixels> LabelComponents(const cv::Mat& kept, int min_pixels) {
   cv::Mat labels, stats, centroids;
   const int count = cv::connectedComponentsWithStats(kept, labels, stats, centroids, 8, CV_32S);
   std::vector<int> slot(static_cast<size_t>(count), -1);
   std::vector<Pixels> components;
   for (int label = 1; label < count; ++label) {
-    if (stats.at<int>(label, cv::CC_STAT_AREA) < options.min_points) continue;
+    if (stats.at<int>(label, cv::CC_STAT_AREA) < min_pixels) continue;
     slot[static_cast<size_t>(label)] = static_cast<int>(components.size());
     components.emplace_back();
   }
@@ -669,18 +677,110 @@ cv::Rect ValidBounds(const Cloud& cloud) {
   return bounds.area() > 0 ? bounds : cv::Rect(0, 0, cloud.width, cloud.height);
 }
 
+// Pixels of `piece` with a pixel of person k within kAttachRadiusPx that is
+// at most attach_step_m nearer or farther, per person (`owner`: the person
+// of each pixel, -1 for none).
+std::vector<int> CountContacts(const Scene& scene, const std::vector<int>& owner,
+                               const Pixels& piece, size_t num_people) {
+  const Cloud& cloud = scene.cloud;
+  const float step = static_cast<float>(scene.options.attach_step_m);
+  std::vector<int> contacts(num_people, 0);
+  for (const size_t i : piece) {
+    const int x = static_cast<int>(i % cloud.width), y = static_cast<int>(i / cloud.width);
+    const float z = cloud.points[i].z();
+    int found = -1;
+    for (int v = std::max(0, y - kAttachRadiusPx);
+         v <= std::min(cloud.height - 1, y + kAttachRadiusPx) && found < 0; ++v) {
+      for (int u = std::max(0, x - kAttachRadiusPx);
+           u <= std::min(cloud.width - 1, x + kAttachRadiusPx); ++u) {
+        const size_t j = static_cast<size_t>(v) * cloud.width + u;
+        if (owner[j] >= 0 && std::abs(cloud.points[j].z() - z) <= step) {
+          found = owner[j];
+          break;
+        }
+      }
+    }
+    if (found >= 0) ++contacts[static_cast<size_t>(found)];
+  }
+  return contacts;
+}
+
+// Step 4 (our addition to the file comment of person_segmentation.h): a
+// person's own parts occlude each other, and the depth step between a
+// raised arm and the face behind it, or a forearm across the chest, is
+// larger than the connection step, so the head or an arm can come out as a
+// component of its own that is no person by itself. Such a piece joins the
+// person it touches across a step of at most attach_step_m (the room behind
+// a person lies farther), when the two together still have a person's size.
+void AttachPieces(const Scene& scene, std::vector<Pixels>& people, std::vector<Pixels>& pieces) {
+  if (people.empty() || pieces.empty() || !(scene.options.attach_step_m > 0.0)) return;
+  const Cloud& cloud = scene.cloud;
+  std::vector<int> owner(cloud.points.size(), -1);
+  std::vector<cv::Rect> reach;  // Each person's box grown by the attach radius.
+  for (size_t k = 0; k < people.size(); ++k) {
+    for (const size_t i : people[k]) owner[i] = static_cast<int>(k);
+    const cv::Rect box = BoundsOf(people[k], cloud.width);
+    reach.emplace_back(box.x - kAttachRadiusPx, box.y - kAttachRadiusPx,
+                       box.width + 2 * kAttachRadiusPx, box.height + 2 * kAttachRadiusPx);
+  }
+  bool changed = true;
+  for (int pass = 0; pass < kAttachPasses && changed; ++pass) {
+    changed = false;
+    for (size_t p = 0; p < pieces.size();) {
+      const cv::Rect box = BoundsOf(pieces[p], cloud.width);
+      bool near_anyone = false;
+      for (const cv::Rect& r : reach) near_anyone |= (box & r).area() > 0;
+      int best = -1;
+      if (near_anyone) {
+        const std::vector<int> contacts = CountContacts(scene, owner, pieces[p], people.size());
+        for (size_t k = 0; k < contacts.size(); ++k) {
+          if (contacts[k] >= kMinContactPixels && (best < 0 || contacts[k] > contacts[best])) {
+            best = static_cast<int>(k);
+          }
+        }
+      }
+      if (best >= 0) {
+        Pixels joined = people[static_cast<size_t>(best)];
+        joined.insert(joined.end(), pieces[p].begin(), pieces[p].end());
+        const Shape shape = Measure(scene, joined);
+        if (HasPersonSize(shape, scene.options) &&
+            shape.top_m - shape.bottom_m <= scene.options.max_height_m) {
+          for (const size_t i : pieces[p]) owner[i] = best;
+          people[static_cast<size_t>(best)] = std::move(joined);
+          reach[static_cast<size_t>(best)] |=
+              cv::Rect(box.x - kAttachRadiusPx, box.y - kAttachRadiusPx,
+                       box.width + 2 * kAttachRadiusPx, box.height + 2 * kAttachRadiusPx);
+          pieces.erase(pieces.begin() + static_cast<long>(p));
+          changed = true;
+          continue;
+        }
+      }
+      ++p;
+    }
+  }
+}
+
 // The people among the components of `kept`, largest first, labelled from 1
 // in `result`.
 void CollectPeople(const Cloud& cloud, const cv::Mat& kept,
                    const PersonSegmentationOptions& options, PersonSegmentation& result) {
   const Scene scene{cloud, options, AxesFor(result.floor_plane), result.floor_plane.has_value(),
                     ValidBounds(cloud)};
-  std::vector<Pixels> people;
-  for (Pixels& component : LabelComponents(kept, options)) {
+  std::vector<Pixels> people, pieces;
+  for (Pixels& component : LabelComponents(kept, std::min(kMinPiecePixels, options.min_points))) {
+    if (static_cast<int>(component.size()) < options.min_points) {
+      pieces.push_back(std::move(component));
+      continue;
+    }
     for (Pixels& part : SplitByHeads(scene, std::move(component))) {
-      if (IsPerson(scene, part)) people.push_back(std::move(part));
+      if (IsPerson(scene, part)) {
+        people.push_back(std::move(part));
+      } else {
+        pieces.push_back(std::move(part));
+      }
     }
   }
+  AttachPieces(scene, people, pieces);
   std::stable_sort(people.begin(), people.end(),
                    [](const Pixels& a, const Pixels& b) { return a.size() > b.size(); });
   if (people.size() > kMaxPeople) people.resize(kMaxPeople);
@@ -713,6 +813,7 @@ absl::Status PersonSegmentationOptions::Validate() const {
   if (!(max_width_m > 0.0 && max_width_m <= 10.0)) return bad("max_width_m");
   if (!(max_depth_extent_m > 0.0 && max_depth_extent_m <= 10.0)) return bad("max_depth_extent_m");
   if (min_points < 1) return bad("min_points (>= 1)");
+  if (!(attach_step_m >= 0.0 && attach_step_m <= 2.0)) return bad("attach_step_m");
   return absl::OkStatus();
 }
 

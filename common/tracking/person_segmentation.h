@@ -16,6 +16,11 @@
 //    furniture that are too wide, too flat or too far fail those tests.
 //    A component cut by the image border is still a person when what is seen
 //    of it fits.
+// 4. Pieces: a component that is no person by itself (a head behind a raised
+//    arm, a forearm across the chest: a person's parts occlude each other
+//    across steps larger than the connection step) joins the person it
+//    touches across a depth step of at most `attach_step_m`, when the two
+//    together still have a person's size.
 #pragma once
 
 #include <optional>
@@ -43,6 +48,7 @@ struct PersonSegmentationOptions {
   double max_width_m = 1.4;         // Horizontal extent (arms out stay below this).
   double max_depth_extent_m = 1.4;  // Extent along the viewing direction.
   int min_points = 400;             // Smallest person, pixels.
+  double attach_step_m = 0.3;       // Step 4; 0: pieces stay apart.
   uint64_t seed = 1;                // RANSAC draws (results are deterministic).
 
   absl::Status Validate() const;

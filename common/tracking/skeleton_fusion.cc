@@ -434,6 +434,9 @@ absl::Status SkeletonFusionOptions::Validate() const {
   if (!(previous_weight >= 0 && std::isfinite(previous_weight))) {
     return absl::InvalidArgumentError("previous_weight must be finite and >= 0");
   }
+  if (max_overruled_instants < 0) {
+    return absl::InvalidArgumentError("max_overruled_instants must be >= 0");
+  }
   if (!(inlier_weight_share > 0 && inlier_weight_share <= 1)) {
     return absl::InvalidArgumentError("inlier_weight_share must be within (0, 1]");
   }
@@ -502,6 +505,25 @@ absl::StatusOr<SkeletonFusionSummary> SequentialSkeletonFusion::Fuse(
   absl::StatusOr<SkeletonFusionSummary> summary =
       FuseSkeletons(sensors, options_, recent ? &*previous_ : nullptr);
   if (!summary.ok()) return summary;
+  if (recent && options_.max_overruled_instants > 0) {
+    // Did the previous skeleton make every sensor swap some limb pair?
+    bool overruled = false;
+    for (int p = 0; p < kNumLimbPairs && !overruled; ++p) {
+      int used = 0, swapped = 0;
+      for (const SensorFusionReport& report : summary->sensors) {
+        if (!report.used) continue;
+        ++used;
+        swapped += report.swapped_limbs[p] ? 1 : 0;
+      }
+      overruled = used > 0 && swapped == used;
+    }
+    overruled_run_ = overruled ? overruled_run_ + 1 : 0;
+    if (overruled_run_ >= options_.max_overruled_instants) {
+      overruled_run_ = 0;
+      summary = FuseSkeletons(sensors, options_, nullptr);
+      if (!summary.ok()) return summary;
+    }
+  }
   if (summary->num_tracked + summary->num_inferred > 0) {
     previous_ = summary->skeleton;
     previous_stamp_ns_ = stamp_ns;

@@ -102,6 +102,12 @@ struct SkeletonFusionOptions {
   // Weight of each joint of the previous fused skeleton in the swap search,
   // as if one more sensor had seen it (never swapped); 0 ignores it there.
   double previous_weight = 0.5;
+  // SequentialSkeletonFusion: after this many instants in a row in which
+  // the previous skeleton overruled every sensor's labelling of a limb pair
+  // (each one swapped), the previous skeleton is taken to be the one that is
+  // wrong (an early swap it would otherwise carry on for ever) and the
+  // instant is fused from the sensors alone; 0: never.
+  int max_overruled_instants = 3;
   // Fused joints keep "tracked" only where a tracked estimate kept at least
   // this share of its weight through the robust reweighting, in (0, 1].
   double inlier_weight_share = 0.5;
@@ -194,13 +200,17 @@ class SequentialSkeletonFusion {
   absl::StatusOr<SkeletonFusionSummary> Fuse(const std::vector<SensorSkeleton>& sensors,
                                              int64_t stamp_ns);
   // Forgets the previous skeleton (a cut, another person).
-  void Reset() { previous_.reset(); }
+  void Reset() {
+    previous_.reset();
+    overruled_run_ = 0;
+  }
 
  private:
   SkeletonFusionOptions options_;
   int64_t max_gap_ns_;
   std::optional<FusedSkeleton> previous_;
   int64_t previous_stamp_ns_ = 0;
+  int overruled_run_ = 0;  // Instants in a row the previous overruled every sensor.
 };
 
 }  // namespace reenact::tracking

@@ -289,6 +289,33 @@ TEST(SequentialSkeletonFusion, CarriesThePreviousSkeletonWithinTheGap) {
   EXPECT_FALSE(next->sensors[0].swapped_left_right);
 }
 
+// A lone sensor's first skeleton had left and right swapped, the next ones
+// are right: the previous skeleton overrules them for a while (a device
+// that flips for a frame or two is held), then the sensors win.
+TEST(SequentialSkeletonFusion, AnEarlySwapIsNotCarriedOnForEver) {
+  std::mt19937_64 rng(17);
+  const Pose truth = TruthPose();
+  SkeletonFusionOptions options;
+  ASSERT_EQ(options.max_overruled_instants, 3);
+  SequentialSkeletonFusion sequence(options);
+  SensorSkeleton first = View("front", FrontCamera(), truth, 5 * kMm, &rng);
+  SwapLeftRight(&first);
+  ASSERT_TRUE(sequence.Fuse({first}, 0).ok());
+  for (int i = 1; i <= 6; ++i) {
+    absl::StatusOr<SkeletonFusionSummary> next =
+        sequence.Fuse({View("front", FrontCamera(), truth, 5 * kMm, &rng)}, i * 33'000'000);
+    ASSERT_TRUE(next.ok()) << next.status();
+    SCOPED_TRACE(i);
+    if (i < 3) {
+      EXPECT_TRUE(next->sensors[0].swapped_left_right);
+      EXPECT_GT(MeanErrorM(next->skeleton, truth), 50.0 * kMm);
+    } else {
+      EXPECT_FALSE(next->sensors[0].swapped_left_right);
+      EXPECT_LT(MeanErrorM(next->skeleton, truth), 12.0 * kMm);
+    }
+  }
+}
+
 TEST(FuseSkeletons, LostHandHardlyPullsTheFusedHand) {
   std::mt19937_64 rng(21);
   const Pose truth = TruthPose();

@@ -12,10 +12,10 @@
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
 #include "common/body/model_spec.h"
+#include "common/bodyfit/body_fit.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "server/recon/body/body_cloud.h"
-#include "common/bodyfit/body_fit.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/method_util.h"
 
@@ -106,8 +106,7 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
   const double model_s = SecondsSince(start);
 
   // Merged clouds of every instant (thesis 4.3, Fig. 4.3a).
-  ASSIGN_OR_RETURN(const std::unique_ptr<CloudBuilder> builder,
-                   CloudBuilder::Create(take));
+  ASSIGN_OR_RETURN(const std::unique_ptr<CloudBuilder> builder, CloudBuilder::Create(take));
   std::vector<bodyfit::PointCloud> clouds(n);
   {
     std::mutex mutex;
@@ -184,22 +183,13 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
     input.skeleton_m = take.instant(i).joints_in_world_m;
     const auto frame_start = std::chrono::steady_clock::now();
     // Initialised from the previous frame carried to this instant's
-    // skeleton, or from the skeleton alone.
-    ASSIGN_OR_RETURN(const std::optional<body::BodyPose> initial,
-                     fitter->InitialPose(previous ? &*previous : nullptr, input.skeleton_m));
-    if (!initial.has_value()) continue;
-    ASSIGN_OR_RETURN(bodyfit::FrameFit fit,
-                     fitter->FitFrame(input, *initial, previous ? &*previous : nullptr));
-    // A fit that lost the body (fast motion) starts again from the skeleton.
-    constexpr double kLostRmsMm = 25.0;
-    if (previous.has_value() && fit.point_rms_mm > kLostRmsMm &&
-        bodyfit::HasTorso(input.skeleton_m)) {
-      ASSIGN_OR_RETURN(const body::BodyPose from_skeleton,
-                       fitter->PoseFromSkeleton(input.skeleton_m));
-      ASSIGN_OR_RETURN(bodyfit::FrameFit again, fitter->FitFrame(input, from_skeleton, nullptr));
-      if (again.point_rms_mm < fit.point_rms_mm) fit = std::move(again);
-      ++reinitialised;
-    }
+    // skeleton, or from the skeleton alone; started again from the skeleton
+    // when the fit lost the body.
+    ASSIGN_OR_RETURN(std::optional<bodyfit::BodyFitter::SequenceFit> next,
+                     fitter->FitNext(input, previous ? &*previous : nullptr));
+    if (!next.has_value()) continue;
+    bodyfit::FrameFit fit = std::move(next->fit);
+    reinitialised += next->restarted ? 1 : 0;
     fit_seconds += SecondsSince(frame_start);
     rms_sum += fit.point_rms_mm;
     ++fitted;
@@ -219,9 +209,8 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
     if (fits[i]->offsets_m.cols() > 0) posed[i] += fits[i]->offsets_m;
   }
   const auto texture_start = std::chrono::steady_clock::now();
-  ASSIGN_OR_RETURN(
-      const AtlasResult atlas,
-      BakeBodyAtlas(take, decoded, posed, o.atlas, stages.ForStage("texture")));
+  ASSIGN_OR_RETURN(const AtlasResult atlas,
+                   BakeBodyAtlas(take, decoded, posed, o.atlas, stages.ForStage("texture")));
   ASSIGN_OR_RETURN(std::string atlas_jpeg, EncodeJpeg(atlas.atlas, 90));
   body_mesh.set_atlas_jpeg(std::move(atlas_jpeg));
   const double texture_s = SecondsSince(texture_start);

@@ -7,9 +7,9 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/body/model_spec.h"
+#include "common/bodyfit/body_fit.h"
 #include "common/io/body_reenactment.h"
 #include "server/recon/body/body_cloud.h"
-#include "common/bodyfit/body_fit.h"
 #include "server/recon/body/body_method.h"
 #include "server/recon/method_util.h"
 #include "server/recon/take_frames.h"
@@ -122,16 +122,14 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
 
   // The instant, from the previous fit carried to its skeleton.
   if (cloud->size() >= kMinPoints) {
-    ASSIGN_OR_RETURN(const std::optional<body::BodyPose> initial,
-                     s.fitter->InitialPose(s.previous ? &*s.previous : nullptr, skeleton));
-    if (initial.has_value()) {
-      bodyfit::FitInput input;
-      input.cloud = &*cloud;
-      input.skeleton_m = skeleton;
-      ASSIGN_OR_RETURN(const bodyfit::FrameFit fit,
-                       s.fitter->FitFrame(input, *initial, s.previous ? &*s.previous : nullptr));
-      s.previous = fit.pose;
-      update.frame = BodyFrameToProto(i, set.stamp_ns(), fit, /*valid=*/true);
+    bodyfit::FitInput input;
+    input.cloud = &*cloud;
+    input.skeleton_m = skeleton;
+    ASSIGN_OR_RETURN(const std::optional<bodyfit::BodyFitter::SequenceFit> next,
+                     s.fitter->FitNext(input, s.previous ? &*s.previous : nullptr));
+    if (next.has_value()) {
+      s.previous = next->fit.pose;
+      update.frame = BodyFrameToProto(i, set.stamp_ns(), next->fit, /*valid=*/true);
     }
   }
   update.fit_ms =

@@ -11,11 +11,13 @@
 //
 //   build/bench/live_e2e [--seconds 10] [--source take.mcap] [--work DIR]
 //                        [--model procedural] [--json FILE] [--bin DIR]
+//                        [--sensor-skeleton none|truth]
 //
 // Without --source it synthesises a `--seconds` 2-sensor Kinect v2 take
 // (512x424 depth, 1920x1080 colour, front kick, procedural body) once and
-// caches it in --work. The offline half of the job (the worker run once the
-// take is complete) is not waited for.
+// caches it in --work; its sensors carry no skeleton (reenactd tracks them)
+// unless --sensor-skeleton truth. The offline half of the job (the worker
+// run once the take is complete) is not waited for.
 #include <unistd.h>
 
 #include <signal.h>
@@ -54,13 +56,19 @@ using bench::ReadText;
 absl::StatusOr<std::string> SourceTake(const Flags& flags, const std::string& work,
                                        double seconds) {
   if (auto source = flags.Get("source")) return *source;
-  const std::string path = absl::StrFormat("%s/source-%gs-1080p.mcap", work, seconds);
+  const std::string skeleton = flags.GetOr("sensor-skeleton", "none");
+  if (skeleton != "none" && skeleton != "truth") {
+    return absl::InvalidArgumentError("--sensor-skeleton must be none or truth");
+  }
+  const std::string path = absl::StrFormat("%s/source-%gs-1080p-%s.mcap", work, seconds, skeleton);
   if (fs::exists(path)) return path;
   std::cerr << "live_e2e: synthesising a " << seconds << " s 2-sensor take into " << path << "\n";
   synth::SynthOptions options;
-  // The sensors carry the jittered true skeleton (a device SDK stand-in):
-  // these floors are the methods' own, apart from the tracker's accuracy.
-  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
+  // none: the sensors carry no skeleton and reenactd tracks them (its CPU
+  // share included); truth: the jittered true skeleton (a device SDK
+  // stand-in), for the methods' own floor apart from the tracker.
+  options.sensor_skeleton = skeleton == "truth" ? synth::SynthOptions::SensorSkeleton::kTruth
+                                                : synth::SynthOptions::SensorSkeleton::kNone;
   options.motion = "builtin:front-kick";
   options.num_sensors = 2;
   options.seconds = seconds;
@@ -185,7 +193,8 @@ int Fail(const std::string& message) {
 
 int Run(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  auto flags = Flags::Parse(args, {"seconds", "source", "work", "json", "bin", "model"}, {});
+  auto flags = Flags::Parse(
+      args, {"seconds", "source", "work", "json", "bin", "model", "sensor-skeleton"}, {});
   if (!flags.ok()) {
     std::cerr << "live_e2e: " << flags.status().message() << "\n";
     return 2;

@@ -369,35 +369,8 @@ class FrameProcessorImpl : public FrameProcessor {
     f.clear_skeletons();
     for (const tracking::TrackedPerson& person : *people) {
       v1::Skeleton* skeleton = f.add_skeletons();
+      *skeleton = tracking::TrackedPersonToProto(person);
       SetStamps(f, skeleton);
-      skeleton->set_body_index(std::max(1, person.mask_label));
-      skeleton->set_person_id(person.person_id);
-      skeleton->set_source(kTrackerSource);
-      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-        tracking::TrackedJoint tj = person.joints[j];
-        // The server refuses non-finite joints (and with them the whole
-        // FrameSet): such a joint goes out as not tracked at the origin.
-        if (!tj.position_in_camera_m.allFinite() || !std::isfinite(tj.confidence)) {
-          tj.position_in_camera_m.setZero();
-          tj.confidence = 0.0;
-          tj.state = tracking::JointState::kNotTracked;
-        }
-        v1::Joint* joint = skeleton->add_joints();
-        joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
-        *joint->mutable_position_in_depth_m() = ToProto(tj.position_in_camera_m);
-        joint->set_confidence(static_cast<float>(std::clamp(tj.confidence, 0.0, 1.0)));
-        switch (tj.state) {
-          case tracking::JointState::kTracked:
-            joint->set_tracking_state(v1::TRACKING_STATE_TRACKED);
-            break;
-          case tracking::JointState::kInferred:
-            joint->set_tracking_state(v1::TRACKING_STATE_INFERRED);
-            break;
-          case tracking::JointState::kNotTracked:
-            joint->set_tracking_state(v1::TRACKING_STATE_NOT_TRACKED);
-            break;
-        }
-      }
       ++stats_.tracked_people;
     }
     return absl::OkStatus();

@@ -48,12 +48,13 @@
 #include "capture_daemon/processing/actor_segmenter.h"
 #include "capture_daemon/sensors/sensor.h"
 #include "common/tracking/body_tracker.h"
+#include "common/tracking/tracking_proto.h"
 #include "reenact/v1/frame.pb.h"
 
 namespace reenact::capture {
 
 // v1::Skeleton.source of the skeletons the daemon's tracker produces.
-inline constexpr char kTrackerSource[] = "reenact-tracker";
+using tracking::kTrackerSource;
 
 struct ProcessingOptions {
   enum class Mode { kAuto, kOn, kOff };

@@ -57,9 +57,11 @@ std::vector<Command> BuildCommandTable() {
       {{"tracker", "train"},
        "[--out models/tracker/body_parts.rtf] [--data DIR] [--images N] [--seed S] "
        "[--bodies procedural,makehuman:DIR] [--shapes N] [--trees T] [--depth D] [--pixels P] "
-       "[--features F] [--min-samples-leaf M] [--threads N] [--quiet] [--json]",
+       "[--features F] [--min-samples-leaf M] [--arm-poses FRACTION] [--threads N] [--quiet] "
+       "[--json]",
        "train the body tracker's forest on depth synthesised from DIR/mocap/cmu-train and the "
-       "body models (deterministic for a seed)",
+       "body models (deterministic for a seed; --arm-poses: share of images whose arms are posed "
+       "at random in front of the body, default 0.3)",
        RunTrackerTrain},
       {{"tracker", "eval"},
        "[--forest F] [--data DIR] [--images N] [--seed S] [--bodies ...] [--min-distance M] "

@@ -37,6 +37,7 @@
 #include "common/tracking/body_tracker.h"
 #include "common/tracking/skeleton_errors.h"
 #include "common/tracking/skeleton_fusion.h"
+#include "common/tracking/tracking_proto.h"
 
 namespace reenact::cli {
 namespace {
@@ -187,33 +188,6 @@ absl::StatusOr<std::vector<SensorInput>> ReadSensors(const TakeReader& take,
   return sensors;
 }
 
-// A TrackedPerson as the daemon streams it (capture_daemon's frame
-// processor): joints by Kinect v2 name with state and confidence.
-v1::Skeleton ToSkeletonMessage(const tracking::TrackedPerson& person, int64_t frame_index,
-                               int64_t device_stamp_ns) {
-  v1::Skeleton skeleton;
-  skeleton.set_frame_index(frame_index);
-  skeleton.set_device_stamp_ns(device_stamp_ns);
-  skeleton.set_person_id(person.person_id);
-  skeleton.set_body_index(std::max(1, person.mask_label));
-  skeleton.set_source("reenact-tracker");
-  for (int j = 0; j < kNumJoints; ++j) {
-    const tracking::TrackedJoint& tj = person.joints[j];
-    v1::Joint* joint = skeleton.add_joints();
-    joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
-    const bool finite = tj.position_in_camera_m.allFinite() && std::isfinite(tj.confidence);
-    *joint->mutable_position_in_depth_m() =
-        ToProto(finite ? tj.position_in_camera_m : Eigen::Vector3d::Zero());
-    joint->set_confidence(finite ? static_cast<float>(std::clamp(tj.confidence, 0.0, 1.0)) : 0.f);
-    joint->set_tracking_state(
-        !finite                                       ? v1::TRACKING_STATE_NOT_TRACKED
-        : tj.state == tracking::JointState::kTracked  ? v1::TRACKING_STATE_TRACKED
-        : tj.state == tracking::JointState::kInferred ? v1::TRACKING_STATE_INFERRED
-                                                      : v1::TRACKING_STATE_NOT_TRACKED);
-  }
-  return skeleton;
-}
-
 // --track: the sensors' skeletons tracked afresh from the take's depth (and
 // its actor masks, where it has them), frame by frame in stream order, as
 // reenactd's tracker would; the skeletons the take stores are ignored.
@@ -223,44 +197,15 @@ absl::StatusOr<std::vector<SensorInput>> TrackSensors(const TakeReader& take,
                                                       const std::string& path) {
   std::vector<SensorInput> sensors;
   for (const auto& [id, calibration] : take.sensors()) {
-    absl::StatusOr<CameraIntrinsics> k = FromProto(calibration.depth_intrinsics());
-    if (!k.ok()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(path, ": sensor ", id, ": depth intrinsics: ", k.status().message()));
+    absl::StatusOr<std::map<int64_t, std::vector<v1::Skeleton>>> tracked =
+        tracking::TrackTakeSensor(take, id, options);
+    if (!tracked.ok()) {
+      return absl::Status(tracked.status().code(),
+                          absl::StrCat(path, ": ", tracked.status().message()));
     }
-    std::map<int64_t, v1::ActorMask> masks;
-    RETURN_IF_ERROR(
-        take.ForEach<v1::ActorMask>(SensorTopic(id, "mask"), [&](const v1::ActorMask& m) {
-          masks[m.frame_index()] = m;
-          return absl::OkStatus();
-        }));
-    ASSIGN_OR_RETURN(std::unique_ptr<tracking::BodyTracker> tracker,
-                     tracking::BodyTracker::Create(options));
     SensorInput sensor;
     sensor.id = id;
-    RETURN_IF_ERROR(take.ForEach<v1::DepthImage>(
-        SensorTopic(id, "depth"), [&](const v1::DepthImage& m) -> absl::Status {
-          absl::StatusOr<DepthImageMm> depth = DecodeDepth(m.data());
-          if (!depth.ok()) {
-            return absl::DataLossError(absl::StrCat(
-                path, ": sensor ", id, " frame ", m.frame_index(), ": ", depth.status().message()));
-          }
-          std::optional<MaskImage> mask;
-          if (auto found = masks.find(m.frame_index()); found != masks.end()) {
-            auto decoded = DecodeMask(found->second.encoding(), found->second.data());
-            if (decoded.ok() && decoded->width == depth->width &&
-                decoded->height == depth->height) {
-              mask = *std::move(decoded);
-            }
-          }
-          auto people = tracker->Track(*depth, *k, mask ? &*mask : nullptr);
-          if (!people.ok()) return absl::OkStatus();  // A frame without skeleton, as in reenactd.
-          for (const tracking::TrackedPerson& person : *people) {
-            sensor.skeletons[m.frame_index()].push_back(
-                ToSkeletonMessage(person, m.frame_index(), m.device_stamp_ns()));
-          }
-          return absl::OkStatus();
-        }));
+    sensor.skeletons = *std::move(tracked);
     if (sensor.skeletons.empty()) continue;
     RETURN_IF_ERROR(SetCalibration(take, truth, &sensor));
     sensors.push_back(std::move(sensor));

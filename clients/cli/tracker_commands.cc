@@ -108,7 +108,7 @@ nlohmann::json ErrorsJson(const tracking::TrackerEvaluation& e) {
 int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args,
                             {"out", "data", "images", "seed", "shapes", "bodies", "trees", "depth",
-                             "pixels", "features", "threads", "min-samples-leaf"},
+                             "pixels", "features", "threads", "min-samples-leaf", "arm-poses"},
                             {"json", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto common = ParseCommon(*flags, 3000, 1);
@@ -128,6 +128,9 @@ int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std
   forest.num_trees = *trees, forest.max_depth = *depth, forest.pixels_per_image = *pixels;
   forest.features_per_node = *features, forest.threads = *threads;
   forest.seed = common->images.seed;
+  auto arm_poses = flags->GetDouble("arm-poses", common->images.arm_pose_fraction);
+  if (!arm_poses.ok()) return ReportError(arm_poses.status(), err);
+  common->images.arm_pose_fraction = *arm_poses;
   const bool quiet = flags->Has("quiet") || flags->Has("json");
   const std::string out_path = flags->GetOr("out", "models/tracker/body_parts.rtf");
   common->images.motion_paths = ReadableMotions(common->data + "/mocap/cmu-train", err, quiet);
@@ -147,8 +150,9 @@ int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std
   const std::string description = absl::StrCat(
       "reenact tracker train: ", images->size(), " images, seed ", common->images.seed, ", bodies ",
       absl::StrJoin(common->images.bodies, " "), " x ", common->images.shapes_per_body,
-      " shapes, motions ", absl::StrJoin(names, " "), "; ", forest.num_trees, " trees, depth ",
-      forest.max_depth, ", ", forest.pixels_per_image, " px/image, ", forest.features_per_node,
+      " shapes, motions ", absl::StrJoin(names, " "), ", arms posed at random in ",
+      common->images.arm_pose_fraction, "; ", forest.num_trees, " trees, depth ", forest.max_depth,
+      ", ", forest.pixels_per_image, " px/image, ", forest.features_per_node,
       " features/node, leaves of >= ", forest.min_samples_leaf, " samples");
   tracking::ForestTrainingSummary summary;
   auto trained = tracking::TrainForest(*images, forest, description, &summary, bar.AsCallback());
@@ -196,6 +200,7 @@ int RunTrackerEval(const std::vector<std::string>& args, std::ostream& out, std:
   }
   common->images.min_distance_m = *min_d, common->images.max_distance_m = *max_d;
   common->images.close_up_fraction = 0, common->images.off_centre_fraction = 0;
+  common->images.arm_pose_fraction = 0;  // The held-out motions as they are.
   if (flags->Has("motions-dir")) {
     common->images.motion_paths = ReadableMotions(*flags->Get("motions-dir"), err, true);
   } else {

@@ -96,11 +96,16 @@ std::optional<body::SkeletonPose> LearnerSkeletonInColor(
 int64_t ExposureStampNs(int64_t device_stamp_ns, int64_t host_stamp_ns, int64_t clock_offset_ns);
 
 // A recorded take's sensor `sensor_id` (empty: the first sensor, by id, that
-// has skeletons). Frames follow the colour stream (each with the skeletons
-// exposed within half a frame of it), or the skeleton stream when the sensor
-// has no colour. Colour is decoded ahead on a thread of the source. NotFound
-// for a missing file or sensor; FailedPrecondition when the sensor (or the
-// take) has no skeletons; the reader's errors for a file that is not a take.
+// has skeletons, or else the first with depth). A sensor whose take stores no
+// skeletons (a recording of a sensor that gives none, made without reenactd's
+// tracker) is tracked from its depth when the source opens, as reenactd
+// would track it live (tracking::TrackTakeSensor, the shipped forest or
+// $REENACT_TRACKER_FOREST). Frames follow the colour stream (each with the
+// skeletons exposed within half a frame of it), or the skeleton stream when
+// the sensor has no colour. Colour is decoded ahead on a thread of the
+// source. NotFound for a missing file or sensor; FailedPrecondition when the
+// sensor (or the take) has neither skeletons nor depth; the reader's errors
+// for a file that is not a take.
 absl::StatusOr<std::unique_ptr<LearnerSource>> OpenTakeLearner(const std::string& path,
                                                                const std::string& sensor_id = "");
 

@@ -147,7 +147,7 @@ void CopyTake(const std::string& path, const std::string& out, Damage damage) {
   ASSERT_TRUE((*writer)->Close().ok());
 }
 
-TEST(TakeLearner, TakeWithoutSkeletonsIsFailedPrecondition) {
+TEST(TakeLearner, TakeWithoutSkeletonsOrDepthIsFailedPrecondition) {
   const std::string path = LearnerTake(1.0, 0.0);
   ASSERT_FALSE(path.empty());
   const std::string out = TestDir() + "/no_skeletons.mcap";

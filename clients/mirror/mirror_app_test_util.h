@@ -3,7 +3,10 @@
 // learners doing the same motion, made once per test process.
 #pragma once
 
+#include <limits>
 #include <map>
+#include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -13,10 +16,12 @@
 #include "absl/strings/str_cat.h"
 #include "clients/view/truth_reenactment.h"
 #include "common/body/procedural_body.h"
+#include "common/io/proto_convert.h"
 #include "common/io/reenactment_file.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
+#include "common/tracking/tracking_proto.h"
 
 namespace reenact::mirror::testing {
 
@@ -29,10 +34,13 @@ inline const std::string& TestDir() {
   return dir;
 }
 
-inline synth::SynthOptions TakeOptions(double seconds, double yaw_deg, uint64_t seed) {
+// `sensor_skeleton`: the sensors carry the jittered true skeleton (a device
+// SDK stand-in); otherwise none, as real depth cameras.
+inline synth::SynthOptions TakeOptions(double seconds, double yaw_deg, uint64_t seed,
+                                       bool sensor_skeleton = true) {
   synth::SynthOptions options;
-  // The sensors carry the jittered true skeleton (a device SDK stand-in).
-  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
+  options.sensor_skeleton = sensor_skeleton ? synth::SynthOptions::SensorSkeleton::kTruth
+                                            : synth::SynthOptions::SensorSkeleton::kNone;
   options.motion = kMotion;
   options.num_sensors = 1;
   options.seconds = seconds;
@@ -45,14 +53,18 @@ inline synth::SynthOptions TakeOptions(double seconds, double yaw_deg, uint64_t 
 
 // A learner take of the motion, `seconds` long, turned by `yaw_deg`, its
 // skeleton channel jittered by `jitter_m` per axis (3x where a joint is
-// hidden); the path, or empty after a test failure.
-inline std::string LearnerTake(double seconds, double yaw_deg, double jitter_m = 0.01) {
-  static std::map<std::tuple<double, double, double>, std::string> made;
-  const auto key = std::make_tuple(seconds, yaw_deg, jitter_m);
+// hidden), or without skeletons when `sensor_skeleton` is false (the mirror
+// then tracks the learner in the depth); the path, or empty after a test
+// failure.
+inline std::string LearnerTake(double seconds, double yaw_deg, double jitter_m = 0.01,
+                               bool sensor_skeleton = true) {
+  static std::map<std::tuple<double, double, double, bool>, std::string> made;
+  const auto key = std::make_tuple(seconds, yaw_deg, jitter_m, sensor_skeleton);
   if (auto it = made.find(key); it != made.end()) return it->second;
-  const std::string path = absl::StrCat(TestDir(), "/learner_", seconds, "s_yaw", yaw_deg,
-                                        "_jitter", jitter_m * 1e3, "mm.mcap");
-  synth::SynthOptions options = TakeOptions(seconds, yaw_deg, 2);
+  const std::string path =
+      absl::StrCat(TestDir(), "/learner_", seconds, "s_yaw", yaw_deg, "_jitter", jitter_m * 1e3,
+                   sensor_skeleton ? "mm" : "mm_untracked", ".mcap");
+  synth::SynthOptions options = TakeOptions(seconds, yaw_deg, 2, sensor_skeleton);
   options.ground_truth_mesh = false;
   options.skeleton_jitter_m = jitter_m;
   const auto summary = synth::SynthesizeTake(options, path);
@@ -63,46 +75,117 @@ inline std::string LearnerTake(double seconds, double yaw_deg, double jitter_m =
   return made[key] = path;
 }
 
-// The teacher's take: 2 s of the motion with its ground truth; the path, or
-// empty after a test failure.
-inline std::string TeacherTake() {
-  static std::string made;
-  if (!made.empty()) return made;
-  const std::string path = TestDir() + "/teacher.mcap";
-  const auto summary = synth::SynthesizeTake(TakeOptions(2.0, 0.0, 1), path);
+// The teacher's take: 2 s of the motion with its ground truth, its sensor
+// with the jittered true skeleton or (`sensor_skeleton` false) none; the
+// path, or empty after a test failure.
+inline std::string TeacherTake(bool sensor_skeleton = true) {
+  static std::map<bool, std::string> made;
+  if (auto it = made.find(sensor_skeleton); it != made.end()) return it->second;
+  const std::string path =
+      TestDir() + (sensor_skeleton ? "/teacher.mcap" : "/teacher_untracked.mcap");
+  const auto summary = synth::SynthesizeTake(TakeOptions(2.0, 0.0, 1, sensor_skeleton), path);
   if (!summary.ok()) {
     ADD_FAILURE() << summary.status();
     return "";
   }
-  return made = path;
+  return made[sensor_skeleton] = path;
 }
 
 // The teacher as a reenactment of the take's ground truth written to a .reen
 // file: the body model (`rigid` false) or 15 rigid parts textured from the
 // take's colour images (VDTM); the path, or empty after a test failure.
-inline std::string TeacherReen(bool rigid = false) {
-  static std::map<bool, std::string> made;
-  if (auto it = made.find(rigid); it != made.end()) return it->second;
-  const std::string take_path = TeacherTake();
-  if (take_path.empty()) return "";
+// TeacherTake(sensor_skeleton) and its ground truth as a reenactment: the
+// body model (`rigid` false) or 15 rigid parts textured from the take's
+// colour images; nullopt after a test failure.
+struct TruthTeacher {
+  std::unique_ptr<TakeReader> take;
+  ReenactmentData data;
+};
+inline std::optional<TruthTeacher> MakeTruthTeacher(bool rigid, bool sensor_skeleton) {
+  const std::string take_path = TeacherTake(sensor_skeleton);
+  if (take_path.empty()) return std::nullopt;
   auto take = TakeReader::Open(take_path);
   auto model = body::BuildProceduralBody();
   if (!take.ok() || !model.ok()) {
     ADD_FAILURE() << "teacher take or body model did not load";
-    return "";
+    return std::nullopt;
   }
   auto data = rigid ? view::testing::MakeTruthReenactment(**take, *model)
                     : view::testing::MakeTruthBodyReenactment(**take, *model);
   if (!data.ok()) {
     ADD_FAILURE() << data.status();
-    return "";
+    return std::nullopt;
   }
-  const std::string path = TestDir() + (rigid ? "/teacher_rigid.reen" : "/teacher.reen");
-  if (absl::Status written = WriteReenactmentFile(*data, path); !written.ok()) {
+  return TruthTeacher{*std::move(take), *std::move(data)};
+}
+
+// Writes `data` to `path`: the path, or empty after a test failure.
+inline std::string WriteTeacher(const ReenactmentData& data, const std::string& path) {
+  if (absl::Status written = WriteReenactmentFile(data, path); !written.ok()) {
     ADD_FAILURE() << written;
     return "";
   }
-  return made[rigid] = path;
+  return path;
+}
+
+// The teacher as a reenactment of the take's ground truth written to a .reen
+// file (MakeTruthTeacher); the path, or empty after a test failure.
+inline std::string TeacherReen(bool rigid = false) {
+  static std::map<bool, std::string> made;
+  if (auto it = made.find(rigid); it != made.end()) return it->second;
+  std::optional<TruthTeacher> teacher = MakeTruthTeacher(rigid, /*sensor_skeleton=*/true);
+  if (!teacher) return "";
+  return made[rigid] = WriteTeacher(teacher->data,
+                                    TestDir() + (rigid ? "/teacher_rigid.reen" : "/teacher.reen"));
+}
+
+// The teacher as the mirror gets it from a take of a sensor without skeleton:
+// the body reenactment of TeacherTake(false)'s ground truth, its skeleton
+// (PartFrame.joints_in_world_m) replaced by the one the body tracker finds in
+// the sensor's depth (tracking::TrackTakeSensor, as reenactd tracks), moved
+// to the world; a joint the tracker did not track is NaN (invalid). The
+// path, or empty after a test failure.
+inline std::string TrackedTeacherReen() {
+  static std::string made;
+  if (!made.empty()) return made;
+  std::optional<TruthTeacher> teacher =
+      MakeTruthTeacher(/*rigid=*/false, /*sensor_skeleton=*/false);
+  if (!teacher) return "";
+  auto& take = teacher->take;
+  ReenactmentData* data = &teacher->data;
+  auto tracked = tracking::TrackTakeSensor(*take, "k0");
+  if (!tracked.ok()) {
+    ADD_FAILURE() << tracked.status();
+    return "";
+  }
+  auto world_from_depth = FromProto(take->sensors().at("k0").world_from_depth());
+  if (!world_from_depth.ok()) {
+    ADD_FAILURE() << world_from_depth.status();
+    return "";
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  int with_skeleton = 0;
+  for (v1::PartFrame& frame : data->frames) {
+    frame.clear_joints_in_world_m();
+    const auto found = tracked->find(frame.frame_index());
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      Eigen::Vector3d p(nan, nan, nan);
+      if (found != tracked->end() && !found->second.empty()) {
+        const v1::Joint& joint = found->second.front().joints(j);
+        if (joint.tracking_state() != v1::TRACKING_STATE_NOT_TRACKED) {
+          p = *world_from_depth * FromProto(joint.position_in_depth_m());
+        }
+      }
+      *frame.add_joints_in_world_m() = ToProto(p);
+    }
+    if (found != tracked->end()) ++with_skeleton;
+  }
+  if (with_skeleton < static_cast<int>(data->frames.size()) * 9 / 10) {
+    ADD_FAILURE() << "the tracker found the teacher in " << with_skeleton << " of "
+                  << data->frames.size() << " frames";
+    return "";
+  }
+  return made = WriteTeacher(*data, TestDir() + "/teacher_tracked.reen");
 }
 
 }  // namespace reenact::mirror::testing

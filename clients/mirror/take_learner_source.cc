@@ -15,6 +15,7 @@
 #include "common/io/jpeg.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
+#include "common/tracking/tracking_proto.h"
 
 namespace reenact::mirror {
 namespace {
@@ -22,21 +23,26 @@ namespace {
 // Frames decoded ahead of the app.
 constexpr size_t kFramesAhead = 4;
 
-// Skeleton messages on `sensor_id`'s skeleton channel.
-uint64_t SkeletonCount(const TakeReader& take, const std::string& sensor_id) {
-  const std::string topic = SensorTopic(sensor_id, "skeleton");
+uint64_t ChannelCount(const TakeReader& take, const std::string& topic) {
   for (const TakeChannel& channel : take.channels()) {
     if (channel.topic == topic) return channel.message_count;
   }
   return 0;
 }
 
+// Skeleton messages on `sensor_id`'s skeleton channel.
+uint64_t SkeletonCount(const TakeReader& take, const std::string& sensor_id) {
+  return ChannelCount(take, SensorTopic(sensor_id, "skeleton"));
+}
+
 uint64_t ColorCount(const TakeReader& take, const std::string& sensor_id) {
-  const std::string topic = SensorTopic(sensor_id, "color");
-  for (const TakeChannel& channel : take.channels()) {
-    if (channel.topic == topic) return channel.message_count;
-  }
-  return 0;
+  return ChannelCount(take, SensorTopic(sensor_id, "color"));
+}
+
+// The sensor can give the learner: stored skeletons, or depth to track.
+bool HasLearner(const TakeReader& take, const std::string& sensor_id) {
+  return SkeletonCount(take, sensor_id) > 0 ||
+         ChannelCount(take, SensorTopic(sensor_id, "depth")) > 0;
 }
 
 std::string SensorList(const TakeReader& take) {
@@ -45,7 +51,8 @@ std::string SensorList(const TakeReader& take) {
   return ids.empty() ? "none" : absl::StrJoin(ids, ", ");
 }
 
-// The sensor to follow: `wanted`, or the first with skeletons.
+// The sensor to follow: `wanted`, or the first with skeletons, or else the
+// first with depth.
 absl::StatusOr<std::string> ChooseSensor(const TakeReader& take, const std::string& path,
                                          const std::string& wanted) {
   if (!wanted.empty()) {
@@ -53,19 +60,22 @@ absl::StatusOr<std::string> ChooseSensor(const TakeReader& take, const std::stri
       return absl::NotFoundError(absl::StrCat("learner take ", path, " has no sensor '", wanted,
                                               "' (sensors: ", SensorList(take), ")"));
     }
-    if (SkeletonCount(take, wanted) == 0) {
+    if (!HasLearner(take, wanted)) {
       return absl::FailedPreconditionError(
           absl::StrCat("sensor ", wanted, " of learner take ", path,
-                       " has no skeletons: the mirror needs the tracked learner"));
+                       " has neither skeletons nor depth: the mirror needs the tracked learner"));
     }
     return wanted;
   }
   for (const auto& [id, calibration] : take.sensors()) {
     if (SkeletonCount(take, id) > 0) return id;
   }
+  for (const auto& [id, calibration] : take.sensors()) {
+    if (HasLearner(take, id)) return id;
+  }
   return absl::FailedPreconditionError(absl::StrCat(
-      "learner take ", path, " has no skeletons on any sensor (sensors: ", SensorList(take),
-      "): the mirror needs the tracked learner"));
+      "learner take ", path, " has neither skeletons nor depth on any sensor (sensors: ",
+      SensorList(take), "): the mirror needs the tracked learner"));
 }
 
 class TakeLearnerSource : public LearnerSource {
@@ -80,7 +90,8 @@ class TakeLearnerSource : public LearnerSource {
   const LearnerSensor& sensor() const override { return sensor_; }
   absl::StatusOr<std::optional<LearnerFrame>> Next() override { return queue_.Pop(); }
   std::string Describe() const override {
-    return absl::StrCat("take ", path_, ", sensor ", sensor_.sensor_id);
+    return absl::StrCat("take ", path_, ", sensor ", sensor_.sensor_id,
+                        tracked_ ? " (tracked from its depth)" : "");
   }
 
  private:
@@ -98,6 +109,8 @@ class TakeLearnerSource : public LearnerSource {
   int64_t clock_offset_ns_ = 0;
   Rigid3d color_from_depth_;
   bool has_color_ = false;
+  // The take stores no skeletons: the learner was tracked from its depth.
+  bool tracked_ = false;
   // The learner per exposure stamp (nullopt: skeletons without a usable joint).
   std::map<int64_t, std::optional<body::SkeletonPose>> skeletons_;
   int64_t last_stamp_ns_ = std::numeric_limits<int64_t>::min();
@@ -129,13 +142,31 @@ absl::StatusOr<std::unique_ptr<LearnerSource>> TakeLearnerSource::Open(
 
 absl::Status TakeLearnerSource::ReadSkeletons() {
   std::map<int64_t, std::vector<v1::Skeleton>> by_stamp;
-  RETURN_IF_ERROR(reader_->ForEach<v1::Skeleton>(
-      SensorTopic(sensor_.sensor_id, "skeleton"), [&](const v1::Skeleton& skeleton) {
-        by_stamp[ExposureStampNs(skeleton.device_stamp_ns(), skeleton.host_stamp_ns(),
-                                 clock_offset_ns_)]
-            .push_back(skeleton);
-        return absl::OkStatus();
-      }));
+  const auto add = [&](const v1::Skeleton& skeleton) {
+    by_stamp[ExposureStampNs(skeleton.device_stamp_ns(), skeleton.host_stamp_ns(),
+                             clock_offset_ns_)]
+        .push_back(skeleton);
+  };
+  if (SkeletonCount(*reader_, sensor_.sensor_id) > 0) {
+    RETURN_IF_ERROR(reader_->ForEach<v1::Skeleton>(SensorTopic(sensor_.sensor_id, "skeleton"),
+                                                   [&](const v1::Skeleton& skeleton) {
+                                                     add(skeleton);
+                                                     return absl::OkStatus();
+                                                   }));
+  } else {
+    // A recording without skeletons (a sensor that gives none, recorded
+    // without reenactd's tracker): tracked here as reenactd would.
+    tracked_ = true;
+    absl::StatusOr<std::map<int64_t, std::vector<v1::Skeleton>>> tracked =
+        tracking::TrackTakeSensor(*reader_, sensor_.sensor_id);
+    if (!tracked.ok()) {
+      return absl::Status(tracked.status().code(),
+                          absl::StrCat("learner take ", path_, ": ", tracked.status().message()));
+    }
+    for (const auto& [frame, skeletons] : *tracked) {
+      for (const v1::Skeleton& skeleton : skeletons) add(skeleton);
+    }
+  }
   for (const auto& [stamp_ns, bodies] : by_stamp) {
     std::vector<const v1::Skeleton*> pointers;
     for (const v1::Skeleton& skeleton : bodies) pointers.push_back(&skeleton);

@@ -173,7 +173,8 @@ void RasteriseTriangle(const std::array<Eigen::Vector3d, 3>& p, uint8_t part,
 
 Raster RasteriseBody(const body::BodyModel& model, const std::vector<uint8_t>& vertex_parts,
                      const Eigen::Matrix3Xd& vertices_in_camera_m, const CameraIntrinsics& k) {
-  Raster r{FloatImage(k.width, k.height, 0.0f), std::vector<uint8_t>(static_cast<size_t>(k.width) * k.height, kNoPart)};
+  Raster r{FloatImage(k.width, k.height, 0.0f),
+           std::vector<uint8_t>(static_cast<size_t>(k.width) * k.height, kNoPart)};
   for (const Eigen::Vector3i& t : model.triangles) {
     const std::array<Eigen::Vector3d, 3> p = {vertices_in_camera_m.col(t[0]),
                                               vertices_in_camera_m.col(t[1]),
@@ -234,14 +235,76 @@ TrainingImage CropImage(const Raster& raster, const DepthImageMm& noisy, const S
   return image;
 }
 
+// A unit vector drawn uniformly on the sphere.
+Eigen::Vector3d RandomDirection(std::mt19937_64* rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::Vector3d d;
+  do {
+    d = Eigen::Vector3d(normal(*rng), normal(*rng), normal(*rng));
+  } while (d.norm() < 1e-6);
+  return d.normalized();
+}
+
+// Poses one arm at random where the motions seldom put it: upper arm down,
+// forward or across, forearm anywhere a bent elbow (at most 150 degrees) can
+// put it short of the torso. The mocap clips hold few arms in front of the
+// body, and a forest that never saw a forearm before the chest reads such a
+// person from the back: the front-back confusion of depth-only trackers.
+// Directions are drawn in the frame of the shoulders' parent (SpineShoulder),
+// which at rest is the model's: +X the body's left, +Y up, +Z forward.
+void PoseArmAtRandom(const std::array<Eigen::Vector3d, body::kNumKinectV2Joints>& rest_m, bool left,
+                     std::mt19937_64* rng, body::BodyPose* pose) {
+  using J = body::KinectV2Joint;
+  const J shoulder = left ? J::kShoulderLeft : J::kShoulderRight;
+  const J elbow = left ? J::kElbowLeft : J::kElbowRight;
+  const J wrist = left ? J::kWristLeft : J::kWristRight;
+  const double side = left ? 1.0 : -1.0;
+  const Eigen::Vector3d upper_rest = rest_m[body::Index(elbow)] - rest_m[body::Index(shoulder)];
+  const Eigen::Vector3d fore_rest = rest_m[body::Index(wrist)] - rest_m[body::Index(elbow)];
+  if (upper_rest.norm() < 1e-6 || fore_rest.norm() < 1e-6) return;
+  const Eigen::Vector3d shoulder_at =
+      rest_m[body::Index(shoulder)] - rest_m[body::Index(J::kSpineShoulder)];
+  Eigen::Vector3d upper, fore;
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    upper = RandomDirection(rng);
+    if (upper.y() > 0.7 || upper.z() < -0.2 || side * upper.x() < -0.5) continue;
+    fore = RandomDirection(rng);
+    if (upper.dot(fore) < std::cos(150.0 * M_PI / 180.0) || fore.z() < -0.4) continue;
+    const Eigen::Vector3d hand = shoulder_at + upper_rest.norm() * upper + fore_rest.norm() * fore;
+    // Not into the chest or the belly, not behind the back.
+    const bool in_torso = std::abs(hand.x()) < 0.17 && hand.y() < 0.05 && hand.y() > -0.6 &&
+                          hand.z() < 0.14 && hand.z() > -0.14;
+    if (in_torso || hand.z() < -0.2) continue;
+    const Eigen::Quaterniond at_shoulder =
+        Eigen::Quaterniond::FromTwoVectors(upper_rest.normalized(), upper);
+    pose->local_rotation[body::Index(shoulder)] = at_shoulder;
+    pose->local_rotation[body::Index(elbow)] =
+        Eigen::Quaterniond::FromTwoVectors(fore_rest.normalized(), at_shoulder.inverse() * fore);
+    return;
+  }
+}
+
 absl::StatusOr<TrainingImage> MakeImage(const std::vector<Actor>& actors,
                                         const TrainingDataOptions& options, int index,
                                         bool keep_full) {
   std::mt19937_64 rng(options.seed * 7919u + static_cast<uint64_t>(index) * 104729u + 17u);
   const Actor& actor = options.sequence ? actors[0] : actors[rng() % actors.size()];
-  const body::BodyPose& pose = options.sequence
-                                   ? actor.poses[static_cast<size_t>(index) % actor.poses.size()]
-                                   : actor.poses[rng() % actor.poses.size()];
+  body::BodyPose pose = options.sequence
+                            ? actor.poses[static_cast<size_t>(index) % actor.poses.size()]
+                            : actor.poses[rng() % actor.poses.size()];
+  if (!options.sequence && options.arm_pose_fraction > 0.0) {
+    std::mt19937_64 arm_rng(rng());
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    if (u01(arm_rng) < options.arm_pose_fraction) {
+      ASSIGN_OR_RETURN(const body::PosedBody rest,
+                       body::PoseBody(*actor.model, body::BodyPose(), actor.shape));
+      // Mostly both arms (a guard), else one of them.
+      const bool both = u01(arm_rng) < 0.6;
+      const bool left = u01(arm_rng) < 0.5;
+      if (both || left) PoseArmAtRandom(rest.joints_m, true, &arm_rng, &pose);
+      if (both || !left) PoseArmAtRandom(rest.joints_m, false, &arm_rng, &pose);
+    }
+  }
   ASSIGN_OR_RETURN(const body::PosedBody posed, body::PoseBody(*actor.model, pose, actor.shape));
   std::mt19937_64 camera_rng(options.seed);
   const Shot shot = options.sequence ? PlaceCamera(options, {0, 0.95, 0}, &camera_rng)
@@ -306,7 +369,8 @@ absl::Status TrainingDataOptions::Validate() const {
   if (!(min_height_m >= 0.0 && max_height_m >= min_height_m && max_height_m <= 3.0)) {
     return absl::InvalidArgumentError("heights must satisfy 0 <= min <= max <= 3 m");
   }
-  for (double f : {close_up_fraction, off_centre_fraction, structured_light_fraction}) {
+  for (double f :
+       {close_up_fraction, off_centre_fraction, structured_light_fraction, arm_pose_fraction}) {
     if (!(f >= 0.0 && f <= 1.0)) return absl::InvalidArgumentError("fractions must be in [0, 1]");
   }
   if (frame_stride < 1) return absl::InvalidArgumentError("frame stride must be >= 1");
@@ -381,6 +445,7 @@ TrainingDataOptions SequenceOptions(const std::string& motion_path, int frames,
   o.close_up_fraction = 0.0;
   o.off_centre_fraction = 0.0;
   o.structured_light_fraction = 0.0;
+  o.arm_pose_fraction = 0.0;
   o.seed = seed;
   return o;
 }

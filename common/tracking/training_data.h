@@ -60,6 +60,10 @@ struct TrainingDataOptions {
   // Share of images degraded by the structured-light model (the rest: time
   // of flight).
   double structured_light_fraction = 0.4;
+  // Share of images whose arms are posed at random in front of the body
+  // (guards, crossed arms, hands at the face) instead of as the motion has
+  // them; never in a sequence.
+  double arm_pose_fraction = 0.3;
   // Frames of a motion between samples (motions are 30-120 fps).
   int frame_stride = 3;
   // A take instead of a shuffle: image i is the i-th sampled frame of the

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <map>
 
 #include <gtest/gtest.h>
@@ -20,6 +21,7 @@ TrainingDataOptions SmallOptions(int images) {
   o.shapes_per_body = 2;
   o.num_images = images;
   o.frame_stride = 10;
+  o.arm_pose_fraction = 0.0;  // The clip's own poses.
   return o;
 }
 
@@ -65,7 +67,8 @@ TEST(SynthesizeTrainingImages, PersonDepthMatchesItsJoints) {
     }
     ASSERT_GT(on_person, 500);
     EXPECT_GT(static_cast<double>(near) / on_person, 0.85);
-    const Eigen::Vector3d& p = image.joints_in_camera_m[body::Index(body::KinectV2Joint::kSpineMid)];
+    const Eigen::Vector3d& p =
+        image.joints_in_camera_m[body::Index(body::KinectV2Joint::kSpineMid)];
     const double u = image.intrinsics.fx * p.x() / p.z() + image.intrinsics.cx;
     EXPECT_GT(u, -5.0);
     EXPECT_LT(u, image.intrinsics.width + 5.0);
@@ -74,6 +77,66 @@ TEST(SynthesizeTrainingImages, PersonDepthMatchesItsJoints) {
     for (uint8_t m : image.full_mask.data) masked += m;
     EXPECT_EQ(masked, on_person);
   }
+}
+
+// The arms posed at random come before the body (guards, crossed arms) and
+// keep their bone lengths; the motion's own arms mostly hang at the sides.
+TEST(SynthesizeTrainingImages, ArmsPosedAtRandomComeBeforeTheBody) {
+  REENACT_REQUIRE_TEST_FILE(testing::TestDataPath("mocap/cmu-train/02_01.bvh"));
+  using J = body::KinectV2Joint;
+  // Per image: the wrists' mean distance before the chest (along the
+  // torso's forward axis), metres, and the largest change of a forearm's
+  // length against the motion's own arms.
+  const auto measure = [](const std::vector<TrainingImage>& images) {
+    double forward_sum = 0.0;
+    int n = 0;
+    for (const TrainingImage& image : images) {
+      const auto& p = image.joints_in_camera_m;
+      const auto at = [&](J j) { return p[body::Index(j)]; };
+      const Eigen::Vector3d left = (at(J::kShoulderLeft) - at(J::kShoulderRight)).normalized();
+      const Eigen::Vector3d up = (at(J::kSpineShoulder) - at(J::kSpineBase)).normalized();
+      const Eigen::Vector3d forward = left.cross(up).normalized();
+      for (J wrist : {J::kWristLeft, J::kWristRight}) {
+        forward_sum += (at(wrist) - at(J::kSpineMid)).dot(forward);
+        ++n;
+      }
+    }
+    return n > 0 ? forward_sum / n : std::nan("");
+  };
+  const auto forearm = [](const TrainingImage& image) {
+    const auto& p = image.joints_in_camera_m;
+    return (p[body::Index(J::kWristLeft)] - p[body::Index(J::kElbowLeft)]).norm();
+  };
+  TrainingDataOptions as_they_are = SmallOptions(40);
+  as_they_are.arm_pose_fraction = 0.0;
+  TrainingDataOptions posed = as_they_are;
+  posed.arm_pose_fraction = 1.0;
+  auto plain = SynthesizeTrainingImages(as_they_are);
+  auto augmented = SynthesizeTrainingImages(posed);
+  ASSERT_TRUE(plain.ok() && augmented.ok());
+  ASSERT_GE(plain->size(), 30u);
+  ASSERT_GE(augmented->size(), 30u);
+  const double plain_forward_m = measure(*plain);
+  const double augmented_forward_m = measure(*augmented);
+  std::cout << "wrists before the SpineMid: " << 100 * plain_forward_m << " cm as the motion has "
+            << "them, " << 100 * augmented_forward_m << " cm posed at random\n";
+  EXPECT_GT(augmented_forward_m, plain_forward_m + 0.1);  // m
+  // Bones keep their lengths: the forearm of one actor is one length.
+  double shortest = 1e9, longest = 0.0;
+  for (const TrainingImage& image : *augmented) {
+    shortest = std::min(shortest, forearm(image));
+    longest = std::max(longest, forearm(image));
+  }
+  double plain_shortest = 1e9, plain_longest = 0.0;
+  for (const TrainingImage& image : *plain) {
+    plain_shortest = std::min(plain_shortest, forearm(image));
+    plain_longest = std::max(plain_longest, forearm(image));
+  }
+  EXPECT_NEAR(shortest, plain_shortest, 0.01);  // m
+  EXPECT_NEAR(longest, plain_longest, 0.01);    // m
+  TrainingDataOptions bad = as_they_are;
+  bad.arm_pose_fraction = 1.5;
+  EXPECT_EQ(bad.Validate().code(), absl::StatusCode::kInvalidArgument);
 }
 
 TEST(ApplyStructuredLightNoise, DepthComesInDisparitySteps) {
@@ -124,16 +187,16 @@ TEST(TrainForest, LearnsPartsBetterThanChance) {
         if (truth == kNoPart) continue;
         const ForestLeaf& leaf =
             DescendTree(forest->trees()[0], probe, x, y, image.depth_m.at(x, y));
-        const auto best = std::max_element(leaf.part_probability.begin(),
-                                           leaf.part_probability.end());
+        const auto best =
+            std::max_element(leaf.part_probability.begin(), leaf.part_probability.end());
         right += (best - leaf.part_probability.begin()) == truth ? 1 : 0;
         ++total;
       }
     }
   }
   const double accuracy = static_cast<double>(right) / total;
-  std::cout << "[ figure ] part accuracy of a small forest on unseen images: " << accuracy
-            << " (" << total << " pixels)\n";
+  std::cout << "[ figure ] part accuracy of a small forest on unseen images: " << accuracy << " ("
+            << total << " pixels)\n";
   EXPECT_GT(accuracy, 0.35);  // Chance is below 0.1 over 20-odd parts.
 }
 

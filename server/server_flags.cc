@@ -8,10 +8,11 @@
 namespace reenact::server {
 
 absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::string>& args) {
-  ASSIGN_OR_RETURN(const Flags flags, Flags::Parse(args,
-                                                   {"data", "listen", "max-message-mb", "port-file",
-                                                    "depth-check", "jobs", "worker"},
-                                                   {"help"}));
+  ASSIGN_OR_RETURN(const Flags flags,
+                   Flags::Parse(args,
+                                {"data", "listen", "max-message-mb", "port-file", "depth-check",
+                                 "jobs", "worker", "max-name-bytes", "max-notes-bytes"},
+                                {"help"}));
   ServerCommandLine out;
   if (flags.Has("help")) {
     out.help = true;
@@ -35,6 +36,12 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   }
   out.options.store.limits.depth_check =
       depth_check == "decode" ? DepthCheck::kDecode : DepthCheck::kHeader;
+  FrameSetLimits& limits = out.options.store.limits;
+  ASSIGN_OR_RETURN(limits.max_name_bytes, flags.GetInt("max-name-bytes", limits.max_name_bytes));
+  ASSIGN_OR_RETURN(limits.max_notes_bytes, flags.GetInt("max-notes-bytes", limits.max_notes_bytes));
+  if (limits.max_name_bytes < 1 || limits.max_notes_bytes < 0) {
+    return absl::InvalidArgumentError("--max-name-bytes must be >= 1 and --max-notes-bytes >= 0");
+  }
   ASSIGN_OR_RETURN(out.options.jobs.concurrency, flags.GetInt("jobs", 0));
   if (out.options.jobs.concurrency < 0) {
     return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");

@@ -2,6 +2,7 @@
 //   reenact-server --data DIR --listen HOST:PORT [--max-message-mb N]
 //                  [--port-file FILE] [--depth-check decode|header]
 //                  [--jobs N] [--worker PATH]
+//                  [--max-name-bytes N] [--max-notes-bytes N]
 #pragma once
 
 #include <string>
@@ -17,7 +18,9 @@ inline constexpr char kServerUsage[] =
     "usage: reenact-server --data DIR --listen HOST:PORT [--max-message-mb N (default 64)] "
     "[--port-file FILE] [--depth-check decode|header (default decode)] "
     "[--jobs N (workers at a time; default one per hardware thread)] "
-    "[--worker PATH (default reenact-worker beside reenact-server)]";
+    "[--worker PATH (default reenact-worker beside reenact-server)] "
+    "[--max-name-bytes N (a take's name, default 256)] "
+    "[--max-notes-bytes N (a take's notes, default 16384)]";
 
 struct ServerCommandLine {
   ServerOptions options;

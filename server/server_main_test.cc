@@ -107,6 +107,8 @@ TEST(ServerMain, UsageErrorsExitWithTwo) {
            {"--data", "/tmp/x", "--listen", "no-port"},
            {"--data", "/tmp/x", "--listen", "127.0.0.1:0", "--max-message-mb", "0"},
            {"--data", "/tmp/x", "--listen", "127.0.0.1:0", "--depth-check", "maybe"},
+           {"--data", "/tmp/x", "--listen", "127.0.0.1:0", "--max-name-bytes", "0"},
+           {"--data", "/tmp/x", "--listen", "127.0.0.1:0", "--max-notes-bytes", "-1"},
            {"--data", "/tmp/x", "--listen", "127.0.0.1:0", "--bogus"}}) {
     const ExitInfo info = RunToEnd(args, &err);
     EXPECT_TRUE(info.exited);
@@ -126,15 +128,17 @@ TEST(ServerMain, UnusableDataFolderExitsWithOne) {
 }
 
 TEST(ServerMain, FlagsParseIntoOptions) {
-  auto parsed =
-      ParseServerCommandLine({"--data", "/d", "--listen", "0.0.0.0:50051", "--max-message-mb", "8",
-                              "--port-file", "/p", "--depth-check", "header"});
+  auto parsed = ParseServerCommandLine(
+      {"--data", "/d", "--listen", "0.0.0.0:50051", "--max-message-mb", "8", "--port-file", "/p",
+       "--depth-check", "header", "--max-name-bytes", "64", "--max-notes-bytes", "1000"});
   ASSERT_TRUE(parsed.ok()) << parsed.status();
   EXPECT_EQ(parsed->options.data_dir, "/d");
   EXPECT_EQ(parsed->options.listen_address, "0.0.0.0:50051");
   EXPECT_EQ(parsed->options.max_message_mb, 8);
   EXPECT_EQ(parsed->port_file, "/p");
   EXPECT_EQ(parsed->options.store.limits.depth_check, DepthCheck::kHeader);
+  EXPECT_EQ(parsed->options.store.limits.max_name_bytes, 64);
+  EXPECT_EQ(parsed->options.store.limits.max_notes_bytes, 1000);
   EXPECT_EQ(ParseServerCommandLine({"--data", "/d", "--listen", "h:70000"}).status().code(),
             absl::StatusCode::kInvalidArgument);
 }

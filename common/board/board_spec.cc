@@ -74,10 +74,12 @@ absl::Status BoardSpec::Validate() const {
                                                    marker_gap_m,
                                                    " m: need 0 < side <= 10 and 0 <= gap <= 10"));
   }
-  if (first_marker_id < 0 || first_marker_id + num_markers() > info->size) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("markers ", first_marker_id, "..", first_marker_id + num_markers() - 1,
-                     " do not fit ", info->name, " (", info->size, " markers)"));
+  // In 64 bits: an id near INT_MAX must not wrap round to a small one.
+  const int64_t last_id = int64_t{first_marker_id} + num_markers() - 1;
+  if (first_marker_id < 0 || last_id >= info->size) {
+    return absl::InvalidArgumentError(absl::StrCat("markers ", first_marker_id, "..", last_id,
+                                                   " do not fit ", info->name, " (", info->size,
+                                                   " markers)"));
   }
   return absl::OkStatus();
 }

@@ -66,7 +66,10 @@ TEST(ParseBoardSpec, RejectsBadText) {
         "aruco:DICT_4X4_50:3x2:-110:22", "aruco:DICT_4X4_50:3x2:110:-1",
         "aruco:DICT_4X4_50:3x2:abc:22", "aruco:DICT_4X4_50:10x10:110:22",
         "aruco:DICT_4X4_50:3x2:110:22:45", "aruco:DICT_4X4_50:3x2:110:22:1:2",
-        "aruco:DICT_4X4_50:0x2:110:22", "aruco:DICT_4X4_50:3x2:nan:22"}) {
+        "aruco:DICT_4X4_50:0x2:110:22", "aruco:DICT_4X4_50:3x2:nan:22",
+        // An id that would wrap round to a negative last id in 32 bits.
+        "aruco:DICT_4X4_50:3x2:110:22:2147483647", "aruco:DICT_4X4_50:3x2:110:22:2147483648",
+        "aruco:DICT_4X4_50:3x2:110:22:-1"}) {
     auto spec = ParseBoardSpec(text);
     EXPECT_TRUE(absl::IsInvalidArgument(spec.status())) << "\"" << text << "\" " << spec.status();
   }

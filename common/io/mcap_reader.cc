@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <memory>
 #include <utility>
 
 #include <zstd.h>
@@ -25,6 +26,8 @@ namespace {
 // Largest uncompressed chunk we accept; a larger claim is treated as damage
 // rather than an allocation request.
 constexpr uint64_t kMaxChunkRecordsBytes = uint64_t{4} << 30;
+// First output buffer of a compressed chunk: what its frame is sure to need.
+constexpr uint64_t kFirstChunkBuffer = uint64_t{1} << 16;
 
 std::string OpcodeName(uint8_t opcode) { return absl::StrFormat("opcode 0x%02x", opcode); }
 
@@ -72,6 +75,14 @@ absl::StatusOr<std::string> McapReader::ReadAt(uint64_t offset, uint64_t size) c
   return bytes;
 }
 
+absl::Status McapReaderOptions::Validate() const {
+  if (max_chunk_bytes == 0 || max_chunk_bytes > kMaxChunkRecordsBytes) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "max_chunk_bytes must be in 1..", kMaxChunkRecordsBytes, ", got ", max_chunk_bytes));
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<std::unique_ptr<McapReader>> McapReader::Open(const std::string& path,
                                                              const McapReaderOptions& options) {
   RETURN_IF_ERROR(options.Validate());
@@ -88,6 +99,7 @@ absl::StatusOr<std::unique_ptr<McapReader>> McapReader::Open(const std::string& 
     return absl::UnavailableError(absl::StrCat("cannot stat ", path, ": ", std::strerror(errno)));
   }
   std::unique_ptr<McapReader> reader(new McapReader(path, fd, static_cast<uint64_t>(st.st_size)));
+  reader->options_ = options;
   const uint64_t head_size = std::min<uint64_t>(reader->file_size_, mf::kMagic.size());
   ASSIGN_OR_RETURN(const std::string head, reader->ReadAt(0, head_size));
   if (head != mf::kMagic.substr(0, head_size)) {
@@ -254,26 +266,47 @@ absl::StatusOr<std::string> McapReader::LoadChunkRecords(uint64_t chunk_offset,
   const uint64_t records_size = c.U64();
   const std::string_view records = c.Bytes(records_size);
   if (!c.ok()) return Error(absl::StatusCode::kDataLoss, chunk_offset, "malformed Chunk record");
-  if (uncompressed_size > kMaxChunkRecordsBytes) {
+  if (uncompressed_size > options_.max_chunk_bytes) {
     return Error(absl::StatusCode::kDataLoss, chunk_offset,
-                 absl::StrCat("chunk claims ", uncompressed_size, " uncompressed bytes"));
+                 absl::StrCat("chunk claims ", uncompressed_size,
+                              " uncompressed bytes, more than the reader's limit of ",
+                              options_.max_chunk_bytes));
   }
   std::string out;
   if (compression.empty()) {
     out.assign(records);
   } else if (compression == "zstd") {
-    const unsigned long long frame_size = ZSTD_getFrameContentSize(records.data(), records.size());
-    if (frame_size != ZSTD_CONTENTSIZE_UNKNOWN && frame_size != uncompressed_size) {
-      return Error(absl::StatusCode::kDataLoss, chunk_offset,
-                   "chunk's zstd frame size differs from its uncompressed_size");
+    // Streamed, the buffer doubling only as the frames fill it: a header's
+    // claim (the chunk's or the frame's) allocates nothing by itself. It may
+    // reach uncompressed_size + 1, so that a frame producing more shows.
+    std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> dctx(ZSTD_createDCtx(), ZSTD_freeDCtx);
+    if (dctx == nullptr) return absl::ResourceExhaustedError("no memory for a zstd context");
+    const uint64_t most = uncompressed_size + 1;
+    out.resize(std::min<uint64_t>(most, std::max<uint64_t>(kFirstChunkBuffer, records.size())));
+    ZSTD_inBuffer in{records.data(), records.size(), 0};
+    size_t produced = 0;
+    while (true) {
+      ZSTD_outBuffer o{out.data(), out.size(), produced};
+      const size_t r = ZSTD_decompressStream(dctx.get(), &o, &in);
+      if (ZSTD_isError(r)) {
+        return Error(absl::StatusCode::kDataLoss, chunk_offset,
+                     absl::StrCat("chunk does not decompress: ", ZSTD_getErrorName(r)));
+      }
+      produced = o.pos;
+      if (produced > uncompressed_size) {
+        return Error(absl::StatusCode::kDataLoss, chunk_offset,
+                     absl::StrCat("chunk decompresses to more than the ", uncompressed_size,
+                                  " bytes its header says"));
+      }
+      if (r == 0 && in.pos == in.size) break;  // The last frame ended with the input.
+      if (produced == out.size()) {
+        out.resize(std::min<uint64_t>(most, 2 * static_cast<uint64_t>(out.size())));
+      } else if (in.pos == in.size) {
+        return Error(absl::StatusCode::kDataLoss, chunk_offset,
+                     "chunk's zstd frame ends before its data");
+      }
     }
-    out.resize(uncompressed_size);
-    const size_t n = ZSTD_decompress(out.data(), out.size(), records.data(), records.size());
-    if (ZSTD_isError(n)) {
-      return Error(absl::StatusCode::kDataLoss, chunk_offset,
-                   absl::StrCat("chunk does not decompress: ", ZSTD_getErrorName(n)));
-    }
-    out.resize(n);
+    out.resize(produced);
   } else {
     return Error(absl::StatusCode::kUnimplemented, chunk_offset,
                  absl::StrCat("unsupported chunk compression \"", std::string(compression), "\""));

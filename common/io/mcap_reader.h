@@ -98,9 +98,14 @@ struct McapReaderOptions {
   // Scan the data section when the summary is missing or damaged. When false
   // such files fail to open with DataLoss.
   bool allow_recovery = true;
+  // Largest uncompressed chunk the reader loads, bytes: a chunk whose header
+  // claims more is DataLoss, before anything is allocated. Whatever the
+  // claim, a compressed chunk's buffer grows only with what its frame really
+  // produces. Reenact's writers make 4 MiB chunks.
+  uint64_t max_chunk_bytes = uint64_t{1} << 30;
 
-  // Always OK today; kept for symmetry with other options structs.
-  absl::Status Validate() const { return absl::OkStatus(); }
+  // InvalidArgument unless 0 < max_chunk_bytes <= 4 GiB.
+  absl::Status Validate() const;
 };
 
 // Called once per message; returning an error stops the iteration and is
@@ -162,6 +167,7 @@ class McapReader {
   absl::Status Error(absl::StatusCode code, uint64_t offset, std::string_view what) const;
 
   std::string path_;
+  McapReaderOptions options_;
   int fd_ = -1;
   uint64_t file_size_ = 0;
   std::map<uint16_t, McapSchema> schemas_;

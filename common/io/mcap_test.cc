@@ -1,15 +1,21 @@
 #include "common/io/mcap_reader.h"
 #include "common/io/mcap_writer.h"
 
+#include <sys/resource.h>
+
 #include <cstdint>
 #include <filesystem>
+#include <iostream>
 #include <map>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <zstd.h>
 
+#include "absl/strings/str_cat.h"
 #include "common/base/files.h"
 #include "common/io/mcap_format.h"
 #include "common/testing/test_data.h"
@@ -436,6 +442,75 @@ TEST(McapReader, RejectsFileThatIsNotMcap) {
   EXPECT_NE(reader.status().message().find(path), std::string::npos);
   EXPECT_NE(reader.status().message().find("byte offset 0"), std::string::npos);
   EXPECT_EQ(McapReader::Open(path + ".missing").status().code(), absl::StatusCode::kNotFound);
+}
+
+// A file whose only chunk claims `claimed_bytes` uncompressed and holds a
+// zstd frame of 10 bytes that does not state its content size (a stream).
+std::string ChunkClaimingMoreThanItHolds(uint64_t claimed_bytes) {
+  namespace mf = mcap_format;
+  std::string frame(ZSTD_compressBound(10), '\0');
+  std::unique_ptr<ZSTD_CCtx, size_t (*)(ZSTD_CCtx*)> cctx(ZSTD_createCCtx(), ZSTD_freeCCtx);
+  ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_contentSizeFlag, 0);
+  ZSTD_inBuffer in{"0123456789", 10, 0};
+  ZSTD_outBuffer out{frame.data(), frame.size(), 0};
+  EXPECT_EQ(ZSTD_compressStream2(cctx.get(), &out, &in, ZSTD_e_end), 0u);
+  frame.resize(out.pos);
+  EXPECT_EQ(ZSTD_getFrameContentSize(frame.data(), frame.size()), ZSTD_CONTENTSIZE_UNKNOWN);
+  std::string bytes(mf::kMagic);
+  std::string header;
+  mf::PutString(&header, "");
+  mf::PutString(&header, "test");
+  mf::PutRecord(&bytes, mf::kHeader, header);
+  std::string chunk;
+  mf::PutU64(&chunk, 0);
+  mf::PutU64(&chunk, 0);
+  mf::PutU64(&chunk, claimed_bytes);
+  mf::PutU32(&chunk, 0);
+  mf::PutString(&chunk, "zstd");
+  mf::PutU64(&chunk, frame.size());
+  chunk += frame;
+  mf::PutRecord(&bytes, mf::kChunk, chunk);
+  return bytes;
+}
+
+int64_t PeakRssKb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss;
+}
+
+// A chunk's claimed size allocates nothing by itself: over the reader's
+// limit it is refused at once; under it, the buffer grows only with what
+// the frame produces, and the mismatch is DataLoss.
+TEST(McapReader, ChunkClaimingGigabytesAllocatesNothing) {
+  const std::string dir = testing::MakeTempDir("mcap_claims");
+  const int64_t before_kb = PeakRssKb();
+  // Recovered (a header, then the chunk, no summary): the chunk is skipped
+  // and the report says why.
+  const auto read = [&](uint64_t claimed_bytes, const std::string& why) {
+    const std::string path = absl::StrCat(dir, "/claims_", claimed_bytes, ".mcap");
+    ASSERT_TRUE(WriteFileAtomically(path, ChunkClaimingMoreThanItHolds(claimed_bytes)).ok());
+    auto reader = McapReader::Open(path);
+    ASSERT_TRUE(reader.ok()) << reader.status();
+    auto messages = (*reader)->ReadMessages();
+    ASSERT_TRUE(messages.ok()) << messages.status();
+    EXPECT_TRUE(messages->empty());
+    const McapReadReport& report = (*reader)->report();
+    ASSERT_EQ(report.skipped_chunks.size(), 1u) << report.Summary();
+    std::cout << report.skipped_chunks[0] << "\n";
+    EXPECT_NE(report.skipped_chunks[0].find(why), std::string::npos);
+  };
+  read(uint64_t{4} << 30, "limit");
+  read(uint64_t{900} << 20, "holds 10 bytes");
+  const int64_t grown_mb = (PeakRssKb() - before_kb) / 1024;
+  std::cout << "peak memory grew by " << grown_mb << " MB reading chunks that claim 4 GiB and "
+            << "900 MiB\n";
+  EXPECT_LT(grown_mb, 50);  // MB
+
+  McapReaderOptions bad;
+  bad.max_chunk_bytes = 0;
+  EXPECT_EQ(McapReader::Open(dir + "/any.mcap", bad).status().code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 TEST(McapReader, SurvivesRandomGarbageAfterTheMagic) {

@@ -231,6 +231,31 @@ absl::Status FrameSetLimits::Validate() const {
     return absl::InvalidArgumentError(
         "FrameSetLimits: max_image_side_px must be >= 1 and the skeleton limits >= 0");
   }
+  if (max_name_bytes < 1 || max_notes_bytes < 0) {
+    return absl::InvalidArgumentError(
+        "FrameSetLimits: max_name_bytes must be >= 1 and max_notes_bytes >= 0");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ValidateTakeInfo(const v1::TakeInfo& info, const FrameSetLimits& limits) {
+  const std::pair<const char*, const std::string*> names[] = {
+      {"name", &info.name()},
+      {"generator", &info.generator()},
+      {"motion_source", &info.motion_source()},
+      {"body_model", &info.body_model()}};
+  for (const auto& [field, value] : names) {
+    if (value->size() > static_cast<size_t>(limits.max_name_bytes)) {
+      return absl::InvalidArgumentError(absl::StrCat("OpenTake.info.", field, " holds ",
+                                                     value->size(), " bytes, more than the ",
+                                                     limits.max_name_bytes, " allowed"));
+    }
+  }
+  if (info.notes().size() > static_cast<size_t>(limits.max_notes_bytes)) {
+    return absl::InvalidArgumentError(absl::StrCat("OpenTake.info.notes holds ",
+                                                   info.notes().size(), " bytes, more than the ",
+                                                   limits.max_notes_bytes, " allowed"));
+  }
   return absl::OkStatus();
 }
 

@@ -14,6 +14,7 @@
 #include "absl/status/status.h"
 #include "reenact/v1/frame.pb.h"
 #include "reenact/v1/sensor.pb.h"
+#include "reenact/v1/take.pb.h"
 
 namespace reenact::server {
 
@@ -38,6 +39,10 @@ struct FrameSetLimits {
   int max_skeletons_per_frame = 16;
   int max_joints_per_skeleton = 64;
   DepthCheck depth_check = DepthCheck::kDecode;
+  // Largest TakeInfo name, generator, motion_source and body_model, bytes
+  // (UTF-8), and largest TakeInfo notes: the catalog lists these to everyone.
+  int max_name_bytes = 256;
+  int max_notes_bytes = 16384;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -54,6 +59,10 @@ absl::Status ValidateTakeId(std::string_view take_id);
 // (1..64 characters) without repeats, image sizes within `limits`.
 absl::Status ValidateSensors(const std::vector<v1::SensorCalibration>& sensors,
                              const FrameSetLimits& limits);
+
+// The TakeInfo of a new take: its text fields within `limits`
+// (InvalidArgument naming the field and its size, not its content).
+absl::Status ValidateTakeInfo(const v1::TakeInfo& info, const FrameSetLimits& limits);
 
 // One FrameSet of a take whose sensors are `sensors`: stamps not negative;
 // every frame from a known sensor, at most one per sensor, with depth; the

@@ -177,6 +177,7 @@ RecoveredTake TakeStore::RecoverTake(TakeRow row) {
 absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& request,
                                                    RecorderObserver* observer) {
   RETURN_IF_ERROR(ValidateTakeId(request.take_id));
+  RETURN_IF_ERROR(ValidateTakeInfo(request.info, options_.limits));
   if (request.daemon_id.empty() || request.daemon_id.size() > kMaxDaemonIdLength) {
     return absl::InvalidArgumentError(
         absl::StrCat("OpenTake.daemon_id must be 1..", kMaxDaemonIdLength, " characters"));

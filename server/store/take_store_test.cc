@@ -389,6 +389,42 @@ TEST(TakeStore, DeleteAndReadOnlyWhenNotRecording) {
   EXPECT_EQ((*store)->DeleteTake("t").status().code(), absl::StatusCode::kNotFound);
 }
 
+TEST(TakeStore, OversizedNamesAndNotesAreRefusedAndTheCatalogStillLists) {
+  const std::string dir = reenact::testing::MakeTempDir("store_names");
+  auto store = TakeStore::Open(Options(dir));
+  ASSERT_TRUE(store.ok());
+  Watcher watcher;
+  auto kept = (*store)->OpenTake(Request("kept", "d", 1), &watcher);
+  ASSERT_TRUE(kept.ok()) << kept.status();
+  const FrameSetLimits limits;
+  for (int field = 0; field < 3; ++field) {
+    TakeOpenRequest request = Request("big-" + std::to_string(field), "d", 1);
+    const std::string huge(8 << 20, 'n');  // 8 MiB, as nine such names once broke the list.
+    if (field == 0) request.info.set_name(huge);
+    if (field == 1) request.info.set_notes(huge);
+    if (field == 2) request.info.set_motion_source(huge);
+    const auto opened = (*store)->OpenTake(request, &watcher);
+    EXPECT_EQ(opened.status().code(), absl::StatusCode::kInvalidArgument) << field;
+    // The error names the size, never echoes the text.
+    EXPECT_NE(opened.status().message().find(std::to_string(8 << 20)), std::string::npos);
+    EXPECT_LT(opened.status().message().size(), 200u);
+    EXPECT_EQ((*store)->GetTake(request.take_id).status().code(), absl::StatusCode::kNotFound);
+  }
+  TakeOpenRequest at_limit = Request("at-limit", "d", 1);
+  at_limit.info.set_name(std::string(limits.max_name_bytes, 'a'));
+  at_limit.info.set_notes(std::string(limits.max_notes_bytes, 'b'));
+  Watcher at_limit_watcher;
+  auto accepted = (*store)->OpenTake(at_limit, &at_limit_watcher);
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  const auto takes = (*store)->ListTakes(v1::TAKE_STATE_UNSPECIFIED);
+  ASSERT_TRUE(takes.ok()) << takes.status();
+  EXPECT_EQ(takes->size(), 2u);
+  kept->recorder->Finish(true, 0, absl::OkStatus());
+  accepted->recorder->Finish(true, 0, absl::OkStatus());
+  ASSERT_TRUE(watcher.WaitFinished().has_value());
+  ASSERT_TRUE(at_limit_watcher.WaitFinished().has_value());
+}
+
 TEST(TakeStore, OneServerPerDataFolder) {
   const std::string dir = reenact::testing::MakeTempDir("store_lock");
   auto first = TakeStore::Open(Options(dir));

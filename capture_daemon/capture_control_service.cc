@@ -5,6 +5,7 @@
 #include <optional>
 #include <utility>
 
+#include "absl/strings/str_cat.h"
 #include "proto/grpc_status.h"
 #include "proto/write_pump.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
@@ -83,11 +84,15 @@ class FrameStream final : public PumpedWriteReactor<v1::LiveFrameSet> {
 // answers without waiting on devices or the network).
 class CaptureControlService final : public v1::CaptureControl::CallbackService {
  public:
-  explicit CaptureControlService(CaptureController* controller) : controller_(controller) {}
+  CaptureControlService(CaptureController* controller, const rpc::Authorizer* auth)
+      : controller_(controller), auth_(auth) {}
 
   grpc::ServerUnaryReactor* ListSensors(grpc::CallbackServerContext* context,
                                         const v1::ListSensorsRequest*,
                                         v1::ListSensorsResponse* response) override {
+    if (absl::Status allowed = Allowed(*context, "ListSensors"); !allowed.ok()) {
+      return Finish(context, allowed);
+    }
     for (v1::SensorInfo& info : controller_->ListSensors())
       *response->add_sensors() = std::move(info);
     return Finish(context, absl::OkStatus());
@@ -96,6 +101,9 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
   grpc::ServerUnaryReactor* StartTake(grpc::CallbackServerContext* context,
                                       const v1::StartTakeRequest* request,
                                       v1::StartTakeResponse* response) override {
+    if (absl::Status allowed = Allowed(*context, "StartTake"); !allowed.ok()) {
+      return Finish(context, allowed);
+    }
     absl::StatusOr<std::string> take_id = controller_->StartTake(*request);
     if (take_id.ok()) response->set_take_id(*take_id);
     return Finish(context, take_id.status());
@@ -104,23 +112,44 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
   grpc::ServerUnaryReactor* StopTake(grpc::CallbackServerContext* context,
                                      const v1::StopTakeRequest*,
                                      v1::StopTakeResponse* response) override {
+    if (absl::Status allowed = Allowed(*context, "StopTake"); !allowed.ok()) {
+      return Finish(context, allowed);
+    }
     absl::StatusOr<v1::StopTakeResponse> stopped = controller_->StopTake();
     if (stopped.ok()) *response = std::move(*stopped);
     return Finish(context, stopped.status());
   }
 
   grpc::ServerWriteReactor<v1::LiveFrameSet>* StreamFrames(
-      grpc::CallbackServerContext*, const v1::StreamFramesRequest* request) override {
+      grpc::CallbackServerContext* context, const v1::StreamFramesRequest* request) override {
+    if (absl::Status allowed = Allowed(*context, "StreamFrames"); !allowed.ok()) {
+      return new RefusedStream(ToGrpcStatus(allowed));
+    }
     return new FrameStream(controller_, *request);
   }
 
   grpc::ServerUnaryReactor* Status(grpc::CallbackServerContext* context, const v1::StatusRequest*,
                                    v1::DaemonStatus* response) override {
+    if (absl::Status allowed = Allowed(*context, "Status"); !allowed.ok()) {
+      return Finish(context, allowed);
+    }
     *response = controller_->Status();
     return Finish(context, absl::OkStatus());
   }
 
  private:
+  // A StreamFrames call refused before it subscribed.
+  class RefusedStream final : public grpc::ServerWriteReactor<v1::LiveFrameSet> {
+   public:
+    explicit RefusedStream(const grpc::Status& status) { Finish(status); }
+    void OnDone() override { delete this; }
+  };
+
+  absl::Status Allowed(const grpc::CallbackServerContext& context, const char* rpc) const {
+    if (auth_ == nullptr) return absl::OkStatus();
+    return auth_->Authorize(context, absl::StrCat("/reenact.v1.CaptureControl/", rpc)).status();
+  }
+
   static grpc::ServerUnaryReactor* Finish(grpc::CallbackServerContext* context,
                                           const absl::Status& status) {
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
@@ -129,12 +158,25 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
   }
 
   CaptureController* controller_;
+  const rpc::Authorizer* auth_;
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> CreateCaptureControlService(CaptureController* controller) {
-  return std::make_unique<CaptureControlService>(controller);
+const rpc::Authorizer::MethodTable& CaptureControlMethodAccess() {
+  static const auto* const table = new rpc::Authorizer::MethodTable{
+      {"/reenact.v1.CaptureControl/ListSensors", rpc::kRead},
+      {"/reenact.v1.CaptureControl/Status", rpc::kRead},
+      {"/reenact.v1.CaptureControl/StreamFrames", rpc::kRead},
+      {"/reenact.v1.CaptureControl/StartTake", rpc::kIngest | rpc::kManage},
+      {"/reenact.v1.CaptureControl/StopTake", rpc::kIngest | rpc::kManage},
+  };
+  return *table;
+}
+
+std::unique_ptr<grpc::Service> CreateCaptureControlService(CaptureController* controller,
+                                                           const rpc::Authorizer* auth) {
+  return std::make_unique<CaptureControlService>(controller, auth);
 }
 
 }  // namespace reenact::capture

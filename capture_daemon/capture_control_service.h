@@ -13,6 +13,7 @@
 
 #include "absl/status/statusor.h"
 #include "capture_daemon/live_frames.h"
+#include "common/rpc/auth.h"
 #include "reenact/v1/capture_control_service.pb.h"
 
 namespace reenact::capture {
@@ -38,8 +39,15 @@ class CaptureController {
   virtual void UnsubscribeFrames(uint64_t subscription);
 };
 
+// The access each CaptureControl RPC needs (common/rpc/auth.h): read
+// (viewer, coach, admin) for ListSensors, Status and StreamFrames; ingest or
+// manage (capture, coach, admin) for StartTake and StopTake.
+const rpc::Authorizer::MethodTable& CaptureControlMethodAccess();
+
 // The service, ready for grpc::ServerBuilder::RegisterService. `controller`
+// (and `auth`, when not null: then every call needs a token allowing it)
 // must outlive it.
-std::unique_ptr<grpc::Service> CreateCaptureControlService(CaptureController* controller);
+std::unique_ptr<grpc::Service> CreateCaptureControlService(CaptureController* controller,
+                                                           const rpc::Authorizer* auth = nullptr);
 
 }  // namespace reenact::capture

@@ -12,13 +12,13 @@
 #include <set>
 #include <utility>
 
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/server.h>
+#include <grpcpp/server_builder.h>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/signal_set.hpp>
 #include <boost/asio/steady_timer.hpp>
-#include <grpcpp/security/server_credentials.h>
-#include <grpcpp/server.h>
-#include <grpcpp/server_builder.h>
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
@@ -77,10 +77,19 @@ absl::Status DaemonOptions::Validate() const {
   if (spool_dir.empty()) return absl::InvalidArgumentError("--spool is empty");
   if (spool_max_mb < 1) return absl::InvalidArgumentError("--spool-max-mb must be at least 1");
   if (max_seconds < 0) return absl::InvalidArgumentError("--max-seconds must not be negative");
-  if (!(drain_timeout_s >= 0)) return absl::InvalidArgumentError("--drain-timeout-s must not be negative");
+  if (!(drain_timeout_s >= 0))
+    return absl::InvalidArgumentError("--drain-timeout-s must not be negative");
   RETURN_IF_ERROR(sync.Validate());
   RETURN_IF_ERROR(processing.Validate());
   RETURN_IF_ERROR(anchor.Validate());
+  RETURN_IF_ERROR(control_tls.Validate());
+  if (!control_address.empty() && !rpc::IsLoopbackAddress(control_address) && !insecure &&
+      (!control_tls.enabled() || control_auth_file.empty())) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "refusing to serve --control ", control_address,
+        " without TLS and tokens: anyone reaching it could start takes and watch the sensors. "
+        "Give --tls-cert, --tls-key and --auth, or --insecure on a network you trust"));
+  }
   return uplink.Validate();
 }
 
@@ -125,6 +134,7 @@ struct Daemon::Impl {
   boost::asio::io_context io;
   boost::asio::signal_set signals{io, SIGINT, SIGTERM};
   boost::asio::steady_timer timer{io};
+  std::unique_ptr<rpc::Authorizer> control_auth;
   std::unique_ptr<grpc::Service> control_service;
   std::unique_ptr<grpc::Server> control_server;
   std::string bound_control;
@@ -328,7 +338,8 @@ std::vector<v1::SensorInfo> Daemon::Impl::ListSensors() {
 absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& request) {
   std::lock_guard<std::mutex> lock(mutex);
   if (take) {
-    return absl::FailedPreconditionError(absl::StrCat("take ", take->take_id(), " is being recorded"));
+    return absl::FailedPreconditionError(
+        absl::StrCat("take ", take->take_id(), " is being recorded"));
   }
   if (stop_requested) return absl::FailedPreconditionError("reenactd is shutting down");
   std::vector<v1::SensorCalibration> calibrations;
@@ -348,9 +359,9 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
   info.set_generator(kGenerator);
   info.set_fps(fps);
   const std::string take_id = MakeTakeId(info.name());
-  ASSIGN_OR_RETURN(std::unique_ptr<TakeRecorder> recorder,
-                   TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info,
-                                       calibrations));
+  ASSIGN_OR_RETURN(
+      std::unique_ptr<TakeRecorder> recorder,
+      TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info, calibrations));
   take = std::move(recorder);
   if (options.anchor.enabled()) {
     take->HoldOpen();  // Before the first set: `recording` is set below.
@@ -540,11 +551,12 @@ absl::Status Daemon::Impl::AddSensors(SensorList opened) {
     sensors.push_back(std::move(entry));
   }
   for (SensorEntry* raw : added) {
-    const absl::Status started = raw->sensor->Start(
-        [this, raw](CapturedFrame frame) { OnFrame(raw, std::move(frame)); },
-        [this, raw](const absl::Status& why) { OnSensorEnd(raw, why); });
+    const absl::Status started =
+        raw->sensor->Start([this, raw](CapturedFrame frame) { OnFrame(raw, std::move(frame)); },
+                           [this, raw](const absl::Status& why) { OnSensorEnd(raw, why); });
     if (started.ok()) continue;
-    Log(absl::StrCat("error: sensor ", raw->info.sensor_id(), " did not start: ", started.message()));
+    Log(absl::StrCat("error: sensor ", raw->info.sensor_id(),
+                     " did not start: ", started.message()));
     {
       std::lock_guard<std::mutex> lock(mutex);
       raw->state = v1::SENSOR_STATE_GONE;
@@ -558,10 +570,18 @@ absl::Status Daemon::Impl::AddSensors(SensorList opened) {
 
 absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
   if (options.control_address.empty()) return absl::OkStatus();
-  control_service = CreateCaptureControlService(controller);
+  ASSIGN_OR_RETURN(const std::shared_ptr<grpc::ServerCredentials> credentials,
+                   rpc::MakeServerCredentials(options.control_tls));
+  std::optional<rpc::TokenTable> tokens;
+  if (!options.control_auth_file.empty()) {
+    ASSIGN_OR_RETURN(tokens, rpc::TokenTable::Load(options.control_auth_file));
+  }
+  control_auth = std::make_unique<rpc::Authorizer>(std::move(tokens), CaptureControlMethodAccess());
+  control_service = CreateCaptureControlService(
+      controller, control_auth->enabled() ? control_auth.get() : nullptr);
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(options.control_address, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(options.control_address, credentials, &port);
   builder.RegisterService(control_service.get());
   control_server = builder.BuildAndStart();
   if (!control_server || port == 0) {
@@ -582,7 +602,8 @@ void Daemon::Impl::ResumeUnfinished() {
     absl::StatusOr<std::unique_ptr<TakeRecorder>> opened =
         TakeRecorder::ResumeUnfinished(channel, recorder_options, dir);
     if (!opened.ok()) {
-      Log(absl::StrCat("error: cannot resume the spooled take in ", dir, ": ", opened.status().message()));
+      Log(absl::StrCat("error: cannot resume the spooled take in ", dir, ": ",
+                       opened.status().message()));
       continue;
     }
     std::shared_ptr<TakeRecorder> resumed_take = std::move(*opened);
@@ -661,8 +682,7 @@ void Daemon::Impl::Tick() {
     finished.push_back(current);
     std::lock_guard<std::mutex> lock(mutex);
     draining.erase(std::remove(draining.begin(), draining.end(), current), draining.end());
-  } else if (current && max_seconds > 0 &&
-             NsToSeconds(SteadyNowNs() - started_ns) >= max_seconds) {
+  } else if (current && max_seconds > 0 && NsToSeconds(SteadyNowNs() - started_ns) >= max_seconds) {
     (void)StopTake("max seconds reached", /*flush=*/false);
   }
   for (const auto& recorder : finished) {
@@ -689,8 +709,8 @@ void Daemon::Impl::Tick() {
     std::string line = absl::StrCat("sets ", status.frame_sets(), " skew p50 ",
                                     absl::StrFormat("%.1f", Ms(status.skew_p50_ns())), " ms");
     for (const auto& s : status.sync()) {
-      absl::StrAppend(&line, " | ", s.sensor_id(), " in ", s.frames_in(), " drop ", s.frames_dropped(),
-                      " dup ", s.frames_duplicate());
+      absl::StrAppend(&line, " | ", s.sensor_id(), " in ", s.frames_in(), " drop ",
+                      s.frames_dropped(), " dup ", s.frames_duplicate());
     }
     absl::StrAppend(&line, " | take ", status.take_id().empty() ? "-" : status.take_id(), " sent ",
                     status.last_sequence(), " durable ", status.durable_sequence(), " spool ",
@@ -721,7 +741,8 @@ void Daemon::Impl::RescanHardware() {
     std::lock_guard<std::mutex> lock(mutex);
     for (const auto& entry : sensors) {
       if (entry->state == v1::SENSOR_STATE_STREAMING) {
-        streaming.insert(entry->info.backend() + "|" + entry->info.serial() + "|" + entry->info.uri());
+        streaming.insert(entry->info.backend() + "|" + entry->info.serial() + "|" +
+                         entry->info.uri());
       }
     }
   }
@@ -834,7 +855,8 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
   if (absl::Status s = CreateDirectories(options.spool_dir); !s.ok()) {
     return absl::UnavailableError(absl::StrCat("--spool: ", s.message()));
   }
-  impl->daemon_id = options.daemon_id.empty() ? DefaultDaemonId(options.spool_dir) : options.daemon_id;
+  impl->daemon_id =
+      options.daemon_id.empty() ? DefaultDaemonId(options.spool_dir) : options.daemon_id;
   impl->channel = MakeIngestChannel(options.server_address, options.uplink);
   impl->recorder_options.spool_root = options.spool_dir;
   impl->recorder_options.spool_max_bytes = options.spool_max_mb << 20;
@@ -940,11 +962,11 @@ absl::Status Daemon::Run() {
         continue;
       }
       const TakeStats stats = r->Stats();
-      const absl::Status timed_out = absl::DeadlineExceededError(absl::StrCat(
-          "the server did not make take ", r->take_id(), " durable within ",
-          d.options.drain_timeout_s, " s; ", stats.spool_frame_sets, " frame sets (",
-          stats.spool_bytes, " bytes) stay in the spool ", d.options.spool_dir, "/", r->take_id(),
-          " and are sent when reenactd starts again"));
+      const absl::Status timed_out = absl::DeadlineExceededError(
+          absl::StrCat("the server did not make take ", r->take_id(), " durable within ",
+                       d.options.drain_timeout_s, " s; ", stats.spool_frame_sets, " frame sets (",
+                       stats.spool_bytes, " bytes) stay in the spool ", d.options.spool_dir, "/",
+                       r->take_id(), " and are sent when reenactd starts again"));
       if (result.ok()) {
         result = timed_out;  // The caller reports it.
       } else {
@@ -965,8 +987,8 @@ absl::Status Daemon::Run() {
   }
   d.WriteStats(result);
   d.live.Close();  // Ends the StreamFrames calls.
-  if (d.control_server) d.control_server->Shutdown(std::chrono::system_clock::now() +
-                                                   std::chrono::milliseconds(500));
+  if (d.control_server)
+    d.control_server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(500));
   return result;
 }
 

@@ -51,6 +51,12 @@ struct DaemonOptions {
   std::string control_address = "127.0.0.1:50052";
   // File that receives the bound control address ("host:port\n").
   std::string control_port_file;
+  // TLS of the control service (common/rpc/channel.h), and its token file
+  // (common/rpc/auth.h; empty: every caller may do everything). Without
+  // both, a non-loopback control address needs `insecure`.
+  rpc::ServerTlsFiles control_tls;
+  std::string control_auth_file;
+  bool insecure = false;
   // Folder of the take spools; bound of each take's spool.
   std::string spool_dir;
   int64_t spool_max_mb = 1024;

@@ -11,17 +11,38 @@
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/board/board_spec.h"
+#include "common/rpc/channel.h"
 
 namespace reenact::capture {
 
 namespace {
 
-const std::set<std::string> kValueFlags = {
-    "server", "control", "control-port-file", "spool", "spool-max-mb", "take-name",
-    "daemon-id", "sync-tolerance-ms", "segmentation", "registration", "tracker",
-    "tracker-forest", "tracker-refine", "config", "stats-json",
-    "max-seconds", "drain-timeout-s", "anchor", "anchor-timeout-s"};
-const std::set<std::string> kBoolFlags = {"fast", "loop", "once", "verbose", "help"};
+const std::set<std::string> kValueFlags = {"server",
+                                           "control",
+                                           "control-port-file",
+                                           "spool",
+                                           "spool-max-mb",
+                                           "take-name",
+                                           "daemon-id",
+                                           "sync-tolerance-ms",
+                                           "segmentation",
+                                           "registration",
+                                           "tracker",
+                                           "tracker-forest",
+                                           "tracker-refine",
+                                           "config",
+                                           "stats-json",
+                                           "max-seconds",
+                                           "drain-timeout-s",
+                                           "anchor",
+                                           "anchor-timeout-s",
+                                           "tls-ca",
+                                           "token-file",
+                                           "tls-cert",
+                                           "tls-key",
+                                           "tls-client-ca",
+                                           "auth"};
+const std::set<std::string> kBoolFlags = {"fast", "loop", "once", "verbose", "help", "insecure"};
 
 // "--anchor board[:SPEC]" (or "none") into `anchor`.
 absl::Status ParseAnchor(const Flags& flags, AnchorOptions* anchor) {
@@ -104,7 +125,8 @@ absl::StatusOr<ProcessingOptions::Mode> ParseMode(const Flags& flags, const std:
   if (value == "auto") return ProcessingOptions::Mode::kAuto;
   if (value == "on") return ProcessingOptions::Mode::kOn;
   if (value == "off") return ProcessingOptions::Mode::kOff;
-  return absl::InvalidArgumentError(absl::StrCat("--", name, ": auto, on or off, not \"", value, "\""));
+  return absl::InvalidArgumentError(
+      absl::StrCat("--", name, ": auto, on or off, not \"", value, "\""));
 }
 
 }  // namespace
@@ -120,6 +142,13 @@ std::string ReenactdUsage() {
          "  --max-seconds S         end the --once take after S seconds\n"
          "  --control HOST:PORT     CaptureControl service (default 127.0.0.1:50052; :0 any port)\n"
          "  --control-port-file F   write the bound control address to F\n"
+         "  --tls-ca PEM            trust the server's certificate signed by this CA (else\n"
+         "                          $REENACT_TLS_CA; none: plaintext to the server)\n"
+         "  --token-file FILE       token sent to the server (else $REENACT_TOKEN)\n"
+         "  --tls-cert PEM --tls-key PEM  TLS for the control service\n"
+         "  --tls-client-ca PEM     control clients need a certificate this CA signed\n"
+         "  --auth TOKENS.json      control calls need a token (see 'reenact auth add')\n"
+         "  --insecure              allow a non-loopback --control without TLS and tokens\n"
          "  --spool DIR             spool folder (default $STATE_DIRECTORY/spool or /tmp)\n"
          "  --spool-max-mb N        bound of a take's spool (default 1024)\n"
          "  --take-name NAME        name of the --once take (default \"take\")\n"
@@ -151,11 +180,13 @@ absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>&
   ASSIGN_OR_RETURN(const Flags cli, Flags::Parse(args, kValueFlags, kBoolFlags));
   if (help != nullptr) *help = cli.Has("help");
   if (!cli.positional().empty()) {
-    return absl::InvalidArgumentError(absl::StrCat("unexpected argument \"", cli.positional()[0], "\""));
+    return absl::InvalidArgumentError(
+        absl::StrCat("unexpected argument \"", cli.positional()[0], "\""));
   }
   std::vector<std::string> merged;
   std::vector<std::string> config_sources;
-  if (auto config = cli.Get("config")) RETURN_IF_ERROR(ConfigToArgs(*config, &merged, &config_sources));
+  if (auto config = cli.Get("config"))
+    RETURN_IF_ERROR(ConfigToArgs(*config, &merged, &config_sources));
   merged.insert(merged.end(), args.begin(), args.end());
   ASSIGN_OR_RETURN(const Flags flags, Flags::Parse(merged, kValueFlags, kBoolFlags));
   if (sources.empty()) sources = config_sources;
@@ -171,6 +202,13 @@ absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>&
   ASSIGN_OR_RETURN(options.max_seconds, flags.GetDouble("max-seconds", 0.0));
   options.control_address = flags.GetOr("control", options.control_address);
   options.control_port_file = flags.GetOr("control-port-file", "");
+  options.control_tls = {flags.GetOr("tls-cert", ""), flags.GetOr("tls-key", ""),
+                         flags.GetOr("tls-client-ca", "")};
+  RETURN_IF_ERROR(options.control_tls.Validate());
+  options.control_auth_file = flags.GetOr("auth", "");
+  options.insecure = flags.Has("insecure");
+  ASSIGN_OR_RETURN(options.uplink.security, rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""),
+                                                                    flags.GetOr("token-file", "")));
   options.spool_dir = flags.GetOr("spool", DefaultSpoolDir());
   ASSIGN_OR_RETURN(const int spool_mb, flags.GetInt("spool-max-mb", 1024));
   options.spool_max_mb = spool_mb;

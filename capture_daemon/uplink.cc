@@ -25,7 +25,8 @@ absl::Status UplinkOptions::Validate() const {
     return absl::InvalidArgumentError(
         "UplinkOptions: need 1 <= initial_backoff_ms <= max_backoff_ms");
   }
-  if (!(open_timeout_s > 0.0)) return absl::InvalidArgumentError("UplinkOptions.open_timeout_s <= 0");
+  if (!(open_timeout_s > 0.0))
+    return absl::InvalidArgumentError("UplinkOptions.open_timeout_s <= 0");
   return absl::OkStatus();
 }
 
@@ -42,7 +43,7 @@ std::shared_ptr<grpc::Channel> MakeIngestChannel(const std::string& address,
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, static_cast<int>(options.initial_backoff_ms));
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, static_cast<int>(options.max_backoff_ms));
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, static_cast<int>(options.initial_backoff_ms));
-  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+  return rpc::MakeClientChannel(address, args, options.security);
 }
 
 bool IsNonRetryable(absl::StatusCode code) {
@@ -148,9 +149,9 @@ void TakeUplink::Run() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (abort_) {
-        final_status = absl::AbortedError(absl::StrCat(
-            "uplink of take ", take_id_, " stopped before the take was closed; ",
-            spool_->frame_sets(), " frame sets remain in ", spool_->dir()));
+        final_status = absl::AbortedError(
+            absl::StrCat("uplink of take ", take_id_, " stopped before the take was closed; ",
+                         spool_->frame_sets(), " frame sets remain in ", spool_->dir()));
         break;
       }
     }

@@ -34,6 +34,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "capture_daemon/spool.h"
+#include "common/rpc/channel.h"
 #include "reenact/v1/ingest_service.grpc.pb.h"
 
 namespace reenact::capture {
@@ -41,6 +42,8 @@ namespace reenact::capture {
 struct UplinkOptions {
   // Largest gRPC message either way; matches the server (64 MiB).
   int max_message_bytes = 64 << 20;
+  // TLS trust and the bearer token for the server (common/rpc/channel.h).
+  rpc::ClientSecurity security;
   // Reconnect backoff: first wait, and the cap it doubles up to, ms.
   int64_t initial_backoff_ms = 50;
   int64_t max_backoff_ms = 2000;
@@ -61,13 +64,13 @@ bool IsNonRetryable(absl::StatusCode code);
 
 // Figures of one take's uplink.
 struct UplinkStats {
-  bool connected = false;          // A stream is open and TakeOpened arrived.
-  bool done = false;               // Finished (closed, failed or aborted).
-  uint64_t sent_sequence = 0;      // Highest sequence written to the stream.
-  uint64_t durable_sequence = 0;   // Highest sequence the server acknowledged.
-  int64_t reconnects = 0;          // Streams begun after the first.
-  int64_t frame_sets_sent = 0;     // Writes of FrameSets, resends included.
-  std::string last_error;          // Why the last stream ended, when it failed.
+  bool connected = false;         // A stream is open and TakeOpened arrived.
+  bool done = false;              // Finished (closed, failed or aborted).
+  uint64_t sent_sequence = 0;     // Highest sequence written to the stream.
+  uint64_t durable_sequence = 0;  // Highest sequence the server acknowledged.
+  int64_t reconnects = 0;         // Streams begun after the first.
+  int64_t frame_sets_sent = 0;    // Writes of FrameSets, resends included.
+  std::string last_error;         // Why the last stream ended, when it failed.
 };
 
 class TakeUplink {

@@ -28,9 +28,22 @@ viewer=$bin/reenact-viewer
 "$reenact" synth --motion builtin:front-kick --body procedural --sensors 2 --seconds 3 \
   --out "$out/source.mcap"
 
-rm -rf "$out/server" "$out/spool" "$out/server.port"
+# Trust: the demo makes its own private CA and server certificate, and a token
+# per role; the server speaks TLS only and every call needs a token. The
+# capture daemon ingests with the capture token, the coach runs the jobs and
+# the viewer and the mirror only read.
+rm -rf "$out/server" "$out/spool" "$out/server.port" "$out/tls"
+bash deploy/make-certs.sh "$out/tls"
+for role in capture coach viewer; do
+  "$reenact" auth add --file "$out/tls/tokens.json" --role "$role" --name "demo-$role" \
+    > "$out/tls/$role.token"
+done
+chmod 600 "$out/tls/"*.token
+export REENACT_TLS_CA="$out/tls/ca.pem"
+coach=(--token-file "$out/tls/coach.token")
 "$bin/reenact-server" --data "$out/server" --listen 127.0.0.1:0 --port-file "$out/server.port" \
-  2> "$out/server.log" &
+  --tls-cert "$out/tls/server.pem" --tls-key "$out/tls/server.key" \
+  --auth "$out/tls/tokens.json" 2> "$out/server.log" &
 server_pid=$!
 trap 'kill $server_pid 2> /dev/null || true' EXIT
 for _ in $(seq 100); do [ -s "$out/server.port" ] && break; sleep 0.1; done
@@ -40,14 +53,20 @@ echo "demo: reenact-server listening on $server (data in $out/server)"
 # The daemon records the take from its sensors (here: the synthetic take
 # played back in real time) and exits once the server has all of it on disk.
 "$bin/reenactd" --server "$server" --source "playback:$out/source.mcap" --once \
+  --token-file "$out/tls/capture.token" \
   --take-name front-kick --spool "$out/spool" --control 127.0.0.1:0 \
   --tracker auto --tracker-refine on --stats-json "$out/capture-stats.json"
 
-"$reenact" takes list --server "$server"
-take_id=$("$reenact" takes list --server "$server" --json | \
+"$reenact" takes list --server "$server" "${coach[@]}"
+take_id=$("$reenact" takes list --server "$server" "${coach[@]}" --json | \
   sed -n 's/.*"take_id": "\([^"]*\)".*/\1/p' | head -n 1)
-"$reenact" takes show "$take_id" --server "$server"
-"$reenact" takes download "$take_id" --server "$server" --out "$out/take.mcap" --quiet
+"$reenact" takes show "$take_id" --server "$server" "${coach[@]}"
+# Without a token, and with a viewer's token, deleting the take is refused.
+"$reenact" takes delete "$take_id" --server "$server" 2>&1 | sed 's/^/demo: refused as expected: /' || true
+"$reenact" takes delete "$take_id" --server "$server" --token-file "$out/tls/viewer.token" 2>&1 |
+  sed 's/^/demo: refused as expected: /' || true
+"$reenact" takes download "$take_id" --server "$server" "${coach[@]}" --out "$out/take.mcap" \
+  --quiet
 "$reenact" take info "$out/take.mcap"
 # How well the daemon's tracker found the teacher, against the true joints.
 "$reenact" take skeletons "$out/take.mcap" --truth "$out/source.mcap"
@@ -62,19 +81,22 @@ take_id=$("$reenact" takes list --server "$server" --json | \
 reconstruct() {
   local name=$1 glb=$2
   shift 2
-  "$reenact" jobs submit --server "$server" --take "$take_id" "$@" --wait --json \
+  "$reenact" jobs submit --server "$server" "${coach[@]}" --take "$take_id" "$@" --wait --json \
     > "$out/${name}job.json"
   reenactment_id=$(sed -n 's/.*"reenactment": *"\([^"]*\)".*/\1/p' "$out/${name}job.json" |
     head -n 1)
-  "$reenact" reenactments show "$reenactment_id" --server "$server"
-  "$reenact" export --server "$server" --reenactment "$reenactment_id" --format glb --out "$glb"
-  "$reenact" eval --server "$server" --reenactment "$reenactment_id" --take "$out/source.mcap" \
+  "$reenact" reenactments show "$reenactment_id" --server "$server" "${coach[@]}"
+  "$reenact" export --server "$server" "${coach[@]}" --reenactment "$reenactment_id" \
+    --format glb --out "$glb"
+  "$reenact" eval --server "$server" "${coach[@]}" --reenactment "$reenactment_id" \
+    --take "$out/source.mcap" \
     --every 3 --json > "$out/${name}eval.json"
   cat "$out/${name}eval.json"
   # The novel-view video: reenact-viewer fetches the reenactment and renders a
   # full turn around the teacher, headless (PNG frames and video.mp4).
   rm -rf "$out/${name}novel-view"
-  "$viewer" --server "$server" --reenactment "$reenactment_id" --camera orbit \
+  "$viewer" --server "$server" --token-file "$out/tls/viewer.token" \
+    --reenactment "$reenactment_id" --camera orbit \
     --cache "$out/cache" --render-to "$out/${name}novel-view" --width 960 --height 540
 }
 
@@ -85,7 +107,7 @@ reconstruct "" "$out/reenactment.glb" --method rigid-carved
 # body fitted to the merged point clouds of both sensors, refined, textured
 # into an atlas; one skinned glTF mesh, and the fitted skeleton as BVH.
 reconstruct body- "$out/body.glb" --method body --model procedural
-"$reenact" export --server "$server" --reenactment "$reenactment_id" --format bvh \
+"$reenact" export --server "$server" "${coach[@]}" --reenactment "$reenactment_id" --format bvh \
   --out "$out/body.bvh"
 
 # The magic mirror (thesis 4.5.1). The learner: another body shape, turned
@@ -100,14 +122,16 @@ reconstruct body- "$out/body.glb" --method body --model procedural
   --out "$out/learner-source.mcap" --quiet
 rm -rf "$out/learner-spool"
 "$bin/reenactd" --server "$server" --source "playback:$out/learner-source.mcap" --once \
-  --take-name learner --spool "$out/learner-spool" --control 127.0.0.1:0 \
+  --token-file "$out/tls/capture.token" --take-name learner --spool "$out/learner-spool" --control 127.0.0.1:0 \
   --tracker auto --tracker-refine on
-learner_id=$("$reenact" takes list --server "$server" --json | \
+learner_id=$("$reenact" takes list --server "$server" "${coach[@]}" --json | \
   sed -n 's/.*"take_id": "\([^"]*-learner-[^"]*\)".*/\1/p' | head -n 1)
-"$reenact" takes download "$learner_id" --server "$server" --out "$out/learner.mcap" --quiet
+"$reenact" takes download "$learner_id" --server "$server" "${coach[@]}" \
+  --out "$out/learner.mcap" --quiet
 "$reenact" take skeletons "$out/learner.mcap" --truth "$out/learner-source.mcap"
 rm -rf "$out/mirror" "$out/mirror-report"
-"$bin/reenact-mirror" --server "$server" --teacher "$reenactment_id" --cache "$out/cache" \
+"$bin/reenact-mirror" --server "$server" --token-file "$out/tls/viewer.token" \
+  --teacher "$reenactment_id" --cache "$out/cache" \
   --learner-take "$out/learner.mcap" --dtw --render-to "$out/mirror" \
   --report "$out/mirror-report" --width 960 --height 540
 kill -TERM $server_pid && wait $server_pid || true

@@ -10,6 +10,7 @@
 #include "server/rpc/ingest_service.h"
 #include "server/rpc/jobs_service.h"
 #include "server/rpc/reenactments_service.h"
+#include "server/rpc/rpc_auth.h"
 #include "server/rpc/takes_service.h"
 
 namespace reenact::server {
@@ -46,6 +47,14 @@ absl::Status ServerOptions::Validate() const {
     int port = 0;
     RETURN_IF_ERROR(SplitAddress(listen_address, &host, &port));
   }
+  RETURN_IF_ERROR(tls.Validate());
+  if (!listen_address.empty() && !rpc::IsLoopbackAddress(listen_address) && !insecure &&
+      (!tls.enabled() || auth_file.empty())) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "refusing to listen on ", listen_address,
+        " without TLS and tokens: anyone reaching it could read and delete every take. Give "
+        "--tls-cert, --tls-key and --auth, or --insecure on a network you trust"));
+  }
   TakeStoreOptions store_options = store;
   store_options.data_dir = data_dir;
   RETURN_IF_ERROR(jobs.Validate());
@@ -66,6 +75,15 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   RETURN_IF_ERROR(options.Validate());
   std::unique_ptr<Server> server(new Server());
   server->options_ = options;
+  // Credentials and tokens before anything is opened: a bad file stops the
+  // server with nothing touched.
+  ASSIGN_OR_RETURN(const std::shared_ptr<grpc::ServerCredentials> credentials,
+                   rpc::MakeServerCredentials(options.tls));
+  std::optional<rpc::TokenTable> tokens;
+  if (!options.auth_file.empty()) {
+    ASSIGN_OR_RETURN(tokens, rpc::TokenTable::Load(options.auth_file));
+  }
+  server->auth_ = std::make_unique<rpc::Authorizer>(std::move(tokens), ServerMethodAccess());
   // Workers run in their job's folder: every path handed to them (the take,
   // the output) must not depend on the server's working directory.
   std::error_code error;
@@ -103,6 +121,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   server->context_.jobs = server->jobs_.get();
   server->context_.reenactments = server->reenactments_.get();
   server->context_.live = server->live_.get();
+  if (server->auth_->enabled()) server->context_.auth = server->auth_.get();
   server->services_ = MakeServices(server->context_);
 
   grpc::ServerBuilder builder;
@@ -119,8 +138,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   std::string host;
   if (!options.listen_address.empty()) {
     RETURN_IF_ERROR(SplitAddress(options.listen_address, &host, &port));
-    builder.AddListeningPort(options.listen_address, grpc::InsecureServerCredentials(),
-                             &server->port_);
+    builder.AddListeningPort(options.listen_address, credentials, &server->port_);
   }
   for (const auto& service : server->services_) builder.RegisterService(service.get());
   server->grpc_server_ = builder.BuildAndStart();

@@ -14,6 +14,8 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/base/thread_pool.h"
+#include "common/rpc/auth.h"
+#include "common/rpc/channel.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/jobs/job_store.h"
 #include "server/live/live_hub.h"
@@ -49,8 +51,16 @@ struct ServerOptions {
   // of live jobs; without one, live jobs of recording takes are refused.
   // reenact-server plugs in the body model's (server/live/live_body_follower.h).
   LiveHubOptions live;
+  // TLS for the listening port (common/rpc/channel.h); off when empty.
+  rpc::ServerTlsFiles tls;
+  // Token file (common/rpc/auth.h): every call then needs a token whose
+  // role allows it. Empty: every caller is the anonymous admin.
+  std::string auth_file;
+  // Allows a non-loopback listen address without TLS and tokens.
+  bool insecure = false;
 
-  // InvalidArgument naming the first bad field.
+  // InvalidArgument naming the first bad field; FailedPrecondition for a
+  // non-loopback address without TLS and tokens (unless insecure).
   absl::Status Validate() const;
 };
 
@@ -99,6 +109,7 @@ class Server {
   std::unique_ptr<LiveHub> live_;
   std::unique_ptr<JobScheduler> jobs_;
   std::unique_ptr<ThreadPool> blocking_;
+  std::unique_ptr<rpc::Authorizer> auth_;
   ServerContext context_;
   std::vector<std::unique_ptr<grpc::Service>> services_;
   std::unique_ptr<grpc::Server> grpc_server_;

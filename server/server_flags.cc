@@ -11,8 +11,9 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   ASSIGN_OR_RETURN(const Flags flags,
                    Flags::Parse(args,
                                 {"data", "listen", "max-message-mb", "port-file", "depth-check",
-                                 "jobs", "worker", "max-name-bytes", "max-notes-bytes"},
-                                {"help"}));
+                                 "jobs", "worker", "max-name-bytes", "max-notes-bytes", "tls-cert",
+                                 "tls-key", "tls-client-ca", "auth"},
+                                {"help", "insecure"}));
   ServerCommandLine out;
   if (flags.Has("help")) {
     out.help = true;
@@ -42,6 +43,12 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   if (limits.max_name_bytes < 1 || limits.max_notes_bytes < 0) {
     return absl::InvalidArgumentError("--max-name-bytes must be >= 1 and --max-notes-bytes >= 0");
   }
+  out.options.tls.cert_file = flags.GetOr("tls-cert", "");
+  out.options.tls.key_file = flags.GetOr("tls-key", "");
+  out.options.tls.client_ca_file = flags.GetOr("tls-client-ca", "");
+  RETURN_IF_ERROR(out.options.tls.Validate());
+  out.options.auth_file = flags.GetOr("auth", "");
+  out.options.insecure = flags.Has("insecure");
   ASSIGN_OR_RETURN(out.options.jobs.concurrency, flags.GetInt("jobs", 0));
   if (out.options.jobs.concurrency < 0) {
     return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");

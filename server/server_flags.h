@@ -3,6 +3,8 @@
 //                  [--port-file FILE] [--depth-check decode|header]
 //                  [--jobs N] [--worker PATH]
 //                  [--max-name-bytes N] [--max-notes-bytes N]
+//                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]]
+//                  [--auth TOKENS.json] [--insecure]
 #pragma once
 
 #include <string>
@@ -20,7 +22,10 @@ inline constexpr char kServerUsage[] =
     "[--jobs N (workers at a time; default one per hardware thread)] "
     "[--worker PATH (default reenact-worker beside reenact-server)] "
     "[--max-name-bytes N (a take's name, default 256)] "
-    "[--max-notes-bytes N (a take's notes, default 16384)]";
+    "[--max-notes-bytes N (a take's notes, default 16384)] "
+    "[--tls-cert PEM --tls-key PEM [--tls-client-ca PEM (clients need a certificate it signed)]] "
+    "[--auth TOKENS.json (every call needs a token; see 'reenact auth add')] "
+    "[--insecure (allow a non-loopback address without TLS and tokens)]";
 
 struct ServerCommandLine {
   ServerOptions options;

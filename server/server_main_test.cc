@@ -128,9 +128,26 @@ TEST(ServerMain, UnusableDataFolderExitsWithOne) {
 }
 
 TEST(ServerMain, FlagsParseIntoOptions) {
-  auto parsed = ParseServerCommandLine(
-      {"--data", "/d", "--listen", "0.0.0.0:50051", "--max-message-mb", "8", "--port-file", "/p",
-       "--depth-check", "header", "--max-name-bytes", "64", "--max-notes-bytes", "1000"});
+  auto parsed = ParseServerCommandLine({"--data",
+                                        "/d",
+                                        "--listen",
+                                        "0.0.0.0:50051",
+                                        "--max-message-mb",
+                                        "8",
+                                        "--port-file",
+                                        "/p",
+                                        "--depth-check",
+                                        "header",
+                                        "--max-name-bytes",
+                                        "64",
+                                        "--max-notes-bytes",
+                                        "1000",
+                                        "--tls-cert",
+                                        "/c.pem",
+                                        "--tls-key",
+                                        "/k.pem",
+                                        "--auth",
+                                        "/t.json"});
   ASSERT_TRUE(parsed.ok()) << parsed.status();
   EXPECT_EQ(parsed->options.data_dir, "/d");
   EXPECT_EQ(parsed->options.listen_address, "0.0.0.0:50051");
@@ -139,6 +156,19 @@ TEST(ServerMain, FlagsParseIntoOptions) {
   EXPECT_EQ(parsed->options.store.limits.depth_check, DepthCheck::kHeader);
   EXPECT_EQ(parsed->options.store.limits.max_name_bytes, 64);
   EXPECT_EQ(parsed->options.store.limits.max_notes_bytes, 1000);
+  EXPECT_EQ(parsed->options.tls.cert_file, "/c.pem");
+  EXPECT_EQ(parsed->options.tls.key_file, "/k.pem");
+  EXPECT_EQ(parsed->options.auth_file, "/t.json");
+  EXPECT_FALSE(parsed->options.insecure);
+  // An open port on the network needs TLS and tokens, or --insecure.
+  EXPECT_EQ(ParseServerCommandLine({"--data", "/d", "--listen", "0.0.0.0:50051"}).status().code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_TRUE(
+      ParseServerCommandLine({"--data", "/d", "--listen", "0.0.0.0:50051", "--insecure"}).ok());
+  EXPECT_EQ(ParseServerCommandLine({"--data", "/d", "--listen", "127.0.0.1:1", "--tls-cert", "/c"})
+                .status()
+                .code(),
+            absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(ParseServerCommandLine({"--data", "/d", "--listen", "h:70000"}).status().code(),
             absl::StatusCode::kInvalidArgument);
 }

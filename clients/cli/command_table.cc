@@ -71,6 +71,12 @@ std::vector<Command> BuildCommandTable() {
        "PCK@10cm, per-joint errors, time per frame (--sequence: consecutive frames of one "
        "motion seen by a fixed camera, as in a take; --no-refine: the forest alone)",
        RunTrackerEval},
+      {{"auth", "add"},
+       "--file TOKENS.json --role viewer|capture|coach|admin --name NAME",
+       "mint a random token for reenact-server --auth TOKENS.json (or reenactd --auth): appends "
+       "its SHA-256 with the role and name to the file (made 0600 when new) and prints the token "
+       "once; clients send it with --token-file FILE or REENACT_TOKEN",
+       RunAuthAdd},
       {{"takes", "list"},
        "[--server HOST:PORT] [--state recording|complete|interrupted|all] [--json]",
        "takes stored on a reenact-server, newest first",

@@ -29,6 +29,9 @@ int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::o
 // skeleton_commands.cc
 int RunTakeSkeletons(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// auth_command.cc
+int RunAuthAdd(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 // remote_commands.cc
 int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

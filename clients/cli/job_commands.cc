@@ -219,8 +219,9 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   std::vector<std::string> args = raw_args;
   auto options = TakeOptions(&args);
   if (!options.ok()) return ReportError(options.status(), err);
-  auto flags = Flags::Parse(args, {"server", "timeout", "take", "method", "model"},
-                            {"wait", "json", "logs", "quiet"});
+  auto flags =
+      Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "take", "method", "model"},
+                   {"wait", "json", "logs", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError(
@@ -263,7 +264,8 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
 }
 
 int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "state", "take"}, {"json"});
+  auto flags =
+      Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "state", "take"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("jobs list takes no arguments"), err);
@@ -295,7 +297,7 @@ int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::os
 }
 
 int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "job"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto job_id = JobIdArgument(*flags, "jobs show");
   if (!job_id.ok()) return ReportError(job_id.status(), err);
@@ -330,7 +332,8 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
 }
 
 int RunJobsWatch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json", "logs", "quiet"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "job"},
+                            {"json", "logs", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto job_id = JobIdArgument(*flags, "jobs watch");
   if (!job_id.ok()) return ReportError(job_id.status(), err);
@@ -345,7 +348,7 @@ int RunJobsWatch(const std::vector<std::string>& args, std::ostream& out, std::o
 }
 
 int RunJobsCancel(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "job"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto job_id = JobIdArgument(*flags, "jobs cancel");
   if (!job_id.ok()) return ReportError(job_id.status(), err);

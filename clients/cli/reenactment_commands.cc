@@ -312,7 +312,7 @@ void PrintFollowSummary(const client::FollowStats& stats, bool json, std::ostrea
 
 int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out,
                         std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "take"}, {"json"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "take"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("reenactments list takes no arguments"), err);
@@ -341,7 +341,8 @@ int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out,
 
 int RunReenactmentsShow(const std::vector<std::string>& args, std::ostream& out,
                         std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "reenactment"}, {"json"});
+  auto flags =
+      Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "reenactment"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto id = ReenactmentId(*flags, "reenactments show");
   if (!id.ok()) return ReportError(id.status(), err);
@@ -371,7 +372,7 @@ int RunReenactmentsShow(const std::vector<std::string>& args, std::ostream& out,
 
 int RunReenactmentsDelete(const std::vector<std::string>& args, std::ostream& out,
                           std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "reenactment"}, {});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "reenactment"}, {});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto id = ReenactmentId(*flags, "reenactments delete");
   if (!id.ok()) return ReportError(id.status(), err);
@@ -385,7 +386,7 @@ int RunReenactmentsDelete(const std::vector<std::string>& args, std::ostream& ou
 
 int RunReenactmentsFollow(const std::vector<std::string>& args, std::ostream& out,
                           std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "job"}, {"json"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "job"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto job = flags->Required("job");
   if (!job.ok()) return ReportError(job.status(), err);
@@ -409,8 +410,9 @@ int RunReenactmentsFollow(const std::vector<std::string>& args, std::ostream& ou
 }
 
 int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "reenactment", "in", "format", "out"},
-                            {"no-textures", "quiet", "json"});
+  auto flags = Flags::Parse(
+      args, {"server", "timeout", "tls-ca", "token-file", "reenactment", "in", "format", "out"},
+      {"no-textures", "quiet", "json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto out_path = flags->Required("out");
   if (!out_path.ok()) return ReportError(out_path.status(), err);

@@ -11,8 +11,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "clients/cli/commands.h"
-#include "clients/cli/remote_flags.h"
 #include "clients/cli/progress_bar.h"
+#include "clients/cli/remote_flags.h"
 #include "clients/sdk/takes_client.h"
 #include "common/base/flags.h"
 #include "common/base/time.h"
@@ -20,15 +20,11 @@
 namespace reenact::cli {
 namespace {
 
-
-
-
-
 nlohmann::json TakeJson(const v1::Take& take) {
   nlohmann::json sensors = nlohmann::json::array();
   for (const auto& s : take.sensors()) {
-    nlohmann::json j = {{"sensor_id", s.sensor_id()}, {"model", s.model()},
-                        {"frame_count", s.frame_count()}};
+    nlohmann::json j = {
+        {"sensor_id", s.sensor_id()}, {"model", s.model()}, {"frame_count", s.frame_count()}};
     if (s.lost_stamp_ns() != 0) {
       j["lost_stamp_ns"] = s.lost_stamp_ns();
       j["lost_reason"] = s.lost_reason();
@@ -51,11 +47,10 @@ nlohmann::json TakeJson(const v1::Take& take) {
           {"sensors", sensors}};
 }
 
-
 }  // namespace
 
 int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "state"}, {"json"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "state"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("takes list takes no arguments"), err);
@@ -85,7 +80,7 @@ int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::o
 }
 
 int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout"}, {"json"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("takes show needs exactly one TAKE_ID"), err);
@@ -119,7 +114,7 @@ int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::o
 }
 
 int RunTakesDownload(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "out"}, {"quiet"});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "out"}, {"quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto out_path = flags->Required("out");
   if (!out_path.ok()) return ReportError(out_path.status(), err);
@@ -139,7 +134,7 @@ int RunTakesDownload(const std::vector<std::string>& args, std::ostream& out, st
 }
 
 int RunTakesDelete(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout"}, {});
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file"}, {});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("takes delete needs exactly one TAKE_ID"), err);
@@ -167,7 +162,7 @@ nlohmann::json SensorJson(const v1::SensorInfo& s) {
 }
 
 int RunCaptureSensors(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"daemon", "timeout"}, {"json"});
+  auto flags = Flags::Parse(args, {"daemon", "timeout", "tls-ca", "token-file"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
@@ -190,7 +185,7 @@ int RunCaptureSensors(const std::vector<std::string>& args, std::ostream& out, s
 }
 
 int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"daemon", "timeout"}, {"json"});
+  auto flags = Flags::Parse(args, {"daemon", "timeout", "tls-ca", "token-file"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
@@ -250,7 +245,8 @@ int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, st
 }
 
 int RunCaptureStart(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"daemon", "timeout", "name", "notes", "max-seconds"}, {});
+  auto flags = Flags::Parse(
+      args, {"daemon", "timeout", "tls-ca", "token-file", "name", "notes", "max-seconds"}, {});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
@@ -267,14 +263,13 @@ int RunCaptureStart(const std::vector<std::string>& args, std::ostream& out, std
 }
 
 int RunCaptureStop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"daemon", "timeout"}, {});
+  auto flags = Flags::Parse(args, {"daemon", "timeout", "tls-ca", "token-file"}, {});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto connection = ConnectionFromFlags(*flags, "daemon", kDefaultDaemon);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto stopped = client::CaptureClient(*connection).StopTake();
   if (!stopped.ok()) return ReportRemoteError(stopped.status(), err);
-  out << "stopped " << stopped->take_id() << " (" << stopped->frame_set_count()
-      << " frame sets)\n";
+  out << "stopped " << stopped->take_id() << " (" << stopped->frame_set_count() << " frame sets)\n";
   return kExitOk;
 }
 

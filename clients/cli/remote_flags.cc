@@ -7,6 +7,7 @@
 #include "absl/strings/str_format.h"
 #include "clients/cli/command.h"
 #include "common/base/time.h"
+#include "common/rpc/channel.h"
 
 namespace reenact::cli {
 
@@ -22,11 +23,16 @@ absl::StatusOr<client::ConnectionOptions> ConnectionFromFlags(const Flags& flags
     return absl::InvalidArgumentError("--timeout must be > 0 seconds");
   }
   options.timeout_s = *timeout;
+  auto security = rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""), flags.GetOr("token-file", ""));
+  if (!security.ok()) return security.status();
+  options.security = *std::move(security);
   return options;
 }
 
 int ReportRemoteError(const absl::Status& status, std::ostream& err) {
-  ReportError(status, err);
+  // The status name first: UNAUTHENTICATED and PERMISSION_DENIED tell a user
+  // to look at their token, whatever the message says.
+  err << "reenact: " << absl::StatusCodeToString(status.code()) << ": " << status.message() << "\n";
   return kExitFailure;
 }
 

@@ -144,8 +144,8 @@ void PrintFigures(const view::EvaluationResult& result, const ReenactmentData& d
 
 int RunRender(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(args,
-                            {"server", "timeout", "reenactment", "in", "camera", "out", "width",
-                             "height", "frames", "mode"},
+                            {"server", "timeout", "tls-ca", "token-file", "reenactment", "in",
+                             "camera", "out", "width", "height", "frames", "mode"},
                             {"quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
@@ -167,9 +167,10 @@ int RunRender(const std::vector<std::string>& args, std::ostream& out, std::ostr
 }
 
 int RunEval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(
-      args, {"server", "timeout", "reenactment", "in", "take", "every", "mode", "images", "angle"},
-      {"json", "quiet"});
+  auto flags = Flags::Parse(args,
+                            {"server", "timeout", "tls-ca", "token-file", "reenactment", "in",
+                             "take", "every", "mode", "images", "angle"},
+                            {"json", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("eval takes no positional arguments"), err);

@@ -17,6 +17,7 @@
 #include "clients/sdk/reenactment_source.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
+#include "common/rpc/channel.h"
 
 namespace reenact::mirror {
 
@@ -24,6 +25,8 @@ const char kMirrorUsage[] =
     "usage: reenact-mirror (--teacher ID --server HOST:PORT [--cache DIR]\n"
     "                       | --teacher-file FILE.reen|DIR [--teacher ID])\n"
     "                      (--learner-take FILE.mcap | --daemon HOST:PORT) [--sensor ID]\n"
+    "                      [--tls-ca PEM] [--token-file FILE] (server and daemon; else\n"
+    "                       $REENACT_TLS_CA, $REENACT_TOKEN)\n"
     "                      [--layout side|ghost] [--ghost-alpha A] [--width W] [--height H]\n"
     "                      [--render-to DIR [--every N] [--no-mp4]] [--report DIR]\n"
     "                      [--repetitions N] [--hold-s S] [--tolerance-deg D]\n"
@@ -146,9 +149,13 @@ absl::StatusOr<ReenactmentData> LoadTeacher(const Flags& flags, std::ostream& er
   if (flags.Has("teacher-file")) {
     ASSIGN_OR_RETURN(source, client::OpenReenactmentSource(*flags.Get("teacher-file")));
   } else {
-    ASSIGN_OR_RETURN(source, client::OpenReenactmentSource(
-                                 absl::StrCat("grpc:", *flags.Get("server")),
-                                 flags.GetOr("cache", client::DefaultReenactmentCacheDir())));
+    ASSIGN_OR_RETURN(
+        const rpc::ClientSecurity security,
+        rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""), flags.GetOr("token-file", "")));
+    ASSIGN_OR_RETURN(source,
+                     client::OpenReenactmentSource(
+                         absl::StrCat("grpc:", *flags.Get("server")),
+                         flags.GetOr("cache", client::DefaultReenactmentCacheDir()), security));
   }
   std::string id = flags.GetOr("teacher", "");
   if (id.empty()) {
@@ -168,6 +175,9 @@ absl::StatusOr<std::unique_ptr<LearnerSource>> OpenLearner(const Flags& flags) {
   if (flags.Has("learner-take")) return OpenTakeLearner(*flags.Get("learner-take"), sensor);
   DaemonFeedOptions options;
   options.connection.address = *flags.Get("daemon");
+  ASSIGN_OR_RETURN(
+      options.connection.security,
+      rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""), flags.GetOr("token-file", "")));
   ASSIGN_OR_RETURN(std::unique_ptr<LiveFrameFeed> feed, NewDaemonFrameFeed(options));
   return OpenLiveLearner(std::move(feed), sensor);
 }
@@ -278,7 +288,8 @@ std::set<std::string> ValueFlags() {
       "teacher", "server",    "cache",       "teacher-file", "learner-take",  "daemon",
       "sensor",  "layout",    "ghost-alpha", "width",        "height",        "render-to",
       "every",   "report",    "repetitions", "hold-s",       "tolerance-deg", "speed",
-      "seconds", "challenge", "views",       "mode",         "msaa",          "facing-smoothing-s"};
+      "seconds", "challenge", "views",       "mode",         "msaa",          "facing-smoothing-s",
+      "tls-ca",  "token-file"};
 }
 
 std::set<std::string> BoolFlags() {

@@ -161,11 +161,12 @@ absl::StatusOr<std::unique_ptr<ReenactmentSource>> NewLocalSource(const std::str
 }
 
 absl::StatusOr<std::unique_ptr<ReenactmentSource>> OpenReenactmentSource(
-    const std::string& spec, const std::string& cache_dir) {
+    const std::string& spec, const std::string& cache_dir, const rpc::ClientSecurity& security) {
   constexpr std::string_view kGrpc = "grpc:";
   if (spec.rfind(kGrpc, 0) == 0) {
     RemoteSourceOptions options;
     options.connection.address = spec.substr(kGrpc.size());
+    options.connection.security = security;
     if (options.connection.address.empty()) {
       return absl::InvalidArgumentError("grpc: needs HOST:PORT");
     }

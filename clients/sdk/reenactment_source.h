@@ -56,7 +56,8 @@ absl::StatusOr<std::unique_ptr<ReenactmentSource>> NewLocalSource(const std::str
 
 // "grpc:HOST:PORT" (remote, cached in `cache_dir`) or a path (local).
 absl::StatusOr<std::unique_ptr<ReenactmentSource>> OpenReenactmentSource(
-    const std::string& spec, const std::string& cache_dir = "");
+    const std::string& spec, const std::string& cache_dir = "",
+    const rpc::ClientSecurity& security = {});
 
 // The default cache folder: $XDG_CACHE_HOME/reenact, else
 // $HOME/.cache/reenact, else a folder under the system's temp folder.

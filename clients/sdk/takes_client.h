@@ -15,6 +15,7 @@
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
+#include "common/rpc/channel.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
 #include "reenact/v1/takes_service.grpc.pb.h"
 
@@ -27,9 +28,12 @@ struct ConnectionOptions {
   double timeout_s = 10.0;
   // Largest message accepted, bytes.
   int max_message_bytes = 64 << 20;
+  // TLS trust and the bearer token (common/rpc/channel.h); none by default.
+  rpc::ClientSecurity security;
 };
 
-// An insecure channel (loopback and trusted studio networks).
+// A channel with `options.security`: TLS when it holds a CA, the token on
+// every call when it holds one.
 std::shared_ptr<grpc::Channel> MakeChannel(const ConnectionOptions& options);
 
 class TakesClient {

@@ -17,11 +17,14 @@
 #include "clients/viewer/viewer_app.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
+#include "common/rpc/channel.h"
 
 namespace reenact::viewer {
 
 const char kViewerUsage[] =
     "usage: reenact-viewer (--server HOST:PORT | --in FILE.reen|DIR) [--reenactment ID]\n"
+    "                      [--tls-ca PEM] [--token-file FILE] (else $REENACT_TLS_CA,\n"
+    "                       $REENACT_TOKEN)\n"
     "                      [--cache DIR] [--list]\n"
     "                      [--render-to DIR [--camera orbit|orbit:DEG|sensor:N|path:FILE]\n"
     "                       [--frames A:B] [--alpha] [--no-mp4] [--fps F]]\n"
@@ -57,8 +60,11 @@ absl::StatusOr<std::unique_ptr<client::ReenactmentSource>> OpenSource(const Flag
     return absl::InvalidArgumentError("give one of --server HOST:PORT or --in FILE|DIR");
   }
   if (flags.Has("in")) return client::OpenReenactmentSource(*flags.Get("in"));
+  auto security = rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""), flags.GetOr("token-file", ""));
+  if (!security.ok()) return security.status();
   return client::OpenReenactmentSource(absl::StrCat("grpc:", *flags.Get("server")),
-                                       flags.GetOr("cache", client::DefaultReenactmentCacheDir()));
+                                       flags.GetOr("cache", client::DefaultReenactmentCacheDir()),
+                                       *security);
 }
 
 // The reenactment to show: --reenactment ID, or the source's only one.
@@ -251,9 +257,9 @@ absl::StatusOr<std::pair<int, int>> ParseFrameRange(const std::string& text, int
 
 int RunViewer(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   absl::StatusOr<Flags> flags = Flags::Parse(
-      args,
-      {"server", "in", "reenactment", "cache", "render-to", "camera", "frames", "fps", "width",
-       "height", "mode", "speed", "seconds", "ar", "intrinsics", "fov", "board", "max-frames"},
+      args, {"server",     "in",    "reenactment", "cache",      "render-to", "camera",    "frames",
+             "fps",        "width", "height",      "mode",       "speed",     "seconds",   "ar",
+             "intrinsics", "fov",   "board",       "max-frames", "tls-ca",    "token-file"},
       {"list", "alpha", "no-mp4", "no-loop", "json", "help"});
   if (!flags.ok()) return Fail(flags.status(), err);
   if (flags->Has("help")) {

@@ -52,10 +52,11 @@ PRAGMA user_version = 1;
 
   auto catalog = OpenCatalog(path);
   ASSERT_NE(catalog, nullptr);
-  EXPECT_EQ(*catalog->SchemaVersion(), 2);
+  EXPECT_EQ(*catalog->SchemaVersion(), Catalog::kSchemaVersion);
   auto take = catalog->Get("old");
   ASSERT_TRUE(take.ok()) << take.status();
   EXPECT_EQ(take->take.size_bytes(), 99);
+  EXPECT_EQ(take->owner, "");  // Takes from before tokens belong to the anonymous caller.
   auto jobs = catalog->ListJobs();
   ASSERT_TRUE(jobs.ok()) << jobs.status();
   EXPECT_TRUE(jobs->empty());

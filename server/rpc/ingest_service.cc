@@ -13,6 +13,7 @@
 #include "common/base/time.h"
 #include "proto/grpc_status.h"
 #include "server/live/live_hub.h"
+#include "server/rpc/rpc_auth.h"
 #include "server/store/frame_set_validation.h"
 
 namespace reenact::server {
@@ -39,7 +40,10 @@ v1::IngestResponse Closed(const v1::Take& take) {
 // called OnFinished, so the recorder never calls a deleted reactor.
 class IngestStream final : public Reactor, public RecorderObserver {
  public:
-  explicit IngestStream(ServerContext& context) : context_(context) { ReadNext(); }
+  IngestStream(ServerContext& context, rpc::Principal principal)
+      : context_(context), principal_(std::move(principal)) {
+    ReadNext();
+  }
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -74,6 +78,8 @@ class IngestStream final : public Reactor, public RecorderObserver {
   std::pair<Phase, std::shared_ptr<TakeRecorder>> PhaseFor(std::string_view what);
 
   ServerContext& context_;
+  // Who opened the stream: the take it creates is theirs.
+  const rpc::Principal principal_;
   v1::IngestRequest request_;  // Target of the one outstanding read.
 
   std::mutex mu_;
@@ -148,10 +154,9 @@ void IngestStream::HandleOpen(const v1::OpenTake& open) {
     Fail(absl::FailedPreconditionError("OpenTake sent twice on one stream"));
     return;
   }
-  TakeOpenRequest request{open.take_id(),
-                          open.info(),
-                          {open.sensors().begin(), open.sensors().end()},
-                          open.daemon_id()};
+  TakeOpenRequest request{
+      open.take_id(),   open.info(),     {open.sensors().begin(), open.sensors().end()},
+      open.daemon_id(), principal_.name, principal_.admin()};
   context_.blocking->Schedule(
       [this, request = std::move(request)] { OpenDone(context_.takes->OpenTake(request, this)); });
 }
@@ -424,7 +429,11 @@ void IngestStream::OnWriteDone(bool ok) {
 
 grpc::ServerBidiReactor<v1::IngestRequest, v1::IngestResponse>* IngestService::Ingest(
     grpc::CallbackServerContext* rpc) {
-  return new IngestStream(context_);
+  auto who = Authorize(context_, *rpc, "/reenact.v1.Ingest/Ingest");
+  if (!who.ok()) {
+    return new RefusedBidi<v1::IngestRequest, v1::IngestResponse>(ToGrpcStatus(who.status()));
+  }
+  return new IngestStream(context_, *std::move(who));
 }
 
 }  // namespace reenact::server

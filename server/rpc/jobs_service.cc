@@ -10,6 +10,7 @@
 #include "proto/grpc_status.h"
 #include "proto/write_pump.h"
 #include "server/jobs/job_scheduler.h"
+#include "server/rpc/rpc_auth.h"
 
 namespace reenact::server {
 namespace {
@@ -102,6 +103,7 @@ absl::Status GetJob(ServerContext& context, const v1::GetJobRequest& request, v1
 grpc::ServerUnaryReactor* JobsService::Submit(grpc::CallbackServerContext* rpc,
                                               const v1::SubmitJobRequest* request,
                                               v1::Job* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/Submit")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   // Storing the job commits (fsync) to the catalog: off gRPC's threads.
   context_.blocking->Schedule([this, reactor, request, response] {
@@ -112,12 +114,16 @@ grpc::ServerUnaryReactor* JobsService::Submit(grpc::CallbackServerContext* rpc,
 
 grpc::ServerWriteReactor<v1::JobEvent>* JobsService::Watch(grpc::CallbackServerContext* rpc,
                                                            const v1::WatchJobRequest* request) {
+  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Jobs/Watch"); !who.ok()) {
+    return new RefusedWriter<v1::JobEvent>(ToGrpcStatus(who.status()));
+  }
   return new WatchStream(context_, *request);
 }
 
 grpc::ServerUnaryReactor* JobsService::Cancel(grpc::CallbackServerContext* rpc,
                                               const v1::CancelJobRequest* request,
                                               v1::Job* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/Cancel")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   context_.blocking->Schedule([this, reactor, request, response] {
     const absl::StatusOr<v1::Job> job = context_.jobs->Cancel(request->job_id());
@@ -143,6 +149,7 @@ grpc::ServerUnaryReactor* JobsService::Cancel(grpc::CallbackServerContext* rpc,
 grpc::ServerUnaryReactor* JobsService::List(grpc::CallbackServerContext* rpc,
                                             const v1::ListJobsRequest* request,
                                             v1::ListJobsResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/List")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(ListJobs(context_, *request, response)));
   return reactor;
@@ -150,6 +157,7 @@ grpc::ServerUnaryReactor* JobsService::List(grpc::CallbackServerContext* rpc,
 
 grpc::ServerUnaryReactor* JobsService::Get(grpc::CallbackServerContext* rpc,
                                            const v1::GetJobRequest* request, v1::Job* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/Get")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(GetJob(context_, *request, response)));
   return reactor;

@@ -14,6 +14,7 @@
 #include "common/io/reenactment_file.h"
 #include "proto/grpc_status.h"
 #include "server/rpc/follow_stream.h"
+#include "server/rpc/rpc_auth.h"
 #include "server/store/reenactment_store.h"
 
 namespace reenact::server {
@@ -241,6 +242,8 @@ absl::Status DeleteReenactment(ServerContext& context, const v1::DeleteReenactme
 grpc::ServerUnaryReactor* ReenactmentsService::List(grpc::CallbackServerContext* rpc,
                                                     const v1::ListReenactmentsRequest* request,
                                                     v1::ListReenactmentsResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Reenactments/List"))
+    return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(ListReenactments(context_, *request, response)));
   return reactor;
@@ -249,6 +252,8 @@ grpc::ServerUnaryReactor* ReenactmentsService::List(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* ReenactmentsService::Get(grpc::CallbackServerContext* rpc,
                                                    const v1::GetReenactmentRequest* request,
                                                    v1::ReenactmentSummary* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Reenactments/Get"))
+    return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(GetReenactment(context_, *request, response)));
   return reactor;
@@ -256,17 +261,25 @@ grpc::ServerUnaryReactor* ReenactmentsService::Get(grpc::CallbackServerContext* 
 
 grpc::ServerWriteReactor<v1::FetchReenactmentChunk>* ReenactmentsService::Fetch(
     grpc::CallbackServerContext* rpc, const v1::FetchReenactmentRequest* request) {
+  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Reenactments/Fetch"); !who.ok()) {
+    return new RefusedWriter<v1::FetchReenactmentChunk>(ToGrpcStatus(who.status()));
+  }
   return new FetchStream(context_, *request);
 }
 
 grpc::ServerWriteReactor<v1::FollowEvent>* ReenactmentsService::Follow(
     grpc::CallbackServerContext* rpc, const v1::FollowRequest* request) {
+  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Reenactments/Follow"); !who.ok()) {
+    return new RefusedWriter<v1::FollowEvent>(ToGrpcStatus(who.status()));
+  }
   return NewFollowStream(context_, *request);
 }
 
 grpc::ServerUnaryReactor* ReenactmentsService::Delete(grpc::CallbackServerContext* rpc,
                                                       const v1::DeleteReenactmentRequest* request,
                                                       v1::DeleteReenactmentResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Reenactments/Delete"))
+    return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(DeleteReenactment(context_, *request, response)));
   return reactor;

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "common/base/thread_pool.h"
+#include "common/rpc/auth.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
@@ -33,6 +34,9 @@ struct ServerContext {
   // Follows recording takes for live jobs (Ingest feeds it, Follow
   // subscribes); null: no live preview.
   LiveHub* live = nullptr;
+  // Who may call what (server/rpc/rpc_auth.h); null: everyone, as the
+  // anonymous admin.
+  const rpc::Authorizer* auth = nullptr;
 };
 
 }  // namespace reenact::server

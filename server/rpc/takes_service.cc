@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
+#include "server/rpc/rpc_auth.h"
 #include "server/store/frame_set_validation.h"
 
 namespace reenact::server {
@@ -132,6 +133,7 @@ absl::Status DeleteTake(ServerContext& context, const v1::DeleteTakeRequest& req
 grpc::ServerUnaryReactor* TakesService::List(grpc::CallbackServerContext* rpc,
                                              const v1::ListTakesRequest* request,
                                              v1::ListTakesResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Takes/List")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(ListTakes(context_, *request, response)));
   return reactor;
@@ -139,6 +141,7 @@ grpc::ServerUnaryReactor* TakesService::List(grpc::CallbackServerContext* rpc,
 
 grpc::ServerUnaryReactor* TakesService::Get(grpc::CallbackServerContext* rpc,
                                             const v1::GetTakeRequest* request, v1::Take* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Takes/Get")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(GetTake(context_, *request, response)));
   return reactor;
@@ -147,6 +150,8 @@ grpc::ServerUnaryReactor* TakesService::Get(grpc::CallbackServerContext* rpc,
 grpc::ServerUnaryReactor* TakesService::Delete(grpc::CallbackServerContext* rpc,
                                                const v1::DeleteTakeRequest* request,
                                                v1::DeleteTakeResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Takes/Delete"))
+    return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(DeleteTake(context_, *request, response)));
   return reactor;
@@ -154,6 +159,9 @@ grpc::ServerUnaryReactor* TakesService::Delete(grpc::CallbackServerContext* rpc,
 
 grpc::ServerWriteReactor<v1::TakeFileChunk>* TakesService::Download(
     grpc::CallbackServerContext* rpc, const v1::DownloadTakeRequest* request) {
+  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Takes/Download"); !who.ok()) {
+    return new RefusedWriter<v1::TakeFileChunk>(ToGrpcStatus(who.status()));
+  }
   return new DownloadStream(context_, *request);
 }
 

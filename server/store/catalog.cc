@@ -68,6 +68,11 @@ CREATE TABLE jobs (
 CREATE INDEX jobs_by_submitted ON jobs (submitted_unix_ns);
 CREATE INDEX jobs_by_state ON jobs (state);
 )sql",
+    // Version 3: the credential that created a take (common/rpc/auth.h);
+    // takes from before tokens belong to the anonymous caller.
+    R"sql(
+ALTER TABLE takes ADD COLUMN owner TEXT NOT NULL DEFAULT '';
+)sql",
 };
 static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 
@@ -154,7 +159,7 @@ class Statement {
 constexpr const char* kTakeColumns =
     "take_id, name, state, daemon_id, created_unix_ns, updated_unix_ns, durable_sequence, "
     "frame_set_count, first_stamp_ns, last_stamp_ns, duration_ns, size_bytes, path, generator, "
-    "synthetic, fps";
+    "synthetic, fps, owner";
 
 TakeRow RowFromStatement(const Statement& s) {
   TakeRow row;
@@ -175,6 +180,7 @@ TakeRow RowFromStatement(const Statement& s) {
   t.set_generator(s.Text(13));
   t.set_synthetic(s.Int(14) != 0);
   t.set_fps(s.Double(15));
+  row.owner = s.Text(16);
   return row;
 }
 
@@ -324,7 +330,7 @@ absl::Status Catalog::Put(const TakeRow& row) {
   {
     Statement s(db_, absl::StrCat("INSERT OR REPLACE INTO takes (", kTakeColumns,
                                   ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
-                                  "?13, ?14, ?15, ?16)"));
+                                  "?13, ?14, ?15, ?16, ?17)"));
     s.Bind(1, t.take_id())
         .Bind(2, t.name())
         .Bind(3, TakeStateName(t.state()))
@@ -340,7 +346,8 @@ absl::Status Catalog::Put(const TakeRow& row) {
         .Bind(13, row.path)
         .Bind(14, t.generator())
         .Bind(15, int64_t{t.synthetic() ? 1 : 0})
-        .Bind(16, t.fps());
+        .Bind(16, t.fps())
+        .Bind(17, row.owner);
     s.Step();
     if (!s.ok()) return fail("storing take " + t.take_id());
   }

@@ -47,6 +47,8 @@ struct TakeRow {
   // while there are none).
   int64_t first_stamp_ns = 0;
   int64_t last_stamp_ns = 0;
+  // The credential that created the take (TakeOpenRequest::owner).
+  std::string owner;
 };
 
 // "recording", "complete", "interrupted" (the catalog's spelling of a state).
@@ -57,7 +59,7 @@ std::string_view JobStateName(v1::JobState state);
 
 class Catalog {
  public:
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   // Opens (creating when missing) the catalog at `path` and brings its schema
   // to kSchemaVersion. Unavailable when the file cannot be opened or WAL mode

@@ -191,7 +191,14 @@ absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& reques
     std::lock_guard<std::mutex> lock(mu_);
     if (shutting_down_) return absl::UnavailableError("the server is shutting down");
     if (const auto active = recording_.find(id); active != recording_.end()) {
-      const std::string owner = active->second->Snapshot().take.daemon_id();
+      const TakeRow snapshot = active->second->Snapshot();
+      const std::string& owner = snapshot.take.daemon_id();
+      if (!request.owner_is_admin && snapshot.owner != request.owner) {
+        return absl::PermissionDeniedError(
+            absl::StrCat("take ", id,
+                         " belongs to another credential; only it or an admin may "
+                         "add to it"));
+      }
       if (owner != request.daemon_id) {
         return absl::PermissionDeniedError(absl::StrCat(
             "take ", id, " is being recorded by daemon \"", owner, "\"; only it may add to it"));
@@ -208,6 +215,10 @@ absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& reques
     absl::StatusOr<TakeRow> row = catalog_->Get(id);
     if (absl::IsNotFound(row.status())) return CreateTake(request, observer);
     if (!row.ok()) return row.status();
+    if (!request.owner_is_admin && row->owner != request.owner) {
+      return absl::PermissionDeniedError(absl::StrCat(
+          "take ", id, " belongs to another credential; only it or an admin may resume it"));
+    }
     if (row->take.daemon_id() != request.daemon_id) {
       return absl::PermissionDeniedError(absl::StrCat("take ", id, " was recorded by daemon \"",
                                                       row->take.daemon_id(),
@@ -259,6 +270,7 @@ absl::StatusOr<TakeOpenResult> TakeStore::CreateTake(const TakeOpenRequest& requ
   t.set_synthetic(request.info.synthetic());
   t.set_fps(request.info.fps());
   t.set_daemon_id(request.daemon_id);
+  row.owner = request.owner;
   for (const v1::SensorCalibration& sensor : request.sensors) {
     v1::TakeSensor* s = t.add_sensors();
     s->set_sensor_id(sensor.sensor_id());

@@ -77,6 +77,11 @@ struct TakeOpenRequest {
   v1::TakeInfo info;
   std::vector<v1::SensorCalibration> sensors;
   std::string daemon_id;
+  // The credential opening the take (common/rpc/auth.h; empty without
+  // tokens). A new take is bound to it; only it, or an admin, may resume
+  // or add to the take.
+  std::string owner;
+  bool owner_is_admin = false;
 };
 
 // OpenTake's answer.

@@ -1,0 +1,75 @@
+// Transport security shared by every Reenact server and client: TLS
+// credentials from PEM files, and the bearer token clients attach to each
+// call (common/rpc/auth.h checks it).
+//
+// Servers: --tls-cert PEM --tls-key PEM [--tls-client-ca PEM] (with a client
+// CA, clients must present a certificate it signed). Clients: --tls-ca PEM
+// (or REENACT_TLS_CA) to trust the server's certificate, and --token-file
+// FILE (or REENACT_TOKEN, the token itself).
+#pragma once
+
+#include <memory>
+#include <string>
+#include "absl/strings/string_view.h"
+
+#include <grpcpp/channel.h>
+#include <grpcpp/security/credentials.h>
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/support/channel_arguments.h>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace reenact::rpc {
+
+struct ServerTlsFiles {
+  std::string cert_file;
+  std::string key_file;
+  // Optional: require client certificates signed by this CA.
+  std::string client_ca_file;
+
+  bool enabled() const { return !cert_file.empty(); }
+  // InvalidArgument: a key without a certificate or the reverse, or a client
+  // CA without both.
+  absl::Status Validate() const;
+};
+
+// TLS credentials from the files (insecure ones when `files` is not
+// enabled). InvalidArgument naming a file that cannot be read or holds no
+// PEM block; the private key's contents are never echoed.
+absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeServerCredentials(
+    const ServerTlsFiles& files);
+
+// True for addresses only this machine reaches: 127.0.0.0/8, [::1],
+// localhost, unix sockets.
+bool IsLoopbackAddress(absl::string_view host_port);
+
+// How a client reaches a server.
+struct ClientSecurity {
+  // PEM of the CA that signed the server's certificate; empty: no TLS.
+  std::string ca_pem;
+  // The bearer token; empty: none is sent.
+  std::string token;
+  // Optional PEM of a client certificate and its key (servers started with
+  // --tls-client-ca).
+  std::string cert_pem;
+  std::string key_pem;
+};
+
+// From the flags' values, each falling back to its environment variable:
+// `tls_ca_file` else $REENACT_TLS_CA, `token_file` else $REENACT_TOKEN (the
+// token itself), `cert_file`/`key_file` else $REENACT_TLS_CERT and
+// $REENACT_TLS_KEY. InvalidArgument naming a file that cannot be read, is
+// not PEM, or a token file that is empty or holds more than one line.
+absl::StatusOr<ClientSecurity> LoadClientSecurity(absl::string_view tls_ca_file,
+                                                  absl::string_view token_file,
+                                                  absl::string_view cert_file = {},
+                                                  absl::string_view key_file = {});
+
+// A channel to `address` with `args`: TLS when security.ca_pem is set, and
+// the token on every call when security.token is set.
+std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
+                                                 const grpc::ChannelArguments& args,
+                                                 const ClientSecurity& security);
+
+}  // namespace reenact::rpc

@@ -1,0 +1,57 @@
+// The access each reenact-server RPC needs (common/rpc/auth.h), and the
+// helpers handlers use to refuse a call before doing anything for it.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "common/rpc/auth.h"
+#include "proto/grpc_status.h"
+#include "server/rpc/server_context.h"
+
+namespace reenact::server {
+
+// "/reenact.v1.Takes/List" -> the accesses that allow it:
+//   read (viewer, coach, admin): every List, Get, Download, Fetch, Follow,
+//     Watch;
+//   ingest (capture, admin): Ingest;
+//   manage (coach, admin): Jobs.Submit, Jobs.Cancel, Takes.Delete,
+//     Reenactments.Delete.
+const rpc::Authorizer::MethodTable& ServerMethodAccess();
+
+// The caller of `method` (the anonymous admin when the server has no
+// tokens), or the refusal.
+absl::StatusOr<rpc::Principal> Authorize(const ServerContext& context,
+                                         const grpc::CallbackServerContext& rpc,
+                                         absl::string_view method);
+
+// A server-streaming reactor that ends at once with `status`.
+template <typename T>
+class RefusedWriter final : public grpc::ServerWriteReactor<T> {
+ public:
+  explicit RefusedWriter(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+// A bidirectional reactor that ends at once with `status`.
+template <typename Request, typename Response>
+class RefusedBidi final : public grpc::ServerBidiReactor<Request, Response> {
+ public:
+  explicit RefusedBidi(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+// In a unary handler: finishes the call with the refusal and returns its
+// reactor, or returns null when the call may go on.
+inline grpc::ServerUnaryReactor* RefuseUnlessAllowed(const ServerContext& context,
+                                                     grpc::CallbackServerContext* rpc,
+                                                     absl::string_view method) {
+  const absl::StatusOr<rpc::Principal> who = Authorize(context, *rpc, method);
+  if (who.ok()) return nullptr;
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  reactor->Finish(ToGrpcStatus(who.status()));
+  return reactor;
+}
+
+}  // namespace reenact::server

@@ -21,8 +21,10 @@
 // metres_per_unit = 0.0254 / k (CMU: k = 0.45 -> 0.05644 m). AMC files do not
 // state their frame rate; AsfAmcOptions gives it (CMU: 120 fps).
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -40,6 +42,9 @@ namespace reenact::body {
 namespace {
 
 constexpr double kMetresPerInch = 0.0254;
+// Deepest bone nesting accepted (guards the recursive skeleton walk; CMU
+// skeletons are 8 bones deep).
+constexpr int kMaxDepth = 256;
 
 enum class Dof { kTx, kTy, kTz, kRx, kRy, kRz };
 
@@ -328,17 +333,21 @@ class AsfParser {
 struct JointLayout {
   std::vector<MotionJoint> joints;
   std::vector<const AsfBone*> bones;
+  std::set<std::string> added;  // Bones placed so far.
 };
 
 absl::Status AddBone(const AsfSkeleton& skeleton, const std::string& name, int parent,
-                     const Eigen::Vector3d& offset_m, double metres_per_unit,
+                     const Eigen::Vector3d& offset_m, double metres_per_unit, int depth,
                      const std::string& asf_path, JointLayout& layout) {
   const AsfBone& bone = skeleton.bones.at(name);
-  for (const MotionJoint& j : layout.joints) {
-    if (j.name == name) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(asf_path, ": bone '", name, "' appears twice in :hierarchy"));
-    }
+  if (!layout.added.insert(name).second) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(asf_path, ": bone '", name, "' appears twice in :hierarchy"));
+  }
+  if (depth > kMaxDepth) {
+    return absl::InvalidArgumentError(absl::StrCat(asf_path, ":", bone.line, ": bone '", name,
+                                                   "' is nested more than ", kMaxDepth,
+                                                   " bones deep in :hierarchy"));
   }
   const int index = static_cast<int>(layout.joints.size());
   layout.joints.push_back({name, parent, offset_m});
@@ -352,7 +361,8 @@ absl::Status AddBone(const AsfSkeleton& skeleton, const std::string& name, int p
     layout.bones.push_back(nullptr);
   }
   for (const std::string& child : bone.children) {
-    RETURN_IF_ERROR(AddBone(skeleton, child, index, end_m, metres_per_unit, asf_path, layout));
+    RETURN_IF_ERROR(
+        AddBone(skeleton, child, index, end_m, metres_per_unit, depth + 1, asf_path, layout));
   }
   return absl::OkStatus();
 }
@@ -414,7 +424,8 @@ class AmcParser {
       int number = 0;
       if (words.size() == 1 && absl::SimpleAtoi(words[0], &number)) {
         if (!frames_.rotations.empty()) RETURN_IF_ERROR(CheckComplete(frame_line));
-        if (!frames_.rotations.empty() && number != first_number_ + NumFrames()) {
+        // In 64 bits: a first frame numbered near INT_MAX must not overflow.
+        if (!frames_.rotations.empty() && number != int64_t{first_number_} + NumFrames()) {
           return error_(line, absl::StrCat("frame number ", number, " out of sequence"));
         }
         if (frames_.rotations.empty()) first_number_ = number;
@@ -446,9 +457,9 @@ class AmcParser {
     for (size_t j = 0; j < layout_.joints.size(); ++j) {
       const bool needs_values = j == 0 || (layout_.bones[j] && !layout_.bones[j]->dofs.empty());
       if (needs_values && !seen_[j]) {
-        return error_(frame_line,
-                      absl::StrCat("frame ", first_number_ + NumFrames() - 1, " lacks bone '",
-                                   layout_.joints[j].name, "' (truncated or incomplete frame)"));
+        return error_(frame_line, absl::StrCat("frame ", int64_t{first_number_} + NumFrames() - 1,
+                                               " lacks bone '", layout_.joints[j].name,
+                                               "' (truncated or incomplete frame)"));
       }
     }
     return absl::OkStatus();
@@ -534,7 +545,7 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
   layout.bones.push_back(nullptr);
   for (const std::string& child : skeleton.root_children) {
     RETURN_IF_ERROR(AddBone(skeleton, child, 0, Eigen::Vector3d::Zero(), info.metres_per_unit,
-                            asf_path, layout));
+                            /*depth=*/1, asf_path, layout));
   }
 
   std::vector<std::string> names;

@@ -1,6 +1,7 @@
 #include "common/body/motion.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -436,6 +437,50 @@ TEST(ReadAsfAmc, MalformedFilesNameFileAndLine) {
   asf_text.replace(asf_text.find("length 6.92462"), 14, "length 6.9x");
   const std::string bad_asf = WriteTemp("bad.asf", asf_text);
   ExpectErrorAt(ReadAsfAmc(bad_asf, Cmu("07_05-walk.amc")).status(), bad_asf, 29, "bad number");
+}
+
+TEST(ReadAsfAmc, FrameNumbersNearIntMaxDoNotWrap) {
+  REENACT_REQUIRE_TEST_FILE(Cmu("07_05-walk.amc"));
+  // The walk's first frame, numbered INT_MAX, then a frame numbered INT_MIN:
+  // in 32-bit arithmetic INT_MAX + 1 would wrap round to it.
+  std::ifstream in(Cmu("07_05-walk.amc"));
+  std::string line;
+  std::string amc_text;
+  int frame_numbers = 0;
+  while (std::getline(in, line)) {
+    const bool frame_number = !line.empty() && std::all_of(line.begin(), line.end(), [](char c) {
+      return c == '\r' || std::isdigit(c);
+    });
+    if (frame_number && ++frame_numbers == 2) break;
+    amc_text += (frame_number ? std::string("2147483647") : line) + "\n";
+  }
+  const std::string first_frame = amc_text.substr(amc_text.find("2147483647\n") + 11);
+  amc_text += "-2147483648\n" + first_frame;
+  const std::string amc = WriteTemp("int_max.amc", amc_text);
+  ExpectErrorAt(ReadAsfAmc(Cmu("07-walk.asf"), amc).status(), amc, LineOf(amc_text, "-2147483648"),
+                "frame number -2147483648 out of sequence");
+}
+
+TEST(ReadAsfAmc, DeeplyNestedBonesAreAnError) {
+  // 300 bones, each the child of the one before: refused (the skeleton walk
+  // is recursive), not a stack overflow.
+  std::string asf =
+      ":units\n  length 0.45\n  angle deg\n:root\n  order TX TY TZ RX RY RZ\n"
+      "  axis XYZ\n  position 0 0 0\n  orientation 0 0 0\n:bonedata\n";
+  std::string hierarchy = ":hierarchy\n  begin\n    root b0\n";
+  for (int b = 0; b < 300; ++b) {
+    asf += "  begin\n    name b" + std::to_string(b) +
+           "\n    direction 0 1 0\n    length 1\n    axis 0 0 0 XYZ\n  end\n";
+    if (b > 0) hierarchy += "    b" + std::to_string(b - 1) + " b" + std::to_string(b) + "\n";
+  }
+  const std::string dir = reenact::testing::MakeTempDir("motion_deep");
+  std::ofstream(dir + "/deep.asf") << asf << hierarchy << "  end\n";
+  std::ofstream(dir + "/deep.amc") << "";
+  const absl::Status status = ReadAsfAmc(dir + "/deep.asf", dir + "/deep.amc").status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+  EXPECT_NE(std::string(status.message()).find("nested more than 256 bones deep"),
+            std::string::npos)
+      << status;
 }
 
 TEST(ReadMotion, DispatchesOnExtension) {

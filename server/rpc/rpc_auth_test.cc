@@ -253,13 +253,19 @@ TEST(RpcAuth, AnonymousAndUnknownTokensAreUnauthenticated) {
   }
 }
 
+rpc::ClientSecurity AdminWithoutTls(const Fixture& f) {
+  rpc::ClientSecurity security;
+  security.token = f.tokens.at("admin");
+  return security;
+}
+
 TEST(RpcAuth, ClientsThatDoNotTrustTheServersCaNeverConnect) {
   Fixture& f = Shared();
   ASSERT_NE(f.server, nullptr);
   // The admin token, without TLS and with TLS but no CA: no call gets
   // through, and the token is never sent in clear.
-  const auto plaintext = rpc::MakeClientChannel(f.server->address(), grpc::ChannelArguments(),
-                                                rpc::ClientSecurity{"", f.tokens.at("admin")});
+  const auto plaintext =
+      rpc::MakeClientChannel(f.server->address(), grpc::ChannelArguments(), AdminWithoutTls(f));
   const grpc::Status status = EveryRpc().at("/reenact.v1.Takes/List")(plaintext);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAVAILABLE) << status.error_message();
   const std::string other = f.dir + "/other-ca";

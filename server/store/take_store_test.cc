@@ -75,7 +75,9 @@ TakeOpenRequest Request(const std::string& id, const std::string& daemon, int se
   return {open.take_id(),
           open.info(),
           {open.sensors().begin(), open.sensors().end()},
-          open.daemon_id()};
+          open.daemon_id(),
+          /*owner=*/"",
+          /*owner_is_admin=*/false};
 }
 
 // Enqueues sets [first, last], waiting until each is durable (one chunk each).

@@ -54,8 +54,8 @@ struct DaemonOptions {
   // TLS of the control service (common/rpc/channel.h), and its token file
   // (common/rpc/auth.h; empty: every caller may do everything). Without
   // both, a non-loopback control address needs `insecure`.
-  rpc::ServerTlsFiles control_tls;
-  std::string control_auth_file;
+  rpc::ServerTlsFiles control_tls{};
+  std::string control_auth_file{};
   bool insecure = false;
   // Folder of the take spools; bound of each take's spool.
   std::string spool_dir;

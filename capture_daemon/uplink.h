@@ -43,7 +43,7 @@ struct UplinkOptions {
   // Largest gRPC message either way; matches the server (64 MiB).
   int max_message_bytes = 64 << 20;
   // TLS trust and the bearer token for the server (common/rpc/channel.h).
-  rpc::ClientSecurity security;
+  rpc::ClientSecurity security{};
   // Reconnect backoff: first wait, and the cap it doubles up to, ms.
   int64_t initial_backoff_ms = 50;
   int64_t max_backoff_ms = 2000;

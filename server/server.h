@@ -52,10 +52,10 @@ struct ServerOptions {
   // reenact-server plugs in the body model's (server/live/live_body_follower.h).
   LiveHubOptions live;
   // TLS for the listening port (common/rpc/channel.h); off when empty.
-  rpc::ServerTlsFiles tls;
+  rpc::ServerTlsFiles tls{};
   // Token file (common/rpc/auth.h): every call then needs a token whose
   // role allows it. Empty: every caller is the anonymous admin.
-  std::string auth_file;
+  std::string auth_file{};
   // Allows a non-loopback listen address without TLS and tokens.
   bool insecure = false;
 

@@ -29,7 +29,7 @@ struct ConnectionOptions {
   // Largest message accepted, bytes.
   int max_message_bytes = 64 << 20;
   // TLS trust and the bearer token (common/rpc/channel.h); none by default.
-  rpc::ClientSecurity security;
+  rpc::ClientSecurity security{};
 };
 
 // A channel with `options.security`: TLS when it holds a CA, the token on

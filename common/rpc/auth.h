@@ -51,7 +51,7 @@ uint32_t RoleAccess(Role role);
 struct Principal {
   // The token's name in the token file; empty for the anonymous caller of a
   // server that runs without tokens.
-  std::string name;
+  std::string name{};
   Role role = Role::kAdmin;
   bool anonymous() const { return name.empty(); }
   bool admin() const { return role == Role::kAdmin; }

@@ -23,10 +23,10 @@
 namespace reenact::rpc {
 
 struct ServerTlsFiles {
-  std::string cert_file;
-  std::string key_file;
+  std::string cert_file{};
+  std::string key_file{};
   // Optional: require client certificates signed by this CA.
-  std::string client_ca_file;
+  std::string client_ca_file{};
 
   bool enabled() const { return !cert_file.empty(); }
   // InvalidArgument: a key without a certificate or the reverse, or a client
@@ -47,13 +47,13 @@ bool IsLoopbackAddress(absl::string_view host_port);
 // How a client reaches a server.
 struct ClientSecurity {
   // PEM of the CA that signed the server's certificate; empty: no TLS.
-  std::string ca_pem;
+  std::string ca_pem{};
   // The bearer token; empty: none is sent.
-  std::string token;
+  std::string token{};
   // Optional PEM of a client certificate and its key (servers started with
   // --tls-client-ca).
-  std::string cert_pem;
-  std::string key_pem;
+  std::string cert_pem{};
+  std::string key_pem{};
 };
 
 // From the flags' values, each falling back to its environment variable:

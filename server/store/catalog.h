@@ -48,7 +48,7 @@ struct TakeRow {
   int64_t first_stamp_ns = 0;
   int64_t last_stamp_ns = 0;
   // The credential that created the take (TakeOpenRequest::owner).
-  std::string owner;
+  std::string owner{};
 };
 
 // "recording", "complete", "interrupted" (the catalog's spelling of a state).

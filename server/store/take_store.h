@@ -80,7 +80,7 @@ struct TakeOpenRequest {
   // The credential opening the take (common/rpc/auth.h; empty without
   // tokens). A new take is bound to it; only it, or an admin, may resume
   // or add to the take.
-  std::string owner;
+  std::string owner{};
   bool owner_is_admin = false;
 };
 

@@ -121,6 +121,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   server->context_.jobs = server->jobs_.get();
   server->context_.reenactments = server->reenactments_.get();
   server->context_.live = server->live_.get();
+  server->context_.keep_derived = options.keep_derived;
   if (server->auth_->enabled()) server->context_.auth = server->auth_.get();
   server->services_ = MakeServices(server->context_);
 

@@ -58,6 +58,8 @@ struct ServerOptions {
   std::string auth_file{};
   // Allows a non-loopback listen address without TLS and tokens.
   bool insecure = false;
+  // Takes.Delete keeps the take's reenactments and job folders.
+  bool keep_derived = false;
 
   // InvalidArgument naming the first bad field; FailedPrecondition for a
   // non-loopback address without TLS and tokens (unless insecure).

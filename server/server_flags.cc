@@ -13,7 +13,7 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                 {"data", "listen", "max-message-mb", "port-file", "depth-check",
                                  "jobs", "worker", "max-name-bytes", "max-notes-bytes", "tls-cert",
                                  "tls-key", "tls-client-ca", "auth"},
-                                {"help", "insecure"}));
+                                {"help", "insecure", "keep-derived"}));
   ServerCommandLine out;
   if (flags.Has("help")) {
     out.help = true;
@@ -49,6 +49,7 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   RETURN_IF_ERROR(out.options.tls.Validate());
   out.options.auth_file = flags.GetOr("auth", "");
   out.options.insecure = flags.Has("insecure");
+  out.options.keep_derived = flags.Has("keep-derived");
   ASSIGN_OR_RETURN(out.options.jobs.concurrency, flags.GetInt("jobs", 0));
   if (out.options.jobs.concurrency < 0) {
     return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");

@@ -4,7 +4,7 @@
 //                  [--jobs N] [--worker PATH]
 //                  [--max-name-bytes N] [--max-notes-bytes N]
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]]
-//                  [--auth TOKENS.json] [--insecure]
+//                  [--auth TOKENS.json] [--insecure] [--keep-derived]
 #pragma once
 
 #include <string>
@@ -25,7 +25,8 @@ inline constexpr char kServerUsage[] =
     "[--max-notes-bytes N (a take's notes, default 16384)] "
     "[--tls-cert PEM --tls-key PEM [--tls-client-ca PEM (clients need a certificate it signed)]] "
     "[--auth TOKENS.json (every call needs a token; see 'reenact auth add')] "
-    "[--insecure (allow a non-loopback address without TLS and tokens)]";
+    "[--insecure (allow a non-loopback address without TLS and tokens)] "
+    "[--keep-derived (deleting a take keeps its reenactments and job folders)]";
 
 struct ServerCommandLine {
   ServerOptions options;

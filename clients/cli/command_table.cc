@@ -89,7 +89,11 @@ std::vector<Command> BuildCommandTable() {
        "TAKE_ID --out FILE.mcap [--server HOST:PORT] [--quiet]",
        "download a stored take as an MCAP file",
        RunTakesDownload},
-      {{"takes", "delete"}, "TAKE_ID [--server HOST:PORT]", "delete a stored take", RunTakesDelete},
+      {{"takes", "delete"},
+       "TAKE_ID [--server HOST:PORT]",
+       "delete a stored take with the reenactments and job folders made from it (unless the "
+       "server runs with --keep-derived); refused while a job of the take is queued or running",
+       RunTakesDelete},
       {{"capture", "sensors"},
        "[--daemon HOST:PORT] [--json]",
        "sensors a reenactd capture daemon sees",

@@ -141,9 +141,11 @@ int RunTakesDelete(const std::vector<std::string>& args, std::ostream& out, std:
   }
   auto connection = ConnectionFromFlags(*flags, "server", kDefaultServer);
   if (!connection.ok()) return ReportError(connection.status(), err);
-  auto freed = client::TakesClient(*connection).Delete(flags->positional()[0]);
-  if (!freed.ok()) return ReportRemoteError(freed.status(), err);
-  out << "deleted " << flags->positional()[0] << " (" << HumanBytes(*freed) << " freed)\n";
+  auto deleted = client::TakesClient(*connection).Delete(flags->positional()[0]);
+  if (!deleted.ok()) return ReportRemoteError(deleted.status(), err);
+  out << "deleted " << flags->positional()[0] << " with " << deleted->reenactments_deleted()
+      << " reenactment(s) and " << deleted->jobs_deleted() << " job(s) made from it ("
+      << HumanBytes(deleted->freed_bytes()) << " freed)\n";
   return kExitOk;
 }
 

@@ -58,7 +58,7 @@ absl::StatusOr<v1::Take> TakesClient::Get(const std::string& take_id) const {
   return take;
 }
 
-absl::StatusOr<int64_t> TakesClient::Delete(const std::string& take_id) const {
+absl::StatusOr<v1::DeleteTakeResponse> TakesClient::Delete(const std::string& take_id) const {
   grpc::ClientContext context;
   SetDeadline(context, options_.timeout_s);
   v1::DeleteTakeRequest request;
@@ -66,7 +66,7 @@ absl::StatusOr<int64_t> TakesClient::Delete(const std::string& take_id) const {
   v1::DeleteTakeResponse response;
   const grpc::Status status = stub_->Delete(&context, request, &response);
   if (!status.ok()) return WithAddress(status, options_.address);
-  return response.freed_bytes();
+  return response;
 }
 
 absl::StatusOr<int64_t> TakesClient::Download(const std::string& take_id,

@@ -45,8 +45,9 @@ class TakesClient {
   absl::StatusOr<std::vector<v1::Take>> List(
       v1::TakeState state = v1::TAKE_STATE_UNSPECIFIED) const;
   absl::StatusOr<v1::Take> Get(const std::string& take_id) const;
-  // Bytes freed on the server.
-  absl::StatusOr<int64_t> Delete(const std::string& take_id) const;
+  // Bytes freed on the server, and the reenactments and jobs deleted with
+  // the take.
+  absl::StatusOr<v1::DeleteTakeResponse> Delete(const std::string& take_id) const;
   // Streams the take's MCAP file into `out_path` (through `out_path`.partial,
   // renamed once every byte arrived in order), returns its size. DataLoss
   // when chunks arrive out of order or the size does not add up.

@@ -388,6 +388,38 @@ std::vector<v1::Job> JobScheduler::List(v1::JobState state, const std::string& t
   return jobs_->List(state, take_id);
 }
 
+absl::Status JobScheduler::CheckNoUnfinishedJobs(const std::string& take_id) const {
+  for (const v1::Job& job : jobs_->List(v1::JOB_STATE_UNSPECIFIED, take_id)) {
+    if (!IsFinished(job.state())) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job ", job.job_id(), " of take ", take_id,
+          " has not finished; cancel it first (reenact jobs cancel ", job.job_id(), ")"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int64_t> JobScheduler::DeleteJobsOfTake(const std::string& take_id) {
+  int64_t freed = 0;
+  for (const v1::Job& job : jobs_->List(v1::JOB_STATE_UNSPECIFIED, take_id)) {
+    if (!IsFinished(job.state())) continue;  // Submitted since the check: left alone.
+    const fs::path dir = fs::path(jobs_dir_) / job.job_id();
+    std::error_code error;
+    for (fs::recursive_directory_iterator it(dir, error), end; !error && it != end;
+         it.increment(error)) {
+      if (it->is_regular_file(error)) freed += static_cast<int64_t>(it->file_size(error));
+    }
+    error.clear();
+    fs::remove_all(dir, error);
+    if (error) {
+      return absl::UnavailableError(
+          absl::StrCat("deleting the folder of job ", job.job_id(), ": ", error.message()));
+    }
+    RETURN_IF_ERROR(jobs_->Delete(job.job_id()));
+  }
+  return freed;
+}
+
 absl::StatusOr<uint64_t> JobScheduler::Watch(const std::string& job_id, JobEventCallback callback) {
   RETURN_IF_ERROR(ValidateJobId(job_id));
   std::lock_guard<std::mutex> lock(watch_mu_);

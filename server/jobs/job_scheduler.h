@@ -144,6 +144,12 @@ class JobScheduler {
   absl::StatusOr<v1::Job> Cancel(const std::string& job_id);
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
   std::vector<v1::Job> List(v1::JobState state, const std::string& take_id) const;
+  // FailedPrecondition naming a job of `take_id` that is queued or running
+  // (a take is not deleted under a job that reads it).
+  absl::Status CheckNoUnfinishedJobs(const std::string& take_id) const;
+  // Deletes every finished job of `take_id`: its worker folder and its row.
+  // Returns the bytes freed.
+  absl::StatusOr<int64_t> DeleteJobsOfTake(const std::string& take_id);
 
   // Calls `callback` with the job now, then on every change until the job
   // ends. Returns a watch id for Unwatch (0 when the job had already ended:

@@ -121,6 +121,20 @@ absl::StatusOr<v1::Job> JobStore::UpdateProgress(const std::string& job_id,
   return it->second;
 }
 
+absl::Status JobStore::Delete(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = jobs_.find(job_id);
+  if (it == jobs_.end()) return absl::NotFoundError(absl::StrCat("no job \"", job_id, "\""));
+  if (!IsFinished(it->second.state())) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("job ", job_id, " has not finished; cancel it first"));
+  }
+  RETURN_IF_ERROR(catalog_->DeleteJob(job_id));
+  jobs_.erase(it);
+  written_ns_.erase(job_id);
+  return absl::OkStatus();
+}
+
 absl::StatusOr<v1::Job> JobStore::Get(const std::string& job_id) const {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = jobs_.find(job_id);

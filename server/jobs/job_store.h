@@ -69,6 +69,9 @@ class JobStore {
 
   // NotFound for an unknown id.
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
+  // Removes a finished job from the catalog and the store. NotFound for an
+  // unknown id, FailedPrecondition for a job that is not finished.
+  absl::Status Delete(const std::string& job_id);
   // Newest first (submitted_unix_ns); `state` UNSPECIFIED and an empty
   // `take_id` do not filter.
   std::vector<v1::Job> List(v1::JobState state = v1::JOB_STATE_UNSPECIFIED,

@@ -421,6 +421,66 @@ TEST(JobsService, ConcurrencyOneRunsJobsOneAfterTheOther) {
   EXPECT_EQ(other.jobs_size(), 0);
 }
 
+// Deleting a take deletes what was made from it: its reenactments (images of
+// the person), its finished jobs' folders and rows; a take with a job still
+// running is refused; --keep-derived keeps them.
+grpc::Status DeleteTake(TestServer& t, const std::string& id, v1::DeleteTakeResponse* out) {
+  grpc::ClientContext context;
+  v1::DeleteTakeRequest request;
+  request.set_take_id(id);
+  return t.takes->Delete(&context, request, out);
+}
+
+TEST(JobsService, DeletingATakeDeletesItsReenactmentsAndJobFolders) {
+  for (const bool keep_derived : {false, true}) {
+    const std::string dir = reenact::testing::MakeTempDir(std::string("jobs_privacy_") +
+                                                          (keep_derived ? "keep" : "delete"));
+    ServerOptions options = JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1);
+    options.keep_derived = keep_derived;
+    auto t = TestServer::Start(dir + "/data", options);
+    ASSERT_NE(t, nullptr);
+    RecordTake(*t, "person");
+    RecordTake(*t, "other");
+    Jobs jobs(*t);
+    const v1::Job done = jobs.WaitEnd(jobs.SubmitOk("person", {}).job_id());
+    ASSERT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.error();
+    const v1::Job kept = jobs.WaitEnd(jobs.SubmitOk("other", {}).job_id());
+    ASSERT_EQ(kept.state(), v1::JOB_STATE_SUCCEEDED) << kept.error();
+    const std::string reen = t->server->reenactments().PathFor(done.reenactment_id());
+    const std::string job_dir = dir + "/data/jobs/" + done.job_id();
+    ASSERT_TRUE(fs::exists(reen));
+    ASSERT_TRUE(fs::exists(job_dir));
+    // A job still running holds the take.
+    const v1::Job slow = jobs.SubmitOk("person", {{"fake_steps", "200"}, {"fake_step_ms", "50"}});
+    jobs.WaitFor(slow.job_id(),
+                 [](const v1::Job& j) { return j.state() == v1::JOB_STATE_RUNNING; });
+    v1::DeleteTakeResponse response;
+    if (!keep_derived) {
+      const grpc::Status held = DeleteTake(*t, "person", &response);
+      EXPECT_EQ(held.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << held.error_message();
+      EXPECT_NE(held.error_message().find(slow.job_id()), std::string::npos);
+      EXPECT_TRUE(t->server->takes().GetTake("person").ok());  // Nothing was deleted.
+    }
+    v1::Job cancelled;
+    ASSERT_TRUE(jobs.Cancel(slow.job_id(), &cancelled).ok());
+    jobs.WaitEnd(slow.job_id());
+    const grpc::Status deleted = DeleteTake(*t, "person", &response);
+    ASSERT_TRUE(deleted.ok()) << deleted.error_message();
+    EXPECT_EQ(fs::exists(reen), keep_derived);
+    EXPECT_EQ(fs::exists(job_dir), keep_derived);
+    EXPECT_EQ(response.reenactments_deleted(), keep_derived ? 0 : 1);
+    EXPECT_EQ(response.jobs_deleted(), keep_derived ? 0 : 2);
+    v1::Job gone;
+    EXPECT_EQ(jobs.Get(done.job_id(), &gone).error_code(),
+              keep_derived ? grpc::StatusCode::OK : grpc::StatusCode::NOT_FOUND);
+    // The other take's reenactment and job are untouched.
+    EXPECT_TRUE(fs::exists(t->server->reenactments().PathFor(kept.reenactment_id())));
+    EXPECT_TRUE(jobs.Get(kept.job_id(), &gone).ok());
+    std::cout << "[ figures  ] keep_derived=" << keep_derived << ": freed "
+              << response.freed_bytes() << " bytes\n";
+  }
+}
+
 // `reenact-server --data out/server` from a shell: the workers run in their
 // job's folder, so the take's path they get must not be relative.
 TEST(JobsService, RelativeDataFolderStillReachesTheTake) {

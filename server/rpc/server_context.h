@@ -37,6 +37,9 @@ struct ServerContext {
   // Who may call what (server/rpc/rpc_auth.h); null: everyone, as the
   // anonymous admin.
   const rpc::Authorizer* auth = nullptr;
+  // Takes.Delete keeps the take's reenactments and job folders (images of
+  // the person) instead of deleting them with it.
+  bool keep_derived = false;
 };
 
 }  // namespace reenact::server

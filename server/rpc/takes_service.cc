@@ -6,13 +6,16 @@
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <string>
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
+#include "server/jobs/job_scheduler.h"
 #include "server/rpc/rpc_auth.h"
 #include "server/store/frame_set_validation.h"
+#include "server/store/reenactment_store.h"
 
 namespace reenact::server {
 namespace {
@@ -125,8 +128,35 @@ absl::Status GetTake(ServerContext& context, const v1::GetTakeRequest& request,
 absl::Status DeleteTake(ServerContext& context, const v1::DeleteTakeRequest& request,
                         v1::DeleteTakeResponse* response) {
   RETURN_IF_ERROR(ValidateTakeId(request.take_id()));
-  ASSIGN_OR_RETURN(const int64_t freed, context.takes->DeleteTake(request.take_id()));
+  const std::string& id = request.take_id();
+  const bool derived = !context.keep_derived;
+  if (derived && context.jobs != nullptr) RETURN_IF_ERROR(context.jobs->CheckNoUnfinishedJobs(id));
+  ASSIGN_OR_RETURN(int64_t freed, context.takes->DeleteTake(id));
+  if (!derived) {
+    response->set_freed_bytes(freed);
+    return absl::OkStatus();
+  }
+  // The take is gone; what was made from it (images of the person) follows.
+  int reenactments = 0;
+  if (context.reenactments != nullptr) {
+    for (const v1::ReenactmentSummary& r : context.reenactments->List(id)) {
+      const std::string& rid = r.info().reenactment_id();
+      std::error_code error;
+      const auto size = std::filesystem::file_size(context.reenactments->PathFor(rid), error);
+      RETURN_IF_ERROR(context.reenactments->Delete(rid));
+      if (!error) freed += static_cast<int64_t>(size);
+      ++reenactments;
+    }
+  }
+  int jobs = 0;
+  if (context.jobs != nullptr) {
+    jobs = static_cast<int>(context.jobs->List(v1::JOB_STATE_UNSPECIFIED, id).size());
+    ASSIGN_OR_RETURN(const int64_t job_bytes, context.jobs->DeleteJobsOfTake(id));
+    freed += job_bytes;
+  }
   response->set_freed_bytes(freed);
+  response->set_reenactments_deleted(reenactments);
+  response->set_jobs_deleted(jobs);
   return absl::OkStatus();
 }
 

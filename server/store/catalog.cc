@@ -428,6 +428,17 @@ absl::Status Catalog::Delete(std::string_view take_id) {
   return absl::OkStatus();
 }
 
+absl::Status Catalog::DeleteJob(std::string_view job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  Statement s(db_, "DELETE FROM jobs WHERE job_id = ?1");
+  s.Bind(1, job_id).Step();
+  if (!s.ok()) return Error(absl::StrCat("deleting job ", std::string(job_id)));
+  if (sqlite3_changes(db_) == 0) {
+    return absl::NotFoundError(absl::StrCat("no job \"", std::string(job_id), "\""));
+  }
+  return absl::OkStatus();
+}
+
 absl::Status Catalog::PutJob(const v1::Job& job) {
   if (JobStateName(job.state()) == "unspecified") {
     return absl::InvalidArgumentError(

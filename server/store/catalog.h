@@ -83,6 +83,8 @@ class Catalog {
   absl::Status PutJob(const v1::Job& job);
   // NotFound when the catalog has no such job.
   absl::StatusOr<v1::Job> GetJob(std::string_view job_id) const;
+  // NotFound when there is no such job.
+  absl::Status DeleteJob(std::string_view job_id);
   // Every job, newest first (submitted_unix_ns).
   absl::StatusOr<std::vector<v1::Job>> ListJobs() const;
 

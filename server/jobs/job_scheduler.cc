@@ -223,6 +223,14 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   *job.mutable_options() = request.options();
   std::lock_guard<std::mutex> lock(mu_);
   if (stopping_) return absl::UnavailableError("the server is shutting down; submit later");
+  // A live job starts now or never: it takes one of the --jobs slots, like a
+  // worker, and is refused when none is free.
+  if (recording && BusyLocked() >= concurrency_) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("all ", concurrency_,
+                     " job slots (--jobs) are busy; follow the take later, or submit "
+                     "the job once the take is complete"));
+  }
   ASSIGN_OR_RETURN(job, jobs_->Insert(std::move(job)));
   if (recording) {
     absl::StatusOr<v1::Job> following = FollowLocked(job);
@@ -502,7 +510,7 @@ void JobScheduler::StartQueued() {
     std::string job_id;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      if (stopping_ || static_cast<int>(running_.size()) >= concurrency_) return;
+      if (stopping_ || BusyLocked() >= concurrency_) return;
       // Live jobs whose take was closed go first: they have run for a while.
       std::deque<std::string>& source = handoff_.empty() ? queue_ : handoff_;
       if (source.empty()) return;

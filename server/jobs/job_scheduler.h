@@ -174,6 +174,8 @@ class JobScheduler {
   // Starts queued jobs while slots are free (live jobs whose take ended
   // first).
   void StartQueued();
+  // Job slots in use: worker processes and live follows.
+  int BusyLocked() const { return static_cast<int>(running_.size() + following_.size()); }
   // Marks a queued job RUNNING with a Running entry; false when it is no
   // longer queued. mu_ held.
   bool StartQueuedLocked(const std::string& job_id);

@@ -267,6 +267,38 @@ TEST_F(FollowStreamTest, SubmitOfARecordingTakeNeedsALiveBodyJob) {
   ASSERT_TRUE(ingest.Finish().ok());
 }
 
+TEST_F(FollowStreamTest, LiveJobsTakeJobSlotsAndAreRefusedWhenNoneIsFree) {
+  // The fixture's server runs 2 jobs at once (--jobs 2).
+  IngestClient ingest(*t_->ingest);
+  Open(ingest, "take-1");
+  const std::map<std::string, std::string> live = {{"live", "true"}, {"model", "procedural"}};
+  v1::Job first, second, third;
+  ASSERT_TRUE(Submit("take-1", "body", live, &first).ok());
+  ASSERT_TRUE(Submit("take-1", "body", live, &second).ok());
+  const grpc::Status refused = Submit("take-1", "body", live, &third);
+  EXPECT_EQ(refused.error_code(), grpc::RESOURCE_EXHAUSTED) << refused.error_message();
+  EXPECT_NE(refused.error_message().find("--jobs"), std::string::npos);
+  // An offline job waits for a slot while both follow.
+  IngestClient other(*t_->ingest);
+  Open(other, "take-2");
+  ASSERT_TRUE(other.SendSets(1, 2, 1));
+  ASSERT_TRUE(other.Close(2));
+  ASSERT_TRUE(other.Finish().ok());
+  v1::Job offline;
+  ASSERT_TRUE(Submit("take-2", "body", {{"model", "procedural"}}, &offline).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(Get(offline.job_id()).state(), v1::JOB_STATE_QUEUED);
+  // Cancelling a live job frees its slot.
+  grpc::ClientContext context;
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id(first.job_id());
+  v1::Job cancelled;
+  ASSERT_TRUE(jobs_->Cancel(&context, cancel, &cancelled).ok());
+  EXPECT_TRUE(Submit("take-1", "body", live, &third).ok());
+  ASSERT_TRUE(ingest.Close(0));
+  ASSERT_TRUE(ingest.Finish().ok());
+}
+
 TEST_F(FollowStreamTest, WithoutALiveFollowerRecordingTakesAreRefused) {
   ServerOptions options = LiveServerOptions();
   options.live.factory = nullptr;

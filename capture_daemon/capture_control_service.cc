@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "common/rpc/refused_reactor.h"
 #include "proto/grpc_status.h"
 #include "proto/write_pump.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
@@ -123,7 +124,7 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
   grpc::ServerWriteReactor<v1::LiveFrameSet>* StreamFrames(
       grpc::CallbackServerContext* context, const v1::StreamFramesRequest* request) override {
     if (absl::Status allowed = Allowed(*context, "StreamFrames"); !allowed.ok()) {
-      return new RefusedStream(ToGrpcStatus(allowed));
+      return new rpc::RefusedWriter<v1::LiveFrameSet>(ToGrpcStatus(allowed));
     }
     return new FrameStream(controller_, *request);
   }
@@ -138,13 +139,6 @@ class CaptureControlService final : public v1::CaptureControl::CallbackService {
   }
 
  private:
-  // A StreamFrames call refused before it subscribed.
-  class RefusedStream final : public grpc::ServerWriteReactor<v1::LiveFrameSet> {
-   public:
-    explicit RefusedStream(const grpc::Status& status) { Finish(status); }
-    void OnDone() override { delete this; }
-  };
-
   absl::Status Allowed(const grpc::CallbackServerContext& context, const char* rpc) const {
     if (auth_ == nullptr) return absl::OkStatus();
     return auth_->Authorize(context, absl::StrCat("/reenact.v1.CaptureControl/", rpc)).status();

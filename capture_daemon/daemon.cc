@@ -83,13 +83,9 @@ absl::Status DaemonOptions::Validate() const {
   RETURN_IF_ERROR(processing.Validate());
   RETURN_IF_ERROR(anchor.Validate());
   RETURN_IF_ERROR(control_tls.Validate());
-  if (!control_address.empty() && !rpc::IsLoopbackAddress(control_address) && !insecure &&
-      (!control_tls.enabled() || control_auth_file.empty())) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "refusing to serve --control ", control_address,
-        " without TLS and tokens: anyone reaching it could start takes and watch the sensors. "
-        "Give --tls-cert, --tls-key and --auth, or --insecure on a network you trust"));
-  }
+  RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--control ", control_address), control_address,
+                                     control_tls.enabled(), !control_auth_file.empty(), insecure,
+                                     "start takes and watch the sensors"));
   return uplink.Validate();
 }
 

@@ -48,13 +48,9 @@ absl::Status ServerOptions::Validate() const {
     RETURN_IF_ERROR(SplitAddress(listen_address, &host, &port));
   }
   RETURN_IF_ERROR(tls.Validate());
-  if (!listen_address.empty() && !rpc::IsLoopbackAddress(listen_address) && !insecure &&
-      (!tls.enabled() || auth_file.empty())) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "refusing to listen on ", listen_address,
-        " without TLS and tokens: anyone reaching it could read and delete every take. Give "
-        "--tls-cert, --tls-key and --auth, or --insecure on a network you trust"));
-  }
+  RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--listen ", listen_address), listen_address,
+                                     tls.enabled(), !auth_file.empty(), insecure,
+                                     "read and delete every take"));
   TakeStoreOptions store_options = store;
   store_options.data_dir = data_dir;
   RETURN_IF_ERROR(jobs.Validate());

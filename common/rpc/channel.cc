@@ -115,6 +115,16 @@ bool IsLoopbackAddress(absl::string_view host_port) {
   return lower == "localhost" || lower == "::1" || absl::StartsWith(lower, "127.");
 }
 
+absl::Status CheckExposure(absl::string_view what, absl::string_view address, bool tls, bool tokens,
+                           bool insecure, absl::string_view risk) {
+  if (address.empty() || IsLoopbackAddress(address) || insecure || (tls && tokens)) {
+    return absl::OkStatus();
+  }
+  return absl::FailedPreconditionError(absl::StrCat(
+      "refusing to serve ", what, " without TLS and tokens: anyone reaching it could ", risk,
+      ". Give --tls-cert, --tls-key and --auth, or --insecure on a network you trust"));
+}
+
 absl::StatusOr<ClientSecurity> LoadClientSecurity(absl::string_view tls_ca_file,
                                                   absl::string_view token_file,
                                                   absl::string_view cert_file,

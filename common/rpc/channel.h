@@ -44,6 +44,13 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeServerCredentials(
 // localhost, unix sockets.
 bool IsLoopbackAddress(absl::string_view host_port);
 
+// FailedPrecondition when a server would listen on `address` (not
+// loopback, not empty) without both TLS and tokens and without `insecure`;
+// `what` names the port ("--listen 0.0.0.0:50051") and `risk` says what an
+// outsider could do there.
+absl::Status CheckExposure(absl::string_view what, absl::string_view address, bool tls, bool tokens,
+                           bool insecure, absl::string_view risk);
+
 // How a client reaches a server.
 struct ClientSecurity {
   // PEM of the CA that signed the server's certificate; empty: no TLS.

@@ -7,6 +7,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "common/rpc/auth.h"
+#include "common/rpc/refused_reactor.h"
 #include "proto/grpc_status.h"
 #include "server/rpc/server_context.h"
 
@@ -26,21 +27,8 @@ absl::StatusOr<rpc::Principal> Authorize(const ServerContext& context,
                                          const grpc::CallbackServerContext& rpc,
                                          absl::string_view method);
 
-// A server-streaming reactor that ends at once with `status`.
-template <typename T>
-class RefusedWriter final : public grpc::ServerWriteReactor<T> {
- public:
-  explicit RefusedWriter(const grpc::Status& status) { this->Finish(status); }
-  void OnDone() override { delete this; }
-};
-
-// A bidirectional reactor that ends at once with `status`.
-template <typename Request, typename Response>
-class RefusedBidi final : public grpc::ServerBidiReactor<Request, Response> {
- public:
-  explicit RefusedBidi(const grpc::Status& status) { this->Finish(status); }
-  void OnDone() override { delete this; }
-};
+using rpc::RefusedBidi;
+using rpc::RefusedWriter;
 
 // In a unary handler: finishes the call with the refusal and returns its
 // reactor, or returns null when the call may go on.

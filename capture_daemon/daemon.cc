@@ -21,12 +21,17 @@
 #include <boost/asio/steady_timer.hpp>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "capture_daemon/sensors/usb_hotplug.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
+#include "common/metrics/http_exposer.h"
+#include "common/rpc/health_service.h"
+#include "common/rpc/request_metrics.h"
+#include "reenact/v1/capture_control_service.grpc.pb.h"
 
 namespace reenact::capture {
 
@@ -69,6 +74,15 @@ double CpuSeconds(int64_t* user_us, int64_t* sys_us) {
 
 double Ms(int64_t ns) { return static_cast<double>(ns) * 1e-6; }
 
+// Frame sets refused because the take's spool was full (the daemon's
+// limit; the server counts its own in the same family).
+metrics::Counter& SpoolRefusals() {
+  static metrics::Counter& counter = metrics::DefaultRegistry().GetCounter(
+      "reenact_limit_refusals_total", "Requests refused because they exceeded a limit, by limit.",
+      {{"limit", "spool_bytes"}});
+  return counter;
+}
+
 }  // namespace
 
 absl::Status DaemonOptions::Validate() const {
@@ -86,7 +100,49 @@ absl::Status DaemonOptions::Validate() const {
   RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--control ", control_address), control_address,
                                      control_tls.enabled(), !control_auth_file.empty(), insecure,
                                      "start takes and watch the sensors"));
+  if (!metrics_address.empty()) {
+    const size_t colon = metrics_address.rfind(':');
+    int port = -1;
+    if (colon == std::string::npos || colon == 0 ||
+        !absl::SimpleAtoi(metrics_address.substr(colon + 1), &port) || port < 0 || port > 65535) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--metrics \"", metrics_address, "\" is not HOST:PORT (port 0..65535)"));
+    }
+  }
+  // The metrics endpoint is plain HTTP without tokens.
+  RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--metrics ", metrics_address), metrics_address,
+                                     /*tls=*/false, /*tokens=*/false, insecure,
+                                     "read the daemon's figures"));
   return uplink.Validate();
+}
+
+void AddDaemonMetrics(const v1::DaemonStatus& status, metrics::Snapshot& out) {
+  for (const v1::SensorInfo& sensor : status.sensors()) {
+    const metrics::Labels labels = {{"sensor", sensor.sensor_id()}};
+    out.AddCounter("reenactd_frames_captured_total",
+                   "Frames each sensor delivered to the pipeline.", labels,
+                   static_cast<double>(sensor.frames_delivered()));
+    out.AddGauge("reenactd_sensor_up", "1 while the sensor streams, 0 once it is gone.", labels,
+                 sensor.state() == v1::SENSOR_STATE_STREAMING ? 1 : 0);
+  }
+  for (const v1::SensorSyncStats& sync : status.sync()) {
+    out.AddCounter("reenactd_frames_dropped_total",
+                   "Frames the sync group dropped (late, or no set to join), by sensor.",
+                   {{"sensor", sync.sensor_id()}}, static_cast<double>(sync.frames_dropped()));
+  }
+  out.AddGauge("reenactd_uplink_queue_bytes",
+               "Spooled bytes of frame sets the server has not acknowledged yet.", {},
+               static_cast<double>(status.spool_bytes()));
+  out.AddGauge("reenactd_uplink_queue_frame_sets",
+               "Spooled frame sets the server has not acknowledged yet.", {},
+               static_cast<double>(status.spool_frame_sets()));
+  out.AddGauge("reenactd_uplink_connected",
+               "1 while the uplink of the take has an open stream to the server.", {},
+               status.server_connected() ? 1 : 0);
+  out.AddCounter("reenactd_uplink_reconnects_total", "Uplink streams begun after the first.", {},
+                 static_cast<double>(status.reconnects()));
+  out.AddGauge("reenactd_recording", "1 while a take is being recorded.", {},
+               status.take_id().empty() ? 0 : 1);
 }
 
 std::string DefaultDaemonId(const std::string& spool_dir) {
@@ -110,7 +166,14 @@ std::string DefaultSpoolDir() {
     first = first.substr(0, first.find(':'));
     return (std::filesystem::path(first) / "spool").string();
   }
-  return absl::StrCat("/tmp/reenactd-", getuid(), "/spool");
+  if (getuid() == 0) return "/var/lib/reenactd/spool";
+  if (const char* state = std::getenv("XDG_STATE_HOME"); state != nullptr && *state == '/') {
+    return (std::filesystem::path(state) / "reenactd" / "spool").string();
+  }
+  if (const char* home = std::getenv("HOME"); home != nullptr && *home == '/') {
+    return (std::filesystem::path(home) / ".local" / "state" / "reenactd" / "spool").string();
+  }
+  return "reenactd-spool";  // The working folder, as a last resort.
 }
 
 // The board anchoring of one take (DaemonOptions.anchor).
@@ -132,8 +195,12 @@ struct Daemon::Impl {
   boost::asio::steady_timer timer{io};
   std::unique_ptr<rpc::Authorizer> control_auth;
   std::unique_ptr<grpc::Service> control_service;
+  // Registered with the control server, so it outlives it.
+  std::unique_ptr<rpc::HealthService> health;
   std::unique_ptr<grpc::Server> control_server;
   std::string bound_control;
+  std::unique_ptr<metrics::HttpExposer> metrics_exposer;
+  std::string bound_metrics;
   std::atomic<bool> stop_requested{false};
   std::atomic<int> signals_received{0};
   int64_t start_steady_ns = 0;
@@ -164,7 +231,8 @@ struct Daemon::Impl {
   std::vector<v1::SensorSyncStats> snapshot_sensors;
   int64_t snapshot_steady_ns = 0;
 
-  std::mutex log_mutex;
+  // The daemon's events (options.log in options.log_options).
+  log::Logger logger{nullptr, log::Options{}};
 
   // StreamFrames subscribers.
   LiveFrames live;
@@ -181,13 +249,10 @@ struct Daemon::Impl {
   bool AnchoringDue();
   void FinishAnchoring();
 
-  void Log(const std::string& line) {
-    if (options.log == nullptr) return;
-    std::lock_guard<std::mutex> lock(log_mutex);
-    *options.log << "reenactd: " << line << std::endl;
-  }
-  void Verbose(const std::string& line) {
-    if (options.verbose) Log(line);
+  // NOT_SERVING from now on (a drain or the end); ends the health watches,
+  // which a shutdown of the control server would otherwise wait for.
+  void StopHealth() {
+    if (health) health->Shutdown();
   }
 
   // --- frame path (sensor threads) ---
@@ -224,8 +289,9 @@ struct Daemon::Impl {
 void Daemon::Impl::OnFrame(SensorEntry* entry, CapturedFrame frame) {
   if (absl::Status s = entry->processor->Process(frame); !s.ok()) {
     if (entry->processing_errors++ == 0) {
-      Log(absl::StrCat("error: sensor ", entry->info.sensor_id(), ": ", s.message(),
-                       " (further processing errors of this sensor are counted, not logged)"));
+      logger.Error("sensor_processing_error",
+                   {{"sensor_id", entry->info.sensor_id()}, {"error", s.message()}},
+                   "further processing errors of this sensor are counted, not logged");
     }
     return;
   }
@@ -256,12 +322,26 @@ void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
   for (v1::FrameSet& set : sets) {
     const absl::Status added = recording->Add(std::move(set));
     if (added.ok() || absl::IsFailedPrecondition(added)) continue;
+    const bool full = absl::IsResourceExhausted(added);
+    if (full) SpoolRefusals().Increment();
     const int64_t now = SteadyNowNs();
-    if (now - refused_logged_steady_ns > kNanosPerSecond) {
+    if (now - refused_logged_steady_ns > kNanosPerSecond) {  // At most a line a second.
       refused_logged_steady_ns = now;
-      Log(absl::StrCat("ERROR: take ", recording->take_id(), ": ", added.message(), " (",
-                       recording->Stats().frame_sets_refused,
-                       " frame sets refused so far; the server is not keeping up or is away)"));
+      const int64_t refused = recording->Stats().frame_sets_refused;
+      if (full) {
+        logger.Error("limit_hit",
+                     {{"limit", "spool_bytes"},
+                      {"take_id", recording->take_id()},
+                      {"refused_frame_sets", refused},
+                      {"error", added.message()}},
+                     "the take's spool is full: the server is not keeping up or is away");
+      } else {
+        logger.Error("frame_set_refused",
+                     {{"take_id", recording->take_id()},
+                      {"refused_frame_sets", refused},
+                      {"error", added.message()}},
+                     "a frame set could not be spooled");
+      }
     }
   }
 }
@@ -291,7 +371,13 @@ void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
       if (other.get() != entry && other->state != v1::SENSOR_STATE_GONE) others_streaming = true;
     }
   }
-  if (!why.ok()) Log(absl::StrCat("sensor ", id, " lost: ", reason));
+  if (why.ok()) {
+    logger.Info("sensor_ended", {{"sensor_id", id}, {"reason", reason}},
+                absl::StrCat("sensor ", id, " ended"));
+  } else {
+    logger.Warn("sensor_lost", {{"sensor_id", id}, {"reason", reason}},
+                absl::StrCat("sensor ", id, " lost: ", reason));
+  }
   {
     std::lock_guard<std::mutex> lock(sync_mutex);
     RecordLocked(sync->SensorLost(id));
@@ -371,7 +457,9 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
     recording = take;
     pending_ends.clear();
   }
-  Verbose(absl::StrCat("take ", take_id, " started with ", calibrations.size(), " sensors"));
+  logger.Info("take_started",
+              {{"take_id", take_id}, {"name", info.name()}, {"sensors", calibrations.size()}},
+              absl::StrCat("take ", take_id, " started with ", calibrations.size(), " sensors"));
   return take_id;
 }
 
@@ -394,8 +482,12 @@ absl::StatusOr<v1::StopTakeResponse> Daemon::Impl::StopTake(const std::string& r
   v1::StopTakeResponse response;
   response.set_take_id(stopping->take_id());
   response.set_frame_set_count(stopping->last_sequence());
-  Verbose(absl::StrCat("take ", stopping->take_id(), " stopped (", reason, ") after ",
-                       stopping->last_sequence(), " frame sets"));
+  logger.Info("take_stopped",
+              {{"take_id", stopping->take_id()},
+               {"reason", reason},
+               {"frame_sets", stopping->last_sequence()}},
+              absl::StrCat("take ", stopping->take_id(), " stopped (", reason, ") after ",
+                           stopping->last_sequence(), " frame sets"));
   return response;
 }
 
@@ -461,9 +553,10 @@ void Daemon::Impl::StartAnchoring(const std::shared_ptr<TakeRecorder>& recorder,
     if (anchor.ok()) {
       state->anchors[calibration.sensor_id()] = std::move(*anchor);
     } else {
-      Log(absl::StrCat("warning: sensor ", calibration.sensor_id(),
-                       " cannot be anchored on the board: ", anchor.status().message(),
-                       "; it keeps its calibration"));
+      logger.Warn("sensor_not_anchored",
+                  {{"sensor_id", calibration.sensor_id()}, {"error", anchor.status().message()}},
+                  absl::StrCat("sensor ", calibration.sensor_id(),
+                               " cannot be anchored on the board; it keeps its calibration"));
     }
   }
   std::lock_guard<std::mutex> lock(anchor_mutex);
@@ -512,15 +605,24 @@ void Daemon::Impl::FinishAnchoring() {
     absl::StatusOr<v1::SensorCalibration> anchored =
         found.ok() ? AnchorCalibration(calibration, *found, *anchor_name) : found.status();
     if (!anchored.ok()) {
-      Log(absl::StrCat("warning: sensor ", calibration.sensor_id(), " is not anchored on ",
-                       *anchor_name, ": ", anchored.status().message(),
-                       "; it keeps its calibration (world_anchor empty)"));
+      logger.Warn("sensor_not_anchored",
+                  {{"sensor_id", calibration.sensor_id()},
+                   {"anchor", *anchor_name},
+                   {"error", anchored.status().message()}},
+                  absl::StrCat("sensor ", calibration.sensor_id(), " is not anchored on ",
+                               *anchor_name, "; it keeps its calibration (world_anchor empty)"));
       continue;
     }
     calibration = *std::move(anchored);
-    Log(absl::StrFormat("sensor %s anchored on %s: %d of %d colour frames, RMS %.2f px",
-                        calibration.sensor_id(), *anchor_name, found->detections,
-                        found->frames_tried, found->rms_px));
+    logger.Info("sensor_anchored",
+                {{"sensor_id", calibration.sensor_id()},
+                 {"anchor", *anchor_name},
+                 {"detections", found->detections},
+                 {"frames_tried", found->frames_tried},
+                 {"rms_px", found->rms_px}},
+                absl::StrFormat("sensor %s anchored on %s: %d of %d colour frames, RMS %.2f px",
+                                calibration.sensor_id(), *anchor_name, found->detections,
+                                found->frames_tried, found->rms_px));
   }
   state->take->ReleaseOpen(calibrations);
 }
@@ -532,9 +634,19 @@ absl::Status Daemon::Impl::AddSensors(SensorList opened) {
   // Every sensor joins the sync group before any of them starts, so that no
   // set leaves early for want of a sensor not yet known.
   std::vector<SensorEntry*> added;
+  std::set<std::string> returning;  // Sensors seen before, gone, and back.
   for (auto& sensor : opened) {
     auto entry = std::make_unique<SensorEntry>();
     entry->info = sensor->info();
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      for (const auto& known : sensors) {
+        if (known->info.sensor_id() == entry->info.sensor_id() &&
+            known->state == v1::SENSOR_STATE_GONE) {
+          returning.insert(entry->info.sensor_id());
+        }
+      }
+    }
     ASSIGN_OR_RETURN(entry->processor, FrameProcessor::Create(entry->info, options.processing));
     entry->sensor = std::move(sensor);
     {
@@ -550,9 +662,20 @@ absl::Status Daemon::Impl::AddSensors(SensorList opened) {
     const absl::Status started =
         raw->sensor->Start([this, raw](CapturedFrame frame) { OnFrame(raw, std::move(frame)); },
                            [this, raw](const absl::Status& why) { OnSensorEnd(raw, why); });
-    if (started.ok()) continue;
-    Log(absl::StrCat("error: sensor ", raw->info.sensor_id(),
-                     " did not start: ", started.message()));
+    const v1::SensorInfo& info = raw->info;
+    if (started.ok()) {
+      const bool back = returning.contains(info.sensor_id());
+      logger.Info(back ? "sensor_recovered" : "sensor_opened",
+                  {{"sensor_id", info.sensor_id()},
+                   {"backend", info.backend()},
+                   {"model", info.model()},
+                   {"serial", info.serial()},
+                   {"fps", info.nominal_fps()}},
+                  absl::StrCat("sensor ", info.sensor_id(), back ? " is back" : " streams"));
+      continue;
+    }
+    logger.Error("sensor_failed", {{"sensor_id", info.sensor_id()}, {"error", started.message()}},
+                 absl::StrCat("sensor ", info.sensor_id(), " did not start"));
     {
       std::lock_guard<std::mutex> lock(mutex);
       raw->state = v1::SENSOR_STATE_GONE;
@@ -575,10 +698,18 @@ absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
   control_auth = std::make_unique<rpc::Authorizer>(std::move(tokens), CaptureControlMethodAccess());
   control_service = CreateCaptureControlService(
       controller, control_auth->enabled() ? control_auth.get() : nullptr);
+  health = std::make_unique<rpc::HealthService>(
+      std::vector<std::string>{v1::CaptureControl::service_full_name()});
+  std::set<std::string, std::less<>> counted = {"/grpc.health.v1.Health/Check",
+                                                "/grpc.health.v1.Health/Watch"};
+  for (const auto& [method, access] : CaptureControlMethodAccess()) counted.insert(method);
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(options.control_address, credentials, &port);
   builder.RegisterService(control_service.get());
+  // No token needed (common/rpc/health_service.h).
+  builder.RegisterService(health.get());
+  builder.experimental().SetInterceptorCreators(rpc::RequestMetricsInterceptors(counted));
   control_server = builder.BuildAndStart();
   if (!control_server || port == 0) {
     return absl::UnavailableError(
@@ -586,7 +717,8 @@ absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
   }
   const std::string host = options.control_address.substr(0, options.control_address.rfind(':'));
   bound_control = absl::StrCat(host, ":", port);
-  Log(absl::StrCat("control service listening on ", bound_control));
+  logger.Info("control_listening", {{"address", bound_control}},
+              absl::StrCat("control service listening on ", bound_control));
   if (!options.control_port_file.empty()) {
     RETURN_IF_ERROR(WriteFileAtomically(options.control_port_file, bound_control + "\n"));
   }
@@ -598,12 +730,13 @@ void Daemon::Impl::ResumeUnfinished() {
     absl::StatusOr<std::unique_ptr<TakeRecorder>> opened =
         TakeRecorder::ResumeUnfinished(channel, recorder_options, dir);
     if (!opened.ok()) {
-      Log(absl::StrCat("error: cannot resume the spooled take in ", dir, ": ",
-                       opened.status().message()));
+      logger.Error("take_resume_failed", {{"spool", dir}, {"error", opened.status().message()}},
+                   absl::StrCat("cannot resume the spooled take in ", dir));
       continue;
     }
     std::shared_ptr<TakeRecorder> resumed_take = std::move(*opened);
-    Log(absl::StrCat("resuming the upload of spooled take ", resumed_take->take_id()));
+    logger.Info("take_resumed", {{"take_id", resumed_take->take_id()}},
+                absl::StrCat("resuming the upload of spooled take ", resumed_take->take_id()));
     std::lock_guard<std::mutex> lock(mutex);
     resumed.insert(resumed_take.get());
     draining.push_back(std::move(resumed_take));
@@ -615,10 +748,13 @@ void Daemon::Impl::ArmSignals() {
     if (error) return;
     ++signals_received;
     if (signals_received == 1) {
-      Log(absl::StrCat("signal ", signal, ": stopping (", options.drain_timeout_s,
-                       " s to make the take durable)"));
+      logger.Info("daemon_stopping",
+                  {{"signal", signal}, {"drain_timeout_s", options.drain_timeout_s}},
+                  absl::StrCat("signal ", signal, ": stopping (", options.drain_timeout_s,
+                               " s to make the take durable)"));
     } else {
-      Log("second signal: giving up on the drain");
+      logger.Warn("daemon_drain_abandoned", {{"signal", signal}},
+                  "second signal: giving up on the drain");
     }
     stop_requested = true;
     io.stop();
@@ -673,7 +809,9 @@ void Daemon::Impl::Tick() {
     }
   }
   if (current && current->done()) {  // The uplink failed while recording.
-    Log(absl::StrCat("error: take ", current->take_id(), ": ", current->result().message()));
+    logger.Error("take_failed",
+                 {{"take_id", current->take_id()}, {"error", current->result().message()}},
+                 absl::StrCat("take ", current->take_id(), " failed while recording"));
     (void)StopTake("uplink failed", /*flush=*/false);
     finished.push_back(current);
     std::lock_guard<std::mutex> lock(mutex);
@@ -689,10 +827,11 @@ void Daemon::Impl::Tick() {
       reconnects_finished += recorder->Stats().uplink.reconnects;
     }
     if (result.ok()) {
-      Verbose(absl::StrCat("take ", recorder->take_id(), " is durable on the server"));
+      logger.Info("take_durable", {{"take_id", recorder->take_id()}},
+                  absl::StrCat("take ", recorder->take_id(), " is durable on the server"));
     } else {
-      Log(absl::StrCat("error: take ", recorder->take_id(), " failed: ", result.message(),
-                       "; its spool stays on disk"));
+      logger.Error("take_failed", {{"take_id", recorder->take_id()}, {"error", result.message()}},
+                   absl::StrCat("take ", recorder->take_id(), " failed; its spool stays on disk"));
     }
     if (recorder == once_take) {
       once_result = result;
@@ -713,7 +852,17 @@ void Daemon::Impl::Tick() {
                     status.spool_frame_sets(), " sets ", status.spool_bytes() >> 20, " MiB",
                     status.server_connected() ? " connected" : " not connected", " reconnects ",
                     status.reconnects());
-    Verbose(line);
+    logger.Info("progress",
+                {{"frame_sets", status.frame_sets()},
+                 {"skew_p50_ms", Ms(status.skew_p50_ns())},
+                 {"take_id", status.take_id()},
+                 {"sent_sequence", status.last_sequence()},
+                 {"durable_sequence", status.durable_sequence()},
+                 {"spool_frame_sets", status.spool_frame_sets()},
+                 {"spool_bytes", status.spool_bytes()},
+                 {"connected", status.server_connected()},
+                 {"reconnects", status.reconnects()}},
+                line);
   }
 }
 
@@ -756,7 +905,7 @@ void Daemon::Impl::RescanHardware() {
       }
     }
     if (absl::Status s = AddSensors(std::move(fresh)); !s.ok()) {
-      Log(absl::StrCat("error: hotplug: ", s.message()));
+      logger.Error("hotplug_failed", {{"error", s.message()}}, "new sensors could not be added");
     }
   }
 }
@@ -828,7 +977,8 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
   j["cpu_sys_s"] = static_cast<double>(sys_us) * 1e-6;
   j["wall_s"] = NsToSeconds(SteadyNowNs() - start_steady_ns);
   if (absl::Status s = WriteFileAtomically(options.stats_json, j.dump(2) + "\n"); !s.ok()) {
-    Log(absl::StrCat("error: --stats-json: ", s.message()));
+    logger.Error("stats_json_failed", {{"path", options.stats_json}, {"error", s.message()}},
+                 "--stats-json could not be written");
   }
 }
 
@@ -838,8 +988,10 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
 Daemon::Daemon(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 Daemon::~Daemon() {
+  impl_->metrics_exposer.reset();  // No scrape reads the daemon from here on.
   impl_->StopSensors();
   impl_->live.Close();
+  impl_->StopHealth();  // Ends the health watches the shutdown would wait for.
   if (impl_->control_server) impl_->control_server->Shutdown();
 }
 
@@ -847,6 +999,7 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
   RETURN_IF_ERROR(options.Validate());
   auto impl = std::make_unique<Impl>();
   impl->options = options;
+  impl->logger = log::Logger(options.log, options.log_options);
   impl->start_steady_ns = SteadyNowNs();
   if (absl::Status s = CreateDirectories(options.spool_dir); !s.ok()) {
     return absl::UnavailableError(absl::StrCat("--spool: ", s.message()));
@@ -865,6 +1018,22 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
     impl->options.anchor.queued_frames = impl->options.anchor.frames;
   }
   ASSIGN_OR_RETURN(impl->sync, SyncGroup::Create(options.sync));
+  // The metrics endpoint answers from now on (before Run: no sensor yet),
+  // so its address is known once Create returns.
+  if (!options.metrics_address.empty()) {
+    Impl* const raw = impl.get();
+    ASSIGN_OR_RETURN(impl->metrics_exposer,
+                     metrics::HttpExposer::Start(options.metrics_address, [raw] {
+                       metrics::Snapshot snapshot;
+                       metrics::DefaultRegistry().CollectInto(snapshot);
+                       AddDaemonMetrics(raw->Status(), snapshot);
+                       metrics::AddProcessMetrics(snapshot);
+                       return snapshot.Expose();
+                     }));
+    impl->bound_metrics = impl->metrics_exposer->address();
+    impl->logger.Info("metrics_listening", {{"address", impl->bound_metrics}},
+                      absl::StrCat("metrics on http://", impl->bound_metrics, "/metrics"));
+  }
   return std::unique_ptr<Daemon>(new Daemon(std::move(impl)));
 }
 
@@ -907,17 +1076,23 @@ absl::Status Daemon::Run() {
                                     [](const SourceSpec& s) { return s.backend != "playback"; });
   if (hardware) {
     auto monitor = UsbHotplugMonitor::Start([this](const UsbHotplugEvent& event) {
-      impl_->Log(absl::StrCat("usb: ", event.ToString()));
+      impl_->logger.Info(
+          "usb_event",
+          {{"arrived", event.kind == UsbHotplugKind::kArrived}, {"usb_id", event.usb_id()}},
+          absl::StrCat("usb: ", event.ToString()));
       OnUsbEvent(UsbEvent{event.kind == UsbHotplugKind::kArrived, event.usb_id(), ""});
     });
     if (monitor.ok()) {
       hotplug = std::move(*monitor);
     } else {
-      d.Log(absl::StrCat("usb hotplug off: ", std::string(monitor.status().message())));
+      d.logger.Warn("usb_hotplug_off", {{"error", monitor.status().message()}},
+                    "usb hotplug is off: new sensors are not noticed");
     }
   }
   d.io.run();
   hotplug.reset();
+  // Draining (or done): probes hear NOT_SERVING from here on.
+  d.StopHealth();
 
   absl::Status result = absl::OkStatus();
   if (d.once_result.has_value() && !d.stop_requested) {
@@ -952,8 +1127,13 @@ absl::Status Daemon::Run() {
       if (r->done()) {
         r->WaitDone(0);
         if (result.ok()) result = r->result();
-        if (!r->result().ok()) {
-          d.Log(absl::StrCat("error: take ", r->take_id(), " failed: ", r->result().message()));
+        if (r->result().ok()) {
+          d.logger.Info("take_durable", {{"take_id", r->take_id()}},
+                        absl::StrCat("take ", r->take_id(), " is durable on the server"));
+        } else {
+          d.logger.Error("take_failed",
+                         {{"take_id", r->take_id()}, {"error", r->result().message()}},
+                         absl::StrCat("take ", r->take_id(), " failed"));
         }
         continue;
       }
@@ -966,7 +1146,11 @@ absl::Status Daemon::Run() {
       if (result.ok()) {
         result = timed_out;  // The caller reports it.
       } else {
-        d.Log(std::string(timed_out.message()));
+        d.logger.Error("take_not_durable",
+                       {{"take_id", r->take_id()},
+                        {"spool_frame_sets", stats.spool_frame_sets},
+                        {"spool_bytes", stats.spool_bytes}},
+                       timed_out.message());
       }
     }
   }
@@ -994,6 +1178,8 @@ void Daemon::RequestStop() {
 }
 
 std::string Daemon::control_address() const { return impl_->bound_control; }
+
+std::string Daemon::metrics_address() const { return impl_->bound_metrics; }
 
 std::vector<v1::SensorInfo> Daemon::ListSensors() { return impl_->ListSensors(); }
 

@@ -31,6 +31,8 @@
 #include "capture_daemon/sync_group.h"
 #include "capture_daemon/take_recorder.h"
 #include "capture_daemon/uplink.h"
+#include "common/log/log.h"
+#include "common/metrics/metrics.h"
 
 namespace reenact::capture {
 
@@ -80,10 +82,19 @@ struct DaemonOptions {
   double drain_timeout_s = 10.0;
   // Figures for the end-to-end benchmark, written at exit (JSON).
   std::string stats_json;
-  // Per-second progress lines on `log`.
+  // Per-second progress events on `log`.
   bool verbose = false;
-  // Where messages go (errors always, progress with verbose); nullptr: none.
+  // Where the daemon's events go (common/log/log.h: sensors, takes, the
+  // control service; progress with verbose); nullptr: none. The uplink's
+  // events and refusals of control calls go to the process logger
+  // (log::Default()), which reenactd points at the same stderr.
   std::ostream* log = nullptr;
+  // Format and level of `log` (--log-format, --log-level).
+  log::Options log_options{};
+  // "HOST:PORT" of the Prometheus metrics endpoint (GET /metrics; port 0
+  // picks one); empty: none. Plain HTTP without tokens: a non-loopback
+  // address needs `insecure`.
+  std::string metrics_address{};
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -96,10 +107,25 @@ struct UsbEvent {
   std::string serial;  // When known.
 };
 
+// The daemon's figures for the metrics endpoint, from its status:
+//   reenactd_frames_captured_total{sensor}  frames each sensor delivered
+//   reenactd_frames_dropped_total{sensor}   frames the sync group dropped
+//   reenactd_sensor_up{sensor}              1 while the sensor streams
+//   reenactd_uplink_queue_bytes             spooled bytes the server has
+//                                           not acknowledged yet
+//   reenactd_uplink_queue_frame_sets        the same in frame sets
+//   reenactd_uplink_connected               1 while the take's stream is open
+//   reenactd_uplink_reconnects_total        streams begun after the first
+//   reenactd_recording                      1 while a take is recorded
+void AddDaemonMetrics(const v1::DaemonStatus& status, metrics::Snapshot& out);
+
 // "reenactd-<host>-<8 hex>": stable for one machine and spool folder.
 std::string DefaultDaemonId(const std::string& spool_dir);
 // The spool folder used when none is given: $STATE_DIRECTORY/spool under
-// systemd, else /tmp/reenactd-<uid>/spool.
+// systemd, else /var/lib/reenactd/spool for root, else
+// $XDG_STATE_HOME/reenactd/spool (default ~/.local/state). Never the system's
+// temporary folder: the spool holds frames of people until the server has
+// them, and /tmp is shared with every user and emptied at boot.
 std::string DefaultSpoolDir();
 
 class Daemon : public CaptureController {
@@ -119,6 +145,9 @@ class Daemon : public CaptureController {
 
   // Address the control service is bound to (after Run() started it).
   std::string control_address() const;
+  // Address the metrics endpoint is bound to (Create starts it); empty
+  // without one.
+  std::string metrics_address() const;
 
   // CaptureController.
   std::vector<v1::SensorInfo> ListSensors() override;

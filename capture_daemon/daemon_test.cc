@@ -10,10 +10,13 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_cat.h"
 #include "capture_daemon/reenactd_cli.h"
 #include "capture_daemon/testing/fake_ingest.h"
 #include "capture_daemon/testing/synthetic_take.h"
 #include "common/base/files.h"
+#include "common/metrics/testing/scrape.h"
+#include "grpc/health/v1/health.grpc.pb.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
 
 namespace reenact::capture {
@@ -164,6 +167,132 @@ TEST(Daemon, ControlServiceStartsAndStopsTakes) {
   EXPECT_EQ(take.sets.size(), stopped.frame_set_count());
 }
 
+// The operator's view of a running daemon: health on the control port
+// (no token needed), figures on --metrics over a real TCP connection, and
+// one parseable JSON line per event.
+TEST(Daemon, HealthMetricsAndJsonEvents) {
+  testing::FakeIngestServer server;
+  ASSERT_TRUE(server.ok());
+  DaemonOptions options = BaseOptions("daemon_observability", server.address());
+  options.loop = true;
+  options.control_port_file = fs::path(options.spool_dir).parent_path().string() + "/control";
+  options.metrics_address = "127.0.0.1:0";
+  options.log_options = {log::Format::kJson, log::Level::kInfo};
+  std::ostringstream log;
+  options.log = &log;
+  auto daemon = Daemon::Create(options);
+  ASSERT_TRUE(daemon.ok()) << daemon.status();
+  const std::string metrics_address = (*daemon)->metrics_address();
+  ASSERT_FALSE(metrics_address.empty());
+  const int metrics_port = std::stoi(metrics_address.substr(metrics_address.rfind(':') + 1));
+  // The request counters are the process's: earlier tests' calls are in.
+  const std::string start_take_ok =
+      "reenact_rpc_requests_total{method=\"/reenact.v1.CaptureControl/StartTake\",code=\"OK\"}";
+  auto before = metrics::testing::HttpRequest(metrics_port, "/metrics");
+  ASSERT_TRUE(before.ok()) << before.status();
+  auto samples_before = metrics::testing::ParseExposition(before->body);
+  ASSERT_TRUE(samples_before.ok()) << samples_before.status() << "\n" << before->body;
+  const double start_takes_before =
+      samples_before->contains(start_take_ok) ? samples_before->at(start_take_ok) : 0;
+  EXPECT_EQ(samples_before->at("reenactd_recording"), 0);
+  absl::Status result;
+  std::thread runner([&] { result = (*daemon)->Run(); });
+  std::string address;
+  for (int i = 0; i < 200 && address.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    address = ReadFileToString(options.control_port_file).value_or("");
+  }
+  ASSERT_FALSE(address.empty());
+  address.pop_back();  // Newline.
+  auto channel = grpc::CreateChannel(address, grpc::InsecureChannelCredentials());
+  auto health = grpc::health::v1::Health::NewStub(channel);
+  for (const std::string name : {"", "reenact.v1.CaptureControl"}) {
+    grpc::ClientContext context;
+    grpc::health::v1::HealthCheckRequest request;
+    request.set_service(name);
+    grpc::health::v1::HealthCheckResponse response;
+    ASSERT_TRUE(health->Check(&context, request, &response).ok()) << name;
+    EXPECT_EQ(response.status(), grpc::health::v1::HealthCheckResponse::SERVING) << name;
+  }
+  auto control = v1::CaptureControl::NewStub(channel);
+  v1::StartTakeRequest start;
+  start.set_name("observed");
+  v1::StartTakeResponse started;
+  {
+    grpc::ClientContext context;
+    ASSERT_TRUE(control->StartTake(&context, start, &started).ok());
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+
+  auto answer = metrics::testing::HttpRequest(metrics_port, "/metrics");
+  ASSERT_TRUE(answer.ok()) << answer.status();
+  EXPECT_EQ(answer->status, 200);
+  auto samples = metrics::testing::ParseExposition(answer->body);
+  ASSERT_TRUE(samples.ok()) << samples.status() << "\n" << answer->body;
+  for (const char* sensor : {"k0", "k1"}) {
+    const std::string labels = absl::StrCat("{sensor=\"", sensor, "\"}");
+    EXPECT_GT(samples->at("reenactd_frames_captured_total" + labels), 5) << answer->body;
+    EXPECT_EQ(samples->at("reenactd_sensor_up" + labels), 1);
+    EXPECT_TRUE(samples->contains("reenactd_frames_dropped_total" + labels)) << answer->body;
+  }
+  EXPECT_EQ(samples->at("reenactd_recording"), 1);
+  EXPECT_EQ(samples->at("reenactd_uplink_connected"), 1);
+  EXPECT_GE(samples->at("reenactd_uplink_queue_bytes"), 0);
+  EXPECT_EQ(samples->at(start_take_ok), start_takes_before + 1);
+  EXPECT_GE(samples->at("reenact_rpc_requests_total{method=\"/grpc.health.v1.Health/Check\","
+                        "code=\"OK\"}"),
+            2);
+  EXPECT_GT(samples->at("process_resident_memory_bytes"), 0);
+
+  v1::StopTakeResponse stopped;
+  {
+    grpc::ClientContext context;
+    ASSERT_TRUE(control->StopTake(&context, {}, &stopped).ok());
+  }
+  // The stopped take becomes durable on the fake server; then shut down.
+  for (int i = 0; i < 200; ++i) {
+    const auto takes = server.service().takes();
+    if (takes.count(started.take_id()) && takes.at(started.take_id()).closed) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // A tick notices it.
+  (*daemon)->RequestStop();
+  runner.join();
+  EXPECT_TRUE(result.ok()) << result;
+  {
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    grpc::health::v1::HealthCheckResponse response;
+    const grpc::Status after = health->Check(&context, {}, &response);
+    // Stopped: NOT_SERVING, or the port is already closed.
+    EXPECT_TRUE(!after.ok() ||
+                response.status() == grpc::health::v1::HealthCheckResponse::NOT_SERVING);
+  }
+
+  std::map<std::string, std::vector<nlohmann::json>> events;
+  std::istringstream lines(log.str());
+  for (std::string line; std::getline(lines, line);) {
+    const nlohmann::json event = nlohmann::json::parse(line, nullptr, false);
+    ASSERT_TRUE(event.is_object()) << line;
+    for (const char* key : {"ts", "level", "event", "msg"}) {
+      EXPECT_TRUE(event.contains(key)) << key << " in " << line;
+    }
+    events[event["event"].get<std::string>()].push_back(event);
+  }
+  ASSERT_EQ(events["sensor_opened"].size(), 2u) << log.str();
+  EXPECT_EQ(events["sensor_opened"][0]["backend"], "playback");
+  ASSERT_EQ(events["metrics_listening"].size(), 1u) << log.str();
+  EXPECT_EQ(events["metrics_listening"][0]["address"], metrics_address);
+  ASSERT_EQ(events["control_listening"].size(), 1u) << log.str();
+  ASSERT_EQ(events["take_started"].size(), 1u) << log.str();
+  EXPECT_EQ(events["take_started"][0]["take_id"], started.take_id());
+  EXPECT_EQ(events["take_started"][0]["sensors"], 2);
+  ASSERT_EQ(events["take_stopped"].size(), 1u) << log.str();
+  EXPECT_EQ(events["take_stopped"][0]["frame_sets"].get<uint64_t>(), stopped.frame_set_count());
+  ASSERT_EQ(events["take_durable"].size(), 1u) << log.str();
+  EXPECT_EQ(events["take_durable"][0]["take_id"], started.take_id());
+}
+
 TEST(Daemon, DrainTimeoutLeavesSpoolThenRestartDeliversIt) {
   int port = 0;
   {
@@ -237,6 +366,23 @@ TEST(ReenactdFlags, ConfigFileAndFlagsMerge) {
       ParseReenactdFlags({"--source", "playback:x", "--segmentation", "maybe"}).status()));
   std::ofstream(config) << R"({"colour": 1})";
   EXPECT_TRUE(absl::IsInvalidArgument(ParseReenactdFlags({"--config", config}).status()));
+  // --metrics: a HOST:PORT, on loopback unless --insecure; log flags checked.
+  EXPECT_TRUE(absl::IsInvalidArgument(
+      ParseReenactdFlags({"--source", "playback:x", "--spool", dir, "--metrics", "no-port"})
+          .status()));
+  EXPECT_TRUE(absl::IsFailedPrecondition(
+      ParseReenactdFlags({"--source", "playback:x", "--spool", dir, "--metrics", "0.0.0.0:9100"})
+          .status()));
+  auto exposed =
+      ParseReenactdFlags({"--source", "playback:x", "--spool", dir, "--metrics", "0.0.0.0:9100",
+                          "--insecure", "--log-format", "json", "--log-level", "warn"});
+  ASSERT_TRUE(exposed.ok()) << exposed.status();
+  EXPECT_EQ(exposed->metrics_address, "0.0.0.0:9100");
+  EXPECT_EQ(exposed->log_options.format, log::Format::kJson);
+  EXPECT_EQ(exposed->log_options.level, log::Level::kWarn);
+  EXPECT_TRUE(absl::IsInvalidArgument(
+      ParseReenactdFlags({"--source", "playback:x", "--spool", dir, "--log-format", "xml"})
+          .status()));
   std::ostringstream out;
   std::ostringstream err;
   EXPECT_EQ(RunReenactd({"--server", "x:1"}, out, err), kExitUsage);

@@ -11,6 +11,7 @@
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/board/board_spec.h"
+#include "common/log/log.h"
 #include "common/rpc/channel.h"
 
 namespace reenact::capture {
@@ -41,7 +42,10 @@ const std::set<std::string> kValueFlags = {"server",
                                            "tls-cert",
                                            "tls-key",
                                            "tls-client-ca",
-                                           "auth"};
+                                           "auth",
+                                           "metrics",
+                                           "log-format",
+                                           "log-level"};
 const std::set<std::string> kBoolFlags = {"fast", "loop", "once", "verbose", "help", "insecure"};
 
 // "--anchor board[:SPEC]" (or "none") into `anchor`.
@@ -149,7 +153,9 @@ std::string ReenactdUsage() {
          "  --tls-client-ca PEM     control clients need a certificate this CA signed\n"
          "  --auth TOKENS.json      control calls need a token (see 'reenact auth add')\n"
          "  --insecure              allow a non-loopback --control without TLS and tokens\n"
-         "  --spool DIR             spool folder (default $STATE_DIRECTORY/spool or /tmp)\n"
+         "  --spool DIR             spool folder (default $STATE_DIRECTORY/spool,\n"
+         "                          /var/lib/reenactd/spool for root, else\n"
+         "                          ~/.local/state/reenactd/spool)\n"
          "  --spool-max-mb N        bound of a take's spool (default 1024)\n"
          "  --take-name NAME        name of the --once take (default \"take\")\n"
          "  --daemon-id ID          stable id of this daemon (default from host and spool)\n"
@@ -170,7 +176,11 @@ std::string ReenactdUsage() {
          "  --anchor-timeout-s S    longest wait for the anchoring (default 15)\n"
          "  --config FILE           JSON with the same keys; flags win\n"
          "  --stats-json FILE       figures written at exit\n"
-         "  --verbose               a progress line per second\n";
+         "  --verbose               a progress event per second\n"
+         "  --metrics HOST:PORT     Prometheus text on GET /metrics (loopback unless\n"
+         "                          --insecure; :0 any port; default off)\n"
+         "  --log-format text|json  one line per event on stderr (default text)\n"
+         "  --log-level L           debug|info|warn|error (default info)\n";
 }
 
 absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>& args_in,
@@ -207,6 +217,9 @@ absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>&
   RETURN_IF_ERROR(options.control_tls.Validate());
   options.control_auth_file = flags.GetOr("auth", "");
   options.insecure = flags.Has("insecure");
+  options.metrics_address = flags.GetOr("metrics", "");
+  ASSIGN_OR_RETURN(options.log_options, log::ParseOptions(flags.GetOr("log-format", "text"),
+                                                          flags.GetOr("log-level", "info")));
   ASSIGN_OR_RETURN(options.uplink.security, rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""),
                                                                     flags.GetOr("token-file", "")));
   options.spool_dir = flags.GetOr("spool", DefaultSpoolDir());
@@ -259,15 +272,21 @@ int RunReenactd(const std::vector<std::string>& args, std::ostream& out, std::os
     err << "reenactd: " << options.status().message() << "\n" << ReenactdUsage();
     return kExitUsage;
   }
+  // The daemon's events and those of the libraries it runs (uplink,
+  // refusals of control calls) in one format on stderr.
+  log::Configure(options->log_options);
   options->log = &err;
+  const log::Logger logger(&err, options->log_options);
   absl::StatusOr<std::unique_ptr<Daemon>> daemon = Daemon::Create(*options);
   if (!daemon.ok()) {
-    err << "reenactd: " << daemon.status().message() << "\n";
+    logger.Error("daemon_failed", {{"status", absl::StatusCodeToString(daemon.status().code())}},
+                 daemon.status().message());
     return absl::IsInvalidArgument(daemon.status()) ? kExitUsage : kExitFailure;
   }
   const absl::Status result = (*daemon)->Run();
   if (!result.ok()) {
-    err << "reenactd: " << result.message() << "\n";
+    logger.Error("daemon_failed", {{"status", absl::StatusCodeToString(result.code())}},
+                 result.message());
     return kExitFailure;
   }
   return kExitOk;

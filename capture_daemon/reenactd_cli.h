@@ -8,7 +8,8 @@
 //            [--daemon-id ID] [--sync-tolerance-ms X]
 //            [--segmentation auto|on|off] [--registration auto|on|off]
 //            [--drain-timeout-s S] [--config FILE] [--stats-json FILE]
-//            [--verbose]
+//            [--verbose] [--metrics HOST:PORT]
+//            [--log-format text|json] [--log-level debug|info|warn|error]
 //
 // --config FILE is a JSON object with the same keys as the flags (without
 // the dashes; "source" may be a string or a list; booleans are true/false);
@@ -40,8 +41,10 @@ std::string ReenactdUsage();
 absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>& args,
                                                  bool* help = nullptr);
 
-// Parses, runs the daemon until it ends, and returns the exit code.
-// Messages go to `err`.
+// Parses, runs the daemon until it ends, and returns the exit code. Usage
+// errors go to `err` as text; once the flags are read, events go to `err`
+// in the --log-format (common/log/log.h), and the process logger is
+// configured the same way for the libraries (it writes to stderr).
 int RunReenactd(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace reenact::capture

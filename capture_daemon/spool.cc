@@ -231,6 +231,11 @@ absl::StatusOr<Spool::Segment*> Spool::SegmentForAppend(int64_t record_bytes) {
   segment.path = (std::filesystem::path(options_.dir) / SegmentName(segment.first_sequence)).string();
   segment.fd = ::open(segment.path.c_str(), O_RDWR | O_APPEND | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (segment.fd < 0) return ErrnoStatus("cannot create", segment.path);
+  // The segment's name must survive a power loss with the frames in it.
+  if (absl::Status synced = SyncDirectory(options_.dir); !synced.ok()) {
+    ::close(segment.fd);
+    return synced;
+  }
   auto [it, inserted] = segments_.emplace(segment.first_sequence, segment);
   return &it->second;
 }

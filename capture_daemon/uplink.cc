@@ -11,6 +11,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/time.h"
+#include "common/log/log.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::capture {
@@ -145,6 +146,8 @@ void TakeUplink::Run() {
   std::mt19937_64 rng(std::random_device{}());
   int64_t backoff_ms = options_.initial_backoff_ms;
   absl::Status final_status;
+  // One uplink_unreachable line per outage, not one per retry.
+  bool down_reported = false;
   while (true) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -156,13 +159,33 @@ void TakeUplink::Run() {
       }
     }
     const Attempt attempt = RunAttempt();
+    if (attempt.opened) down_reported = false;
     if (attempt.status.ok()) {
       final_status = absl::OkStatus();
       break;
     }
     if (IsNonRetryable(attempt.status.code())) {
       final_status = attempt.status;
+      log::Error("uplink_failed",
+                 {{"take_id", take_id()},
+                  {"status", absl::StatusCodeToString(attempt.status.code())},
+                  {"error", attempt.status.message()}},
+                 "the server refused the take; retrying cannot help, the spool stays on disk");
       break;
+    }
+    if (attempt.opened) {
+      log::Warn("uplink_lost",
+                {{"take_id", take_id()},
+                 {"status", absl::StatusCodeToString(attempt.status.code())},
+                 {"error", attempt.status.message()}},
+                "the stream to the server ended; reconnecting");
+    } else if (!down_reported && !absl::IsAborted(attempt.status)) {
+      down_reported = true;
+      log::Warn("uplink_unreachable",
+                {{"take_id", take_id()},
+                 {"status", absl::StatusCodeToString(attempt.status.code())},
+                 {"error", attempt.status.message()}},
+                "the server cannot be reached; retrying with backoff");
     }
     if (attempt.opened) backoff_ms = options_.initial_backoff_ms;
     std::uniform_int_distribution<int64_t> jitter(backoff_ms / 2, backoff_ms);
@@ -213,7 +236,15 @@ TakeUplink::Attempt TakeUplink::RunAttempt() {
       attempt.opened = true;
       stats_.connected = true;
       const uint64_t durable = opened_->durable_sequence();
+      const int64_t reconnects = stats_.reconnects;
+      const bool resumed = opened_->resumed();
       lock.unlock();
+      log::Info("uplink_connected",
+                {{"take_id", take_id_},
+                 {"durable_sequence", durable},
+                 {"resumed", resumed},
+                 {"reconnects", reconnects}},
+                "streaming the take to the server");
       pumped = Pump(stream.get(), durable + 1);
     }
   }

@@ -22,7 +22,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libsqlite3-dev libzstd-dev zlib1g-dev libturbojpeg0-dev libpng-dev
   libegl-dev libopengl-dev libgl1-mesa-dri libglfw3-dev
-  libtinygltf-dev nlohmann-json3-dev
+  libtinygltf-dev nlohmann-json3-dev libspdlog-dev
   libavformat-dev libavcodec-dev libswscale-dev
   xvfb xauth
 )

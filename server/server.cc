@@ -2,16 +2,26 @@
 
 #include <chrono>
 #include <filesystem>
+#include <map>
+#include <set>
 #include <utility>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/log/log.h"
+#include "common/rpc/request_metrics.h"
+#include "reenact/v1/ingest_service.grpc.pb.h"
+#include "reenact/v1/jobs_service.grpc.pb.h"
+#include "reenact/v1/reenactments_service.grpc.pb.h"
+#include "reenact/v1/takes_service.grpc.pb.h"
 #include "server/rpc/ingest_service.h"
 #include "server/rpc/jobs_service.h"
 #include "server/rpc/reenactments_service.h"
 #include "server/rpc/rpc_auth.h"
 #include "server/rpc/takes_service.h"
+#include "server/server_metrics.h"
 
 namespace reenact::server {
 namespace {
@@ -48,15 +58,54 @@ absl::Status ServerOptions::Validate() const {
     RETURN_IF_ERROR(SplitAddress(listen_address, &host, &port));
   }
   RETURN_IF_ERROR(tls.Validate());
+  RETURN_IF_ERROR(client_limits.Validate());
   RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--listen ", listen_address), listen_address,
                                      tls.enabled(), !auth_file.empty(), insecure,
                                      "read and delete every take"));
+  if (!metrics_address.empty()) {
+    std::string host;
+    int port = 0;
+    RETURN_IF_ERROR(SplitAddress(metrics_address, &host, &port));
+    // Plain HTTP without tokens: only loopback unless the operator says so.
+    RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--metrics ", metrics_address), metrics_address,
+                                       /*tls=*/false, /*tokens=*/false, insecure,
+                                       "read the server's figures"));
+  }
   TakeStoreOptions store_options = store;
   store_options.data_dir = data_dir;
   RETURN_IF_ERROR(jobs.Validate());
   RETURN_IF_ERROR(live.Validate());
   return store_options.Validate();
 }
+
+namespace {
+
+// The services the health service answers for, besides "" (the server).
+std::vector<std::string> HealthServiceNames() {
+  return {v1::Ingest::service_full_name(), v1::Takes::service_full_name(),
+          v1::Jobs::service_full_name(), v1::Reenactments::service_full_name()};
+}
+
+// The methods reenact_rpc_requests_total names; any other is "other".
+std::set<std::string, std::less<>> CountedMethods() {
+  std::set<std::string, std::less<>> methods;
+  for (const auto& [method, access] : ServerMethodAccess()) methods.insert(method);
+  methods.insert("/grpc.health.v1.Health/Check");
+  methods.insert("/grpc.health.v1.Health/Watch");
+  return methods;
+}
+
+// "queued" for JOB_STATE_QUEUED.
+std::string JobStateLabel(v1::JobState state) {
+  std::string name = absl::AsciiStrToLower(v1::JobState_Name(state));
+  constexpr absl::string_view kPrefix = "job_state_";
+  if (absl::string_view(name).substr(0, kPrefix.size()) == kPrefix) {
+    name = name.substr(kPrefix.size());
+  }
+  return name;
+}
+
+}  // namespace
 
 std::vector<std::unique_ptr<grpc::Service>> MakeServices(ServerContext& context) {
   std::vector<std::unique_ptr<grpc::Service>> services;
@@ -98,8 +147,15 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     server->options_.jobs.worker_path = worker.lexically_normal().string();
   }
   const ServerOptions& absolute = server->options_;
+  RegisterServerCounters();
+  server->health_ = std::make_unique<rpc::HealthService>(HealthServiceNames());
   TakeStoreOptions store_options = absolute.store;
   store_options.data_dir = absolute.data_dir;
+  store_options.disk_full_changed = [s = server.get(),
+                                     chained = absolute.store.disk_full_changed](bool full) {
+    s->SetDiskFull(full);
+    if (chained) chained(full);
+  };
   ASSIGN_OR_RETURN(server->store_, TakeStore::Open(store_options, &server->recovered_));
   ASSIGN_OR_RETURN(server->reenactments_,
                    ReenactmentStore::Open(absolute.data_dir + "/reenactments"));
@@ -119,6 +175,8 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   server->context_.live = server->live_.get();
   server->context_.keep_derived = options.keep_derived;
   if (server->auth_->enabled()) server->context_.auth = server->auth_.get();
+  server->client_limits_ = std::make_unique<rpc::ClientLimits>(options.client_limits);
+  server->context_.client_limits = server->client_limits_.get();
   server->services_ = MakeServices(server->context_);
 
   grpc::ServerBuilder builder;
@@ -138,13 +196,62 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     builder.AddListeningPort(options.listen_address, credentials, &server->port_);
   }
   for (const auto& service : server->services_) builder.RegisterService(service.get());
+  // No token needed (common/rpc/health_service.h): probes hold none.
+  builder.RegisterService(server->health_.get());
+  auto interceptors = rpc::RequestMetricsInterceptors(CountedMethods());
+  interceptors.push_back(server->client_limits_->InterceptorFactory());
+  builder.experimental().SetInterceptorCreators(std::move(interceptors));
   server->grpc_server_ = builder.BuildAndStart();
   if (server->grpc_server_ == nullptr || (!options.listen_address.empty() && server->port_ == 0)) {
     return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen_address,
                                                " (address in use, not local, or not permitted)"));
   }
   if (!options.listen_address.empty()) server->address_ = absl::StrCat(host, ":", server->port_);
+  if (!options.metrics_address.empty()) {
+    Server* const s = server.get();
+    ASSIGN_OR_RETURN(server->metrics_, metrics::HttpExposer::Start(options.metrics_address, [s] {
+                       metrics::Snapshot snapshot;
+                       metrics::DefaultRegistry().CollectInto(snapshot);
+                       s->CollectMetrics(snapshot);
+                       metrics::AddProcessMetrics(snapshot);
+                       return snapshot.Expose();
+                     }));
+    server->metrics_address_ = server->metrics_->address();
+  }
   return server;
+}
+
+void Server::SetDiskFull(bool full) {
+  if (disk_full_.exchange(full) == full) return;
+  health_->SetProblem("disk_full", full);
+  if (full) {
+    log::Error("disk_full", {{"data_dir", options_.data_dir}},
+               "the data folder's disk is full; health is NOT_SERVING until writes succeed again");
+  } else {
+    log::Info("disk_full_cleared", {{"data_dir", options_.data_dir}},
+              "the data folder's disk takes writes again");
+  }
+}
+
+void Server::CollectMetrics(metrics::Snapshot& out) const {
+  const std::map<v1::JobState, int64_t> counts = job_store_->CountByState();
+  for (const v1::JobState state :
+       {v1::JOB_STATE_QUEUED, v1::JOB_STATE_RUNNING, v1::JOB_STATE_SUCCEEDED, v1::JOB_STATE_FAILED,
+        v1::JOB_STATE_CANCELLED}) {
+    const auto it = counts.find(state);
+    out.AddGauge("reenact_jobs", "Jobs in the job store, by state.",
+                 {{"state", JobStateLabel(state)}},
+                 it == counts.end() ? 0.0 : static_cast<double>(it->second));
+  }
+  const auto queued = counts.find(v1::JOB_STATE_QUEUED);
+  out.AddGauge("reenact_job_queue_length", "Jobs waiting for a worker slot.", {},
+               queued == counts.end() ? 0.0 : static_cast<double>(queued->second));
+  out.AddGauge("reenact_data_disk_free_bytes",
+               "Bytes free for the server on the data folder's file system (statvfs).", {},
+               metrics::FreeDiskBytes(options_.data_dir));
+  out.AddGauge("reenact_serving",
+               "1 while the health service answers SERVING, 0 while NOT_SERVING.", {},
+               health_->StatusFor("") == grpc::health::v1::HealthCheckResponse::SERVING ? 1 : 0);
 }
 
 Server::~Server() { Shutdown(); }
@@ -159,6 +266,9 @@ std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
 void Server::Shutdown() {
   if (shut_down_ || grpc_server_ == nullptr) return;
   shut_down_ = true;
+  // Probes hear NOT_SERVING first: balancers stop sending work while the
+  // server drains.
+  health_->Shutdown();
   // Live follows first: their subscribers hear the end; their jobs stay
   // RUNNING.
   live_->Shutdown();
@@ -172,6 +282,7 @@ void Server::Shutdown() {
       std::chrono::duration<double>(options_.shutdown_grace_s));
   grpc_server_->Shutdown(std::chrono::system_clock::now() + grace);
   blocking_->Wait();
+  if (metrics_ != nullptr) metrics_->Stop();
 }
 
 void Server::Wait() {

@@ -4,6 +4,7 @@
 // Server on 127.0.0.1:0 or use InProcessChannel().
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -14,8 +15,11 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/base/thread_pool.h"
+#include "common/metrics/http_exposer.h"
+#include "common/metrics/metrics.h"
 #include "common/rpc/auth.h"
 #include "common/rpc/channel.h"
+#include "common/rpc/health_service.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/jobs/job_store.h"
 #include "server/live/live_hub.h"
@@ -60,6 +64,13 @@ struct ServerOptions {
   bool insecure = false;
   // Takes.Delete keeps the take's reenactments and job folders.
   bool keep_derived = false;
+  // "HOST:PORT" of the Prometheus metrics endpoint (GET /metrics; port 0
+  // picks a free one); empty: none. It has neither TLS nor tokens, so a
+  // non-loopback address needs `insecure`, as the listen address does.
+  std::string metrics_address{};
+  // Calls and streams one client may hold open at once
+  // (common/rpc/client_limits.h).
+  rpc::ClientLimitOptions client_limits{};
 
   // InvalidArgument naming the first bad field; FailedPrecondition for a
   // non-loopback address without TLS and tokens (unless insecure).
@@ -80,6 +91,8 @@ class Server {
   // without a listen address.
   const std::string& address() const { return address_; }
   int port() const { return port_; }
+  // The metrics endpoint's bound "HOST:PORT"; empty without one.
+  const std::string& metrics_address() const { return metrics_address_; }
   // A channel to this server that bypasses the network.
   std::shared_ptr<grpc::Channel> InProcessChannel();
   // Takes that Start() recovered after a crash.
@@ -88,11 +101,24 @@ class Server {
   JobScheduler& jobs() { return *jobs_; }
   LiveHub& live() { return *live_; }
   ReenactmentStore& reenactments() { return *reenactments_; }
+  // The grpc.health.v1.Health service (common/rpc/health_service.h).
+  rpc::HealthService& health() { return *health_; }
 
-  // Graceful stop: ends live follows (their jobs stay RUNNING and run
-  // offline after a restart), refuses new takes, makes every received frame
-  // set durable and finishes recording takes as INTERRUPTED, ends their
-  // streams with UNAVAILABLE, then stops serving. Idempotent.
+  // Whether the data folder's disk is full: the health service answers
+  // NOT_SERVING while it is (the store calls it through
+  // TakeStoreOptions.disk_full_changed; operators' tools may too). Logged
+  // when it changes. Thread-safe.
+  void SetDiskFull(bool full);
+
+  // The figures only this server knows, read now: jobs by state, the queue,
+  // the data folder's free bytes, whether it serves.
+  void CollectMetrics(metrics::Snapshot& out) const;
+
+  // Graceful stop: health says NOT_SERVING (and its watches end), ends live
+  // follows (their jobs stay RUNNING and run offline after a restart),
+  // refuses new takes, makes every received frame set durable and finishes
+  // recording takes as INTERRUPTED, ends their streams with UNAVAILABLE,
+  // then stops serving. Idempotent.
   void Shutdown();
   // Blocks until Shutdown() (from another thread) has stopped the server.
   void Wait();
@@ -102,6 +128,9 @@ class Server {
 
   ServerOptions options_;
   std::vector<RecoveredTake> recovered_;
+  // Before the store, which may report a full disk while it opens.
+  std::unique_ptr<rpc::HealthService> health_;
+  std::atomic<bool> disk_full_{false};
   std::unique_ptr<TakeStore> store_;
   // Declared after the take store (whose catalog holds the jobs) and before
   // the gRPC server, so that they outlive every handler.
@@ -112,12 +141,17 @@ class Server {
   std::unique_ptr<JobScheduler> jobs_;
   std::unique_ptr<ThreadPool> blocking_;
   std::unique_ptr<rpc::Authorizer> auth_;
+  // Before the gRPC server, whose interceptor refers to it.
+  std::unique_ptr<rpc::ClientLimits> client_limits_;
   ServerContext context_;
   std::vector<std::unique_ptr<grpc::Service>> services_;
   std::unique_ptr<grpc::Server> grpc_server_;
   std::string address_;
   int port_ = 0;
   bool shut_down_ = false;
+  // Last: destroyed first, so that no scrape reads a store being destroyed.
+  std::unique_ptr<metrics::HttpExposer> metrics_;
+  std::string metrics_address_;
 };
 
 // The services of the server, registered in this one place.

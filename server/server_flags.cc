@@ -1,19 +1,42 @@
 #include "server/server_flags.h"
 
+#include <filesystem>
+#include <system_error>
+
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "common/base/files.h"
 #include "common/base/flags.h"
+#include "common/base/image.h"
 #include "common/base/status_macros.h"
+#include "common/log/log.h"
 
 namespace reenact::server {
 
 absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::string>& args) {
-  ASSIGN_OR_RETURN(const Flags flags,
-                   Flags::Parse(args,
-                                {"data", "listen", "max-message-mb", "port-file", "depth-check",
-                                 "jobs", "worker", "max-name-bytes", "max-notes-bytes", "tls-cert",
-                                 "tls-key", "tls-client-ca", "auth"},
-                                {"help", "insecure", "keep-derived"}));
+  ASSIGN_OR_RETURN(const Flags flags, Flags::Parse(args,
+                                                   {"data",
+                                                    "listen",
+                                                    "max-message-mb",
+                                                    "port-file",
+                                                    "depth-check",
+                                                    "jobs",
+                                                    "worker",
+                                                    "max-name-bytes",
+                                                    "max-notes-bytes",
+                                                    "max-frame-pixels",
+                                                    "max-calls-per-client",
+                                                    "max-streams-per-client",
+                                                    "job-retention-days",
+                                                    "tls-cert",
+                                                    "tls-key",
+                                                    "tls-client-ca",
+                                                    "auth",
+                                                    "assets",
+                                                    "metrics",
+                                                    "log-format",
+                                                    "log-level"},
+                                                   {"help", "insecure", "keep-derived"}));
   ServerCommandLine out;
   if (flags.Has("help")) {
     out.help = true;
@@ -43,11 +66,26 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   if (limits.max_name_bytes < 1 || limits.max_notes_bytes < 0) {
     return absl::InvalidArgumentError("--max-name-bytes must be >= 1 and --max-notes-bytes >= 0");
   }
+  int max_frame_pixels = 0;
+  ASSIGN_OR_RETURN(max_frame_pixels,
+                   flags.GetInt("max-frame-pixels", static_cast<int>(limits.max_image_pixels)));
+  limits.max_image_pixels = max_frame_pixels;
+  if (absl::Status status = limits.Validate(); !status.ok()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--max-frame-pixels must be 1..", kMaxDecodedImagePixels));
+  }
+  ASSIGN_OR_RETURN(out.options.client_limits.max_calls,
+                   flags.GetInt("max-calls-per-client", out.options.client_limits.max_calls));
+  ASSIGN_OR_RETURN(out.options.client_limits.max_streams,
+                   flags.GetInt("max-streams-per-client", out.options.client_limits.max_streams));
   out.options.tls.cert_file = flags.GetOr("tls-cert", "");
   out.options.tls.key_file = flags.GetOr("tls-key", "");
   out.options.tls.client_ca_file = flags.GetOr("tls-client-ca", "");
   RETURN_IF_ERROR(out.options.tls.Validate());
   out.options.auth_file = flags.GetOr("auth", "");
+  out.options.metrics_address = flags.GetOr("metrics", "");
+  ASSIGN_OR_RETURN(out.log, log::ParseOptions(flags.GetOr("log-format", "text"),
+                                              flags.GetOr("log-level", "info")));
   out.options.insecure = flags.Has("insecure");
   out.options.keep_derived = flags.Has("keep-derived");
   ASSIGN_OR_RETURN(out.options.jobs.concurrency, flags.GetInt("jobs", 0));
@@ -55,6 +93,17 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
     return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");
   }
   out.options.jobs.worker_path = flags.GetOr("worker", "");
+  ASSIGN_OR_RETURN(out.options.jobs.job_retention_days,
+                   flags.GetDouble("job-retention-days", out.options.jobs.job_retention_days));
+  if (const std::string assets = flags.GetOr("assets", ""); !assets.empty()) {
+    out.options.jobs.asset_roots = absl::StrSplit(assets, ',', absl::SkipEmpty());
+    for (const std::string& root : out.options.jobs.asset_roots) {
+      std::error_code error;
+      if (!std::filesystem::is_directory(root, error)) {
+        return absl::InvalidArgumentError(absl::StrCat("--assets ", root, " is not a folder"));
+      }
+    }
+  }
   RETURN_IF_ERROR(out.options.Validate());
   return out;
 }

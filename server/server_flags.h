@@ -2,9 +2,13 @@
 //   reenact-server --data DIR --listen HOST:PORT [--max-message-mb N]
 //                  [--port-file FILE] [--depth-check decode|header]
 //                  [--jobs N] [--worker PATH]
-//                  [--max-name-bytes N] [--max-notes-bytes N]
+//                  [--max-name-bytes N] [--max-notes-bytes N] [--max-frame-pixels N]
+//                  [--max-calls-per-client N] [--max-streams-per-client N]
+//                  [--job-retention-days D]
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]]
 //                  [--auth TOKENS.json] [--insecure] [--keep-derived]
+//                  [--assets DIR[,DIR...]] [--metrics HOST:PORT]
+//                  [--log-format text|json] [--log-level debug|info|warn|error]
 #pragma once
 
 #include <string>
@@ -12,6 +16,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "common/log/log.h"
 #include "server/server.h"
 
 namespace reenact::server {
@@ -23,13 +28,24 @@ inline constexpr char kServerUsage[] =
     "[--worker PATH (default reenact-worker beside reenact-server)] "
     "[--max-name-bytes N (a take's name, default 256)] "
     "[--max-notes-bytes N (a take's notes, default 16384)] "
+    "[--max-frame-pixels N (width x height of one ingested image, default 16777216)] "
+    "[--max-calls-per-client N (default 256)] [--max-streams-per-client N (default 64)] "
+    "[--job-retention-days D (finished jobs' logs and rows are deleted after D days; default "
+    "30, 0: never)] "
     "[--tls-cert PEM --tls-key PEM [--tls-client-ca PEM (clients need a certificate it signed)]] "
     "[--auth TOKENS.json (every call needs a token; see 'reenact auth add')] "
     "[--insecure (allow a non-loopback address without TLS and tokens)] "
-    "[--keep-derived (deleting a take keeps its reenactments and job folders)]";
+    "[--keep-derived (deleting a take keeps its reenactments and job folders)] "
+    "[--assets DIR[,DIR...] (folders whose subfolders jobs name as model=makehuman:NAME)] "
+    "[--metrics HOST:PORT (Prometheus text on GET /metrics; loopback unless --insecure; "
+    "default off)] "
+    "[--log-format text|json (one line per event on stderr; default text)] "
+    "[--log-level debug|info|warn|error (default info)]";
 
 struct ServerCommandLine {
   ServerOptions options;
+  // --log-format and --log-level (common/log/log.h).
+  log::Options log{};
   // Where to write the bound "HOST:PORT\n" (empty: nowhere).
   std::string port_file;
   // --help was given.

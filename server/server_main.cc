@@ -1,13 +1,18 @@
 // reenact-server: the take store and its services. See server/server.h and
 // `reenact-server --help`. SIGINT/SIGTERM stop it gracefully (exit 0); usage
-// errors exit 2, an unusable data folder or address exits 1.
+// errors exit 2, an unusable data folder or address exits 1. Usage errors go
+// to stderr as text; everything after the flags are read is an event of the
+// structured log (common/log/log.h, --log-format, --log-level).
 #include <pthread.h>
 #include <signal.h>
+#include <sys/stat.h>
 
 #include <iostream>
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
+#include "common/log/log.h"
 #include "server/live/live_body_follower.h"
 #include "server/server.h"
 #include "server/server_flags.h"
@@ -23,10 +28,20 @@ int Fail(const absl::Status& status, int code) {
   return code;
 }
 
+// A failure once the log is set up: one error event, then the exit code.
+int FailRunning(const absl::Status& status) {
+  reenact::log::Error("server_failed", {{"status", absl::StatusCodeToString(status.code())}},
+                      status.message());
+  return kExitFailure;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace reenact::server;
+  // Takes, spools, reenactments and logs hold images of people: everything
+  // this process creates is its user's alone (files 0600, folders 0700).
+  ::umask(077);
   // Signals are taken by sigwait below; every thread inherits this mask.
   sigset_t stop_signals;
   sigemptyset(&stop_signals);
@@ -41,29 +56,35 @@ int main(int argc, char** argv) {
     std::cout << kServerUsage << "\n";
     return 0;
   }
+  reenact::log::Configure(command_line->log);
   ServerOptions options = command_line->options;
-  options.live.factory = MakeLiveBodyFollowerFactory();  // Live jobs of method body.
+  // Live jobs of method body.
+  options.live.factory = MakeLiveBodyFollowerFactory(options.jobs.asset_roots);
+  // Recovered takes are logged by the store as it recovers them
+  // (take_recovered).
   absl::StatusOr<std::unique_ptr<Server>> server = Server::Start(options);
-  if (!server.ok()) return Fail(server.status(), kExitFailure);
-  for (const RecoveredTake& take : (*server)->recovered()) {
-    std::cerr << "reenact-server: recovered take " << take.take_id << ": " << take.durable_sequence
-              << " frame sets, " << take.size_bytes << " bytes (" << take.dropped_bytes
-              << " cut) in " << take.elapsed_s << " s" << (take.problem.empty() ? "" : "; ")
-              << take.problem << "\n";
-  }
-  std::cerr << "reenact-server: listening on " << (*server)->address() << std::endl;
+  if (!server.ok()) return FailRunning(server.status());
+  reenact::log::Info("server_listening",
+                     {{"address", (*server)->address()},
+                      {"metrics_address", (*server)->metrics_address()},
+                      {"data_dir", options.data_dir},
+                      {"tls", options.tls.enabled()},
+                      {"auth", !options.auth_file.empty()},
+                      {"jobs", (*server)->jobs().concurrency()}},
+                     absl::StrCat("listening on ", (*server)->address()));
   if (!command_line->port_file.empty()) {
     if (absl::Status written = WritePortFile(command_line->port_file, (*server)->address());
         !written.ok()) {
       (*server)->Shutdown();
-      return Fail(written, kExitFailure);
+      return FailRunning(written);
     }
   }
   int signal_number = 0;
   sigwait(&stop_signals, &signal_number);
-  std::cerr << "reenact-server: " << (signal_number == SIGINT ? "SIGINT" : "SIGTERM")
-            << ", shutting down" << std::endl;
+  const char* const signal_name = signal_number == SIGINT ? "SIGINT" : "SIGTERM";
+  reenact::log::Info("server_stopping", {{"signal", signal_name}},
+                     absl::StrCat(signal_name, ", shutting down"));
   (*server)->Shutdown();
-  std::cerr << "reenact-server: stopped" << std::endl;
+  reenact::log::Info("server_stopped", {}, "stopped");
   return 0;
 }

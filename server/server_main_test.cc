@@ -76,7 +76,7 @@ Child StartServer(const std::string& data_dir, const std::string& scratch) {
   if (!content.ok()) return child;
   EXPECT_TRUE(std::regex_match(*content, std::regex("127\\.0\\.0\\.1:[0-9]+\n"))) << *content;
   child.address = content->substr(0, content->size() - 1);
-  EXPECT_NE(child.Stderr().find("reenact-server: listening on " + child.address), std::string::npos)
+  EXPECT_NE(child.Stderr().find("listening on " + child.address), std::string::npos)
       << child.Stderr();
   return child;
 }

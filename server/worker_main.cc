@@ -4,14 +4,17 @@
 //
 //   reenact-worker --take FILE --method METHOD --out FILE
 //                  [--options-json '{"key":"value"}'] [--reenactment-id RID]
-//                  [--take-id T] [--job-id J]
+//                  [--take-id T] [--job-id J] [--assets DIR[,DIR...]]
+//                  [--log-format text|json] [--log-level debug|info|warn|error]
 //
 // stdout carries one JSON object per line: progress
 // {"stage":"register","fraction":0.42,"frames_done":120,"frames_total":300}
 // (about ten a second at most, plus every stage change and the end), log
 // lines {"log":"..."}, and at the end {"result":{...}} or {"error":"..."}.
 // Exit codes: 0 success, 1 failure, 2 usage error, 3 stopped by SIGTERM or
-// SIGINT (the method stops at its next progress callback).
+// SIGINT (the method stops at its next progress callback). stderr (the job's
+// worker.log) carries the worker's events in the structured log format
+// (common/log/log.h): worker_started, worker_finished, worker_failed.
 //
 // reenact-server blocks SIGTERM/SIGINT in every thread (it takes them with
 // sigwait) and a signal mask survives fork and exec, so the worker unblocks
@@ -19,6 +22,7 @@
 // server leaves no worker running on.
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -30,8 +34,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_split.h"
 #include "common/base/flags.h"
 #include "common/base/time.h"
+#include "common/log/log.h"
 #include "server/recon/methods.h"
 
 namespace {
@@ -45,7 +51,10 @@ constexpr int64_t kProgressPeriodNs = 100'000'000;
 
 constexpr char kUsage[] =
     "usage: reenact-worker --take FILE --method METHOD --out FILE "
-    "[--options-json '{\"key\":\"value\"}'] [--reenactment-id RID] [--take-id T] [--job-id J]";
+    "[--options-json '{\"key\":\"value\"}'] [--reenactment-id RID] [--take-id T] [--job-id J] "
+    "[--assets DIR[,DIR...] (where model=makehuman:NAME is looked up)] "
+    "[--log-format text|json (events on stderr; default text)] "
+    "[--log-level debug|info|warn|error (default info)]";
 
 volatile sig_atomic_t g_stop_signal = 0;
 
@@ -116,11 +125,16 @@ int Usage(Output& out, const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Takes, spools, reenactments and logs hold images of people: everything
+  // this process creates is its user's alone (files 0600, folders 0700).
+  ::umask(077);
   InstallSignals();
   Output out;
-  const absl::StatusOr<reenact::Flags> flags = reenact::Flags::Parse(
-      std::vector<std::string>(argv + 1, argv + argc),
-      {"take", "method", "options-json", "out", "reenactment-id", "take-id", "job-id"}, {"help"});
+  const absl::StatusOr<reenact::Flags> flags =
+      reenact::Flags::Parse(std::vector<std::string>(argv + 1, argv + argc),
+                            {"take", "method", "options-json", "out", "reenactment-id", "take-id",
+                             "job-id", "assets", "log-format", "log-level"},
+                            {"help"});
   if (!flags.ok()) return Usage(out, std::string(flags.status().message()));
   if (flags->Has("help")) {
     std::printf("%s\n", kUsage);
@@ -138,6 +152,9 @@ int main(int argc, char** argv) {
   input.reenactment_id = flags->GetOr("reenactment-id", "");
   input.take_id = flags->GetOr("take-id", "");
   input.job_id = flags->GetOr("job-id", "");
+  if (const std::string assets = flags->GetOr("assets", ""); !assets.empty()) {
+    input.asset_roots = absl::StrSplit(assets, ',', absl::SkipEmpty());
+  }
   const nlohmann::json options =
       nlohmann::json::parse(flags->GetOr("options-json", "{}"), nullptr, false);
   if (!options.is_object()) return Usage(out, "--options-json is not a JSON object");
@@ -145,6 +162,18 @@ int main(int argc, char** argv) {
     input.options[key] = value.is_string() ? value.get<std::string>() : value.dump();
   }
   const std::string out_path = *flags->Get("out");
+  const absl::StatusOr<reenact::log::Options> log_options = reenact::log::ParseOptions(
+      flags->GetOr("log-format", "text"), flags->GetOr("log-level", "info"));
+  if (!log_options.ok()) return Usage(out, std::string(log_options.status().message()));
+  reenact::log::Configure(*log_options);
+  reenact::log::Info("worker_started",
+                     {{"job_id", input.job_id},
+                      {"take_id", input.take_id},
+                      {"method", input.method},
+                      {"take", input.take_path},
+                      {"out", out_path},
+                      {"reenactment_id", input.reenactment_id}},
+                     "reenact-worker started");
 
   out.Line(
       {{"log", "reenact-worker: " + input.method + " on " + input.take_path + " -> " + out_path}});
@@ -155,9 +184,13 @@ int main(int argc, char** argv) {
       });
   if (!result.ok()) {
     const bool stopped = g_stop_signal != 0;
-    out.Line({{"error",
-               stopped ? "stopped by " + std::string(g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM")
-                       : std::string(result.status().ToString())}});
+    const std::string error =
+        stopped ? "stopped by " + std::string(g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM")
+                : std::string(result.status().ToString());
+    out.Line({{"error", error}});
+    reenact::log::Log(stopped ? reenact::log::Level::kInfo : reenact::log::Level::kError,
+                      stopped ? "worker_stopped" : "worker_failed",
+                      {{"job_id", input.job_id}, {"error", error}}, error);
     return stopped ? kExitStopped : kExitFailure;
   }
   nlohmann::json figures = nlohmann::json::object();
@@ -167,5 +200,11 @@ int main(int argc, char** argv) {
               {"keyframes", result->keyframes},
               {"file_bytes", result->file_bytes},
               {"figures", figures}}}});
+  reenact::log::Info("worker_finished",
+                     {{"job_id", input.job_id},
+                      {"frames", result->frames},
+                      {"keyframes", result->keyframes},
+                      {"file_bytes", result->file_bytes}},
+                     "reenact-worker finished");
   return kExitOk;
 }

@@ -55,6 +55,8 @@ class BodyFidelity : public ::testing::Test {
     input.take_path = *take_;
     input.method = "body";
     input.options = {{"model", model}};
+    // model=makehuman:NAME names a folder under the asset roots, as on a server.
+    input.asset_roots = {testing::TestDataPath("body")};
     const std::string out = *dir_ + "/" + name + ".reen";
     auto result = recon::RunMethod(input, out);
     EXPECT_TRUE(result.ok()) << result.status();
@@ -92,8 +94,7 @@ class BodyFidelity : public ::testing::Test {
 
 TEST_F(BodyFidelity, MakeHumanModelFromItsMeanShapeMeetsTheFloors) {
   if (!skip_.empty()) GTEST_SKIP() << skip_;
-  const view::EvaluationResult r =
-      FitAndEvaluate("makehuman:" + testing::TestDataPath("body/makehuman"), "makehuman");
+  const view::EvaluationResult r = FitAndEvaluate("makehuman:makehuman", "makehuman");
   if (unavailable_) GTEST_SKIP() << "no GL context for the novel view";
   EXPECT_LE(r.mpjpe_mm, 30.0);
   EXPECT_LE(r.surface_mm, 10.0);

@@ -96,6 +96,18 @@ TEST(TrustEndToEnd, TheCliMintsTokensAndTheServerRefusesWhatARoleMayNotDo) {
   const std::string log = ReadText(dir + "/server.err");
   EXPECT_NE(log.find("refused /reenact.v1.Jobs/Submit"), std::string::npos) << log;
   EXPECT_EQ(log.find(Trim(ReadText(dir + "/viewer.token"))), std::string::npos);
+  // What the server made is its user's alone: folders 0700, files 0600.
+  int checked = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir + "/data")) {
+    const auto perms = entry.status().permissions() & std::filesystem::perms::all;
+    const auto expected =
+        entry.is_directory()
+            ? std::filesystem::perms::owner_all
+            : (std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+    EXPECT_EQ(perms, expected) << entry.path();
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
 }
 
 TEST(TrustEndToEnd, NonLoopbackWithoutTlsExitsWithAClearMessage) {

@@ -264,17 +264,19 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
 }
 
 int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags =
-      Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "state", "take"}, {"json"});
+  auto flags = Flags::Parse(
+      args, {"server", "timeout", "tls-ca", "token-file", "state", "take", "page-size"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("jobs list takes no arguments"), err);
   }
+  auto page_size = flags->GetInt("page-size", 0);
+  if (!page_size.ok()) return ReportError(page_size.status(), err);
   auto connection = ConnectionFromFlags(*flags);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto state = client::ParseJobState(flags->GetOr("state", "all"));
   if (!state.ok()) return ReportError(state.status(), err);
-  auto jobs = client::JobsClient(*connection).List(*state, flags->GetOr("take", ""));
+  auto jobs = client::JobsClient(*connection).List(*state, flags->GetOr("take", ""), *page_size);
   if (!jobs.ok()) return ReportRemoteError(jobs.status(), err);
   if (flags->Has("json")) {
     nlohmann::json j = nlohmann::json::array();

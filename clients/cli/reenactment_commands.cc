@@ -312,14 +312,17 @@ void PrintFollowSummary(const client::FollowStats& stats, bool json, std::ostrea
 
 int RunReenactmentsList(const std::vector<std::string>& args, std::ostream& out,
                         std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "take"}, {"json"});
+  auto flags = Flags::Parse(
+      args, {"server", "timeout", "tls-ca", "token-file", "take", "page-size"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("reenactments list takes no arguments"), err);
   }
+  auto page_size = flags->GetInt("page-size", 0);
+  if (!page_size.ok()) return ReportError(page_size.status(), err);
   auto connection = ConnectionFromFlags(*flags);
   if (!connection.ok()) return ReportError(connection.status(), err);
-  auto listed = client::ReenactmentsClient(*connection).List(flags->GetOr("take", ""));
+  auto listed = client::ReenactmentsClient(*connection).List(flags->GetOr("take", ""), *page_size);
   if (!listed.ok()) return ReportRemoteError(listed.status(), err);
   if (flags->Has("json")) {
     nlohmann::json j = nlohmann::json::array();

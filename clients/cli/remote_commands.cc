@@ -50,16 +50,19 @@ nlohmann::json TakeJson(const v1::Take& take) {
 }  // namespace
 
 int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "state"}, {"json"});
+  auto flags = Flags::Parse(
+      args, {"server", "timeout", "tls-ca", "token-file", "state", "page-size"}, {"json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError("takes list takes no arguments"), err);
   }
+  auto page_size = flags->GetInt("page-size", 0);
+  if (!page_size.ok()) return ReportError(page_size.status(), err);
   auto connection = ConnectionFromFlags(*flags, "server", kDefaultServer);
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto state = client::ParseTakeState(flags->GetOr("state", "all"));
   if (!state.ok()) return ReportError(state.status(), err);
-  auto takes = client::TakesClient(*connection).List(*state);
+  auto takes = client::TakesClient(*connection).List(*state, *page_size);
   if (!takes.ok()) return ReportRemoteError(takes.status(), err);
   if (flags->Has("json")) {
     nlohmann::json j = nlohmann::json::array();

@@ -4,12 +4,14 @@
 
 #include <chrono>
 #include <cstdint>
+#include <set>
 #include <string>
 
 #include <grpcpp/client_context.h>
 #include <grpcpp/support/status.h>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "proto/grpc_status.h"
 
@@ -30,6 +32,23 @@ inline absl::Status WithAddress(const absl::Status& s, const std::string& addres
 
 inline absl::Status WithAddress(const grpc::Status& status, const std::string& address) {
   return WithAddress(FromGrpcStatus(status), address);
+}
+
+// Calls `fetch` with `request` and then with each next_page_token that
+// `fetch` returns, until one is empty (the List RPCs' pagination). Internal
+// when the server hands back a token it gave before (no end in sight).
+template <typename Request, typename Fetch>
+absl::Status ForEachPage(Request request, Fetch fetch) {
+  std::set<std::string> seen;
+  for (;;) {
+    absl::StatusOr<std::string> next = fetch(request);
+    if (!next.ok()) return next.status();
+    if (next->empty()) return absl::OkStatus();
+    if (!seen.insert(*next).second) {
+      return absl::InternalError("the server repeated a page token; the list does not end");
+    }
+    request.set_page_token(*next);
+  }
 }
 
 }  // namespace reenact::client::internal

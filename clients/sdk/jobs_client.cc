@@ -7,6 +7,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "clients/sdk/call_util.h"
+#include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
@@ -16,6 +17,7 @@ namespace {
 // once the worker has stopped (its grace period is 5 s).
 constexpr double kCancelGraceS = 6.0;
 
+using internal::ForEachPage;
 using internal::SetDeadline;
 using internal::WithAddress;
 
@@ -81,16 +83,24 @@ absl::StatusOr<v1::Job> JobsClient::Cancel(const std::string& job_id) const {
 }
 
 absl::StatusOr<std::vector<v1::Job>> JobsClient::List(v1::JobState state,
-                                                      const std::string& take_id) const {
-  grpc::ClientContext context;
-  SetDeadline(context, options_.timeout_s);
+                                                      const std::string& take_id,
+                                                      int page_size) const {
   v1::ListJobsRequest request;
   request.set_state(state);
   request.set_take_id(take_id);
-  v1::ListJobsResponse response;
-  const grpc::Status status = stub_->List(&context, request, &response);
-  if (!status.ok()) return WithAddress(status, options_.address);
-  return std::vector<v1::Job>(response.jobs().begin(), response.jobs().end());
+  request.set_page_size(page_size);
+  std::vector<v1::Job> jobs;
+  RETURN_IF_ERROR(
+      ForEachPage(request, [&](const v1::ListJobsRequest& page) -> absl::StatusOr<std::string> {
+        grpc::ClientContext context;
+        SetDeadline(context, options_.timeout_s);
+        v1::ListJobsResponse response;
+        const grpc::Status status = stub_->List(&context, page, &response);
+        if (!status.ok()) return WithAddress(status, options_.address);
+        jobs.insert(jobs.end(), response.jobs().begin(), response.jobs().end());
+        return response.next_page_token();
+      }));
+  return jobs;
 }
 
 absl::StatusOr<v1::Job> JobsClient::Get(const std::string& job_id) const {

@@ -41,9 +41,11 @@ class JobsClient {
   // (CANCELLED; as it is when it had already ended). The call waits for a
   // running worker to stop: up to the server's grace period (5 s).
   absl::StatusOr<v1::Job> Cancel(const std::string& job_id) const;
-  // Newest first; UNSPECIFIED / empty do not filter.
+  // Newest first; UNSPECIFIED / empty do not filter. Fetched a page at a
+  // time (`page_size` jobs a call; 0: the server's default).
   absl::StatusOr<std::vector<v1::Job>> List(v1::JobState state = v1::JOB_STATE_UNSPECIFIED,
-                                            const std::string& take_id = "") const;
+                                            const std::string& take_id = "",
+                                            int page_size = 0) const;
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
 
  private:

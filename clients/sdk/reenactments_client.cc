@@ -11,11 +11,13 @@
 
 #include "absl/strings/str_cat.h"
 #include "clients/sdk/call_util.h"
+#include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
 namespace {
 
+using internal::ForEachPage;
 using internal::SetDeadline;
 using internal::WithAddress;
 
@@ -79,16 +81,23 @@ ReenactmentsClient::ReenactmentsClient(std::shared_ptr<grpc::Channel> channel,
     : options_(options), stub_(v1::Reenactments::NewStub(std::move(channel))) {}
 
 absl::StatusOr<std::vector<v1::ReenactmentSummary>> ReenactmentsClient::List(
-    const std::string& take_id) const {
-  grpc::ClientContext context;
-  SetDeadline(context, options_.timeout_s);
+    const std::string& take_id, int page_size) const {
   v1::ListReenactmentsRequest request;
   request.set_take_id(take_id);
-  v1::ListReenactmentsResponse response;
-  const grpc::Status status = stub_->List(&context, request, &response);
-  if (!status.ok()) return WithAddress(status, options_.address);
-  return std::vector<v1::ReenactmentSummary>(response.reenactments().begin(),
-                                             response.reenactments().end());
+  request.set_page_size(page_size);
+  std::vector<v1::ReenactmentSummary> summaries;
+  RETURN_IF_ERROR(ForEachPage(
+      request, [&](const v1::ListReenactmentsRequest& page) -> absl::StatusOr<std::string> {
+        grpc::ClientContext context;
+        SetDeadline(context, options_.timeout_s);
+        v1::ListReenactmentsResponse response;
+        const grpc::Status status = stub_->List(&context, page, &response);
+        if (!status.ok()) return WithAddress(status, options_.address);
+        summaries.insert(summaries.end(), response.reenactments().begin(),
+                         response.reenactments().end());
+        return response.next_page_token();
+      }));
+  return summaries;
 }
 
 absl::StatusOr<v1::ReenactmentSummary> ReenactmentsClient::Get(

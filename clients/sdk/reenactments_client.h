@@ -30,8 +30,10 @@ class ReenactmentsClient {
   explicit ReenactmentsClient(const ConnectionOptions& options);
   ReenactmentsClient(std::shared_ptr<grpc::Channel> channel, const ConnectionOptions& options);
 
-  // Newest first; only those of `take_id` when it is not empty.
-  absl::StatusOr<std::vector<v1::ReenactmentSummary>> List(const std::string& take_id = "") const;
+  // Newest first; only those of `take_id` when it is not empty. Fetched a
+  // page at a time (`page_size` a call; 0: the server's default).
+  absl::StatusOr<std::vector<v1::ReenactmentSummary>> List(const std::string& take_id = "",
+                                                           int page_size = 0) const;
   // NotFound for an unknown id.
   absl::StatusOr<v1::ReenactmentSummary> Get(const std::string& reenactment_id) const;
   // The whole reenactment, reassembled from the stream and checked with

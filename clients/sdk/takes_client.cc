@@ -13,11 +13,13 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "clients/sdk/call_util.h"
+#include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
 namespace {
 
+using internal::ForEachPage;
 using internal::SetDeadline;
 using internal::WithAddress;
 
@@ -36,15 +38,22 @@ TakesClient::TakesClient(const ConnectionOptions& options)
 TakesClient::TakesClient(std::shared_ptr<grpc::Channel> channel, const ConnectionOptions& options)
     : options_(options), stub_(v1::Takes::NewStub(std::move(channel))) {}
 
-absl::StatusOr<std::vector<v1::Take>> TakesClient::List(v1::TakeState state) const {
-  grpc::ClientContext context;
-  SetDeadline(context, options_.timeout_s);
+absl::StatusOr<std::vector<v1::Take>> TakesClient::List(v1::TakeState state, int page_size) const {
   v1::ListTakesRequest request;
   request.set_state(state);
-  v1::ListTakesResponse response;
-  const grpc::Status status = stub_->List(&context, request, &response);
-  if (!status.ok()) return WithAddress(status, options_.address);
-  return std::vector<v1::Take>(response.takes().begin(), response.takes().end());
+  request.set_page_size(page_size);
+  std::vector<v1::Take> takes;
+  RETURN_IF_ERROR(
+      ForEachPage(request, [&](const v1::ListTakesRequest& page) -> absl::StatusOr<std::string> {
+        grpc::ClientContext context;
+        SetDeadline(context, options_.timeout_s);
+        v1::ListTakesResponse response;
+        const grpc::Status status = stub_->List(&context, page, &response);
+        if (!status.ok()) return WithAddress(status, options_.address);
+        takes.insert(takes.end(), response.takes().begin(), response.takes().end());
+        return response.next_page_token();
+      }));
+  return takes;
 }
 
 absl::StatusOr<v1::Take> TakesClient::Get(const std::string& take_id) const {

@@ -41,9 +41,10 @@ class TakesClient {
   explicit TakesClient(const ConnectionOptions& options);
   TakesClient(std::shared_ptr<grpc::Channel> channel, const ConnectionOptions& options);
 
-  // Newest first; `state` UNSPECIFIED lists every take.
-  absl::StatusOr<std::vector<v1::Take>> List(
-      v1::TakeState state = v1::TAKE_STATE_UNSPECIFIED) const;
+  // Newest first; `state` UNSPECIFIED lists every take. Fetched a page at a
+  // time (`page_size` takes a call; 0: the server's default).
+  absl::StatusOr<std::vector<v1::Take>> List(v1::TakeState state = v1::TAKE_STATE_UNSPECIFIED,
+                                             int page_size = 0) const;
   absl::StatusOr<v1::Take> Get(const std::string& take_id) const;
   // Bytes freed on the server, and the reenactments and jobs deleted with
   // the take.

@@ -1,11 +1,15 @@
 #include "common/base/files.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 
 namespace reenact {
@@ -47,11 +51,43 @@ absl::Status WriteFileAtomically(const std::string& path, const std::string& con
     }
     out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
     out.flush();
-    if (!out) return absl::DataLossError(absl::StrCat(tmp, ": write failed"));
+    if (!out) return FileError(absl::StrCat(tmp, ": write failed"), errno);
   }
+  // The contents, then the name: after a power loss the file is the old one
+  // or the new one, whole.
+  const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const int error = errno;
+    if (fd >= 0) ::close(fd);
+    return FileError(absl::StrCat(tmp, ": fsync failed"), error);
+  }
+  ::close(fd);
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) return absl::DataLossError(absl::StrCat(path, ": rename failed: ", ec.message()));
+  const std::string parent = std::filesystem::path(path).parent_path().string();
+  return SyncDirectory(parent.empty() ? "." : parent);
+}
+
+absl::Status FileError(const std::string& what, int errno_value) {
+  const std::string message = absl::StrCat(what, ": ", std::strerror(errno_value));
+  if (errno_value == ENOSPC || errno_value == EDQUOT) {
+    return absl::ResourceExhaustedError(absl::StrCat(message, " (disk full)"));
+  }
+  return absl::DataLossError(message);
+}
+
+bool IsDiskFull(const absl::Status& status) {
+  return absl::IsResourceExhausted(status) && absl::EndsWith(status.message(), "(disk full)");
+}
+
+absl::Status SyncDirectory(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return FileError(absl::StrCat("cannot open folder ", dir, " to sync it"), errno);
+  const int synced = ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  if (synced != 0) return FileError(absl::StrCat("fsync of folder ", dir), error);
   return absl::OkStatus();
 }
 

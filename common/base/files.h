@@ -22,6 +22,19 @@ absl::StatusOr<std::string> ReadFileToString(const std::string& path, uint64_t m
 // reader never sees a half-written file.
 absl::Status WriteFileAtomically(const std::string& path, const std::string& contents);
 
+// The status of a failed file operation, `errno_value` its errno:
+// ResourceExhausted for a full disk or quota (ENOSPC, EDQUOT), which callers
+// report as such (the fix is to free space, not to retry), DataLoss for
+// anything else. The message is `what` and the system's words.
+absl::Status FileError(const std::string& what, int errno_value);
+
+// True for FileError's disk-full statuses.
+bool IsDiskFull(const absl::Status& status);
+
+// fsync of the folder `dir`, so that files created, renamed or removed in
+// it stay so after a power loss. DataLoss naming the folder on failure.
+absl::Status SyncDirectory(const std::string& dir);
+
 // Creates `path` and its parents if missing.
 absl::Status CreateDirectories(const std::string& path);
 

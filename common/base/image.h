@@ -9,6 +9,12 @@
 
 namespace reenact {
 
+// Most pixels any decoder in Reenact allocates for one image (8192 x 8192,
+// 128 MiB of depth): a header that states more is refused before anything
+// is allocated, whatever the file or message around it. Ingest has its own,
+// lower, configurable cap (FrameSetLimits::max_image_pixels).
+inline constexpr uint64_t kMaxDecodedImagePixels = uint64_t{1} << 26;
+
 template <typename T, int kChannels>
 struct Image {
   int width = 0;

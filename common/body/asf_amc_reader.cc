@@ -20,6 +20,7 @@
 // Lengths: ":units length k" means one file unit is 1/k inch, so
 // metres_per_unit = 0.0254 / k (CMU: k = 0.45 -> 0.05644 m). AMC files do not
 // state their frame rate; AsfAmcOptions gives it (CMU: 120 fps).
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -429,6 +430,11 @@ class AmcParser {
           return error_(line, absl::StrCat("frame number ", number, " out of sequence"));
         }
         if (frames_.rotations.empty()) first_number_ = number;
+        if ((frames_.rotations.size() + 1) * std::max<uint64_t>(layout_.joints.size(), 1) >
+            kMaxMotionJointFrames) {
+          return error_(line, absl::StrCat("more than ", kMaxMotionJointFrames,
+                                           " joint poses (frames times bones)"));
+        }
         StartFrame();
         frame_line = line;
         continue;
@@ -524,8 +530,8 @@ absl::StatusOr<Motion> ReadAsfAmc(const std::string& asf_path, const std::string
   if (!std::isfinite(options.metres_per_unit)) {
     return absl::InvalidArgumentError("AsfAmcOptions::metres_per_unit must be finite");
   }
-  ASSIGN_OR_RETURN(const std::string asf_text, ReadFileToString(asf_path));
-  ASSIGN_OR_RETURN(const std::string amc_text, ReadFileToString(amc_path));
+  ASSIGN_OR_RETURN(const std::string asf_text, ReadFileToString(asf_path, kMaxBvhBytes));
+  ASSIGN_OR_RETURN(const std::string amc_text, ReadFileToString(amc_path, kMaxBvhBytes));
   AsfParser asf_parser(asf_path, asf_text);
   ASSIGN_OR_RETURN(const AsfSkeleton skeleton, asf_parser.Parse());
 

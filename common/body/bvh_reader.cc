@@ -250,6 +250,12 @@ class BvhParser {
       return Error(static_cast<int>(std::min(i, lines_.size() - 1)) + 1,
                    "expected 'Frames: N' after MOTION");
     }
+    if (static_cast<uint64_t>(num_frames_) * std::max<uint64_t>(joints_.size(), 1) >
+        kMaxMotionJointFrames) {
+      return Error(static_cast<int>(i) + 1,
+                   absl::StrCat(num_frames_, " frames of ", joints_.size(), " joints exceed the ",
+                                kMaxMotionJointFrames, " joint poses a motion may hold"));
+    }
     ++i;
     words = next_words();
     if (words.size() != 3 || words[0] != "Frame" || words[1] != "Time:" ||

@@ -111,9 +111,15 @@ class Motion {
   std::array<Eigen::Vector3d, kNumKinectV2Joints> canonical_in_source_m_{};
 };
 
-// Largest BVH file ReadBvh reads (its frames take about three times as much
-// memory once parsed).
+// Largest BVH, ASF or AMC file the readers read (a BVH's frames take about
+// three times as much memory once parsed).
 inline constexpr uint64_t kMaxBvhBytes = uint64_t{512} << 20;
+
+// Most joint poses (frames times joints) a motion file may hold: the parsed
+// rotations take about 40 bytes each, so this bounds a motion to about
+// 700 MB whatever a file's frame count says (75 minutes of a 31-joint CMU
+// skeleton at 120 Hz). ReadBvh and ReadAsfAmc refuse more before allocating.
+inline constexpr uint64_t kMaxMotionJointFrames = uint64_t{1} << 24;
 
 struct BvhOptions {
   // Metres per file unit; <= 0 means detect it from the stature of the rest

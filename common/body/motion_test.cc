@@ -483,6 +483,49 @@ TEST(ReadAsfAmc, DeeplyNestedBonesAreAnError) {
       << status;
 }
 
+TEST(ReadBvh, FrameCountBeyondTheJointPoseBudgetIsRefusedBeforeAllocating) {
+  // "Frames: 2147483647" over 11 joints: 23.6 G joint poses, about 1 TB once
+  // parsed. Refused at the Frames line, not a bad_alloc.
+  const std::string text = TinyBvh("Frames: 2147483647\nFrame Time: 0.1\n0 0 0 0 0 0 0 0 0\n");
+  const std::string path = WriteTemp("huge_frames.bvh", text);
+  ExpectErrorAt(ReadBvh(path).status(), path, LineOf(text, "Frames:"), "joint poses");
+}
+
+TEST(ReadAsfAmc, FramesBeyondTheJointPoseBudgetAreRefused) {
+  // 1000 bones without degrees of freedom cost no AMC text but a rotation
+  // each per frame: 17,000 two-line frames (about 300 KB) would be 17 M joint
+  // poses, past kMaxMotionJointFrames.
+  std::string asf =
+      ":units\n  length 0.45\n  angle deg\n:root\n  order TX TY TZ RX RY RZ\n"
+      "  axis XYZ\n  position 0 0 0\n  orientation 0 0 0\n:bonedata\n";
+  std::string children;
+  for (int b = 0; b < 1000; ++b) {
+    asf += "  begin\n    name b" + std::to_string(b) +
+           "\n    direction 0 1 0\n    length 1\n    axis 0 0 0 XYZ\n  end\n";
+    children += " b" + std::to_string(b);
+  }
+  asf += ":hierarchy\n  begin\n    root" + children + "\n  end\n";
+  std::string amc = ":FULLY-SPECIFIED\n:DEGREES\n";
+  for (int f = 1; f <= 17000; ++f) amc += std::to_string(f) + "\nroot 0 0 0 0 0 0\n";
+  const std::string dir = reenact::testing::MakeTempDir("motion_many_bones");
+  const std::string asf_path = dir + "/many_bones.asf";
+  const std::string amc_path = dir + "/many_frames.amc";
+  std::ofstream(asf_path) << asf;
+  std::ofstream(amc_path) << amc;
+  // The core joints named by a map, so that the skeleton is accepted and
+  // the motion is read.
+  AsfAmcOptions options;
+  const KinectV2Joint core[] = {
+      KinectV2Joint::kSpineMid,  KinectV2Joint::kShoulderLeft, KinectV2Joint::kShoulderRight,
+      KinectV2Joint::kElbowLeft, KinectV2Joint::kElbowRight,   KinectV2Joint::kHipLeft,
+      KinectV2Joint::kHipRight,  KinectV2Joint::kKneeLeft,     KinectV2Joint::kKneeRight};
+  for (int b = 0; b < 9; ++b) options.joint_map.push_back({"b" + std::to_string(b), core[b]});
+  // Joints: the root, 1000 bones and an end joint for each.
+  const uint64_t frames_allowed = kMaxMotionJointFrames / 2001;
+  ExpectErrorAt(ReadAsfAmc(asf_path, amc_path, options).status(), amc_path,
+                LineOf(amc, "\n" + std::to_string(frames_allowed + 1) + "\n") + 1, "joint poses");
+}
+
 TEST(ReadMotion, DispatchesOnExtension) {
   REENACT_REQUIRE_TEST_FILE(Cmu("07_05-walk.amc"));
   auto amc = ReadMotion(Cmu("07_05-walk.amc"), Cmu("07-walk.asf"));

@@ -1,5 +1,6 @@
 #include "common/io/depth_codec.h"
 
+#include <algorithm>
 #include <array>
 #include <cstring>
 #include <limits>
@@ -270,7 +271,7 @@ absl::StatusOr<std::string> EncodeDepth(const DepthImageMm& depth_mm,
   return encoded;
 }
 
-absl::StatusOr<DepthHeader> InspectDepth(std::string_view bytes) {
+absl::StatusOr<DepthHeader> InspectDepth(std::string_view bytes, uint64_t max_pixels) {
   if (bytes.size() < kHeaderSize) {
     return HeaderError(bytes.size(),
                        absl::StrCat("input of ", bytes.size(), " bytes ends inside the ",
@@ -293,6 +294,11 @@ absl::StatusOr<DepthHeader> InspectDepth(std::string_view bytes) {
     return HeaderError(12, absl::StrCat("height ", header.height, " too large"));
   }
   const uint64_t num_pixels = static_cast<uint64_t>(header.width) * header.height;
+  if (num_pixels > std::min(max_pixels, kMaxDecodedImagePixels)) {
+    return HeaderError(8, absl::StrCat(header.width, "x", header.height, " = ", num_pixels,
+                                       " pixels, more than the ",
+                                       std::min(max_pixels, kMaxDecodedImagePixels), " allowed"));
+  }
   header.rvl_bytes = LoadLe32(bytes.data() + 16);
   if (header.rvl_bytes % 4 != 0 || header.rvl_bytes > MaxRvlBytes(num_pixels)) {
     return HeaderError(16, absl::StrCat("implausible RVL size ", header.rvl_bytes));
@@ -315,8 +321,8 @@ absl::StatusOr<DepthHeader> InspectDepth(std::string_view bytes) {
   return header;
 }
 
-absl::StatusOr<DepthImageMm> DecodeDepth(std::string_view bytes) {
-  ASSIGN_OR_RETURN(const DepthHeader header, InspectDepth(bytes));
+absl::StatusOr<DepthImageMm> DecodeDepth(std::string_view bytes, uint64_t max_pixels) {
+  ASSIGN_OR_RETURN(const DepthHeader header, InspectDepth(bytes, max_pixels));
   const uint32_t width = header.width, height = header.height;
   const uint32_t rvl_size = header.rvl_bytes;
   const bool zstd = header.zstd;

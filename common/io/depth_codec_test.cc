@@ -186,6 +186,26 @@ TEST(RvlDecompress, CorruptStreamsFailCleanly) {
   EXPECT_GT(rejected, kTrials / 2);
 }
 
+TEST(DepthCodec, ImagesLargerThanThePixelCapAreRefusedFromTheHeader) {
+  // RVL codes a blank image of any size in a few bytes: the stated size, not
+  // the payload, must bound what decoding allocates.
+  const absl::StatusOr<std::string> encoded = EncodeDepth(DepthImageMm(640, 480), WithZstd(false));
+  ASSERT_TRUE(encoded.ok()) << encoded.status();
+  EXPECT_LT(encoded->size(), 64u);
+  EXPECT_TRUE(DecodeDepth(*encoded).ok());
+  EXPECT_TRUE(DecodeDepth(*encoded, 640 * 480).ok());
+  for (const auto& result : {InspectDepth(*encoded, 640 * 480 - 1).status(),
+                             DecodeDepth(*encoded, 640 * 480 - 1).status()}) {
+    EXPECT_EQ(result.code(), absl::StatusCode::kDataLoss) << result;
+    EXPECT_NE(result.message().find("307200 pixels, more than the 307199 allowed"),
+              std::string::npos)
+        << result;
+  }
+  // No caller can raise the ceiling.
+  EXPECT_TRUE(DecodeDepth(*encoded, ~uint64_t{0}).ok());
+  EXPECT_GE(uint64_t{8192} * 8192, kMaxDecodedImagePixels);
+}
+
 TEST(DepthCodecOptions, ValidateRejectsBadLevel) {
   DepthCodecOptions options;
   options.zstd_level = 0;

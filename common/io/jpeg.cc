@@ -50,7 +50,8 @@ absl::StatusOr<RgbImage> DecodeJpeg(std::string_view jpeg) {
     return absl::InvalidArgumentError(
         absl::StrCat("DecodeJpeg: not a JPEG (", tjGetErrorStr2(handle.get()), ")"));
   }
-  if (width <= 0 || height <= 0 || static_cast<int64_t>(width) * height > (int64_t{1} << 28)) {
+  if (width <= 0 || height <= 0 ||
+      static_cast<uint64_t>(width) * static_cast<uint64_t>(height) > kMaxDecodedImagePixels) {
     return absl::InvalidArgumentError(
         absl::StrCat("DecodeJpeg: implausible size ", width, "x", height));
   }

@@ -12,7 +12,6 @@ namespace {
 constexpr std::string_view kMaskMagic = "RLM1";
 constexpr size_t kHeaderBytes = 12;
 // Larger masks are rejected as malformed rather than allocated.
-constexpr uint64_t kMaxMaskPixels = uint64_t{1} << 28;
 
 void PutVarint(std::string* out, uint64_t v) {
   while (v >= 0x80) {
@@ -44,7 +43,7 @@ std::string EncodeMaskRle(const MaskImage& mask) {
   return out;
 }
 
-absl::StatusOr<MaskImage> DecodeMaskRle(std::string_view bytes) {
+absl::StatusOr<MaskImage> DecodeMaskRle(std::string_view bytes, uint64_t max_pixels) {
   if (bytes.size() < kHeaderBytes || bytes.substr(0, 4) != kMaskMagic) {
     return Malformed(0, "missing \"RLM1\" header");
   }
@@ -52,8 +51,10 @@ absl::StatusOr<MaskImage> DecodeMaskRle(std::string_view bytes) {
   const uint32_t width = header.U32();
   const uint32_t height = header.U32();
   const uint64_t pixels = uint64_t{width} * height;
-  if (width > (1u << 16) || height > (1u << 16) || pixels > kMaxMaskPixels) {
-    return Malformed(4, absl::StrCat("implausible size ", width, "x", height));
+  const uint64_t allowed = std::min(max_pixels, kMaxDecodedImagePixels);
+  if (width > (1u << 16) || height > (1u << 16) || pixels > allowed) {
+    return Malformed(4, absl::StrCat("implausible size ", width, "x", height, " (at most ", allowed,
+                                     " pixels)"));
   }
   MaskImage mask;
   mask.width = static_cast<int>(width);
@@ -83,13 +84,14 @@ absl::StatusOr<MaskImage> DecodeMaskRle(std::string_view bytes) {
   return mask;
 }
 
-absl::StatusOr<MaskImage> DecodeMask(std::string_view encoding, std::string_view bytes) {
-  if (encoding == "rle") return DecodeMaskRle(bytes);
+absl::StatusOr<MaskImage> DecodeMask(std::string_view encoding, std::string_view bytes,
+                                     uint64_t max_pixels) {
+  if (encoding == "rle") return DecodeMaskRle(bytes, max_pixels);
   if (encoding != "rvl") {
     return absl::InvalidArgumentError(
         absl::StrCat("mask encoding \"", std::string(encoding), "\" unknown (\"rle\" or \"rvl\")"));
   }
-  auto decoded = DecodeDepth(bytes);
+  auto decoded = DecodeDepth(bytes, max_pixels);
   if (!decoded.ok()) return absl::InvalidArgumentError(decoded.status().message());
   MaskImage mask(decoded->width, decoded->height);
   for (size_t i = 0; i < decoded->data.size(); ++i) {

@@ -51,5 +51,24 @@ TEST(DecodeMaskRle, RejectsEveryTruncation) {
   EXPECT_FALSE(DecodeMaskRle(longer).ok());
 }
 
+TEST(DecodeMaskRle, MasksLargerThanThePixelCapAreRefusedFromTheHeader) {
+  // One run covers a whole mask of any size: a 14-byte mask may state
+  // 65536 x 65536 pixels (4 GiB), refused before anything is reserved.
+  MaskImage blank(300, 200);
+  const std::string bytes = EncodeMaskRle(blank);
+  EXPECT_LT(bytes.size(), 20u);
+  EXPECT_TRUE(DecodeMaskRle(bytes, 60000).ok());
+  const absl::Status status = DecodeMaskRle(bytes, 59999).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(status.message().find("at most 59999 pixels"), std::string::npos) << status;
+
+  std::string huge = bytes;
+  for (int i = 4; i < 12; ++i) huge[i] = (i == 6 || i == 10) ? '\x01' : '\0';  // 65536 x 65536.
+  const absl::Status huge_status = DecodeMaskRle(huge).status();
+  EXPECT_EQ(huge_status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(huge_status.message().find("implausible size 65536x65536"), std::string::npos)
+      << huge_status;
+}
+
 }  // namespace
 }  // namespace reenact

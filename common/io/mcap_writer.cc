@@ -14,6 +14,7 @@
 #include <zstd.h>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/io/mcap_format.h"
 #include "common/io/mcap_reader.h"
@@ -42,6 +43,9 @@ absl::StatusOr<std::unique_ptr<McapWriter>> McapWriter::Open(const std::string& 
   RETURN_IF_ERROR(options.Validate());
   std::FILE* file = std::fopen(path.c_str(), "wb");
   if (file == nullptr) {
+    if (errno == ENOSPC || errno == EDQUOT) {
+      return FileError(absl::StrCat("cannot create MCAP file ", path), errno);
+    }
     return absl::UnavailableError(
         absl::StrCat("cannot create MCAP file ", path, ": ", std::strerror(errno)));
   }
@@ -71,8 +75,7 @@ absl::Status McapWriter::CheckOpen() const {
 
 absl::Status McapWriter::Append(std::string_view bytes) {
   if (std::fwrite(bytes.data(), 1, bytes.size(), file_) != bytes.size()) {
-    return absl::DataLossError(absl::StrCat("write to ", path_, " failed at byte offset ", offset_,
-                                            ": ", std::strerror(errno)));
+    return FileError(absl::StrCat("write to ", path_, " failed at byte offset ", offset_), errno);
   }
   offset_ += bytes.size();
   return absl::OkStatus();
@@ -202,8 +205,7 @@ absl::Status McapWriter::FlushChunk() {
   entry.message_index_length = bytes.size() - entry.chunk_length;
   RETURN_IF_ERROR(Append(bytes));
   if (std::fflush(file_) != 0) {
-    return absl::DataLossError(absl::StrCat("flush of ", path_, " failed at byte offset ", offset_,
-                                            ": ", std::strerror(errno)));
+    return FileError(absl::StrCat("flush of ", path_, " failed at byte offset ", offset_), errno);
   }
   chunk_indexes_.push_back(std::move(entry));
   chunk_records_.clear();
@@ -258,7 +260,7 @@ std::string McapWriter::ChunkIndexRecords() const {
 absl::Status McapWriter::Sync() {
   RETURN_IF_ERROR(FlushChunk());
   if (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0) {
-    return absl::DataLossError(absl::StrCat("fsync of ", path_, " failed: ", std::strerror(errno)));
+    return FileError(absl::StrCat("fsync of ", path_, " failed"), errno);
   }
   return absl::OkStatus();
 }
@@ -268,12 +270,10 @@ absl::Status McapWriter::CloseFile(bool sync) {
   file_ = nullptr;
   absl::Status status;
   if (sync && (std::fflush(file) != 0 || ::fsync(::fileno(file)) != 0)) {
-    status =
-        absl::DataLossError(absl::StrCat("fsync of ", path_, " failed: ", std::strerror(errno)));
+    status = FileError(absl::StrCat("fsync of ", path_, " failed"), errno);
   }
   if (std::fclose(file) != 0 && status.ok()) {
-    status =
-        absl::DataLossError(absl::StrCat("closing ", path_, " failed: ", std::strerror(errno)));
+    status = FileError(absl::StrCat("closing ", path_, " failed"), errno);
   }
   return status;
 }

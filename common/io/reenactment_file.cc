@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/mcap_reader.h"
@@ -313,7 +314,11 @@ absl::Status WriteReenactmentFile(const ReenactmentData& data, const std::string
   std::error_code ec;
   if (status.ok()) {
     std::filesystem::rename(tmp, path, ec);
-    if (!ec) return absl::OkStatus();
+    if (!ec) {
+      // The rename itself must survive a power loss (the file was fsynced).
+      const std::string parent = std::filesystem::path(path).parent_path().string();
+      return SyncDirectory(parent.empty() ? "." : parent);
+    }
     status = absl::DataLossError(absl::StrCat(path, ": rename failed: ", ec.message()));
   }
   std::filesystem::remove(tmp, ec);

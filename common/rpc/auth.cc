@@ -19,9 +19,39 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/files.h"
+#include "common/log/log.h"
+#include "common/metrics/metrics.h"
 
 namespace reenact::rpc {
 namespace {
+
+// Refusal reasons: the label of reenact_auth_refusals_total and the field of
+// the auth_refused log line.
+constexpr char kNoToken[] = "no_token";
+constexpr char kUnknownToken[] = "unknown_token";
+constexpr char kRole[] = "role";
+
+metrics::Counter& RefusalCounter(const char* reason) {
+  return metrics::DefaultRegistry().GetCounter(
+      "reenact_auth_refusals_total",
+      "Calls refused for want of a valid token or of the access the method needs, by reason "
+      "(no_token, unknown_token, role).",
+      {{"reason", reason}});
+}
+
+// One line per refusal, never with the token itself.
+void LogRefusal(absl::string_view method, const std::string& peer, const char* reason,
+                const absl::Status& status, const std::optional<Principal>& principal) {
+  const std::string code = absl::StatusCodeToString(status.code());
+  log::Warn("auth_refused",
+            {{"rpc", method},
+             {"peer", peer},
+             {"reason", reason},
+             {"status", code},
+             {"token_name", principal ? principal->name : std::string()},
+             {"role", principal ? RoleName(principal->role) : absl::string_view()}},
+            absl::StrCat("refused ", method, peer.empty() ? "" : " from ", peer, ": ", code));
+}
 
 constexpr size_t kMaxNameLength = 64;
 // A token file of more than this is not one (thousands of entries fit).
@@ -234,39 +264,61 @@ absl::StatusOr<std::string> AddToken(const std::string& path, Role role, const s
 }
 
 Authorizer::Authorizer(std::optional<TokenTable> tokens, MethodTable methods)
-    : tokens_(std::move(tokens)), methods_(std::move(methods)) {}
+    : tokens_(std::move(tokens)), methods_(std::move(methods)) {
+  // Every reason shows in the metrics from the start, at 0.
+  for (const char* reason : {kNoToken, kUnknownToken, kRole}) RefusalCounter(reason);
+}
 
 absl::StatusOr<Principal> Authorizer::Authorize(const grpc::ServerContextBase& context,
                                                 absl::string_view method) const {
   if (!tokens_.has_value()) return Principal{};
   const auto& metadata = context.client_metadata();
   const auto it = metadata.find("authorization");
-  if (it == metadata.end()) return Authorize(std::nullopt, method);
-  return Authorize(absl::string_view(it->second.data(), it->second.size()), method);
+  std::optional<absl::string_view> authorization;
+  if (it != metadata.end()) authorization = absl::string_view(it->second.data(), it->second.size());
+  return Check(authorization, method, context.peer());
 }
 
 absl::StatusOr<Principal> Authorizer::Authorize(std::optional<absl::string_view> authorization,
                                                 absl::string_view method) const {
+  return Check(authorization, method, "");
+}
+
+absl::StatusOr<Principal> Authorizer::Check(std::optional<absl::string_view> authorization,
+                                            absl::string_view method,
+                                            const std::string& peer) const {
   if (!tokens_.has_value()) return Principal{};
-  if (!authorization.has_value() || !absl::StartsWith(*authorization, kBearer)) {
+  auto refuse = [&](const char* reason, absl::Status status,
+                    const std::optional<Principal>& principal) -> absl::Status {
     refusals_.fetch_add(1, std::memory_order_relaxed);
-    return absl::UnauthenticatedError(
-        absl::StrCat(method, " needs a token (--token-file FILE or REENACT_TOKEN); none was sent"));
+    RefusalCounter(reason).Increment();
+    LogRefusal(method, peer, reason, status, principal);
+    return status;
+  };
+  if (!authorization.has_value() || !absl::StartsWith(*authorization, kBearer)) {
+    return refuse(
+        kNoToken,
+        absl::UnauthenticatedError(absl::StrCat(
+            method, " needs a token (--token-file FILE or REENACT_TOKEN); none was sent")),
+        std::nullopt);
   }
   const std::optional<Principal> principal = tokens_->Find(authorization->substr(kBearer.size()));
   if (!principal.has_value()) {
-    refusals_.fetch_add(1, std::memory_order_relaxed);
-    return absl::UnauthenticatedError(
-        absl::StrCat(method, ": the token is not one this server knows"));
+    return refuse(kUnknownToken,
+                  absl::UnauthenticatedError(
+                      absl::StrCat(method, ": the token is not one this server knows")),
+                  std::nullopt);
   }
   const auto needed = methods_.find(method);
   const uint32_t granted = RoleAccess(principal->role);
   const bool allowed =
       principal->admin() || (needed != methods_.end() && (granted & needed->second) != 0);
   if (!allowed) {
-    refusals_.fetch_add(1, std::memory_order_relaxed);
-    return absl::PermissionDeniedError(absl::StrCat(method, " is not allowed for ", principal->name,
-                                                    " (role ", RoleName(principal->role), ")"));
+    return refuse(
+        kRole,
+        absl::PermissionDeniedError(absl::StrCat(method, " is not allowed for ", principal->name,
+                                                 " (role ", RoleName(principal->role), ")")),
+        principal);
   }
   return *principal;
 }

@@ -116,10 +116,17 @@ class Authorizer {
                                       absl::string_view method) const;
 
   bool enabled() const { return tokens_.has_value(); }
-  // Calls refused so far (an operator's counter).
+  // Calls refused so far (an operator's counter). Each refusal is also
+  // counted in reenact_auth_refusals_total{reason} and logged (event
+  // auth_refused, with the caller's address when known, never the token).
   int64_t refusals() const;
 
  private:
+  // Authorize's work; `peer` is the caller's address for the log ("" when
+  // unknown).
+  absl::StatusOr<Principal> Check(std::optional<absl::string_view> authorization,
+                                  absl::string_view method, const std::string& peer) const;
+
   std::optional<TokenTable> tokens_;
   MethodTable methods_;
   mutable std::atomic<int64_t> refusals_{0};

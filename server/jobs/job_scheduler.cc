@@ -16,8 +16,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
+#include "common/body/model_spec.h"
+#include "common/log/log.h"
+#include "server/server_metrics.h"
 #include "server/store/frame_set_validation.h"
 
 namespace reenact::server {
@@ -121,6 +125,29 @@ absl::StatusOr<bool> LiveOption(const v1::SubmitJobRequest& request) {
   return true;
 }
 
+// One line for the end of a job: job_finished, job_failed or
+// job_cancelled.
+void LogJobEnd(const v1::Job& job) {
+  const double seconds =
+      job.started_unix_ns() > 0 && job.finished_unix_ns() >= job.started_unix_ns()
+          ? NsToSeconds(job.finished_unix_ns() - job.started_unix_ns())
+          : 0.0;
+  const log::Field fields[] = {{"job_id", job.job_id()}, {"take_id", job.take_id()},
+                               {"method", job.method()}, {"attempts", job.attempts()},
+                               {"seconds", seconds},     {"reenactment_id", job.reenactment_id()},
+                               {"error", job.error()}};
+  switch (job.state()) {
+    case v1::JOB_STATE_SUCCEEDED:
+      log::Info("job_finished", fields, absl::StrCat("job ", job.job_id(), " succeeded"));
+      break;
+    case v1::JOB_STATE_CANCELLED:
+      log::Info("job_cancelled", fields, absl::StrCat("job ", job.job_id(), " was cancelled"));
+      break;
+    default:
+      log::Warn("job_failed", fields, absl::StrCat("job ", job.job_id(), " failed"));
+  }
+}
+
 }  // namespace
 
 // One worker process and what was read of its output.
@@ -158,6 +185,10 @@ absl::Status JobSchedulerOptions::Validate() const {
     return absl::InvalidArgumentError("grace periods must be >= 0 seconds");
   }
   if (!(eta_window_s > 0)) return absl::InvalidArgumentError("eta_window_s must be > 0");
+  if (!(job_retention_days >= 0) || !(retention_sweep_period_s > 0)) {
+    return absl::InvalidArgumentError(
+        "job_retention_days must be >= 0 and retention_sweep_period_s > 0");
+  }
   if (methods.empty()) return absl::InvalidArgumentError("no job methods are configured");
   return store.Validate();
 }
@@ -213,6 +244,10 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
                      "\"; methods: ", absl::StrJoin(options_.methods, ", ")));
   }
   RETURN_IF_ERROR(ValidateOptions(request.options()));
+  if (const auto model = request.options().find("model"); model != request.options().end()) {
+    // A model the workers could not find fails now, not after the queue.
+    RETURN_IF_ERROR(body::ResolveAssetModelSpec(model->second, options_.asset_roots).status());
+  }
   ASSIGN_OR_RETURN(const bool live, LiveOption(request));
   ASSIGN_OR_RETURN(const v1::Take take, takes_->GetTake(request.take_id()));
   const bool recording = take.state() == v1::TAKE_STATE_RECORDING;
@@ -226,12 +261,35 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   // A live job starts now or never: it takes one of the --jobs slots, like a
   // worker, and is refused when none is free.
   if (recording && BusyLocked() >= concurrency_) {
-    return absl::ResourceExhaustedError(
+    const absl::Status busy = absl::ResourceExhaustedError(
         absl::StrCat("all ", concurrency_,
                      " job slots (--jobs) are busy; follow the take later, or submit "
                      "the job once the take is complete"));
+    LimitHit(
+        "job_slots",
+        {{"take_id", request.take_id()}, {"method", request.method()}, {"slots", concurrency_}},
+        busy.message());
+    return busy;
   }
-  ASSIGN_OR_RETURN(job, jobs_->Insert(std::move(job)));
+  absl::StatusOr<v1::Job> inserted = jobs_->Insert(std::move(job));
+  if (!inserted.ok()) {
+    log::Error("job_not_stored",
+               {{"take_id", request.take_id()}, {"error", inserted.status().message()}},
+               "a submitted job could not be stored");
+    if (IsDiskFull(inserted.status())) {
+      return absl::ResourceExhaustedError(
+          "the server's disk is full: the job was not stored; delete takes or reenactments "
+          "and submit again");
+    }
+    return absl::UnavailableError("the server could not store the job (its log says why)");
+  }
+  job = std::move(*inserted);
+  log::Info("job_queued",
+            {{"job_id", job.job_id()},
+             {"take_id", job.take_id()},
+             {"method", job.method()},
+             {"live", live && recording}},
+            absl::StrCat("job ", job.job_id(), " queued"));
   if (recording) {
     absl::StatusOr<v1::Job> following = FollowLocked(job);
     // FailedPrecondition: the take ended meanwhile; the job runs offline.
@@ -276,20 +334,28 @@ absl::StatusOr<v1::Job> JobScheduler::FollowLocked(const v1::Job& job) {
   if (!followed.ok()) {
     if (absl::IsFailedPrecondition(followed)) return followed;
     // The job was stored: it fails with the reason rather than vanish.
-    (void)jobs_->Mutate(job_id, [&](v1::Job& j) {
+    const absl::StatusOr<v1::Job> failed = jobs_->Mutate(job_id, [&](v1::Job& j) {
       j.set_state(v1::JOB_STATE_FAILED);
       j.set_finished_unix_ns(WallNowNs());
       j.set_error(absl::StrCat("the take could not be followed: ", followed.message()));
     });
+    if (failed.ok()) LogJobEnd(*failed);
     return followed;
   }
   following_.insert(job_id);
-  return jobs_->Mutate(job_id, [](v1::Job& j) {
+  absl::StatusOr<v1::Job> running = jobs_->Mutate(job_id, [](v1::Job& j) {
     j.set_state(v1::JOB_STATE_RUNNING);
     j.set_started_unix_ns(WallNowNs());
     j.mutable_progress()->set_stage(kFollowingStage);
     j.mutable_progress()->set_eta_s(-1);
   });
+  if (running.ok()) {
+    log::Info(
+        "job_started",
+        {{"job_id", job_id}, {"take_id", job.take_id()}, {"method", job.method()}, {"live", true}},
+        absl::StrCat("job ", job_id, " follows take ", job.take_id(), " live"));
+  }
+  return running;
 }
 
 void JobScheduler::LiveProgress(const std::string& job_id, int64_t frames_followed) {
@@ -372,6 +438,7 @@ absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
       j.mutable_progress()->set_eta_s(-1);
     }));
   }
+  LogJobEnd(job);
   Publish(job, {}, /*last=*/true);
   return job;
 }
@@ -407,25 +474,64 @@ absl::Status JobScheduler::CheckNoUnfinishedJobs(const std::string& take_id) con
   return absl::OkStatus();
 }
 
+absl::StatusOr<int64_t> JobScheduler::DeleteFinishedJob(const v1::Job& job) {
+  int64_t freed = 0;
+  const fs::path dir = fs::path(jobs_dir_) / job.job_id();
+  std::error_code error;
+  for (fs::recursive_directory_iterator it(dir, error), end; !error && it != end;
+       it.increment(error)) {
+    if (it->is_regular_file(error)) freed += static_cast<int64_t>(it->file_size(error));
+  }
+  error.clear();
+  fs::remove_all(dir, error);
+  if (error) {
+    return absl::UnavailableError(
+        absl::StrCat("deleting the folder of job ", job.job_id(), ": ", error.message()));
+  }
+  RETURN_IF_ERROR(jobs_->Delete(job.job_id()));
+  return freed;
+}
+
 absl::StatusOr<int64_t> JobScheduler::DeleteJobsOfTake(const std::string& take_id) {
   int64_t freed = 0;
   for (const v1::Job& job : jobs_->List(v1::JOB_STATE_UNSPECIFIED, take_id)) {
     if (!IsFinished(job.state())) continue;  // Submitted since the check: left alone.
-    const fs::path dir = fs::path(jobs_dir_) / job.job_id();
-    std::error_code error;
-    for (fs::recursive_directory_iterator it(dir, error), end; !error && it != end;
-         it.increment(error)) {
-      if (it->is_regular_file(error)) freed += static_cast<int64_t>(it->file_size(error));
-    }
-    error.clear();
-    fs::remove_all(dir, error);
-    if (error) {
-      return absl::UnavailableError(
-          absl::StrCat("deleting the folder of job ", job.job_id(), ": ", error.message()));
-    }
-    RETURN_IF_ERROR(jobs_->Delete(job.job_id()));
+    ASSIGN_OR_RETURN(const int64_t bytes, DeleteFinishedJob(job));
+    freed += bytes;
   }
   return freed;
+}
+
+absl::StatusOr<int> JobScheduler::DeleteJobsFinishedBefore(int64_t cutoff_unix_ns) {
+  int deleted = 0;
+  for (const v1::Job& job : jobs_->List()) {
+    if (!IsFinished(job.state()) || job.finished_unix_ns() == 0 ||
+        job.finished_unix_ns() >= cutoff_unix_ns) {
+      continue;
+    }
+    ASSIGN_OR_RETURN(const int64_t freed, DeleteFinishedJob(job));
+    log::Info("job_expired",
+              {{"job_id", job.job_id()}, {"take_id", job.take_id()}, {"bytes", freed}},
+              absl::StrCat("job ", job.job_id(), " is past its retention: folder and row deleted"));
+    ++deleted;
+  }
+  return deleted;
+}
+
+void JobScheduler::SweepRetention() {
+  if (options_.job_retention_days <= 0) return;
+  const int64_t now_ns = SteadyNowNs();
+  if (last_sweep_ns_ != 0 &&
+      now_ns - last_sweep_ns_ < SecondsToNs(options_.retention_sweep_period_s)) {
+    return;
+  }
+  last_sweep_ns_ = now_ns;
+  const int64_t cutoff =
+      WallNowNs() - static_cast<int64_t>(options_.job_retention_days * 86400.0 * 1e9);
+  if (absl::StatusOr<int> swept = DeleteJobsFinishedBefore(cutoff); !swept.ok()) {
+    log::Warn("retention_failed", {{"error", swept.status().message()}},
+              "old job folders could not all be deleted; the next sweep tries again");
+  }
 }
 
 absl::StatusOr<uint64_t> JobScheduler::Watch(const std::string& job_id, JobEventCallback callback) {
@@ -501,6 +607,7 @@ void JobScheduler::Loop() {
     PollRunning();
     PublishLiveProgress();
     StartQueued();
+    SweepRetention();
   }
   StopWorkers();
 }
@@ -588,7 +695,11 @@ void JobScheduler::Launch(const std::string& job_id) {
   std::error_code error;
   fs::create_directories(dir, error);
   if (error) {
-    return fail(absl::StrCat("cannot create ", dir.string(), ": ", error.message()));
+    log::Error("job_folder_failed", {{"job_id", job_id}, {"error", error.message()}},
+               absl::StrCat("cannot create ", dir.string(), ": ", error.message()));
+    return fail(error == std::errc::no_space_on_device
+                    ? "the server's disk is full; delete takes or reenactments and submit again"
+                    : "the server could not create the job's folder (its log says why)");
   }
   run->reenactment_id = reenactments_->NewId();
   run->out_path = reenactments_->PathFor(run->reenactment_id);
@@ -606,16 +717,38 @@ void JobScheduler::Launch(const std::string& job_id) {
   process_options.stdout_path = run->progress_path;
   process_options.stderr_path = run->log_path;
   process_options.working_dir = dir.string();
-  absl::StatusOr<std::unique_ptr<Subprocess>> process = Subprocess::Start(
-      {worker_path_, "--take", *take_path, "--method", job->method(), "--options-json",
-       OptionsJson(WorkerOptions(job->options())), "--out", run->out_path, "--reenactment-id",
-       run->reenactment_id, "--take-id", job->take_id(), "--job-id", job_id},
-      process_options);
+  std::vector<std::string> args = {worker_path_,
+                                   "--take",
+                                   *take_path,
+                                   "--method",
+                                   job->method(),
+                                   "--options-json",
+                                   OptionsJson(WorkerOptions(job->options())),
+                                   "--out",
+                                   run->out_path,
+                                   "--reenactment-id",
+                                   run->reenactment_id,
+                                   "--take-id",
+                                   job->take_id(),
+                                   "--job-id",
+                                   job_id};
+  if (!options_.asset_roots.empty()) {
+    args.insert(args.end(), {"--assets", absl::StrJoin(options_.asset_roots, ",")});
+  }
+  absl::StatusOr<std::unique_ptr<Subprocess>> process = Subprocess::Start(args, process_options);
   if (!process.ok()) {
     return fail(absl::StrCat("cannot start the worker: ", process.status().message()));
   }
   run->process = std::move(*process);
   run->progress = job->progress();
+  log::Info("job_started",
+            {{"job_id", job_id},
+             {"take_id", job->take_id()},
+             {"method", job->method()},
+             {"attempt", job->attempts()},
+             {"reenactment_id", run->reenactment_id},
+             {"live", false}},
+            absl::StrCat("job ", job_id, " started its worker"));
   Publish(*job, {}, /*last=*/false);
 }
 
@@ -854,6 +987,7 @@ void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const s
                                     "the end could not be stored: ", job.status().message()));
     job = std::move(current);
   }
+  LogJobEnd(*job);
   Publish(*job, std::move(logs), /*last=*/true);
 }
 

@@ -100,8 +100,17 @@ struct JobSchedulerOptions {
   double shutdown_grace_s = 2.0;
   // Window over which the ETA measures the rate of progress, seconds.
   double eta_window_s = 10.0;
+  // Finished jobs older than this (by finish time) lose their folder (the
+  // worker's log and progress) and their row; their reenactments stay.
+  // Looked at on start and every retention_sweep_period_s. 0: kept forever.
+  double job_retention_days = 30.0;
+  double retention_sweep_period_s = 3600.0;
   // The store's throttle and retry limit.
   JobStoreOptions store;
+  // Folders of body-model assets (reenact-server --assets): the option
+  // model=makehuman:NAME names a folder in one of them. Passed on to the
+  // workers; checked at Submit.
+  std::vector<std::string> asset_roots;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -150,6 +159,9 @@ class JobScheduler {
   // Deletes every finished job of `take_id`: its worker folder and its row.
   // Returns the bytes freed.
   absl::StatusOr<int64_t> DeleteJobsOfTake(const std::string& take_id);
+  // Deletes the folder and row of every job that finished before
+  // `cutoff_unix_ns`. Returns how many went; the first error ends the sweep.
+  absl::StatusOr<int> DeleteJobsFinishedBefore(int64_t cutoff_unix_ns);
 
   // Calls `callback` with the job now, then on every change until the job
   // ends. Returns a watch id for Unwatch (0 when the job had already ended:
@@ -171,6 +183,11 @@ class JobScheduler {
   JobScheduler(const JobSchedulerOptions& options, std::string jobs_dir, JobStore* jobs,
                TakeStore* takes, ReenactmentStore* reenactments, LiveHub* live);
   void Loop();
+  // DeleteJobsFinishedBefore(now - job_retention_days), at most once a
+  // retention_sweep_period_s.
+  void SweepRetention();
+  // The folder and row of one finished job; the bytes freed.
+  absl::StatusOr<int64_t> DeleteFinishedJob(const v1::Job& job);
   // Starts queued jobs while slots are free (live jobs whose take ended
   // first).
   void StartQueued();
@@ -235,6 +252,8 @@ class JobScheduler {
   mutable std::mutex mu_;
   std::condition_variable wake_;
   bool wake_pending_ = false;
+  // Steady time of the last retention sweep (0: none yet).
+  int64_t last_sweep_ns_ = 0;
   bool stopping_ = false;
   std::deque<std::string> queue_;
   // Live jobs following their take, and those whose take ended, waiting

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 
@@ -99,9 +100,24 @@ absl::StatusOr<v1::Job> JobStore::Mutate(const std::string& job_id,
   v1::Job job = it->second;
   change(job);
   job.set_job_id(job_id);
-  RETURN_IF_ERROR(catalog_->PutJob(job));
+  const absl::Status put = catalog_->PutJob(job);
+  if (!put.ok() && !IsDiskFull(put)) return put;
   it->second = job;
+  if (!put.ok()) {
+    unsaved_.insert(job_id);
+    return job;
+  }
   written_ns_[job_id] = SteadyNowNs();
+  unsaved_.erase(job_id);
+  // The catalog takes writes again: what a full disk held back goes too.
+  for (auto unsaved = unsaved_.begin(); unsaved != unsaved_.end();) {
+    const auto held = jobs_.find(*unsaved);
+    if (held == jobs_.end() || catalog_->PutJob(held->second).ok()) {
+      unsaved = unsaved_.erase(unsaved);
+    } else {
+      ++unsaved;
+    }
+  }
   return job;
 }
 
@@ -160,6 +176,13 @@ std::vector<v1::Job> JobStore::Queued() const {
   std::vector<v1::Job> queued = List(v1::JOB_STATE_QUEUED);
   std::reverse(queued.begin(), queued.end());
   return queued;
+}
+
+std::map<v1::JobState, int64_t> JobStore::CountByState() const {
+  std::map<v1::JobState, int64_t> counts;
+  std::lock_guard<std::mutex> lock(mu_);
+  for (const auto& [id, job] : jobs_) ++counts[job.state()];
+  return counts;
 }
 
 absl::StatusOr<std::vector<std::string>> JobStore::RequeueUnfinished() {

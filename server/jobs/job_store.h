@@ -20,6 +20,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -59,7 +60,10 @@ class JobStore {
   // new job cannot have (progress, times, result, attempts). Returns it.
   absl::StatusOr<v1::Job> Insert(v1::Job job);
   // Applies `change` to the stored job atomically and writes the result.
-  // NotFound for an unknown id; the catalog's errors leave the job as it was.
+  // NotFound for an unknown id; the catalog's errors leave the job as it was,
+  // but for a full disk: then the change holds in memory (so that a job can
+  // still fail, visibly, when nothing can be written) and is written with
+  // the next write that succeeds; a restart before that forgets it.
   absl::StatusOr<v1::Job> Mutate(const std::string& job_id,
                                  const std::function<void(v1::Job&)>& change);
   // Sets the progress of a job; written to the catalog when the last write
@@ -78,6 +82,9 @@ class JobStore {
                             const std::string& take_id = "") const;
   // QUEUED jobs in the order they run: oldest first.
   std::vector<v1::Job> Queued() const;
+  // How many jobs are in each state (the metrics endpoint reads it at every
+  // scrape, so it copies no job).
+  std::map<v1::JobState, int64_t> CountByState() const;
   // RUNNING -> QUEUED (attempts kept), or FAILED past max_attempts. Returns
   // the ids queued again, oldest first.
   absl::StatusOr<std::vector<std::string>> RequeueUnfinished();
@@ -93,6 +100,8 @@ class JobStore {
   std::map<std::string, v1::Job> jobs_;
   // Steady-clock time of the last catalog write, per job.
   std::map<std::string, int64_t> written_ns_;
+  // Jobs changed in memory that the catalog could not take (a full disk).
+  std::set<std::string> unsaved_;
 };
 
 }  // namespace reenact::server

@@ -29,12 +29,13 @@ class BodyFollower final : public LiveFollower {
 
 }  // namespace
 
-LiveFollowerFactory MakeLiveBodyFollowerFactory() {
-  return [](const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
-            const std::map<std::string, std::string>& options)
+LiveFollowerFactory MakeLiveBodyFollowerFactory(std::vector<std::string> asset_roots) {
+  return [asset_roots = std::move(asset_roots)](const v1::TakeInfo& info,
+                                                const std::vector<v1::SensorCalibration>& sensors,
+                                                const std::map<std::string, std::string>& options)
              -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
     absl::StatusOr<std::unique_ptr<recon::LiveBodyFollower>> follower =
-        recon::LiveBodyFollower::Create(info, sensors, options);
+        recon::LiveBodyFollower::Create(info, sensors, options, asset_roots);
     if (!follower.ok()) return follower.status();
     return std::make_unique<BodyFollower>(std::move(*follower));
   };

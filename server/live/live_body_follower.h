@@ -5,13 +5,17 @@
 // main plugs this factory into ServerOptions::live.
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include "server/live/live_hub.h"
 
 namespace reenact::server {
 
 // Makes a recon::LiveBodyFollower per live job: the job's options are the
 // method body's (plus shape_spacing); InvalidArgument for bad options or
-// calibrations, the model's errors.
-LiveFollowerFactory MakeLiveBodyFollowerFactory();
+// calibrations, the model's errors. model=makehuman:NAME is looked up under
+// `asset_roots` (the server's --assets).
+LiveFollowerFactory MakeLiveBodyFollowerFactory(std::vector<std::string> asset_roots = {});
 
 }  // namespace reenact::server

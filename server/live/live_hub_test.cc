@@ -233,6 +233,10 @@ TEST(LiveHub, SkipsToTheNewestSetWhenTheFitIsBehind) {
     previous = e.sequence();
   }
   EXPECT_EQ(previous, 20u) << "the newest set is always fitted";
+  // The end reaches the subscriber before the job's ended callback: wait for
+  // the callback too, or the follow's thread may still write to `log` as
+  // the test returns and destroys it.
+  EXPECT_EQ(log.WaitEnd().reason, v1::FOLLOW_END_REASON_TAKE_INTERRUPTED);
 }
 
 TEST(LiveHub, LateSubscriberGetsTheNewestMeshFirst) {

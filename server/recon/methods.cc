@@ -115,7 +115,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   if (cylinders) {
     made = RunRigidCylinders(*take, method_options, method_progress, log);
   } else if (body) {
-    made = RunBody(*take, method_options, method_progress, log);
+    made = RunBody(*take, method_options, input.asset_roots, method_progress, log);
   } else {
 #if REENACT_HAVE_RIGID_CARVED
     made = RunRigidCarved(*take, method_options, method_progress, log);

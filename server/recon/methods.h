@@ -32,6 +32,9 @@ struct MethodInput {
   std::string reenactment_id;
   std::string take_id;
   std::string job_id;
+  // Folders whose subfolders the option model=makehuman:NAME names (the
+  // server's --assets); never from a client.
+  std::vector<std::string> asset_roots = {};
 };
 
 // What a finished method reports (also written into ReenactmentInfo.figures).

@@ -14,6 +14,7 @@
 #include "proto/grpc_status.h"
 #include "server/live/live_hub.h"
 #include "server/rpc/rpc_auth.h"
+#include "server/server_metrics.h"
 #include "server/store/frame_set_validation.h"
 
 namespace reenact::server {
@@ -227,7 +228,14 @@ void IngestStream::HandleFrameSet(v1::FrameSet set, int64_t arrived_unix_ns) {
   }
   if (p != Phase::kRecording) return;
   absl::Status status = recorder->CheckNextSequence(set.sequence());
-  if (status.ok()) status = ValidateFrameSet(set, recorder->sensors(), context_.takes->limits());
+  if (status.ok()) {
+    status = ValidateFrameSet(set, recorder->sensors(), context_.takes->limits());
+    if (!status.ok()) {
+      LimitHit("frame_set", {{"take_id", take_id_}, {"sequence", set.sequence()}},
+               status.message());
+    }
+  }
+  const size_t bytes = set.ByteSizeLong();
   // A followed take's sets go to the live hub too: a copy, queued there for
   // the follower's thread (the fit never runs here).
   std::optional<v1::FrameSet> live;
@@ -237,6 +245,8 @@ void IngestStream::HandleFrameSet(v1::FrameSet set, int64_t arrived_unix_ns) {
     Fail(status);
     return;
   }
+  IngestFrameSetsCounter().Increment();
+  IngestBytesCounter().Increment(static_cast<double>(bytes));
   if (live.has_value()) context_.live->FrameSetArrived(take_id_, std::move(*live), arrived_unix_ns);
   ReadNext();
 }

@@ -1,7 +1,9 @@
 #include "server/rpc/ingest_service.h"
 
+#include <chrono>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -420,6 +422,49 @@ TEST(Ingest, ShutdownStoresWhatArrivedAndSaysUnavailable) {
   EXPECT_EQ(take.state(), v1::TAKE_STATE_INTERRUPTED);
   EXPECT_EQ(take.durable_sequence(), 8u);
   ExpectStoredFrameSets(again->TakePath("t"), SensorIds(1), 8);
+}
+
+TEST(ClientLimits, AClientGetsNoMoreStreamsThanAllowedAndTheNextAfterOneEnds) {
+  ServerOptions options;
+  options.client_limits.max_streams = 2;
+  auto t = TestServer::Start(reenact::testing::MakeTempDir("client_limits"), options);
+  ASSERT_NE(t, nullptr);
+  auto first = std::make_unique<IngestClient>(*t->ingest);
+  first->Open(MakeOpenTake("s1", "daemon-a", 1));
+  ASSERT_TRUE(first->ReadOpened().has_value());
+  IngestClient second(*t->ingest);
+  second.Open(MakeOpenTake("s2", "daemon-a", 1));
+  ASSERT_TRUE(second.ReadOpened().has_value());
+  // The third stream of the same client is refused, saying which limit.
+  IngestClient third(*t->ingest);
+  third.Open(MakeOpenTake("s3", "daemon-a", 1));
+  const grpc::Status refused = third.Finish();
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.error_message();
+  EXPECT_NE(refused.error_message().find("--max-streams-per-client"), std::string::npos)
+      << refused.error_message();
+  // Unary calls are not streams: listing still works.
+  v1::Take take;
+  EXPECT_TRUE(t->GetTake("s1", &take).ok());
+  // One ends; the next stream is let in.
+  first->Close(0);
+  EXPECT_TRUE(first->Finish().ok());
+  first.reset();
+  bool admitted = false;
+  for (int attempt = 0; attempt < 50 && !admitted; ++attempt) {
+    IngestClient fourth(*t->ingest);
+    fourth.Open(MakeOpenTake("s4", "daemon-a", 1));
+    admitted = fourth.ReadOpened().has_value();
+    if (admitted) {
+      fourth.Close(0);
+      EXPECT_TRUE(fourth.Finish().ok());
+    } else {
+      (void)fourth.Finish();
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+  EXPECT_TRUE(admitted);
+  second.Close(0);
+  EXPECT_TRUE(second.Finish().ok());
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "proto/grpc_status.h"
 #include "proto/write_pump.h"
 #include "server/jobs/job_scheduler.h"
+#include "server/rpc/pagination.h"
 #include "server/rpc/rpc_auth.h"
 
 namespace reenact::server {
@@ -89,9 +90,14 @@ absl::Status ListJobs(ServerContext& context, const v1::ListJobsRequest& request
   if (!v1::JobState_IsValid(request.state())) {
     return absl::InvalidArgumentError(absl::StrCat("unknown job state ", request.state()));
   }
-  for (v1::Job& job : context.jobs->List(request.state(), request.take_id())) {
-    *response->add_jobs() = std::move(job);
-  }
+  ASSIGN_OR_RETURN(*response->mutable_next_page_token(),
+                   Paginate<v1::Job>(
+                       context.jobs->List(request.state(), request.take_id()), request.page_size(),
+                       request.page_token(),
+                       [](const v1::Job& j) {
+                         return PageKey{j.submitted_unix_ns(), j.job_id()};
+                       },
+                       [response](v1::Job&& j) { *response->add_jobs() = std::move(j); }));
   return absl::OkStatus();
 }
 

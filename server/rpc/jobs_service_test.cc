@@ -176,6 +176,66 @@ TEST(JobsService, SubmitErrors) {
   EXPECT_EQ(job.options().at("atlas_px"), "512");
 }
 
+TEST(JobsService, BodyModelsAreAssetNamesNeverServerPaths) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_assets");
+  const std::string assets = dir + "/assets";
+  std::filesystem::create_directories(assets + "/teacher");
+  ServerOptions options = JobOptions(REENACT_FAKE_WORKER);
+  options.jobs.asset_roots = {assets};
+  auto t = TestServer::Start(dir + "/data", options);
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  v1::Job job;
+  // A path is refused the same way whether or not it exists on the server:
+  // the messages differ only by the client's own text.
+  std::vector<std::string> messages;
+  for (const std::string& path :
+       {"makehuman:" + assets + "/teacher", "makehuman:" + assets + "/nobody",
+        std::string("makehuman:/etc"), std::string("makehuman:../../etc"),
+        std::string("makehuman:..")}) {
+    const grpc::Status status = jobs.Submit("take1", "body", {{"model", path}}, &job);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << path;
+    std::string message = status.error_message();
+    message.replace(message.find(path), path.size(), "SPEC");
+    messages.push_back(message);
+    EXPECT_EQ(message, messages.front());
+  }
+  // Whether a name exists is the one thing said, with the names there are.
+  const grpc::Status unknown = jobs.Submit("take1", "body", {{"model", "makehuman:etc"}}, &job);
+  EXPECT_EQ(unknown.error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_NE(unknown.error_message().find("it has makehuman:teacher"), std::string::npos)
+      << unknown.error_message();
+  EXPECT_EQ(unknown.error_message().find(assets), std::string::npos) << unknown.error_message();
+  const grpc::Status named = jobs.Submit("take1", "body", {{"model", "makehuman:teacher"}}, &job);
+  EXPECT_TRUE(named.ok()) << named.error_message();
+}
+
+TEST(JobsService, FinishedJobsPastTheirRetentionLoseFolderAndRowButNotTheReenactment) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_retention");
+  auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const v1::Job old_job = jobs.WaitEnd(jobs.SubmitOk("take1", {{"fake_steps", "2"}}).job_id());
+  ASSERT_EQ(old_job.state(), v1::JOB_STATE_SUCCEEDED) << old_job.error();
+  const std::string folder = dir + "/data/jobs/" + old_job.job_id();
+  ASSERT_TRUE(std::filesystem::exists(folder + "/worker.log"));
+  const int64_t cutoff = old_job.finished_unix_ns() + 1;
+  const v1::Job new_job = jobs.WaitEnd(jobs.SubmitOk("take1", {{"fake_steps", "2"}}).job_id());
+  ASSERT_GE(new_job.finished_unix_ns(), cutoff);
+
+  const absl::StatusOr<int> swept = t->server->jobs().DeleteJobsFinishedBefore(cutoff);
+  ASSERT_TRUE(swept.ok()) << swept.status();
+  EXPECT_EQ(*swept, 1);
+  EXPECT_FALSE(std::filesystem::exists(folder));
+  v1::Job gone;
+  EXPECT_EQ(jobs.Get(old_job.job_id(), &gone).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_TRUE(std::filesystem::exists(dir + "/data/jobs/" + new_job.job_id()));
+  // What the job made stays: retention is about logs, not results.
+  EXPECT_TRUE(t->server->reenactments().Get(old_job.reenactment_id()).ok());
+}
+
 TEST(JobsService, WatchSeesProgressAndTheReenactment) {
   const std::string dir = reenact::testing::MakeTempDir("jobs_success");
   auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER));

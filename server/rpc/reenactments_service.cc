@@ -14,6 +14,7 @@
 #include "common/io/reenactment_file.h"
 #include "proto/grpc_status.h"
 #include "server/rpc/follow_stream.h"
+#include "server/rpc/pagination.h"
 #include "server/rpc/rpc_auth.h"
 #include "server/store/reenactment_store.h"
 
@@ -220,9 +221,16 @@ class FetchStream final : public grpc::ServerWriteReactor<v1::FetchReenactmentCh
 absl::Status ListReenactments(ServerContext& context, const v1::ListReenactmentsRequest& request,
                               v1::ListReenactmentsResponse* response) {
   RETURN_IF_ERROR(CheckStore(context));
-  for (v1::ReenactmentSummary& summary : context.reenactments->List(request.take_id())) {
-    *response->add_reenactments() = std::move(summary);
-  }
+  ASSIGN_OR_RETURN(
+      *response->mutable_next_page_token(),
+      Paginate<v1::ReenactmentSummary>(
+          context.reenactments->List(request.take_id()), request.page_size(), request.page_token(),
+          [](const v1::ReenactmentSummary& r) {
+            return PageKey{r.info().created_unix_ns(), r.info().reenactment_id()};
+          },
+          [response](v1::ReenactmentSummary&& r) {
+            *response->add_reenactments() = std::move(r);
+          }));
   return absl::OkStatus();
 }
 

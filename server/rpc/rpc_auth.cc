@@ -1,6 +1,7 @@
 #include "server/rpc/rpc_auth.h"
 
-#include <iostream>
+#include "common/base/status_macros.h"
+#include "server/server_metrics.h"
 
 namespace reenact::server {
 
@@ -28,11 +29,16 @@ const rpc::Authorizer::MethodTable& ServerMethodAccess() {
 absl::StatusOr<rpc::Principal> Authorize(const ServerContext& context,
                                          const grpc::CallbackServerContext& rpc,
                                          absl::string_view method) {
-  if (context.auth == nullptr) return rpc::Principal{};
-  absl::StatusOr<rpc::Principal> who = context.auth->Authorize(rpc, method);
-  if (!who.ok()) {
-    std::cerr << "reenact-server: refused " << method << " from " << rpc.peer() << ": "
-              << absl::StatusCodeToString(who.status().code()) << "\n";
+  rpc::Principal who;
+  if (context.auth != nullptr) {
+    // The authorizer counts and logs each refusal (event auth_refused).
+    ASSIGN_OR_RETURN(who, context.auth->Authorize(rpc, method));
+  }
+  if (context.client_limits != nullptr) {
+    if (absl::Status allowed = context.client_limits->Check(rpc); !allowed.ok()) {
+      LimitHit("client_calls", {{"rpc", method}, {"peer", rpc.peer()}}, allowed.message());
+      return allowed;
+    }
   }
   return who;
 }

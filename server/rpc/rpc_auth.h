@@ -19,6 +19,9 @@ namespace reenact::server {
 //   ingest (capture, admin): Ingest;
 //   manage (coach, admin): Jobs.Submit, Jobs.Cancel, Takes.Delete,
 //     Reenactments.Delete.
+// The health service (grpc.health.v1.Health) is not here: its handlers ask
+// no authorizer, so probes without a token get their answer
+// (common/rpc/health_service.h).
 const rpc::Authorizer::MethodTable& ServerMethodAccess();
 
 // The caller of `method` (the anonymous admin when the server has no

@@ -8,6 +8,7 @@
 
 #include "common/base/thread_pool.h"
 #include "common/rpc/auth.h"
+#include "common/rpc/client_limits.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
@@ -37,6 +38,8 @@ struct ServerContext {
   // Who may call what (server/rpc/rpc_auth.h); null: everyone, as the
   // anonymous admin.
   const rpc::Authorizer* auth = nullptr;
+  // Calls and streams per client (checked with authorisation); null: none.
+  const rpc::ClientLimits* client_limits = nullptr;
   // Takes.Delete keeps the take's reenactments and job folders (images of
   // the person) instead of deleting them with it.
   bool keep_derived = false;

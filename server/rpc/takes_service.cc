@@ -13,6 +13,7 @@
 #include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
 #include "server/jobs/job_scheduler.h"
+#include "server/rpc/pagination.h"
 #include "server/rpc/rpc_auth.h"
 #include "server/store/frame_set_validation.h"
 #include "server/store/reenactment_store.h"
@@ -114,7 +115,13 @@ absl::Status ListTakes(ServerContext& context, const v1::ListTakesRequest& reque
     return absl::InvalidArgumentError(absl::StrCat("unknown take state ", request.state()));
   }
   ASSIGN_OR_RETURN(std::vector<v1::Take> takes, context.takes->ListTakes(request.state()));
-  for (v1::Take& take : takes) *response->add_takes() = std::move(take);
+  ASSIGN_OR_RETURN(*response->mutable_next_page_token(),
+                   Paginate<v1::Take>(
+                       std::move(takes), request.page_size(), request.page_token(),
+                       [](const v1::Take& t) {
+                         return PageKey{t.created_unix_ns(), t.take_id()};
+                       },
+                       [response](v1::Take&& t) { *response->add_takes() = std::move(t); }));
   return absl::OkStatus();
 }
 

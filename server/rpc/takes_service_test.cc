@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -95,6 +96,46 @@ TEST(Takes, ListsNewestFirstAndFilters) {
             grpc::StatusCode::INVALID_ARGUMENT);
   recording.Close(2);
   ASSERT_TRUE(recording.Finish().ok());
+}
+
+TEST(Takes, ListPagesThroughEveryTakeOnceWhileTakesComeAndGo) {
+  auto t = TestServer::Start(reenact::testing::MakeTempDir("takes_pages"));
+  ASSERT_NE(t, nullptr);
+  for (int i = 0; i < 7; ++i) RecordTake(*t, "take" + std::to_string(i), 1);
+  auto page = [&](int32_t size, const std::string& token, v1::ListTakesResponse* response) {
+    grpc::ClientContext context;
+    v1::ListTakesRequest request;
+    request.set_page_size(size);
+    request.set_page_token(token);
+    return t->takes->List(&context, request, response);
+  };
+  std::vector<std::string> seen;
+  std::string token;
+  int pages = 0;
+  do {
+    v1::ListTakesResponse response;
+    ASSERT_TRUE(page(3, token, &response).ok());
+    EXPECT_LE(response.takes_size(), 3);
+    for (const v1::Take& take : response.takes()) seen.push_back(take.take_id());
+    token = response.next_page_token();
+    if (++pages == 1) {
+      // A take deleted and one added between pages: neither shifts the
+      // pages still to come (keyset, not offset).
+      v1::DeleteTakeResponse deleted;
+      ASSERT_TRUE(Delete(*t, seen.front(), &deleted).ok());
+      RecordTake(*t, "newer", 1);
+    }
+  } while (!token.empty());
+  EXPECT_EQ(pages, 3);
+  EXPECT_EQ(seen, (std::vector<std::string>{"take6", "take5", "take4", "take3", "take2", "take1",
+                                            "take0"}));
+  v1::ListTakesResponse response;
+  EXPECT_EQ(page(-1, "", &response).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(page(3, "not-a-token", &response).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  // Zero asks for the default page; a huge size is taken as the maximum.
+  ASSERT_TRUE(page(0, "", &response).ok());
+  EXPECT_EQ(response.takes_size(), 7);
+  EXPECT_TRUE(response.next_page_token().empty());
 }
 
 TEST(Takes, GetNamesUnknownAndMalformedIds) {

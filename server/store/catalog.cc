@@ -274,6 +274,9 @@ absl::Status Catalog::Error(const std::string& what) const {
   const std::string message =
       absl::StrCat("catalog ", path_, ": ", what, ": ", sqlite3_errmsg(db_));
   if (code == SQLITE_NOTADB || code == SQLITE_CORRUPT) return absl::DataLossError(message);
+  // The wording of FileError (common/base/files.h), so IsDiskFull knows it.
+  if (code == SQLITE_FULL)
+    return absl::ResourceExhaustedError(absl::StrCat(message, " (disk full)"));
   return absl::UnavailableError(message);
 }
 

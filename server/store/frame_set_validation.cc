@@ -11,6 +11,7 @@
 #include "absl/strings/str_join.h"
 #include "common/base/status_macros.h"
 #include "common/io/depth_codec.h"
+#include "common/io/mask_codec.h"
 
 namespace reenact::server {
 namespace {
@@ -49,6 +50,12 @@ absl::Status CheckSize(const std::string& where, int32_t width_px, int32_t heigh
     return Invalid(where, absl::StrCat("size ", width_px, "x", height_px, " px is outside 1..",
                                        limits.max_image_side_px, " px per side"));
   }
+  const int64_t pixels = int64_t{width_px} * height_px;
+  if (pixels > limits.max_image_pixels) {
+    return Invalid(where, absl::StrCat("size ", width_px, "x", height_px, " px is ", pixels,
+                                       " pixels, more than the ", limits.max_image_pixels,
+                                       " allowed (--max-frame-pixels)"));
+  }
   return absl::OkStatus();
 }
 
@@ -68,6 +75,8 @@ absl::Status CheckIntrinsics(const std::string& where, const v1::CameraIntrinsic
 // checksum) and agrees with the message.
 absl::Status CheckRvldHeader(const std::string& where, std::string_view bytes, bool zstd,
                              int32_t width_px, int32_t height_px) {
+  // The sizes were checked against the limits before: the header must agree
+  // with them, so this bound only keeps InspectDepth's own message short.
   absl::StatusOr<DepthHeader> header = InspectDepth(bytes);
   if (!header.ok()) return Invalid(where, std::string(header.status().message()));
   if (header->zstd != zstd) {
@@ -94,7 +103,8 @@ absl::Status CheckDepth(const std::string& where, const v1::DepthImage& depth,
   RETURN_IF_ERROR(CheckRvldHeader(where, depth.data(), depth.encoding() == "rvl+zstd",
                                   depth.width_px(), depth.height_px()));
   if (limits.depth_check == DepthCheck::kDecode) {
-    absl::StatusOr<DepthImageMm> decoded = DecodeDepth(depth.data());
+    absl::StatusOr<DepthImageMm> decoded =
+        DecodeDepth(depth.data(), static_cast<uint64_t>(limits.max_image_pixels));
     if (!decoded.ok()) return Invalid(where, std::string(decoded.status().message()));
   }
   return absl::OkStatus();
@@ -137,8 +147,10 @@ absl::Status CheckColor(const std::string& where, const v1::ColorImage& color,
   return absl::OkStatus();
 }
 
+// Masks are decoded whole: a mask is small next to its depth image, and an
+// RLE stream is only proven to cover exactly its pixels by walking it.
 absl::Status CheckMask(const std::string& where, const v1::ActorMask& mask,
-                       const v1::DepthImage& depth) {
+                       const v1::DepthImage& depth, const FrameSetLimits& limits) {
   if (mask.width_px() != depth.width_px() || mask.height_px() != depth.height_px()) {
     return Invalid(where, absl::StrCat("size ", mask.width_px(), "x", mask.height_px(),
                                        " px differs from the depth image's ", depth.width_px(), "x",
@@ -146,7 +158,13 @@ absl::Status CheckMask(const std::string& where, const v1::ActorMask& mask,
   }
   const std::string& data = mask.data();
   if (mask.encoding() == "rvl") {
-    return CheckRvldHeader(where, data, /*zstd=*/false, mask.width_px(), mask.height_px());
+    RETURN_IF_ERROR(
+        CheckRvldHeader(where, data, /*zstd=*/false, mask.width_px(), mask.height_px()));
+    if (limits.depth_check == DepthCheck::kHeader) return absl::OkStatus();
+    absl::StatusOr<DepthImageMm> decoded =
+        DecodeDepth(data, static_cast<uint64_t>(limits.max_image_pixels));
+    if (!decoded.ok()) return Invalid(where, std::string(decoded.status().message()));
+    return absl::OkStatus();
   }
   if (mask.encoding() != "rle") {
     return Invalid(where,
@@ -158,6 +176,9 @@ absl::Status CheckMask(const std::string& where, const v1::ActorMask& mask,
       LoadLe32(data.data() + 8) != static_cast<uint32_t>(mask.height_px())) {
     return Invalid(where, "bytes do not start with an RLM1 header of the stated size");
   }
+  absl::StatusOr<MaskImage> decoded =
+      DecodeMaskRle(data, static_cast<uint64_t>(limits.max_image_pixels));
+  if (!decoded.ok()) return Invalid(where, std::string(decoded.status().message()));
   return absl::OkStatus();
 }
 
@@ -210,7 +231,7 @@ absl::Status CheckFrame(const std::string& where, const v1::Frame& frame,
   }
   if (frame.has_mask()) {
     RETURN_IF_ERROR(CheckHeaderFields(where + " mask", frame.mask(), frame));
-    RETURN_IF_ERROR(CheckMask(where + " mask", frame.mask(), frame.depth()));
+    RETURN_IF_ERROR(CheckMask(where + " mask", frame.mask(), frame.depth(), limits));
   }
   if (frame.skeletons_size() > limits.max_skeletons_per_frame) {
     return Invalid(where, absl::StrCat(frame.skeletons_size(), " skeletons, more than ",
@@ -227,6 +248,11 @@ absl::Status CheckFrame(const std::string& where, const v1::Frame& frame,
 }  // namespace
 
 absl::Status FrameSetLimits::Validate() const {
+  if (max_image_pixels < 1 || static_cast<uint64_t>(max_image_pixels) > kMaxDecodedImagePixels) {
+    return absl::InvalidArgumentError(absl::StrCat("FrameSetLimits: max_image_pixels must be 1..",
+                                                   kMaxDecodedImagePixels, ", got ",
+                                                   max_image_pixels));
+  }
   if (max_image_side_px < 1 || max_skeletons_per_frame < 0 || max_joints_per_skeleton < 0) {
     return absl::InvalidArgumentError(
         "FrameSetLimits: max_image_side_px must be >= 1 and the skeleton limits >= 0");

@@ -35,6 +35,9 @@ enum class DepthCheck {
 struct FrameSetLimits {
   // Largest width or height of a colour, depth or mask image, pixels.
   int32_t max_image_side_px = 8192;
+  // Largest width * height of one image, pixels (4096 x 4096: every Kinect
+  // class sensor's colour and depth fit). At most kMaxDecodedImagePixels.
+  int64_t max_image_pixels = int64_t{1} << 24;
   // Largest number of skeletons in one frame and joints in one skeleton.
   int max_skeletons_per_frame = 16;
   int max_joints_per_skeleton = 64;

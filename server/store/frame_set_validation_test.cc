@@ -1,5 +1,6 @@
 #include "server/store/frame_set_validation.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -105,6 +106,20 @@ TEST(ValidateFrameSet, RefusesEachKindOfBadSet) {
        "encoding \"png\""},
       {"mask bytes", [](v1::FrameSet& s) { s.mutable_frames(0)->mutable_mask()->set_data("RLM1"); },
        "RLM1"},
+      {"mask runs short of the image",
+       [](v1::FrameSet& s) {
+         // A valid header, then one run of a single pixel.
+         std::string* d = s.mutable_frames(0)->mutable_mask()->mutable_data();
+         d->resize(12);
+         d->append(std::string("\x01\x00", 2));
+       },
+       "runs cover 1 of"},
+      {"mask runs past the image",
+       [](v1::FrameSet& s) {
+         std::string* d = s.mutable_frames(0)->mutable_mask()->mutable_data();
+         d->append(std::string("\x01\x00", 2));
+       },
+       "more pixels than the mask has"},
       {"NaN joint",
        [](v1::FrameSet& s) {
          s.mutable_frames(0)
@@ -138,6 +153,25 @@ TEST(ValidateFrameSet, RefusesEachKindOfBadSet) {
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << c.name << ": " << status;
     EXPECT_NE(status.message().find(c.message), std::string::npos) << c.name << ": " << status;
   }
+}
+
+TEST(ValidateFrameSet, RefusesImagesOverThePixelCap) {
+  const v1::FrameSet set = MakeFrameSet(3, {"k0", "k1"});
+  int64_t largest = 0;  // Pixels of the largest image in the set.
+  for (const v1::Frame& f : set.frames()) {
+    largest = std::max({largest, int64_t{f.depth().width_px()} * f.depth().height_px(),
+                        int64_t{f.color().width_px()} * f.color().height_px()});
+  }
+  FrameSetLimits limits;
+  limits.max_image_pixels = largest;
+  EXPECT_TRUE(ValidateFrameSet(set, TwoSensors(), limits).ok());
+  limits.max_image_pixels = largest - 1;
+  ASSERT_TRUE(limits.Validate().ok());
+  const absl::Status status = ValidateFrameSet(set, TwoSensors(), limits);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+  EXPECT_NE(status.message().find("--max-frame-pixels"), std::string::npos) << status;
+  limits.max_image_pixels = int64_t{1} << 40;  // Past what any decoder allocates.
+  EXPECT_FALSE(limits.Validate().ok());
 }
 
 TEST(ValidateTakeId, AcceptsIdsOfTheProtocolOnly) {

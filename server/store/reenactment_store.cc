@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <ctime>
 #include <filesystem>
-#include <iostream>
 #include <random>
 #include <system_error>
 #include <utility>
@@ -16,6 +15,7 @@
 #include "common/base/time.h"
 #include "common/io/mcap_reader.h"
 #include "common/io/reenactment_file.h"
+#include "common/log/log.h"
 
 namespace reenact::server {
 namespace {
@@ -95,8 +95,9 @@ absl::StatusOr<std::unique_ptr<ReenactmentStore>> ReenactmentStore::Open(const s
         IsValidReenactmentId(id) ? Summarize(id, path.string(), /*full=*/false)
                                  : absl::StatusOr<v1::ReenactmentSummary>(CheckId(id));
     if (!summary.ok()) {
-      std::cerr << "reenact-server: reenactment store: skipping " << path.string() << ": "
-                << summary.status().message() << "\n";
+      log::Warn("reenactment_skipped",
+                {{"path", path.string()}, {"error", summary.status().message()}},
+                "the reenactment store skips a file it cannot read");
       continue;
     }
     store->entries_.emplace(id, *std::move(summary));

@@ -4,8 +4,11 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
+#include "common/log/log.h"
+#include "common/metrics/metrics.h"
 #include "server/store/take_file.h"
 
 namespace reenact::server {
@@ -213,8 +216,22 @@ void TakeRecorder::Run() {
       if (written.ok()) {
         row_ = row;
       } else {
-        write_error_ = absl::UnavailableError(
-            absl::StrCat("the server could not store take ", take_id_, ": ", written.message()));
+        // The client hears what happened and what to do, not where: the
+        // folder is the server's business (and in its log).
+        log::Error("take_write_failed", {{"take_id", take_id_}, {"error", written.message()}},
+                   absl::StrCat("take ", take_id_, ": ", written.message()));
+        if (IsDiskFull(written)) {
+          metrics::DefaultRegistry()
+              .GetCounter("reenact_disk_full_total",
+                          "Writes refused because the data folder's disk was full")
+              .Increment();
+          write_error_ = absl::ResourceExhaustedError(absl::StrCat(
+              "the server's disk is full: take ", take_id_, " stopped at frame set ",
+              row_.take.durable_sequence(), "; delete takes or reenactments to free space"));
+        } else {
+          write_error_ = absl::UnavailableError(
+              absl::StrCat("the server could not store take ", take_id_, " (its log says why)"));
+        }
         if (!finishing_) {
           finishing_ = true;
           finish_ = {false, 0, write_error_};
@@ -260,7 +277,14 @@ RecordingResult TakeRecorder::FinishFile(const FinishRequest& request) {
     if (recovered.ok()) ApplyTakeFileSummary(*recovered, result.row);
     complete = false;
     if (result.reason.ok()) result.reason = !closed.ok() ? closed : write_error;
-    if (!recovered.ok()) {
+    if (!recovered.ok() && IsDiskFull(recovered.status())) {
+      // Nothing durable is lost: the file still ends in its last whole
+      // chunk, and it is summarised at the next resume or start. The client
+      // hears the disk-full reason it already has.
+      log::Warn("take_summary_deferred",
+                {{"take_id", take_id_}, {"error", recovered.status().message()}},
+                "the take's summary waits for disk space");
+    } else if (!recovered.ok()) {
       result.reason = absl::DataLossError(
           absl::StrCat(result.reason.message(),
                        "; recovering the file failed too: ", recovered.status().message()));

@@ -10,11 +10,15 @@
 #include <filesystem>
 #include <utility>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
+#include "common/log/log.h"
+#include "server/server_metrics.h"
 #include "server/store/take_file.h"
 
 namespace reenact::server {
@@ -28,18 +32,6 @@ std::string TakeRelativePath(const std::string& take_id) {
   return absl::StrCat("takes/", take_id, ".mcap");
 }
 
-// fsync of a folder, so that a file created in it survives a crash.
-absl::Status SyncDirectory(const std::string& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0 || ::fsync(fd) != 0) {
-    const std::string error = std::strerror(errno);
-    if (fd >= 0) ::close(fd);
-    return absl::UnavailableError(absl::StrCat("fsync of folder ", dir, " failed: ", error));
-  }
-  ::close(fd);
-  return absl::OkStatus();
-}
-
 std::set<std::string> SensorIds(const v1::Take& take) {
   std::set<std::string> ids;
   for (const v1::TakeSensor& s : take.sensors()) ids.insert(s.sensor_id());
@@ -47,6 +39,13 @@ std::set<std::string> SensorIds(const v1::Take& take) {
 }
 
 void ClearCounts(TakeRow& row) { ApplyTakeFileSummary(TakeFileSummary{}, row); }
+
+// "complete" for TAKE_STATE_COMPLETE: the short form logs carry.
+std::string StateName(v1::TakeState state) {
+  std::string name = absl::AsciiStrToLower(v1::TakeState_Name(state));
+  if (absl::StartsWith(name, "take_state_")) name = name.substr(11);
+  return name;
+}
 
 }  // namespace
 
@@ -169,6 +168,16 @@ RecoveredTake TakeStore::RecoverTake(TakeRow row) {
   out.durable_sequence = row.take.durable_sequence();
   out.size_bytes = row.take.size_bytes();
   out.elapsed_s = NsToSeconds(SteadyNowNs() - start_ns);
+  log::Log(out.problem.empty() ? log::Level::kInfo : log::Level::kWarn, "take_recovered",
+           {{"take_id", out.take_id},
+            {"frame_sets", out.durable_sequence},
+            {"bytes", out.size_bytes},
+            {"dropped_bytes", out.dropped_bytes},
+            {"elapsed_s", out.elapsed_s},
+            {"problem", out.problem}},
+           absl::StrCat("recovered take ", out.take_id, ": ", out.durable_sequence, " frame sets, ",
+                        out.size_bytes, " bytes (", out.dropped_bytes, " cut) in ", out.elapsed_s,
+                        " s", out.problem.empty() ? "" : "; ", out.problem));
   return out;
 }
 
@@ -177,7 +186,13 @@ RecoveredTake TakeStore::RecoverTake(TakeRow row) {
 absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& request,
                                                    RecorderObserver* observer) {
   RETURN_IF_ERROR(ValidateTakeId(request.take_id));
-  RETURN_IF_ERROR(ValidateTakeInfo(request.info, options_.limits));
+  if (absl::Status info = ValidateTakeInfo(request.info, options_.limits); !info.ok()) {
+    const bool notes =
+        request.info.notes().size() > static_cast<size_t>(options_.limits.max_notes_bytes);
+    LimitHit(notes ? "notes_bytes" : "name_bytes",
+             {{"take_id", request.take_id}, {"daemon_id", request.daemon_id}}, info.message());
+    return info;
+  }
   if (request.daemon_id.empty() || request.daemon_id.size() > kMaxDaemonIdLength) {
     return absl::InvalidArgumentError(
         absl::StrCat("OpenTake.daemon_id must be 1..", kMaxDaemonIdLength, " characters"));
@@ -237,6 +252,16 @@ absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& reques
     std::lock_guard<std::mutex> lock(mu_);
     opening_.erase(id);
     recordings_changed_.notify_all();
+  }
+  if (result.ok() && result->recorder != nullptr) {
+    log::Info("take_opened",
+              {{"take_id", id},
+               {"daemon_id", request.daemon_id},
+               {"owner", request.owner},
+               {"sensors", result->row.take.sensors_size()},
+               {"resumed", result->resumed},
+               {"durable_sequence", result->durable_sequence}},
+              absl::StrCat(result->resumed ? "resumed take " : "opened take ", id));
   }
   return result;
 }
@@ -343,6 +368,7 @@ std::shared_ptr<TakeRecorder> TakeStore::StartRecorder(std::unique_ptr<TakeWrite
       std::move(writer), path, std::move(row), TakeRecorder::Options{options_.chunk_target_bytes},
       observer, [this](RecordingResult& result) { OnRecordingFinished(result); });
   bool shutting_down = false;
+  TakesOpenGauge().Add(1);  // Down again in OnRecordingFinished.
   {
     std::lock_guard<std::mutex> lock(mu_);
     recording_[id] = recorder;
@@ -357,13 +383,37 @@ std::shared_ptr<TakeRecorder> TakeStore::StartRecorder(std::unique_ptr<TakeWrite
 
 void TakeStore::OnRecordingFinished(RecordingResult& result) {
   std::lock_guard<std::mutex> write_lock(catalog_write_mu_);
-  if (absl::Status put = catalog_->Put(result.row); !put.ok()) {
-    // The file is finished; the row stays RECORDING and is recovered from
-    // the file at the next start or resume.
-    result.row.take.set_state(v1::TAKE_STATE_INTERRUPTED);
-    if (result.reason.ok()) result.reason = put;
+  if (IsDiskFull(result.reason) || (absl::IsResourceExhausted(result.reason) &&
+                                    absl::StrContains(result.reason.message(), "disk is full"))) {
+    SetDiskFull(true);
   }
+  bool saved = true;
+  if (absl::Status put = catalog_->Put(result.row); !put.ok()) {
+    if (IsDiskFull(put)) SetDiskFull(true);
+    // The file is finished; the catalog's row says RECORDING. Readers see
+    // this row instead until the catalog thread writes it; a restart before
+    // that recovers the take from its file (INTERRUPTED either way).
+    result.row.take.set_state(v1::TAKE_STATE_INTERRUPTED);
+    if (result.reason.ok()) {
+      result.reason = IsDiskFull(put) ? absl::ResourceExhaustedError(
+                                            "the server's disk is full; the take could not be "
+                                            "closed (delete takes or reenactments to free space)")
+                                      : put;
+    }
+    saved = false;
+  }
+  TakesOpenGauge().Add(-1);
+  const v1::Take& take = result.row.take;
+  const bool complete = take.state() == v1::TAKE_STATE_COMPLETE;
+  log::Log(complete ? log::Level::kInfo : log::Level::kWarn, "take_closed",
+           {{"take_id", take.take_id()},
+            {"state", StateName(take.state())},
+            {"frame_sets", take.durable_sequence()},
+            {"bytes", take.size_bytes()},
+            {"reason", result.reason.message()}},
+           absl::StrCat("take ", take.take_id(), " closed: ", StateName(take.state())));
   std::lock_guard<std::mutex> lock(mu_);
+  if (!saved) unsaved_[result.row.take.take_id()] = result.row;
   recording_.erase(result.row.take.take_id());
   catalog_updated_ns_.erase(result.row.take.take_id());
   recordings_changed_.notify_all();
@@ -377,6 +427,20 @@ void TakeStore::UpdateCatalog() {
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& [id, recorder] : recording_) active.push_back(recorder);
+  }
+  std::map<std::string, TakeRow> unsaved;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    unsaved = unsaved_;
+  }
+  for (const auto& [id, row] : unsaved) {
+    if (!catalog_->Put(row).ok()) continue;  // Still full: next period.
+    SetDiskFull(false);
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto it = unsaved_.find(id);
+        it != unsaved_.end() && it->second.take.updated_unix_ns() == row.take.updated_unix_ns()) {
+      unsaved_.erase(it);
+    }
   }
   for (const auto& recorder : active) {
     const TakeRow row = recorder->Snapshot();
@@ -410,6 +474,8 @@ v1::Take TakeStore::Live(TakeRow row) const {
     std::lock_guard<std::mutex> lock(mu_);
     if (auto it = recording_.find(row.take.take_id()); it != recording_.end()) {
       recorder = it->second;
+    } else if (auto saved = unsaved_.find(row.take.take_id()); saved != unsaved_.end()) {
+      return saved->second.take;
     }
   }
   return recorder ? recorder->Snapshot().take : std::move(row.take);
@@ -421,10 +487,22 @@ absl::StatusOr<v1::Take> TakeStore::GetTake(const std::string& take_id) const {
 }
 
 absl::StatusOr<std::vector<v1::Take>> TakeStore::ListTakes(v1::TakeState state) const {
-  ASSIGN_OR_RETURN(std::vector<TakeRow> rows, catalog_->List(state));
+  bool any_unsaved = false;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    any_unsaved = !unsaved_.empty();
+  }
+  // An unsaved row's state differs from the catalog's: filter after Live.
+  ASSIGN_OR_RETURN(std::vector<TakeRow> rows,
+                   catalog_->List(any_unsaved ? v1::TAKE_STATE_UNSPECIFIED : state));
   std::vector<v1::Take> takes;
   takes.reserve(rows.size());
-  for (TakeRow& row : rows) takes.push_back(Live(std::move(row)));
+  for (TakeRow& row : rows) {
+    v1::Take take = Live(std::move(row));
+    if (state == v1::TAKE_STATE_UNSPECIFIED || take.state() == state) {
+      takes.push_back(std::move(take));
+    }
+  }
   return takes;
 }
 
@@ -439,23 +517,46 @@ absl::StatusOr<int64_t> TakeStore::DeleteTake(const std::string& take_id) {
   }
   absl::StatusOr<int64_t> freed = [&]() -> absl::StatusOr<int64_t> {
     ASSIGN_OR_RETURN(const TakeRow row, catalog_->Get(take_id));
-    RETURN_IF_ERROR(catalog_->Delete(take_id));
     const std::string path = AbsolutePath(row.path);
     std::error_code ec;
     const auto size = fs::file_size(path, ec);
     const int64_t bytes = ec ? 0 : static_cast<int64_t>(size);
-    fs::remove(path, ec);
-    if (ec) {
-      return absl::UnavailableError(absl::StrCat("take ", take_id,
-                                                 " left the catalog but its file ", path,
-                                                 " could not be removed: ", ec.message()));
+    auto remove_file = [&]() -> absl::Status {
+      fs::remove(path, ec);
+      if (ec) {
+        return absl::UnavailableError(
+            absl::StrCat("take ", take_id, ": its file could not be removed: ", ec.message()));
+      }
+      return SyncDirectory(fs::path(path).parent_path().string());
+    };
+    if (absl::Status forgotten = catalog_->Delete(take_id); !forgotten.ok()) {
+      // On a full disk the catalog cannot even log the deletion: free the
+      // file's space first, then forget it. A take whose file is gone and
+      // whose row stays is deleted again next time (removing nothing).
+      if (!IsDiskFull(forgotten)) return forgotten;
+      RETURN_IF_ERROR(remove_file());
+      RETURN_IF_ERROR(catalog_->Delete(take_id));
+      return bytes;
     }
+    RETURN_IF_ERROR(remove_file());
     return bytes;
   }();
+  if (freed.ok() && *freed > 0) SetDiskFull(false);  // Space came back.
   std::lock_guard<std::mutex> lock(mu_);
+  if (freed.ok()) unsaved_.erase(take_id);
   opening_.erase(take_id);
   recordings_changed_.notify_all();
   return freed;
+}
+
+void TakeStore::SetDiskFull(bool full) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (disk_full_ == full) return;
+    disk_full_ = full;
+  }
+  // The server logs the change and turns its health (server.cc).
+  if (options_.disk_full_changed) options_.disk_full_changed(full);
 }
 
 absl::StatusOr<std::string> TakeStore::TakeFileForReading(const std::string& take_id) const {

@@ -21,6 +21,7 @@
 
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -54,6 +55,10 @@ struct TakeStoreOptions {
   // Limits of what a take may hold (sensor image sizes are checked at
   // OpenTake; the ingest checks frame sets against them).
   FrameSetLimits limits;
+  // Told true when a write fails for want of space on the data folder's
+  // disk and false once writes succeed again; reenact-server makes its
+  // health NOT_SERVING meanwhile (Server::SetDiskFull). Empty: nobody.
+  std::function<void(bool full)> disk_full_changed{};
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -170,6 +175,14 @@ class TakeStore {
   std::map<std::string, uint64_t> generations_;
   // updated_unix_ns of the row the catalog last got, per recording take.
   std::map<std::string, int64_t> catalog_updated_ns_;
+  // Final rows of takes that ended while the catalog could not be written
+  // (a full disk): what readers see instead of the stale row, written by the
+  // catalog thread once it can be.
+  std::map<std::string, TakeRow> unsaved_;
+  // A write failed for want of space and no write has succeeded since
+  // (TakeStoreOptions::disk_full_changed).
+  bool disk_full_ = false;
+  void SetDiskFull(bool full);
   bool shutting_down_ = false;
   bool stop_catalog_ = false;
   std::condition_variable catalog_wake_;

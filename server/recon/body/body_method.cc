@@ -54,9 +54,11 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
   RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
   RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
   RETURN_IF_ERROR(reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10));
-  if (!body::IsBodyModelSpec(model)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option model: expected 'procedural' or 'makehuman:DIR', got '", model, "'"));
+  if (!body::IsAssetModelSpec(model)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "option model: expected 'procedural' or 'makehuman:NAME' (an asset folder of the "
+        "server, no path), got '",
+        model.substr(0, 80), "'"));
   }
   RETURN_IF_ERROR(fit.Validate());
   return atlas.Validate();
@@ -84,8 +86,10 @@ absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options)
 
 absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
                                         const std::map<std::string, std::string>& options,
+                                        const std::vector<std::string>& asset_roots,
                                         const ProgressCallback& progress, const LogCallback& log) {
   BodyMethodOptions o;
+  o.asset_roots = asset_roots;
   {
     OptionReader reader(options);
     RETURN_IF_ERROR(o.Read(reader));
@@ -99,7 +103,7 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
 
   // The model.
   RETURN_IF_ERROR(stages.Report("model", 0, 1));
-  ASSIGN_OR_RETURN(const body::BodyModel model, body::LoadBodyModelSpec(o.model));
+  ASSIGN_OR_RETURN(const body::BodyModel model, body::LoadAssetModelSpec(o.model, o.asset_roots));
   ASSIGN_OR_RETURN(std::unique_ptr<bodyfit::BodyFitter> fitter,
                    bodyfit::BodyFitter::Create(model, o.fit));
   RETURN_IF_ERROR(stages.Report("model", 1, 1));

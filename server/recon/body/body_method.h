@@ -4,7 +4,8 @@
 // result is a body-model reenactment (common/io/body_reenactment.h).
 //
 // Options (strings, as submitted with the job):
-//   model              "procedural" (default) or "makehuman:DIR"
+//   model              "procedural" (default) or "makehuman:NAME", NAME a
+//                      folder under the server's asset roots (model_spec.h)
 //   point_weight       w_z of Eq. 4.7 (1)
 //   smoothness_weight  w_r of Eq. 4.7 (0.001; see body_fit.h)
 //   skeleton_weight    the sensors' skeleton prior (0.1)
@@ -23,6 +24,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
@@ -39,6 +41,9 @@ namespace reenact::recon {
 // The method's options, read by key (the list above).
 struct BodyMethodOptions {
   std::string model = "procedural";
+  // Where "makehuman:NAME" is looked up: the server's --assets folders. Set
+  // by the caller, never from the options (a client names no server path).
+  std::vector<std::string> asset_roots = {};
   bodyfit::BodyFitOptions fit;
   AtlasOptions atlas;
   // InvalidArgument naming the key for a value that does not parse or fit.
@@ -57,8 +62,10 @@ absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options)
 // Runs the method on a loaded take. InvalidArgument for bad options or a
 // take without a usable instant (no skeleton with a torso and no points);
 // Cancelled when `progress` returned false.
+// `asset_roots`: BodyMethodOptions::asset_roots.
 absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
                                         const std::map<std::string, std::string>& options,
+                                        const std::vector<std::string>& asset_roots,
                                         const ProgressCallback& progress, const LogCallback& log);
 
 }  // namespace reenact::recon

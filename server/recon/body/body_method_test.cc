@@ -133,6 +133,13 @@ TEST(RunBody, BadOptionsAreRejectedBeforeLoading) {
   input.options = {{"no_such_option", "1"}};
   EXPECT_EQ(RunMethod(input, "/tmp/never.reen").status().code(),
             absl::StatusCode::kInvalidArgument);
+  // A path is never a model: only asset names under the server's roots.
+  for (const char* model : {"makehuman:/etc", "makehuman:../..", "makehuman:a/b", "makehuman:.x"}) {
+    input.options = {{"model", model}};
+    EXPECT_EQ(RunMethod(input, "/tmp/never.reen").status().code(),
+              absl::StatusCode::kInvalidArgument)
+        << model;
+  }
 }
 
 }  // namespace

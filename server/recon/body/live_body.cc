@@ -44,8 +44,10 @@ void LiveBodyFollower::WaitForShape() {
 
 absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
     const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
-    const std::map<std::string, std::string>& options) {
+    const std::map<std::string, std::string>& options,
+    const std::vector<std::string>& asset_roots) {
   BodyMethodOptions o;
+  o.asset_roots = asset_roots;
   o.fit.refine_vertices = false;  // The preview carries poses only.
   std::unique_ptr<LiveBodyFollower> follower(new LiveBodyFollower());
   State& s = *follower->state_;
@@ -58,7 +60,7 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
     RETURN_IF_ERROR(reader.Finish());
   }
   s.shape_frames = o.fit.shape_frames;
-  ASSIGN_OR_RETURN(s.model, body::LoadBodyModelSpec(o.model));
+  ASSIGN_OR_RETURN(s.model, body::LoadAssetModelSpec(o.model, o.asset_roots));
   ASSIGN_OR_RETURN(s.fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   ASSIGN_OR_RETURN(s.shape_fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   TakeFramesOptions frames;

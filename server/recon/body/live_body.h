@@ -44,11 +44,12 @@ class LiveBodyFollower {
  public:
   // `options`: the method body's options (body_method.h) plus
   //   shape_spacing    FrameSets between shape samples (5)
-  // and "live" (ignored here). InvalidArgument for bad options or
-  // calibrations; the model's errors.
+  // and "live" (ignored here); `asset_roots` as BodyMethodOptions'.
+  // InvalidArgument for bad options or calibrations; the model's errors.
   static absl::StatusOr<std::unique_ptr<LiveBodyFollower>> Create(
       const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
-      const std::map<std::string, std::string>& options);
+      const std::map<std::string, std::string>& options,
+      const std::vector<std::string>& asset_roots = {});
   ~LiveBodyFollower();
 
   // Fits the next FrameSet. DataLoss for frames that do not decode;

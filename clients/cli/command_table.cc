@@ -108,7 +108,7 @@ std::vector<Command> BuildCommandTable() {
        RunCaptureStart},
       {{"capture", "stop"}, "[--daemon HOST:PORT]", "stop the take being recorded", RunCaptureStop},
       {{"jobs", "submit"},
-       "--take ID --method rigid-cylinders|rigid-carved|body [--model procedural|makehuman:DIR] "
+       "--take ID --method rigid-cylinders|rigid-carved|body [--model procedural|makehuman:NAME] "
        "[--option KEY=VALUE ...] [--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
        "queue a reconstruction of a stored take (rigid parts, thesis ch. 3, or the body model, "
        "ch. 4; --model is --option model= of body); --wait follows it with a progress bar; "

@@ -1,7 +1,7 @@
 // `reenact jobs ...`: the server's Jobs service. Submit a reconstruction of a
 // stored take, follow it with a progress bar, list, watch, cancel. Submit's
 // `--model X` is `--option model=X` of the method body (the body model:
-// procedural | makehuman:DIR).
+// procedural | makehuman:NAME, an asset folder of the server).
 //
 // Exit codes of the commands that wait for a job (submit --wait, watch): 0
 // when it SUCCEEDED, 1 when it FAILED or was CANCELLED (the reason on
@@ -192,7 +192,7 @@ absl::StatusOr<std::map<std::string, std::string>> TakeOptions(std::vector<std::
 }
 
 // `--model X`: shorthand for `--option model=X`, the body model of the
-// method "body" (procedural | makehuman:DIR). InvalidArgument with another
+// method "body" (procedural | makehuman:NAME). InvalidArgument with another
 // method or beside a different `--option model=`.
 absl::Status ApplyModelFlag(const Flags& flags, const std::string& method,
                             std::map<std::string, std::string>* options) {
@@ -203,7 +203,7 @@ absl::Status ApplyModelFlag(const Flags& flags, const std::string& method,
         "--model chooses the body model of --method body; method \"", method, "\" has none"));
   }
   if (model.empty()) {
-    return absl::InvalidArgumentError("--model takes procedural or makehuman:DIR");
+    return absl::InvalidArgumentError("--model takes procedural or makehuman:NAME");
   }
   const auto [it, inserted] = options->emplace("model", model);
   if (!inserted && it->second != model) {

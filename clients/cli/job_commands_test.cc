@@ -187,11 +187,11 @@ TEST_F(JobCommands, SubmitErrors) {
 
 TEST_F(JobCommands, SubmitModelIsTheBodyMethodsModelOption) {
   ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model",
-                 "makehuman:/data/mh", "--option", "atlas_px=512"}),
+                 "makehuman:teacher", "--option", "atlas_px=512"}),
             kExitOk)
       << err_.str();
   EXPECT_EQ(service_.last_submit.method(), "body");
-  EXPECT_EQ(service_.last_submit.options().at("model"), "makehuman:/data/mh");
+  EXPECT_EQ(service_.last_submit.options().at("model"), "makehuman:teacher");
   EXPECT_EQ(service_.last_submit.options().at("atlas_px"), "512");
   // The same model twice is fine.
   ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model=procedural",
@@ -213,9 +213,9 @@ TEST_F(JobCommands, SubmitModelErrors) {
   EXPECT_NE(err_.str().find("\"rigid-carved\""), std::string::npos) << err_.str();
   // --model and --option model= that disagree.
   EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model", "procedural",
-                 "--option", "model=makehuman:/data/mh"}),
+                 "--option", "model=makehuman:teacher"}),
             kExitUsage);
-  EXPECT_NE(err_.str().find("--model procedural disagrees with --option model=makehuman:/data/mh"),
+  EXPECT_NE(err_.str().find("--model procedural disagrees with --option model=makehuman:teacher"),
             std::string::npos)
       << err_.str();
   EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model", ""}),

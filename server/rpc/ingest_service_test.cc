@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/io/take.h"
 #include "server/testing/test_server.h"
 #include "server/testing/test_takes.h"
 
@@ -465,6 +466,55 @@ TEST(ClientLimits, AClientGetsNoMoreStreamsThanAllowedAndTheNextAfterOneEnds) {
   EXPECT_TRUE(admitted);
   second.Close(0);
   EXPECT_TRUE(second.Finish().ok());
+}
+
+TEST(Ingest, ASensorLostFloodIsStoredWithinTheQueueBoundAndLongReasonsAreRefused) {
+  ServerOptions options;
+  options.ingest_queue_limit_bytes = 64 << 10;  // About 64 SensorLost records.
+  auto t = TestServer::Start(reenact::testing::MakeTempDir("sensor_lost_flood"), options);
+  ASSERT_NE(t, nullptr);
+  IngestClient client(*t->ingest);
+  client.Open(MakeOpenTake("flood", "daemon-a", 1));
+  ASSERT_TRUE(client.SendSets(1, 1, 1));
+  constexpr int kLost = 20000;
+  for (int i = 0; i < kLost; ++i) {
+    v1::IngestRequest request;
+    v1::SensorLost* lost = request.mutable_sensor_lost();
+    lost->set_sensor_id("k0");
+    lost->set_stamp_ns(1000 + i);
+    lost->set_reason(std::string(1000, static_cast<char>('a' + i % 26)));
+    ASSERT_TRUE(client.Send(request)) << i;
+  }
+  ASSERT_TRUE(client.SendSets(2, 2, 1));
+  client.Close(2);
+  ASSERT_TRUE(client.Finish().ok());
+  v1::Take take;
+  ASSERT_TRUE(t->GetTake("flood", &take).ok());
+  EXPECT_EQ(take.state(), v1::TAKE_STATE_COMPLETE);
+  auto reader = TakeReader::Open(t->TakePath("flood"));
+  ASSERT_TRUE(reader.ok()) << reader.status();
+  int stored = 0;
+  ASSERT_TRUE((*reader)
+                  ->ForEach<v1::SensorLostRecord>(kIngestSensorLostTopic,
+                                                  [&](const v1::SensorLostRecord&) {
+                                                    ++stored;
+                                                    return absl::OkStatus();
+                                                  })
+                  .ok());
+  EXPECT_EQ(stored, kLost);
+
+  // A reason over 1 KiB ends the stream, saying so; the take is kept.
+  IngestClient verbose(*t->ingest);
+  verbose.Open(MakeOpenTake("verbose", "daemon-a", 1));
+  ASSERT_TRUE(verbose.SendSets(1, 1, 1));
+  v1::IngestRequest request;
+  request.mutable_sensor_lost()->set_sensor_id("k0");
+  request.mutable_sensor_lost()->set_reason(std::string(1 << 20, 'x'));
+  verbose.Send(request);
+  const grpc::Status refused = verbose.Finish();
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << refused.error_message();
+  EXPECT_NE(refused.error_message().find("at most 1024"), std::string::npos)
+      << refused.error_message();
 }
 
 }  // namespace

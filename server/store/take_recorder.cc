@@ -86,15 +86,23 @@ absl::Status TakeRecorder::Enqueue(v1::FrameSet set) {
 
 absl::Status TakeRecorder::EnqueueSensorLost(v1::SensorLostRecord record) {
   if (!sensors_.contains(record.sensor_id()) || record.stamp_ns() < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("SensorLost names sensor \"", record.sensor_id(),
-                                                   "\" at stamp ", record.stamp_ns(),
-                                                   " ns: unknown or negative"));
+    return absl::InvalidArgumentError(absl::StrCat("SensorLost names sensor \"",
+                                                   record.sensor_id().substr(0, 80), "\" at stamp ",
+                                                   record.stamp_ns(), " ns: unknown or negative"));
   }
+  if (record.reason().size() > kMaxSensorLostReasonBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("SensorLost reason of ", record.reason().size(),
+                                                   " bytes; at most ", kMaxSensorLostReasonBytes));
+  }
+  // Counted like frame sets: the ingest stream stops reading while the
+  // queue holds too many bytes, whatever kind of message fills it.
+  const uint64_t bytes = record.ByteSizeLong();
   std::lock_guard<std::mutex> lock(mu_);
   if (!write_error_.ok()) return write_error_;
   if (finishing_) {
     return absl::FailedPreconditionError(absl::StrCat("take ", take_id_, " is being finished"));
   }
+  queued_bytes_ += bytes;
   queue_.emplace_back(std::move(record));
   wake_.notify_one();
   return absl::OkStatus();

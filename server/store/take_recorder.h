@@ -24,6 +24,9 @@
 
 namespace reenact::server {
 
+// Longest SensorLost reason a take stores, bytes.
+inline constexpr size_t kMaxSensorLostReasonBytes = 1024;
+
 // How a recording ended.
 struct RecordingResult {
   // The take's final row: state COMPLETE or INTERRUPTED, counts, size.

@@ -6,7 +6,10 @@
 // server, and bytes per FrameSet.
 //
 //   build/bench/capture_e2e [--seconds 60] [--source take.mcap] [--work DIR] [--json FILE]
-//                           [--tracker auto|on|off] [--tracker-refine on|off]
+//                           [--tracker auto|on|off] [--tracker-refine on|off] [--tls]
+//
+// --tls: the uplink over TLS (certificates from deploy/make-certs.sh, made
+// once in --work), to measure what encryption costs the capture path.
 //
 // The synthesised source carries no skeleton, so reenactd's body tracker
 // runs on every frame of both sensors (--tracker auto), as with real depth
@@ -20,12 +23,14 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -47,7 +52,7 @@ using bench::ReadText;
 int Run(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   auto flags = Flags::Parse(
-      args, {"seconds", "source", "work", "json", "bin", "tracker", "tracker-refine"}, {});
+      args, {"seconds", "source", "work", "json", "bin", "tracker", "tracker-refine"}, {"tls"});
   if (!flags.ok()) {
     std::cerr << "capture_e2e: " << flags.status().message() << "\n";
     return 2;
@@ -86,11 +91,25 @@ int Run(int argc, char** argv) {
   fs::remove_all(work + "/spool");
   fs::remove(work + "/server.port");
   fs::remove(work + "/stats.json");
+  const bool tls = flags->Has("tls");
+  if (tls && !fs::exists(work + "/tls/server.pem")) {
+    const std::string script =
+        (fs::path(bin).parent_path().parent_path() / "deploy" / "make-certs.sh").string();
+    if (std::system(("bash " + script + " " + work + "/tls >/dev/null").c_str()) != 0) {
+      std::cerr << "capture_e2e: " << script << " failed\n";
+      return 1;
+    }
+  }
   SubprocessOptions server_options;
   server_options.stderr_path = work + "/server.log";
-  auto server = Subprocess::Start({bin + "/reenact-server", "--data", work + "/server", "--listen",
-                                   "127.0.0.1:0", "--port-file", work + "/server.port"},
-                                  server_options);
+  std::vector<std::string> server_args = {
+      bin + "/reenact-server", "--data",      work + "/server",     "--listen",
+      "127.0.0.1:0",           "--port-file", work + "/server.port"};
+  if (tls) {
+    server_args.insert(server_args.end(), {"--tls-cert", work + "/tls/server.pem", "--tls-key",
+                                           work + "/tls/server.key"});
+  }
+  auto server = Subprocess::Start(server_args, server_options);
   if (!server.ok()) {
     std::cerr << "capture_e2e: " << server.status().message() << "\n";
     return 1;
@@ -108,12 +127,27 @@ int Run(int argc, char** argv) {
   SubprocessOptions daemon_options;
   daemon_options.stderr_path = work + "/daemon.log";
   const double server_cpu_before = ProcessCpuSeconds((*server)->pid());
-  auto daemon = Subprocess::Start(
-      {bin + "/reenactd", "--server", address, "--source", "playback:" + source, "--loop",
-       "--max-seconds", absl::StrFormat("%g", seconds), "--once", "--spool", work + "/spool",
-       "--control", "127.0.0.1:0", "--stats-json", work + "/stats.json", "--tracker",
-       flags->GetOr("tracker", "auto"), "--tracker-refine", flags->GetOr("tracker-refine", "off")},
-      daemon_options);
+  std::vector<std::string> daemon_args = {bin + "/reenactd",
+                                          "--server",
+                                          address,
+                                          "--source",
+                                          "playback:" + source,
+                                          "--loop",
+                                          "--max-seconds",
+                                          absl::StrFormat("%g", seconds),
+                                          "--once",
+                                          "--spool",
+                                          work + "/spool",
+                                          "--control",
+                                          "127.0.0.1:0",
+                                          "--stats-json",
+                                          work + "/stats.json",
+                                          "--tracker",
+                                          flags->GetOr("tracker", "auto"),
+                                          "--tracker-refine",
+                                          flags->GetOr("tracker-refine", "off")};
+  if (tls) daemon_args.insert(daemon_args.end(), {"--tls-ca", work + "/tls/ca.pem"});
+  auto daemon = Subprocess::Start(daemon_args, daemon_options);
   if (!daemon.ok()) {
     std::cerr << "capture_e2e: " << daemon.status().message() << "\n";
     return 1;
@@ -140,6 +174,7 @@ int Run(int argc, char** argv) {
   const double wall_s = stats.value("wall_s", 0.0);
   const double drops = stats.value("frames_dropped", 0.0) + stats.value("frame_sets_refused", 0.0);
   nlohmann::json report = {
+      {"tls", tls},
       {"sensors", sensors},
       {"source_fps", fps},
       {"seconds", seconds},

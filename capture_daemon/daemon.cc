@@ -519,11 +519,13 @@ v1::DaemonStatus Daemon::Impl::Status() {
       status.set_server_connected(stats.uplink.connected);
       status.set_last_sequence(static_cast<uint64_t>(stats.frame_sets));
       status.set_durable_sequence(stats.durable_sequence);
+      if (!stats.uplink.connected) status.set_uplink_error(stats.uplink.last_error);
     }
   }
   if (!current && latest) {
     const TakeStats stats = latest->Stats();
     status.set_server_connected(stats.uplink.connected);
+    if (!stats.uplink.connected) status.set_uplink_error(stats.uplink.last_error);
     status.set_last_sequence(static_cast<uint64_t>(stats.frame_sets));
     status.set_durable_sequence(stats.durable_sequence);
   }
@@ -967,6 +969,10 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
                        {"max", Ms(stats.latency_max_ns)},
                        {"frame_sets", stats.acked_sets}};
     j["frame_sets_sent"] = stats.uplink.frame_sets_sent;
+    // Not "ok" when the take did not reach the server whole: why it stopped.
+    j["uplink_error"] = stats.uplink.last_error;
+    j["uplink_ok"] = stats.uplink.done &&
+                     stats.durable_sequence == static_cast<uint64_t>(stats.frame_sets);
   } else {
     j["take_id"] = "";
     j["frame_sets"] = 0;

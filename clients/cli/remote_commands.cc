@@ -220,6 +220,7 @@ int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, st
                           {"skew_p50_ns", status->skew_p50_ns()},
                           {"skew_max_ns", status->skew_max_ns()},
                           {"reconnects", status->reconnects()},
+                          {"uplink_error", status->uplink_error()},
                           {"sync", sync},
                           {"sensors", sensors}}
                .dump(2)
@@ -229,7 +230,8 @@ int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, st
   out << "daemon      " << status->daemon_id() << "\n"
       << "take        " << (status->take_id().empty() ? "(idle)" : status->take_id()) << "\n"
       << "server      " << status->server_address()
-      << (status->server_connected() ? " (connected)" : " (not connected)") << "\n"
+      << (status->server_connected() ? " (connected)" : " (not connected)")
+      << (status->uplink_error().empty() ? std::string() : ": " + status->uplink_error()) << "\n"
       << "sequence    " << status->last_sequence() << " sent, " << status->durable_sequence()
       << " durable\n"
       << "spool       " << status->spool_frame_sets() << " frame sets, "

@@ -1,5 +1,6 @@
 #include "common/board/intrinsics_file.h"
 
+#include <cstdint>
 #include <cmath>
 #include <numbers>
 
@@ -104,7 +105,8 @@ absl::StatusOr<CameraIntrinsics> ParseIntrinsicsJson(absl::string_view text) {
 }
 
 absl::StatusOr<CameraIntrinsics> LoadIntrinsicsFile(const std::string& path) {
-  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  // An intrinsics file is a few hundred bytes; 1 MiB is plenty.
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, uint64_t{1} << 20));
   absl::StatusOr<CameraIntrinsics> intrinsics = ParseIntrinsicsJson(text);
   if (!intrinsics.ok()) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": ", intrinsics.status().message()));

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cstdint>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -22,6 +23,11 @@
 
 namespace reenact::body {
 namespace {
+
+// Largest MakeHuman file read (base.obj is 1.7 MB; targets and JSON are
+// smaller): a FIFO, a device or a runaway file is refused before it is read.
+constexpr uint64_t kMaxMakeHumanFileBytes = uint64_t{256} << 20;
+
 
 constexpr double kMetresPerDecimetre = 0.1;
 constexpr char kBodyGroup[] = "body";
@@ -119,7 +125,7 @@ absl::Status ParseObjFace(const std::string& path, int line,
 }
 
 absl::StatusOr<ObjMesh> ReadObj(const std::string& path) {
-  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, kMaxMakeHumanFileBytes));
   ObjMesh mesh;
   std::string group;
   RETURN_IF_ERROR(ForEachLine(text, [&](int line, std::string_view content) -> absl::Status {
@@ -156,7 +162,7 @@ absl::StatusOr<ObjMesh> ReadObj(const std::string& path) {
 // ---- JSON files. ----
 
 absl::StatusOr<nlohmann::json> ReadJson(const std::string& path) {
-  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, kMaxMakeHumanFileBytes));
   nlohmann::json json = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (json.is_discarded() || !json.is_object()) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": not a valid JSON object"));
@@ -425,7 +431,7 @@ absl::Status ReadSkinWeights(const std::string& path, const Skeleton& skeleton,
 absl::StatusOr<Eigen::Matrix3Xd> ReadTarget(const std::string& path,
                                             const std::vector<int>& body_from_original,
                                             Eigen::Index num_body_vertices) {
-  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, kMaxMakeHumanFileBytes));
   Eigen::Matrix3Xd direction_m = Eigen::Matrix3Xd::Zero(3, num_body_vertices);
   RETURN_IF_ERROR(ForEachLine(text, [&](int line, std::string_view content) -> absl::Status {
     const std::vector<std::string_view> tokens = SplitWhitespace(content);

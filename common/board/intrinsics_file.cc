@@ -1,7 +1,7 @@
 #include "common/board/intrinsics_file.h"
 
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 #include <nlohmann/json.hpp>

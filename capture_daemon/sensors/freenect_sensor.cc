@@ -279,11 +279,12 @@ class FreenectSensor : public Sensor {
     const int64_t host_ns = WallNowNs();
     last_depth_steady_ns_ = SteadyNowNs();
     DepthImageMm depth(kWidth, kHeight);
-    const auto* values = static_cast<const uint16_t*>(data);
-    if (depth_is_mm_) {
-      std::memcpy(depth.data.data(), values, depth.data.size() * sizeof(uint16_t));
-    } else {
-      for (size_t i = 0; i < depth.data.size(); ++i) depth.data[i] = KinectV1RawToMm(values[i]);
+    // libfreenect's buffer need not be 2-byte aligned (fakenect hands out a
+    // pointer just past a recording's text header), so the samples are
+    // copied out as bytes before they are read as uint16_t.
+    std::memcpy(depth.data.data(), data, depth.data.size() * sizeof(uint16_t));
+    if (!depth_is_mm_) {
+      for (uint16_t& value : depth.data) value = KinectV1RawToMm(value);
     }
     Deliver(pairer_.AddDepth(std::move(depth), clock_.ToNs(timestamp), host_ns));
   }

@@ -127,7 +127,7 @@ void ClientLimits::Leave(const std::string& key, bool stream) {
   if (it->second.calls <= 0) counts_.erase(it);
 }
 
-absl::Status ClientLimits::Check(const grpc::CallbackServerContext& rpc) const {
+absl::Status ClientLimits::Check(const grpc::CallbackServerContext& rpc, bool stream) const {
   const auto& metadata = rpc.client_metadata();
   const std::optional<std::string> authorization = Metadata(metadata, kAuthorization);
   const std::string key = ClientKey(rpc.peer(), authorization.value_or(""));
@@ -139,7 +139,7 @@ absl::Status ClientLimits::Check(const grpc::CallbackServerContext& rpc) const {
                                                      " calls at once; at most ", options_.max_calls,
                                                      " (reenact-server --max-calls-per-client)"));
   }
-  if (it->second.streams > options_.max_streams) {
+  if (stream && it->second.streams > options_.max_streams) {
     return absl::ResourceExhaustedError(
         absl::StrCat("this client holds ", it->second.streams, " streams open; at most ",
                      options_.max_streams, " (reenact-server --max-streams-per-client)"));

@@ -44,8 +44,9 @@ class ClientLimits {
   std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface> InterceptorFactory();
 
   // OK, or ResourceExhausted naming the limit (and its flag) when the
-  // caller of `rpc` runs more calls or streams than allowed, `rpc` counted.
-  absl::Status Check(const grpc::CallbackServerContext& rpc) const;
+  // caller of `rpc` runs more calls than allowed or, when `rpc` is a stream,
+  // more streams; `rpc` counted.
+  absl::Status Check(const grpc::CallbackServerContext& rpc, bool stream) const;
 
   // Calls and streams of all clients running now.
   int calls() const;

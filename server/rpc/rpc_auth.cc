@@ -1,5 +1,7 @@
 #include "server/rpc/rpc_auth.h"
 
+#include <set>
+
 #include "common/base/status_macros.h"
 #include "server/server_metrics.h"
 
@@ -35,7 +37,12 @@ absl::StatusOr<rpc::Principal> Authorize(const ServerContext& context,
     ASSIGN_OR_RETURN(who, context.auth->Authorize(rpc, method));
   }
   if (context.client_limits != nullptr) {
-    if (absl::Status allowed = context.client_limits->Check(rpc); !allowed.ok()) {
+    // The calls that can last; a unary call counts only against max_calls.
+    static const auto* const kStreams = new std::set<absl::string_view>{
+        "/reenact.v1.Ingest/Ingest", "/reenact.v1.Takes/Download", "/reenact.v1.Jobs/Watch",
+        "/reenact.v1.Reenactments/Fetch", "/reenact.v1.Reenactments/Follow"};
+    if (absl::Status allowed = context.client_limits->Check(rpc, kStreams->contains(method));
+        !allowed.ok()) {
       LimitHit("client_calls", {{"rpc", method}, {"peer", rpc.peer()}}, allowed.message());
       return allowed;
     }

@@ -44,19 +44,19 @@ for arg in "$@"; do
   esac
 done
 
-# The test binaries (ninja targets) of each set. CI's sets are the
-# libraries' unit tests that the server and the capture daemon are built
-# from, with the server's store, RPC, job, live and reenactment tests
-# (ASan + UBSan), and the threaded store, job, live hub and capture tests
-# (TSan): what a cold 2-core machine builds and runs in about 20 minutes on
-# top of the main build. --full adds the rest (README.md, "Sanitizers and
+# The test binaries (ninja targets) of each set. CI's sets are the core
+# libraries and the server's store, RPC and job tests (ASan + UBSan), and
+# the server's store and job tests (TSan): two more builds of the core of
+# the tree, which a cold 2-core machine adds within CI's time. --full adds
+# the rest: the live hub, the reenactment store and the capture daemon,
+# the renderers and the end-to-end tests (README.md, "Sanitizers and
 # fuzzing").
 asan_tests=(
-  base_test geometry_test body_test io_test io_reenactment_test rpc_security_test
-  server_store_test server_rpc_test server_jobs_test server_live_test
-  server_reenactments_test capture_test)
+  base_test geometry_test body_test io_test rpc_security_test server_store_test
+  server_rpc_test server_jobs_test)
 asan_full_tests=(
   "${asan_tests[@]}"
+  io_reenactment_test server_live_test server_reenactments_test capture_test
   bodyfit_test carving_test mirror_test png_test video_writer_test render_types_test
   tracking_test server_main_test worker_main_test capture_sensors_test cli_jobs_test
   viewer_test
@@ -81,10 +81,10 @@ asan_render_tests=(
 # tests that run gRPC in process are left out below, and TSan checks the
 # threaded pieces that the other tests reach without gRPC.
 tsan_tests=(
-  base_test server_store_test server_jobs_test server_live_test server_reenactments_test
-  capture_test capture_pipeline_test)
+  base_test server_store_test server_jobs_test)
 tsan_full_tests=(
   "${tsan_tests[@]}"
+  server_live_test server_reenactments_test capture_test capture_pipeline_test
   capture_processing_test capture_sensors_test body_method_test tracking_test)
 
 # Tests left out (ctest name regexes), each with why.

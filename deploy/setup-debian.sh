@@ -26,6 +26,7 @@ packages=(
   libtinygltf-dev nlohmann-json3-dev libspdlog-dev
   libavformat-dev libavcodec-dev libswscale-dev
   xvfb xauth
+  chromium
 )
 # Node.js may come from elsewhere (with npm bundled); only add Debian's when
 # there is none.
@@ -56,5 +57,18 @@ if [ -f tests/js/package.json ]; then
     touch tests/js/node_modules
   else
     echo "setup-debian: npm test checkers already installed"
+  fi
+fi
+
+# The tablet web app's build tools and libraries (three, esbuild) and its
+# browser tests' driver (playwright-core, which drives Debian's chromium),
+# exactly as its lockfile says.
+if [ -f clients/web/package-lock.json ]; then
+  if [ ! -d clients/web/node_modules ] || [ clients/web/package-lock.json -nt clients/web/node_modules ]; then
+    echo "setup-debian: installing the web app's npm packages into clients/web/node_modules"
+    npm ci --prefix clients/web --no-audit --no-fund --loglevel=error
+    touch clients/web/node_modules
+  else
+    echo "setup-debian: the web app's npm packages already installed"
   fi
 fi

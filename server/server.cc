@@ -9,6 +9,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/log/log.h"
 #include "common/rpc/request_metrics.h"
@@ -29,20 +30,6 @@ namespace {
 // Largest --max-message-mb: gRPC sizes are int bytes.
 constexpr int kMaxMessageMb = 2047;
 
-// "HOST:PORT" split at the last colon ("[::]:50051" keeps its brackets).
-absl::Status SplitAddress(const std::string& address, std::string* host, int* port) {
-  const size_t colon = address.rfind(':');
-  int value = -1;
-  if (colon == std::string::npos || colon == 0 ||
-      !absl::SimpleAtoi(address.substr(colon + 1), &value) || value < 0 || value > 65535) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("listen address \"", address, "\" is not HOST:PORT (port 0..65535)"));
-  }
-  *host = address.substr(0, colon);
-  *port = value;
-  return absl::OkStatus();
-}
-
 }  // namespace
 
 absl::Status ServerOptions::Validate() const {
@@ -55,7 +42,7 @@ absl::Status ServerOptions::Validate() const {
   if (!listen_address.empty()) {
     std::string host;
     int port = 0;
-    RETURN_IF_ERROR(SplitAddress(listen_address, &host, &port));
+    RETURN_IF_ERROR(SplitHostPort("listen address", listen_address, &host, &port));
   }
   RETURN_IF_ERROR(tls.Validate());
   RETURN_IF_ERROR(client_limits.Validate());
@@ -65,7 +52,7 @@ absl::Status ServerOptions::Validate() const {
   if (!metrics_address.empty()) {
     std::string host;
     int port = 0;
-    RETURN_IF_ERROR(SplitAddress(metrics_address, &host, &port));
+    RETURN_IF_ERROR(SplitHostPort("--metrics", metrics_address, &host, &port));
     // Plain HTTP without tokens: only loopback unless the operator says so.
     RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--metrics ", metrics_address), metrics_address,
                                        /*tls=*/false, /*tokens=*/false, insecure,
@@ -192,7 +179,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   int port = 0;
   std::string host;
   if (!options.listen_address.empty()) {
-    RETURN_IF_ERROR(SplitAddress(options.listen_address, &host, &port));
+    RETURN_IF_ERROR(SplitHostPort("listen address", options.listen_address, &host, &port));
     builder.AddListeningPort(options.listen_address, credentials, &server->port_);
   }
   for (const auto& service : server->services_) builder.RegisterService(service.get());
@@ -206,7 +193,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen_address,
                                                " (address in use, not local, or not permitted)"));
   }
-  if (!options.listen_address.empty()) server->address_ = absl::StrCat(host, ":", server->port_);
+  if (!options.listen_address.empty()) server->address_ = JoinHostPort(host, server->port_);
   if (!options.metrics_address.empty()) {
     Server* const s = server.get();
     ASSIGN_OR_RETURN(server->metrics_, metrics::HttpExposer::Start(options.metrics_address, [s] {
@@ -261,6 +248,17 @@ std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
   args.SetMaxReceiveMessageSize(options_.max_message_mb << 20);
   args.SetMaxSendMessageSize(-1);
   return grpc_server_->InProcessChannel(args);
+}
+
+std::shared_ptr<grpc::Channel> Server::InProcessChannel(const std::string& token) {
+  if (token.empty()) return InProcessChannel();
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(options_.max_message_mb << 20);
+  args.SetMaxSendMessageSize(-1);
+  std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
+  interceptors.push_back(rpc::MakeTokenInterceptorFactory(token));
+  return grpc_server_->experimental().InProcessChannelWithInterceptors(args,
+                                                                       std::move(interceptors));
 }
 
 void Server::Shutdown() {

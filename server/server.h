@@ -95,6 +95,12 @@ class Server {
   const std::string& metrics_address() const { return metrics_address_; }
   // A channel to this server that bypasses the network.
   std::shared_ptr<grpc::Channel> InProcessChannel();
+  // The same, sending `token` with every call ("authorization: Bearer"), so
+  // that the calls are authorised as that token's (the HTTP front's calls
+  // on behalf of its clients). Empty `token`: none is sent.
+  std::shared_ptr<grpc::Channel> InProcessChannel(const std::string& token);
+  // Whether calls need a token (--auth).
+  bool auth_enabled() const { return auth_ != nullptr && auth_->enabled(); }
   // Takes that Start() recovered after a crash.
   const std::vector<RecoveredTake>& recovered() const { return recovered_; }
   TakeStore& takes() { return *store_; }

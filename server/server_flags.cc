@@ -10,6 +10,7 @@
 #include "common/base/image.h"
 #include "common/base/status_macros.h"
 #include "common/log/log.h"
+#include "common/rpc/channel.h"
 
 namespace reenact::server {
 
@@ -34,6 +35,10 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                                     "auth",
                                                     "assets",
                                                     "metrics",
+                                                    "http",
+                                                    "http-port-file",
+                                                    "web",
+                                                    "http-max-connections",
                                                     "log-format",
                                                     "log-level"},
                                                    {"help", "insecure", "keep-derived"}));
@@ -84,6 +89,17 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   RETURN_IF_ERROR(out.options.tls.Validate());
   out.options.auth_file = flags.GetOr("auth", "");
   out.options.metrics_address = flags.GetOr("metrics", "");
+  out.http.address = flags.GetOr("http", "");
+  out.http.port_file = flags.GetOr("http-port-file", "");
+  out.http.web_root = flags.GetOr("web", "");
+  ASSIGN_OR_RETURN(out.http.max_connections,
+                   flags.GetInt("http-max-connections", out.http.max_connections));
+  if (out.http.max_connections < 1) {
+    return absl::InvalidArgumentError("--http-max-connections must be >= 1");
+  }
+  if (out.http.address.empty() && (!out.http.port_file.empty() || flags.Has("web"))) {
+    return absl::InvalidArgumentError("--http-port-file and --web need --http HOST:PORT");
+  }
   ASSIGN_OR_RETURN(out.log, log::ParseOptions(flags.GetOr("log-format", "text"),
                                               flags.GetOr("log-level", "info")));
   out.options.insecure = flags.Has("insecure");
@@ -105,6 +121,12 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
     }
   }
   RETURN_IF_ERROR(out.options.Validate());
+  // The web front serves the same data as the gRPC port: the same rule
+  // about leaving loopback.
+  RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--http ", out.http.address), out.http.address,
+                                     out.options.tls.enabled(), !out.options.auth_file.empty(),
+                                     out.options.insecure,
+                                     "anyone who reaches it could watch every reenactment"));
   return out;
 }
 

@@ -8,6 +8,8 @@
 //                  [--tls-cert PEM --tls-key PEM [--tls-client-ca PEM]]
 //                  [--auth TOKENS.json] [--insecure] [--keep-derived]
 //                  [--assets DIR[,DIR...]] [--metrics HOST:PORT]
+//                  [--http HOST:PORT [--http-port-file FILE] [--web DIR]
+//                   [--http-max-connections N]]
 //                  [--log-format text|json] [--log-level debug|info|warn|error]
 #pragma once
 
@@ -39,11 +41,28 @@ inline constexpr char kServerUsage[] =
     "[--assets DIR[,DIR...] (folders whose subfolders jobs name as model=makehuman:NAME)] "
     "[--metrics HOST:PORT (Prometheus text on GET /metrics; loopback unless --insecure; "
     "default off)] "
+    "[--http HOST:PORT (the tablet app and its JSON API, over TLS with --tls-cert; the same "
+    "tokens as gRPC; loopback unless TLS and --auth, or --insecure; default off)] "
+    "[--http-port-file FILE] [--web DIR (the built app; default: beside the program)] "
+    "[--http-max-connections N (default 256)] "
     "[--log-format text|json (one line per event on stderr; default text)] "
     "[--log-level debug|info|warn|error (default info)]";
 
+// The HTTP front's flags (server/http/http_front.h takes them from here).
+struct HttpFlags {
+  // --http HOST:PORT; empty: no HTTP front.
+  std::string address;
+  // --http-port-file: where to write the bound "HOST:PORT\n".
+  std::string port_file;
+  // --web DIR: the built web app; empty: found beside the program.
+  std::string web_root;
+  // --http-max-connections.
+  int max_connections = 256;
+};
+
 struct ServerCommandLine {
   ServerOptions options;
+  HttpFlags http{};
   // --log-format and --log-level (common/log/log.h).
   log::Options log{};
   // Where to write the bound "HOST:PORT\n" (empty: nowhere).

@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/log/log.h"
+#include "server/http/http_front.h"
 #include "server/live/live_body_follower.h"
 #include "server/server.h"
 #include "server/server_flags.h"
@@ -79,12 +80,48 @@ int main(int argc, char** argv) {
       return FailRunning(written);
     }
   }
+  // The tablet app and its API (--http), once the services answer.
+  std::unique_ptr<http::HttpFront> web;
+  if (!command_line->http.address.empty()) {
+    http::HttpFrontOptions web_options;
+    web_options.address = command_line->http.address;
+    web_options.web_root = command_line->http.web_root.empty() ? http::FindWebRoot("/proc/self/exe")
+                                                               : command_line->http.web_root;
+    web_options.tls = options.tls;
+    web_options.max_connections = command_line->http.max_connections;
+    absl::StatusOr<std::unique_ptr<http::HttpFront>> started =
+        http::HttpFront::Start(web_options, server->get());
+    if (!started.ok()) {
+      (*server)->Shutdown();
+      return FailRunning(started.status());
+    }
+    web = *std::move(started);
+    if (web->web_root().empty()) {
+      reenact::log::Warn("web_app_missing", {},
+                         "the web app is not built (deploy/build.sh builds it with node); "
+                         "--http serves the API only");
+    }
+    reenact::log::Info(
+        "http_listening",
+        {{"address", web->address()}, {"url", web->url()}, {"web_root", web->web_root()}},
+        absl::StrCat("the tablet app is at ", web->url()));
+    if (!command_line->http.port_file.empty()) {
+      if (absl::Status written = WritePortFile(command_line->http.port_file, web->address());
+          !written.ok()) {
+        web->Stop();
+        (*server)->Shutdown();
+        return FailRunning(written);
+      }
+    }
+  }
   int signal_number = 0;
   sigwait(&stop_signals, &signal_number);
   const char* const signal_name = signal_number == SIGINT ? "SIGINT" : "SIGTERM";
   reenact::log::Info("server_stopping", {{"signal", signal_name}},
                      absl::StrCat(signal_name, ", shutting down"));
   (*server)->Shutdown();
+  // After the services: live follows have ended, so its threads finish.
+  if (web != nullptr) web->Stop();
   reenact::log::Info("server_stopped", {}, "stopped");
   return 0;
 }

@@ -77,4 +77,26 @@ absl::StatusOr<double> Flags::GetDouble(const std::string& name, double fallback
   return out;
 }
 
+absl::Status SplitHostPort(absl::string_view what, const std::string& address, std::string* host,
+                           int* port) {
+  const size_t colon = address.rfind(':');
+  int value = -1;
+  if (colon == std::string::npos || colon == 0 ||
+      !absl::SimpleAtoi(address.substr(colon + 1), &value) || value < 0 || value > 65535) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, " \"", address, "\" is not HOST:PORT (port 0..65535)"));
+  }
+  *host = address.substr(0, colon);
+  if (host->size() >= 2 && host->front() == '[' && host->back() == ']') {
+    *host = host->substr(1, host->size() - 2);
+  }
+  *port = value;
+  return absl::OkStatus();
+}
+
+std::string JoinHostPort(const std::string& host, int port) {
+  return host.find(':') != std::string::npos ? absl::StrCat("[", host, "]:", port)
+                                             : absl::StrCat(host, ":", port);
+}
+
 }  // namespace reenact

@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 
 namespace reenact {
 
@@ -33,5 +35,14 @@ class Flags {
   std::map<std::string, std::string> values_;
   std::vector<std::string> positional_;
 };
+
+// A "HOST:PORT" address flag split at its last colon: the host (a name, an
+// IPv4 address, or an IPv6 address in brackets, returned without them) and
+// the port (0..65535; 0 picks a free one). InvalidArgument naming `what`
+// (e.g. "--http") otherwise.
+absl::Status SplitHostPort(absl::string_view what, const std::string& address, std::string* host,
+                           int* port);
+// "HOST:PORT" again, an IPv6 host in brackets.
+std::string JoinHostPort(const std::string& host, int port);
 
 }  // namespace reenact

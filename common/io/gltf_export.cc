@@ -508,6 +508,22 @@ tinygltf::Value InfoExtras(const v1::ReenactmentInfo& info) {
   return tinygltf::Value(std::move(extras));
 }
 
+// The scene of `b` as .glb bytes (the buffer padded to 4 bytes).
+absl::StatusOr<std::string> WriteGlb(GlbBuilder& b, GltfExportSummary& s) {
+  tinygltf::Model& model = b.model();
+  model.defaultScene = 0;
+  model.buffers[0].data.resize((model.buffers[0].data.size() + 3) / 4 * 4, 0);
+  if (model.buffers[0].data.empty()) model.buffers.clear();
+  tinygltf::TinyGLTF writer;
+  std::ostringstream out;
+  if (!writer.WriteGltfSceneToStream(&model, out, /*prettyPrint=*/false, /*writeBinary=*/true)) {
+    return absl::InternalError("tinygltf failed to write the .glb");
+  }
+  std::string bytes = std::move(out).str();
+  s.bytes = static_cast<int64_t>(bytes.size());
+  return bytes;
+}
+
 }  // namespace
 
 absl::Status GltfExportOptions::Validate() const {
@@ -590,18 +606,40 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
   }
 
   model.scenes.push_back(std::move(scene));
-  model.defaultScene = 0;
-  model.buffers[0].data.resize((model.buffers[0].data.size() + 3) / 4 * 4, 0);
-  if (model.buffers[0].data.empty()) model.buffers.clear();
+  return WriteGlb(b, s);
+}
 
-  tinygltf::TinyGLTF writer;
-  std::ostringstream out;
-  if (!writer.WriteGltfSceneToStream(&model, out, /*prettyPrint=*/false, /*writeBinary=*/true)) {
-    return absl::InternalError("tinygltf failed to write the .glb");
+absl::StatusOr<std::string> ExportBodyMeshGlb(const v1::BodyMesh& mesh,
+                                              const GltfExportOptions& options,
+                                              GltfExportSummary* summary) {
+  RETURN_IF_ERROR(options.Validate());
+  ASSIGN_OR_RETURN(const DecodedBodyMesh body, DecodeBodyMesh(mesh));
+  GltfExportSummary local;
+  GltfExportSummary& s = summary != nullptr ? *summary : local;
+  s = GltfExportSummary();
+  GlbBuilder b;
+  tinygltf::Model& model = b.model();
+  model.asset.version = "2.0";
+  model.asset.generator = "reenact gltf_export (tinygltf)";
+  tinygltf::Node root;
+  root.name = mesh.model_name().empty() ? "body" : mesh.model_name();
+  model.nodes.push_back(std::move(root));
+  AddSkeleton(b, body);
+  tinygltf::Node node;
+  node.name = "body";
+  node.mesh = AddBodyMesh(b, mesh, body, options, &s);
+  node.skin = 0;
+  model.nodes.push_back(std::move(node));
+  s.joints = body::kNumKinectV2Joints;
+  s.nodes = static_cast<int>(model.nodes.size());
+  tinygltf::Scene scene;
+  scene.name = model.nodes[0].name;
+  scene.nodes = {0, static_cast<int>(model.nodes.size()) - 1};
+  if (options.unlit && !model.materials.empty()) {
+    model.extensionsUsed.push_back("KHR_materials_unlit");
   }
-  std::string bytes = std::move(out).str();
-  s.bytes = static_cast<int64_t>(bytes.size());
-  return bytes;
+  model.scenes.push_back(std::move(scene));
+  return WriteGlb(b, s);
 }
 
 absl::Status WriteReenactmentGlb(const ReenactmentData& data, const std::string& path,

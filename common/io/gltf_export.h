@@ -78,6 +78,18 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
                                                  const GltfExportOptions& options = {},
                                                  GltfExportSummary* summary = nullptr);
 
+// The .glb of a body mesh alone, in its rest pose: the skinned mesh and its
+// 25 joint nodes (Kinect v2 order, named after the joints, skin joint j =
+// joint j) as ExportReenactmentGlb writes them for a body-model
+// reenactment, without an animation; the atlas as material when the mesh
+// has one (plain grey otherwise). A viewer poses it by setting joint j's
+// rotation to BodyPose.local_rotations[j] and the root joint's
+// (SpineBase's) translation to its rest position plus root_translation_m.
+// InvalidArgument when the mesh does not decode.
+absl::StatusOr<std::string> ExportBodyMeshGlb(const v1::BodyMesh& mesh,
+                                              const GltfExportOptions& options = {},
+                                              GltfExportSummary* summary = nullptr);
+
 // ExportReenactmentGlb written to `path` through a temporary file.
 absl::Status WriteReenactmentGlb(const ReenactmentData& data, const std::string& path,
                                  const GltfExportOptions& options = {},

@@ -13,6 +13,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "common/base/flags.h"
 #include "common/metrics/metrics.h"
 
 namespace reenact::metrics {
@@ -95,23 +96,6 @@ class Session : public std::enable_shared_from_this<Session> {
   const HttpExposer::BodyFunction* body_;
 };
 
-// "HOST:PORT" -> host (brackets of an IPv6 address removed) and port.
-absl::Status SplitHostPort(const std::string& address, std::string* host, int* port) {
-  const size_t colon = address.rfind(':');
-  int value = -1;
-  if (colon == std::string::npos || colon == 0 ||
-      !absl::SimpleAtoi(address.substr(colon + 1), &value) || value < 0 || value > 65535) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("metrics address \"", address, "\" is not HOST:PORT (port 0..65535)"));
-  }
-  *host = address.substr(0, colon);
-  if (host->size() >= 2 && host->front() == '[' && host->back() == ']') {
-    *host = host->substr(1, host->size() - 2);
-  }
-  *port = value;
-  return absl::OkStatus();
-}
-
 }  // namespace
 
 struct HttpExposer::Impl {
@@ -133,7 +117,8 @@ absl::StatusOr<std::unique_ptr<HttpExposer>> HttpExposer::Start(const std::strin
                                                                 BodyFunction body) {
   std::string host;
   int port = 0;
-  if (absl::Status split = SplitHostPort(address, &host, &port); !split.ok()) return split;
+  if (absl::Status split = SplitHostPort("metrics address", address, &host, &port); !split.ok())
+    return split;
   std::unique_ptr<HttpExposer> exposer(new HttpExposer());
   exposer->impl_ = std::make_unique<Impl>();
   Impl& impl = *exposer->impl_;
@@ -157,10 +142,7 @@ absl::StatusOr<std::unique_ptr<HttpExposer>> HttpExposer::Start(const std::strin
         absl::StrCat("cannot listen on --metrics ", address, ": ", error.message()));
   }
   exposer->port_ = impl.acceptor.local_endpoint().port();
-  const std::string shown_host = endpoint.address().is_v6() && host.find(':') != std::string::npos
-                                     ? absl::StrCat("[", host, "]")
-                                     : host;
-  exposer->address_ = absl::StrCat(shown_host, ":", exposer->port_);
+  exposer->address_ = JoinHostPort(host, exposer->port_);
   impl.Accept();
   impl.thread = std::thread([&impl] { impl.io.run(); });
   return exposer;

@@ -39,6 +39,10 @@ std::string FlagOrEnv(absl::string_view flag, const char* env) {
   return value != nullptr ? std::string(value) : std::string();
 }
 
+}  // namespace
+
+namespace {
+
 // Adds "authorization: Bearer <token>" to every call's initial metadata.
 class TokenInterceptor final : public grpc::experimental::Interceptor {
  public:
@@ -68,6 +72,11 @@ class TokenInterceptorFactory final : public grpc::experimental::ClientIntercept
 };
 
 }  // namespace
+
+std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface> MakeTokenInterceptorFactory(
+    std::string token) {
+  return std::make_unique<TokenInterceptorFactory>(std::move(token));
+}
 
 absl::Status ServerTlsFiles::Validate() const {
   if (cert_file.empty() != key_file.empty()) {

@@ -16,6 +16,7 @@
 #include <grpcpp/security/credentials.h>
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/support/channel_arguments.h>
+#include <grpcpp/support/client_interceptor.h>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -78,5 +79,11 @@ absl::StatusOr<ClientSecurity> LoadClientSecurity(absl::string_view tls_ca_file,
 std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
                                                  const grpc::ChannelArguments& args,
                                                  const ClientSecurity& security);
+
+// Adds "authorization: Bearer <token>" to the initial metadata of every call
+// of the channels it is given to (MakeClientChannel's way of sending the
+// token, for channels made elsewhere, e.g. a server's in-process channel).
+std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface> MakeTokenInterceptorFactory(
+    std::string token);
 
 }  // namespace reenact::rpc

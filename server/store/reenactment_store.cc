@@ -23,6 +23,8 @@ namespace {
 constexpr char kExtension[] = ".reen";
 // WriteReenactmentFile writes through "<path>.tmp".
 constexpr char kTempExtension[] = ".reen.tmp";
+// Copies in other formats (DerivedPathFor), removed with their reenactment.
+constexpr const char* kDerivedExtensions[] = {".glb"};
 
 bool IsValidReenactmentId(const std::string& id) {
   return !id.empty() && id.size() <= 128 && std::all_of(id.begin(), id.end(), [](char c) {
@@ -89,7 +91,21 @@ absl::StatusOr<std::unique_ptr<ReenactmentStore>> ReenactmentStore::Open(const s
       std::filesystem::remove(path, ec);
       continue;
     }
-    if (!absl::EndsWith(name, kExtension)) continue;
+    if (!absl::EndsWith(name, kExtension)) {
+      // A derived copy (or the temporary file of one) whose reenactment is
+      // gone: what it shows was deleted.
+      for (const char* extension : kDerivedExtensions) {
+        for (const std::string& suffix :
+             {std::string(extension), absl::StrCat(extension, ".tmp")}) {
+          if (!absl::EndsWith(name, suffix)) continue;
+          const std::string id = name.substr(0, name.size() - suffix.size());
+          if (suffix != extension || !std::filesystem::exists(store->PathFor(id), ec)) {
+            std::filesystem::remove(path, ec);
+          }
+        }
+      }
+      continue;
+    }
     const std::string id = name.substr(0, name.size() - (sizeof(kExtension) - 1));
     absl::StatusOr<v1::ReenactmentSummary> summary =
         IsValidReenactmentId(id) ? Summarize(id, path.string(), /*full=*/false)
@@ -126,6 +142,11 @@ std::string ReenactmentStore::NewId() const {
 
 std::string ReenactmentStore::PathFor(const std::string& reenactment_id) const {
   return absl::StrCat(dir_, "/", reenactment_id, kExtension);
+}
+
+std::string ReenactmentStore::DerivedPathFor(const std::string& reenactment_id,
+                                             const std::string& extension) const {
+  return absl::StrCat(dir_, "/", reenactment_id, extension);
 }
 
 absl::StatusOr<v1::ReenactmentSummary> ReenactmentStore::Add(const std::string& reenactment_id) {
@@ -166,6 +187,7 @@ std::vector<v1::ReenactmentSummary> ReenactmentStore::List(const std::string& ta
 
 absl::StatusOr<v1::ReenactmentSummary> ReenactmentStore::Get(
     const std::string& reenactment_id) const {
+  RETURN_IF_ERROR(CheckId(reenactment_id));
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = entries_.find(reenactment_id);
   if (it == entries_.end()) {
@@ -175,6 +197,7 @@ absl::StatusOr<v1::ReenactmentSummary> ReenactmentStore::Get(
 }
 
 absl::Status ReenactmentStore::Delete(const std::string& reenactment_id) {
+  RETURN_IF_ERROR(CheckId(reenactment_id));
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = entries_.find(reenactment_id);
   if (it == entries_.end()) {
@@ -187,6 +210,9 @@ absl::Status ReenactmentStore::Delete(const std::string& reenactment_id) {
         absl::StrCat(PathFor(reenactment_id), ": cannot remove: ", ec.message()));
   }
   entries_.erase(it);
+  for (const char* extension : kDerivedExtensions) {
+    std::filesystem::remove(DerivedPathFor(reenactment_id, extension), ec);
+  }
   return absl::OkStatus();
 }
 

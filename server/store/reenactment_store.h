@@ -26,6 +26,11 @@ class ReenactmentStore {
   std::string NewId() const;
   // Where the file of `reenactment_id` lives (a worker writes it there).
   std::string PathFor(const std::string& reenactment_id) const;
+  // Where a copy of it in another format may be kept (the HTTP front's
+  // glTF export, `extension` ".glb"): beside the file, so that Delete
+  // removes it with the reenactment and Open removes copies whose
+  // reenactment is gone.
+  std::string DerivedPathFor(const std::string& reenactment_id, const std::string& extension) const;
 
   // Indexes the file a worker finished at PathFor(id): reads and validates
   // it. InvalidArgument / DataLoss when it is not a valid reenactment (the
@@ -34,9 +39,10 @@ class ReenactmentStore {
 
   // Newest first; only those of `take_id` when it is not empty.
   std::vector<v1::ReenactmentSummary> List(const std::string& take_id = "") const;
-  // NotFound for an unknown id.
+  // NotFound for an unknown id, InvalidArgument for a malformed one.
   absl::StatusOr<v1::ReenactmentSummary> Get(const std::string& reenactment_id) const;
-  // Removes the file and the entry. NotFound for an unknown id.
+  // Removes the file, its derived copies and the entry. NotFound for an
+  // unknown id, InvalidArgument for a malformed one.
   absl::Status Delete(const std::string& reenactment_id);
 
   const std::string& dir() const { return dir_; }

@@ -1,0 +1,545 @@
+#include "server/http/http_front.h"
+
+#include <sys/socket.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <utility>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <boost/beast/websocket.hpp>
+#include <boost/beast/websocket/ssl.hpp>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "common/base/files.h"
+#include "common/base/flags.h"
+#include "common/base/status_macros.h"
+#include "common/log/log.h"
+#include "server/http/web_api.h"
+
+namespace reenact::server::http {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace bhttp = beast::http;
+namespace websocket = beast::websocket;
+namespace ssl = asio::ssl;
+using tcp = asio::ip::tcp;
+
+// A request is a request line and a few headers; browsers send < 4 KiB.
+constexpr uint32_t kMaxHeaderBytes = 16 * 1024;
+// Files of the app bigger than this are not served (the bundle is ~1 MB).
+constexpr int64_t kMaxStaticFileBytes = int64_t{64} << 20;
+// The slowest client a write waits for, on top of the idle timeout.
+constexpr double kMinClientBytesPerSecond = 64.0 * 1024;
+
+constexpr char kServerName[] = "reenact-server";
+// The app's files: its own scripts and styles only; textures decode from
+// blob: URLs; the API and the follow socket are this origin's.
+constexpr char kContentSecurityPolicy[] =
+    "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+    "img-src 'self' blob: data:; connect-src 'self' ws: wss: blob: data:; "
+    "worker-src 'self' blob:; frame-ancestors 'none'; base-uri 'none'";
+
+int64_t SteadyNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string ContentTypeOf(const std::string& path) {
+  static const std::map<std::string, std::string> kTypes = {
+      {".html", "text/html; charset=utf-8"},
+      {".js", "text/javascript; charset=utf-8"},
+      {".mjs", "text/javascript; charset=utf-8"},
+      {".css", "text/css; charset=utf-8"},
+      {".json", "application/json"},
+      {".map", "application/json"},
+      {".webmanifest", "application/manifest+json"},
+      {".png", "image/png"},
+      {".jpg", "image/jpeg"},
+      {".svg", "image/svg+xml"},
+      {".ico", "image/x-icon"},
+      {".wasm", "application/wasm"},
+      {".txt", "text/plain; charset=utf-8"},
+      {".glb", "model/gltf-binary"},
+  };
+  const std::string extension =
+      absl::AsciiStrToLower(std::filesystem::path(path).extension().string());
+  const auto it = kTypes.find(extension);
+  return it == kTypes.end() ? "application/octet-stream" : it->second;
+}
+
+// The bearer token of a request: "Authorization: Bearer X", else the
+// access_token query parameter.
+std::string TokenOf(const bhttp::request<bhttp::empty_body>& request,
+                    const std::map<std::string, std::string>& query) {
+  const auto header = request.find(bhttp::field::authorization);
+  if (header != request.end()) {
+    const absl::string_view value(header->value().data(), header->value().size());
+    constexpr absl::string_view kBearer = "Bearer ";
+    if (absl::StartsWithIgnoreCase(value, kBearer)) {
+      return std::string(absl::StripAsciiWhitespace(value.substr(kBearer.size())));
+    }
+  }
+  const auto it = query.find("access_token");
+  return it == query.end() ? std::string() : it->second;
+}
+
+std::string HeaderOf(const bhttp::request<bhttp::empty_body>& request, bhttp::field field) {
+  const auto it = request.find(field);
+  return it == request.end() ? std::string() : std::string(it->value());
+}
+
+}  // namespace
+
+absl::Status HttpFrontOptions::Validate() const {
+  if (address.empty()) return absl::InvalidArgumentError("--http needs HOST:PORT");
+  if (max_connections < 1) {
+    return absl::InvalidArgumentError("--http-max-connections must be >= 1");
+  }
+  if (!(idle_timeout_s > 0)) return absl::InvalidArgumentError("the idle timeout must be > 0");
+  return tls.Validate();
+}
+
+std::string FindWebRoot(const std::string& program_path) {
+  std::error_code error;
+  const std::filesystem::path program = std::filesystem::canonical(program_path, error);
+  if (error) return "";
+  const std::filesystem::path bin = program.parent_path();
+  for (const std::filesystem::path& candidate :
+       {bin.parent_path() / "share" / "reenact" / "web", bin.parent_path() / "web"}) {
+    if (std::filesystem::is_regular_file(candidate / "index.html", error)) {
+      return candidate.string();
+    }
+  }
+  return "";
+}
+
+struct HttpFront::Impl {
+  HttpFrontOptions options;
+  Server* server = nullptr;
+  std::unique_ptr<WebApi> api;
+  std::string web_root;  // Canonical; empty: no app.
+  asio::io_context io{1};
+  tcp::acceptor acceptor{io};
+  std::optional<ssl::context> tls;
+  std::thread accept_thread;
+  std::thread reaper_thread;
+
+  // Open connections: their socket (shut down to end them) and the time
+  // by which their current read or write must be done (steady ns;
+  // max: none, e.g. between the frames of a follow).
+  struct Connection {
+    int fd = -1;
+    std::atomic<int64_t> deadline_ns{std::numeric_limits<int64_t>::max()};
+  };
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::map<uint64_t, std::shared_ptr<Connection>> connections;
+  uint64_t next_connection = 0;
+  bool stopping = false;
+
+  void AcceptLoop();
+  void ReaperLoop();
+  void Serve(tcp::socket socket, std::shared_ptr<Connection> connection);
+  template <class Stream>
+  void Session(Stream& stream, Connection& connection);
+  template <class Stream>
+  void FollowSocket(Stream& stream, Connection& connection,
+                    const bhttp::request<bhttp::empty_body>& request, const std::string& job_id,
+                    const std::string& token);
+  bhttp::response<bhttp::string_body> Respond(const bhttp::request<bhttp::empty_body>& request);
+  WebResponse StaticFile(const WebRequest& request) const;
+
+  void ExpireAfter(Connection& connection, double seconds) const {
+    connection.deadline_ns = SteadyNowNs() + static_cast<int64_t>(seconds * 1e9);
+  }
+  double WriteSeconds(size_t bytes) const {
+    return options.idle_timeout_s + static_cast<double>(bytes) / kMinClientBytesPerSecond;
+  }
+};
+
+void HttpFront::Impl::AcceptLoop() {
+  for (;;) {
+    beast::error_code error;
+    tcp::socket socket(io);
+    acceptor.accept(socket, error);
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (stopping) return;
+    }
+    if (error) {
+      // Out of descriptors and the like: the client's loss; don't spin.
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      continue;
+    }
+    auto connection = std::make_shared<Connection>();
+    connection->fd = socket.native_handle();
+    bool refused = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (stopping) return;  // The socket closes with this frame.
+      if (static_cast<int>(connections.size()) >= options.max_connections) {
+        refused = true;
+      } else {
+        connections.emplace(next_connection++, connection);
+      }
+    }
+    if (refused) {
+      // Plain text even on a TLS port would be noise; just close.
+      log::Warn("limit_hit", {{"limit", "http_connections"}, {"max", options.max_connections}},
+                "an HTTP connection was refused: --http-max-connections are open");
+      socket.close(error);
+      continue;
+    }
+    std::thread([this, socket = std::move(socket), connection]() mutable {
+      Serve(std::move(socket), connection);
+      std::lock_guard<std::mutex> lock(mutex);
+      for (auto it = connections.begin(); it != connections.end(); ++it) {
+        if (it->second == connection) {
+          connections.erase(it);
+          break;
+        }
+      }
+      changed.notify_all();
+    }).detach();
+  }
+}
+
+void HttpFront::Impl::ReaperLoop() {
+  std::unique_lock<std::mutex> lock(mutex);
+  while (!stopping) {
+    changed.wait_for(lock, std::chrono::milliseconds(500));
+    const int64_t now = SteadyNowNs();
+    for (const auto& [id, connection] : connections) {
+      if (connection->deadline_ns.load() < now) {
+        // Unblocks the connection's read or write; its thread ends.
+        ::shutdown(connection->fd, SHUT_RDWR);
+        connection->deadline_ns = std::numeric_limits<int64_t>::max();
+      }
+    }
+  }
+}
+
+void HttpFront::Impl::Serve(tcp::socket socket, std::shared_ptr<Connection> connection) {
+  beast::error_code error;
+  socket.set_option(tcp::no_delay(true), error);
+  if (tls.has_value()) {
+    beast::ssl_stream<tcp::socket> stream(std::move(socket), *tls);
+    ExpireAfter(*connection, options.idle_timeout_s);
+    stream.handshake(ssl::stream_base::server, error);
+    if (error) return;  // A client that does not speak TLS, or timed out.
+    Session(stream, *connection);
+    ExpireAfter(*connection, 1.0);
+    stream.shutdown(error);
+  } else {
+    Session(socket, *connection);
+    socket.shutdown(tcp::socket::shutdown_send, error);
+  }
+}
+
+template <class Stream>
+void HttpFront::Impl::Session(Stream& stream, Connection& connection) {
+  beast::flat_buffer buffer;
+  for (;;) {
+    bhttp::request_parser<bhttp::empty_body> parser;
+    parser.header_limit(kMaxHeaderBytes);
+    beast::error_code error;
+    ExpireAfter(connection, options.idle_timeout_s);
+    bhttp::read(stream, buffer, parser, error);
+    if (error) {
+      if (error == bhttp::error::header_limit || error == bhttp::error::unexpected_body ||
+          error == bhttp::error::body_limit) {
+        bhttp::response<bhttp::string_body> refused{
+            error == bhttp::error::header_limit ? bhttp::status::request_header_fields_too_large
+                                                : bhttp::status::payload_too_large,
+            11};
+        refused.set(bhttp::field::server, kServerName);
+        refused.set(bhttp::field::content_type, "text/plain; charset=utf-8");
+        refused.body() = error.message() + "\n";
+        refused.keep_alive(false);
+        refused.prepare_payload();
+        ExpireAfter(connection, options.idle_timeout_s);
+        bhttp::write(stream, refused, error);
+      }
+      return;  // End of stream, timeout, a malformed request.
+    }
+    bhttp::request<bhttp::empty_body> request = parser.release();
+    if (websocket::is_upgrade(request)) {
+      const std::string target(request.target());
+      std::map<std::string, std::string> query;
+      const size_t question = target.find('?');
+      std::string path;
+      const bool decoded = PercentDecode(absl::string_view(target).substr(0, question), &path) &&
+                           (question == std::string::npos ||
+                            ParseQuery(absl::string_view(target).substr(question + 1), &query));
+      const std::string job_id = decoded ? WebApi::FollowJobId(path) : "";
+      if (!job_id.empty()) {
+        FollowSocket(stream, connection, request, job_id, TokenOf(request, query));
+        return;
+      }
+    }
+    bhttp::response<bhttp::string_body> response = Respond(request);
+    ExpireAfter(connection, WriteSeconds(response.body().size()));
+    bhttp::write(stream, response, error);
+    if (error || !response.keep_alive()) return;
+  }
+}
+
+template <class Stream>
+void HttpFront::Impl::FollowSocket(Stream& stream, Connection& connection,
+                                   const bhttp::request<bhttp::empty_body>& request,
+                                   const std::string& job_id, const std::string& token) {
+  websocket::stream<Stream&> socket(stream);
+  socket.set_option(websocket::stream_base::decorator(
+      [](websocket::response_type& response) { response.set(bhttp::field::server, kServerName); }));
+  // The client only listens; what it may send (a close, a ping) is small.
+  socket.read_message_max(64 * 1024);
+  beast::error_code error;
+  ExpireAfter(connection, options.idle_timeout_s);
+  socket.accept(request, error);
+  if (error) return;
+  connection.deadline_ns = std::numeric_limits<int64_t>::max();
+  log::Info("follow_opened", {{"job_id", job_id}}, "a web client follows a job");
+  const int code = api->Follow(job_id, token, [&](bool binary, const std::string& payload) {
+    socket.binary(binary);
+    ExpireAfter(connection, WriteSeconds(payload.size()));
+    beast::error_code write_error;
+    socket.write(asio::buffer(payload), write_error);
+    connection.deadline_ns = std::numeric_limits<int64_t>::max();
+    return !write_error;
+  });
+  log::Info("follow_closed", {{"job_id", job_id}, {"close_code", code}},
+            "a web client's follow ended");
+  if (code == 1001) return;  // The client is gone.
+  ExpireAfter(connection, 2.0);
+  socket.close(websocket::close_reason(static_cast<uint16_t>(code)), error);
+}
+
+bhttp::response<bhttp::string_body> HttpFront::Impl::Respond(
+    const bhttp::request<bhttp::empty_body>& request) {
+  WebRequest web;
+  web.method = std::string(request.method_string());
+  const std::string target(request.target());
+  const size_t question = target.find('?');
+  WebResponse answer;
+  if (!PercentDecode(absl::string_view(target).substr(0, question), &web.path) ||
+      (question != std::string::npos &&
+       !ParseQuery(absl::string_view(target).substr(question + 1), &web.query)) ||
+      web.path.empty() || web.path.front() != '/') {
+    answer = ErrorResponse(absl::InvalidArgumentError("the request target is malformed"));
+  } else {
+    web.token = TokenOf(request, web.query);
+    web.if_none_match = HeaderOf(request, bhttp::field::if_none_match);
+    web.range = HeaderOf(request, bhttp::field::range);
+    web.if_range = HeaderOf(request, bhttp::field::if_range);
+    if (WebApi::IsApiPath(web.path)) {
+      answer = api->Handle(web);
+    } else if (web.method != "GET" && web.method != "HEAD") {
+      answer = ErrorResponse(absl::UnimplementedError("only GET and HEAD are served"));
+      answer.status = 405;
+      answer.headers.emplace_back("Allow", "GET, HEAD");
+    } else {
+      answer = StaticFile(web);
+    }
+  }
+  bhttp::response<bhttp::string_body> response{static_cast<bhttp::status>(answer.status),
+                                               request.version()};
+  response.set(bhttp::field::server, kServerName);
+  response.set(bhttp::field::content_type, answer.content_type);
+  response.set("X-Content-Type-Options", "nosniff");
+  response.set("Referrer-Policy", "no-referrer");
+  bool has_length = false;
+  for (const auto& [name, value] : answer.headers) {
+    response.set(name, value);
+    has_length |= absl::EqualsIgnoreCase(name, "Content-Length");
+  }
+  response.keep_alive(request.keep_alive());
+  if (has_length) {
+    // HEAD of a file: the length of what GET would send.
+    return response;
+  }
+  response.body() = std::move(answer.body);
+  response.prepare_payload();
+  if (web.method == "HEAD") response.body().clear();
+  return response;
+}
+
+WebResponse HttpFront::Impl::StaticFile(const WebRequest& request) const {
+  if (web_root.empty()) {
+    WebResponse response;
+    response.status = 503;
+    response.content_type = "text/plain; charset=utf-8";
+    response.body =
+        "The web app is not built: deploy/build.sh builds it (it needs node and `npm ci "
+        "--prefix clients/web`, which deploy/setup-debian.sh runs), or pass --web DIR.\n";
+    return response;
+  }
+  const std::string relative = request.path == "/" ? "index.html" : request.path.substr(1);
+  const std::filesystem::path wanted = std::filesystem::path(web_root) / relative;
+  std::error_code error;
+  const std::filesystem::path resolved = std::filesystem::weakly_canonical(wanted, error);
+  const std::string resolved_text = resolved.string();
+  const bool inside = !error && absl::StartsWith(resolved_text, web_root + "/");
+  struct stat info {};
+  if (!inside || ::stat(resolved_text.c_str(), &info) != 0 || !S_ISREG(info.st_mode) ||
+      info.st_size > kMaxStaticFileBytes) {
+    return ErrorResponse(absl::NotFoundError(absl::StrCat("no such file: ", request.path)));
+  }
+  WebResponse response;
+  response.content_type = ContentTypeOf(resolved_text);
+  const std::string etag =
+      absl::StrCat("\"", info.st_size, "-", info.st_mtim.tv_sec, "-", info.st_mtim.tv_nsec, "\"");
+  response.headers.emplace_back("ETag", etag);
+  response.headers.emplace_back("Cache-Control", "no-cache");
+  if (absl::EndsWith(resolved_text, ".html")) {
+    response.headers.emplace_back("Content-Security-Policy", kContentSecurityPolicy);
+  }
+  if (request.if_none_match == etag) {
+    response.status = 304;
+    return response;
+  }
+  absl::StatusOr<std::string> bytes = ReadFileToString(resolved_text, kMaxStaticFileBytes);
+  if (!bytes.ok()) return ErrorResponse(bytes.status());
+  response.body = *std::move(bytes);
+  return response;
+}
+
+absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptions& options,
+                                                            Server* server) {
+  RETURN_IF_ERROR(options.Validate());
+  std::string host;
+  int port = 0;
+  RETURN_IF_ERROR(SplitHostPort("--http", options.address, &host, &port));
+  std::unique_ptr<HttpFront> front(new HttpFront());
+  front->impl_ = std::make_unique<Impl>();
+  Impl& impl = *front->impl_;
+  impl.options = options;
+  impl.server = server;
+  if (!options.web_root.empty()) {
+    std::error_code error;
+    const std::filesystem::path root = std::filesystem::canonical(options.web_root, error);
+    if (error || !std::filesystem::is_regular_file(root / "index.html", error)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--web ", options.web_root, " holds no index.html (a built web app)"));
+    }
+    impl.web_root = root.string();
+  }
+  if (options.tls.enabled()) {
+    impl.tls.emplace(ssl::context::tls_server);
+    impl.tls->set_options(ssl::context::default_workarounds | ssl::context::no_sslv2 |
+                          ssl::context::no_sslv3 | ssl::context::no_tlsv1 |
+                          ssl::context::no_tlsv1_1);
+    beast::error_code error;
+    impl.tls->use_certificate_chain_file(options.tls.cert_file, error);
+    if (error) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--tls-cert ", options.tls.cert_file, ": ", error.message()));
+    }
+    impl.tls->use_private_key_file(options.tls.key_file, ssl::context::pem, error);
+    if (error) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--tls-key ", options.tls.key_file, ": ", error.message()));
+    }
+    if (!options.tls.client_ca_file.empty()) {
+      impl.tls->load_verify_file(options.tls.client_ca_file, error);
+      if (error) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("--tls-client-ca ", options.tls.client_ca_file, ": ", error.message()));
+      }
+      impl.tls->set_verify_mode(ssl::verify_peer | ssl::verify_fail_if_no_peer_cert);
+    }
+  }
+  WebApiOptions api_options;
+  api_options.auth = server->auth_enabled();
+  api_options.tls = options.tls.enabled();
+  api_options.glb_path = [server](const std::string& id) {
+    return server->reenactments().DerivedPathFor(id, ".glb");
+  };
+  api_options.still_stored = [server](const std::string& id) {
+    return server->reenactments().Get(id).ok();
+  };
+  impl.api = std::make_unique<WebApi>(std::move(api_options), [server](const std::string& token) {
+    return server->InProcessChannel(token);
+  });
+
+  beast::error_code error;
+  tcp::resolver resolver(impl.io);
+  const tcp::resolver::results_type endpoints =
+      resolver.resolve(host, std::to_string(port), tcp::resolver::numeric_service, error);
+  if (error || endpoints.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("--http ", options.address, ": cannot resolve ",
+                                                   host, ": ",
+                                                   error ? error.message() : "no address"));
+  }
+  const tcp::endpoint endpoint = endpoints.begin()->endpoint();
+  impl.acceptor.open(endpoint.protocol(), error);
+  if (!error) impl.acceptor.set_option(asio::socket_base::reuse_address(true), error);
+  if (!error) impl.acceptor.bind(endpoint, error);
+  if (!error) impl.acceptor.listen(asio::socket_base::max_listen_connections, error);
+  if (error) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot listen on --http ", options.address, ": ", error.message()));
+  }
+  front->port_ = impl.acceptor.local_endpoint().port();
+  front->address_ = JoinHostPort(host, front->port_);
+  impl.accept_thread = std::thread([&impl] { impl.AcceptLoop(); });
+  impl.reaper_thread = std::thread([&impl] { impl.ReaperLoop(); });
+  return front;
+}
+
+HttpFront::~HttpFront() { Stop(); }
+
+std::string HttpFront::url() const {
+  return absl::StrCat(impl_ != nullptr && impl_->tls.has_value() ? "https" : "http", "://",
+                      address_, "/");
+}
+
+const std::string& HttpFront::web_root() const {
+  static const std::string kNone;
+  return impl_ != nullptr ? impl_->web_root : kNone;
+}
+
+void HttpFront::Stop() {
+  if (impl_ == nullptr) return;
+  Impl& impl = *impl_;
+  {
+    std::lock_guard<std::mutex> lock(impl.mutex);
+    impl.stopping = true;
+    for (const auto& [id, connection] : impl.connections) ::shutdown(connection->fd, SHUT_RDWR);
+  }
+  impl.changed.notify_all();
+  // Wakes the blocked accept (Linux: shutdown of a listening socket).
+  ::shutdown(impl.acceptor.native_handle(), SHUT_RDWR);
+  if (impl.accept_thread.joinable()) impl.accept_thread.join();
+  if (impl.reaper_thread.joinable()) impl.reaper_thread.join();
+  {
+    std::unique_lock<std::mutex> lock(impl.mutex);
+    impl.changed.wait(lock, [&impl] { return impl.connections.empty(); });
+  }
+  beast::error_code ignored;
+  impl.acceptor.close(ignored);
+  impl_.reset();
+}
+
+}  // namespace reenact::server::http

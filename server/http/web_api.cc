@@ -1,0 +1,659 @@
+#include "server/http/web_api.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <set>
+#include <utility>
+
+#include <grpcpp/grpcpp.h>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "clients/sdk/reenactments_client.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
+#include "common/body/joint_set.h"
+#include "common/io/body_reenactment.h"
+#include "common/io/gltf_export.h"
+#include "common/log/log.h"
+#include "common/rpc/auth.h"
+#include "proto/grpc_status.h"
+#include "reenact/v1/jobs_service.grpc.pb.h"
+#include "reenact/v1/reenactments_service.grpc.pb.h"
+#include "reenact/v1/takes_service.grpc.pb.h"
+
+#ifndef REENACT_VERSION
+#define REENACT_VERSION "unknown"
+#endif
+
+namespace reenact::server::http {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr absl::string_view kApiPrefix = "/api/";
+constexpr absl::string_view kReenactmentsPath = "/api/v1/reenactments";
+constexpr absl::string_view kJobsPath = "/api/v1/jobs";
+// Ids are the services' business (they answer INVALID_ARGUMENT for malformed
+// ones); this only keeps path segments from holding a path.
+constexpr size_t kMaxIdBytes = 256;
+// A page token is the services' (opaque, a few dozen bytes).
+constexpr size_t kMaxPageTokenBytes = 1024;
+
+int64_t WallNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+WebResponse JsonResponse(const json& value, int status = 200) {
+  WebResponse response;
+  response.status = status;
+  response.body = value.dump();
+  response.headers.emplace_back("Cache-Control", "no-store");
+  return response;
+}
+
+void SetDeadline(grpc::ClientContext& context, double seconds) {
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
+}
+
+// Page size from the query: absent 0 (the service's default); a number the
+// service clamps; anything else InvalidArgument.
+absl::Status ReadPaging(const WebRequest& request, int32_t* page_size, std::string* page_token) {
+  *page_size = 0;
+  if (const auto it = request.query.find("page_size"); it != request.query.end()) {
+    if (!absl::SimpleAtoi(it->second, page_size) || *page_size < 0) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("page_size must be a number >= 0, got \"", it->second, "\""));
+    }
+  }
+  if (const auto it = request.query.find("page_token"); it != request.query.end()) {
+    if (it->second.size() > kMaxPageTokenBytes) {
+      return absl::InvalidArgumentError("page_token is not one this server gave");
+    }
+    *page_token = it->second;
+  }
+  return absl::OkStatus();
+}
+
+json ReenactmentJson(const v1::ReenactmentSummary& summary, const std::string& take_name) {
+  const v1::ReenactmentInfo& info = summary.info();
+  const double fps = info.fps();
+  return json{
+      {"id", info.reenactment_id()},
+      {"take_id", info.take_id()},
+      {"take_name", take_name},
+      {"method", info.method()},
+      {"kind", info.part_names().empty() ? "body" : "rigid"},
+      {"frames", info.frame_count()},
+      {"fps", fps},
+      {"duration_s", fps > 0 ? info.frame_count() / fps : 0.0},
+      {"created_unix_ns", info.created_unix_ns()},
+      {"file_bytes", summary.file_bytes()},
+      {"parts", info.part_names_size()},
+  };
+}
+
+// "queued" for JOB_STATE_QUEUED.
+std::string JobStateName(v1::JobState state) {
+  std::string name = absl::AsciiStrToLower(v1::JobState_Name(state));
+  constexpr absl::string_view kPrefix = "job_state_";
+  if (absl::StartsWith(name, kPrefix)) name = name.substr(kPrefix.size());
+  return name;
+}
+
+// A job that follows its take while it records (method body, live=true).
+bool IsLive(const v1::Job& job) {
+  const auto it = job.options().find("live");
+  return (it != job.options().end() && (it->second == "true" || it->second == "1")) ||
+         job.progress().stage() == "following";
+}
+
+json JobJson(const v1::Job& job) {
+  return json{
+      {"id", job.job_id()},
+      {"take_id", job.take_id()},
+      {"method", job.method()},
+      {"state", JobStateName(job.state())},
+      {"live", IsLive(job)},
+      {"reenactment_id", job.reenactment_id()},
+      {"created_unix_ns", job.submitted_unix_ns()},
+      {"stage", job.progress().stage()},
+      {"fraction", job.progress().fraction()},
+      {"frames_done", job.progress().frames_done()},
+      {"message", job.error()},
+  };
+}
+
+json Vector3Json(const v1::Vector3& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+// The ETag of a file's bytes: a strong validator from their SHA-256.
+std::string EtagOf(const std::string& bytes) {
+  return absl::StrCat("\"", rpc::Sha256Hex(bytes).substr(0, 32), "\"");
+}
+
+// The bytes [first, first + count) of the file at `path`.
+absl::StatusOr<std::string> ReadRange(const std::string& path, int64_t first, int64_t count) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return FileError(absl::StrCat(path, ": cannot open"), errno);
+  std::string out(static_cast<size_t>(count), '\0');
+  int64_t done = 0;
+  while (done < count) {
+    const ssize_t n = ::pread(fd, out.data() + done, static_cast<size_t>(count - done),
+                              static_cast<off_t>(first + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : EIO;
+      ::close(fd);
+      return FileError(absl::StrCat(path, ": cannot read"), error);
+    }
+    done += n;
+  }
+  ::close(fd);
+  return out;
+}
+
+// A single byte range of "bytes=A-B", "bytes=A-" or "bytes=-N" within
+// `size`: true with [first, last] set; false when it is not satisfiable.
+// `*ignore` is set for forms this server serves whole (several ranges,
+// other units, malformed), as RFC 9110 allows.
+bool ParseRange(absl::string_view header, int64_t size, int64_t* first, int64_t* last,
+                bool* ignore) {
+  *ignore = false;
+  constexpr absl::string_view kUnit = "bytes=";
+  if (!absl::StartsWith(header, kUnit) || absl::StrContains(header, ',')) {
+    *ignore = true;
+    return false;
+  }
+  const absl::string_view spec = absl::StripAsciiWhitespace(header.substr(kUnit.size()));
+  const size_t dash = spec.find('-');
+  if (dash == absl::string_view::npos) {
+    *ignore = true;
+    return false;
+  }
+  const absl::string_view a = spec.substr(0, dash), b = spec.substr(dash + 1);
+  int64_t x = 0, y = 0;
+  if (a.empty()) {  // Suffix: the last N bytes.
+    if (!absl::SimpleAtoi(b, &y) || y < 0) {
+      *ignore = true;
+      return false;
+    }
+    if (y == 0 || size == 0) return false;
+    *first = std::max<int64_t>(0, size - y);
+    *last = size - 1;
+    return true;
+  }
+  if (!absl::SimpleAtoi(a, &x) || x < 0 || (!b.empty() && (!absl::SimpleAtoi(b, &y) || y < x))) {
+    *ignore = true;
+    return false;
+  }
+  if (x >= size) return false;
+  *first = x;
+  *last = b.empty() ? size - 1 : std::min(y, size - 1);
+  return true;
+}
+
+}  // namespace
+
+bool PercentDecode(absl::string_view in, std::string* out) {
+  out->clear();
+  out->reserve(in.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    if (in[i] != '%') {
+      out->push_back(in[i]);
+      continue;
+    }
+    if (i + 2 >= in.size() || !absl::ascii_isxdigit(in[i + 1]) ||
+        !absl::ascii_isxdigit(in[i + 2])) {
+      return false;
+    }
+    const auto hex = [](char c) {
+      return absl::ascii_isdigit(c) ? c - '0' : absl::ascii_tolower(c) - 'a' + 10;
+    };
+    const char c = static_cast<char>(hex(in[i + 1]) * 16 + hex(in[i + 2]));
+    if (c == '\0') return false;
+    out->push_back(c);
+    i += 2;
+  }
+  return true;
+}
+
+bool ParseQuery(absl::string_view query, std::map<std::string, std::string>* out) {
+  out->clear();
+  for (absl::string_view pair : absl::StrSplit(query, '&', absl::SkipEmpty())) {
+    const size_t equals = pair.find('=');
+    std::string key, value;
+    std::string raw_value(equals == absl::string_view::npos ? "" : pair.substr(equals + 1));
+    std::replace(raw_value.begin(), raw_value.end(), '+', ' ');
+    if (!PercentDecode(pair.substr(0, equals), &key) || !PercentDecode(raw_value, &value)) {
+      return false;
+    }
+    (*out)[key] = value;
+  }
+  return true;
+}
+
+int HttpStatusOf(absl::StatusCode code) {
+  switch (code) {
+    case absl::StatusCode::kOk:
+      return 200;
+    case absl::StatusCode::kInvalidArgument:
+    case absl::StatusCode::kOutOfRange:
+      return 400;
+    case absl::StatusCode::kUnauthenticated:
+      return 401;
+    case absl::StatusCode::kPermissionDenied:
+      return 403;
+    case absl::StatusCode::kNotFound:
+      return 404;
+    case absl::StatusCode::kAlreadyExists:
+    case absl::StatusCode::kFailedPrecondition:
+    case absl::StatusCode::kAborted:
+      return 409;
+    case absl::StatusCode::kResourceExhausted:
+      return 429;
+    case absl::StatusCode::kUnimplemented:
+      return 501;
+    case absl::StatusCode::kUnavailable:
+    case absl::StatusCode::kCancelled:
+      return 503;
+    case absl::StatusCode::kDeadlineExceeded:
+      return 504;
+    default:
+      return 500;
+  }
+}
+
+WebResponse ErrorResponse(const absl::Status& status) {
+  WebResponse response = JsonResponse(json{{"error",
+                                            {{"code", absl::StatusCodeToString(status.code())},
+                                             {"message", std::string(status.message())}}}},
+                                      HttpStatusOf(status.code()));
+  if (status.code() == absl::StatusCode::kUnauthenticated) {
+    response.headers.emplace_back("WWW-Authenticate", "Bearer realm=\"reenact\"");
+  }
+  return response;
+}
+
+WebApi::WebApi(WebApiOptions options, ChannelFactory channel_for)
+    : options_(std::move(options)), channel_for_(std::move(channel_for)) {}
+
+bool WebApi::IsApiPath(absl::string_view path) {
+  return absl::StartsWith(path, kApiPrefix) || path == "/api";
+}
+
+std::string WebApi::FollowJobId(absl::string_view path) {
+  if (!absl::StartsWith(path, kJobsPath)) return "";
+  const std::vector<absl::string_view> parts = absl::StrSplit(path.substr(kJobsPath.size()), '/');
+  if (parts.size() != 3 || !parts[0].empty() || parts[1].empty() || parts[2] != "follow") {
+    return "";
+  }
+  return std::string(parts[1]);
+}
+
+WebResponse WebApi::Handle(const WebRequest& request) {
+  if (request.method != "GET" && request.method != "HEAD") {
+    WebResponse response = ErrorResponse(absl::UnimplementedError(
+        absl::StrCat("method ", request.method, " is not served; the API only reads (GET)")));
+    response.status = 405;
+    response.headers.emplace_back("Allow", "GET, HEAD");
+    return response;
+  }
+  const absl::string_view path = request.path;
+  if (path == "/api/v1/info") return Info();
+  if (path == kReenactmentsPath) return ListReenactments(request);
+  if (path == kJobsPath) return ListJobs(request);
+  if (absl::StartsWith(path, absl::StrCat(kReenactmentsPath, "/"))) {
+    const std::vector<std::string> parts =
+        absl::StrSplit(path.substr(kReenactmentsPath.size() + 1), '/');
+    if (parts.empty() || parts[0].empty() || parts[0].size() > kMaxIdBytes || parts.size() > 2) {
+      return ErrorResponse(absl::NotFoundError(absl::StrCat("no such path: ", path)));
+    }
+    if (parts.size() == 1) return GetReenactment(request, parts[0]);
+    if (parts[1] == "model.glb") return Model(request, parts[0]);
+  }
+  if (!FollowJobId(path).empty()) {
+    return ErrorResponse(absl::InvalidArgumentError(
+        "the follow of a job is a WebSocket: connect with an Upgrade: websocket request"));
+  }
+  return ErrorResponse(absl::NotFoundError(absl::StrCat("no such path: ", path)));
+}
+
+std::string WebApi::TakeName(const std::shared_ptr<grpc::Channel>& channel,
+                             const std::string& take_id) const {
+  if (take_id.empty()) return "";
+  grpc::ClientContext context;
+  SetDeadline(context, options_.call_timeout_s);
+  v1::GetTakeRequest request;
+  request.set_take_id(take_id);
+  v1::Take take;
+  return v1::Takes::NewStub(channel)->Get(&context, request, &take).ok() ? take.name() : "";
+}
+
+WebResponse WebApi::Info() const {
+  return JsonResponse(json{{"name", "reenact-server"},
+                           {"version", REENACT_VERSION},
+                           {"auth", options_.auth},
+                           {"tls", options_.tls},
+                           {"server_time_unix_ns", WallNowNs()}});
+}
+
+WebResponse WebApi::ListReenactments(const WebRequest& request) {
+  v1::ListReenactmentsRequest list;
+  int32_t page_size = 0;
+  std::string page_token;
+  if (absl::Status paging = ReadPaging(request, &page_size, &page_token); !paging.ok()) {
+    return ErrorResponse(paging);
+  }
+  list.set_page_size(page_size);
+  list.set_page_token(page_token);
+  if (const auto it = request.query.find("take_id"); it != request.query.end()) {
+    list.set_take_id(it->second);
+  }
+  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token);
+  auto reenactments = v1::Reenactments::NewStub(channel);
+  grpc::ClientContext context;
+  SetDeadline(context, options_.call_timeout_s);
+  v1::ListReenactmentsResponse listed;
+  if (grpc::Status status = reenactments->List(&context, list, &listed); !status.ok()) {
+    return ErrorResponse(FromGrpcStatus(status));
+  }
+  // Take names, once per take of the page.
+  std::map<std::string, std::string> names;
+  for (const v1::ReenactmentSummary& summary : listed.reenactments()) {
+    const std::string& take_id = summary.info().take_id();
+    if (!names.contains(take_id)) names[take_id] = TakeName(channel, take_id);
+  }
+  json items = json::array();
+  for (const v1::ReenactmentSummary& summary : listed.reenactments()) {
+    items.push_back(ReenactmentJson(summary, names[summary.info().take_id()]));
+  }
+  WebResponse response = JsonResponse(items);
+  if (!listed.next_page_token().empty()) {
+    response.headers.emplace_back("X-Next-Page-Token", listed.next_page_token());
+  }
+  return response;
+}
+
+WebResponse WebApi::GetReenactment(const WebRequest& request, const std::string& id) {
+  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token);
+  grpc::ClientContext context;
+  SetDeadline(context, options_.call_timeout_s);
+  v1::GetReenactmentRequest get;
+  get.set_reenactment_id(id);
+  v1::ReenactmentSummary summary;
+  if (grpc::Status status = v1::Reenactments::NewStub(channel)->Get(&context, get, &summary);
+      !status.ok()) {
+    return ErrorResponse(FromGrpcStatus(status));
+  }
+  return JsonResponse(ReenactmentJson(summary, TakeName(channel, summary.info().take_id())));
+}
+
+absl::Status WebApi::EnsureGlb(const std::string& id, const std::string& token, std::string* path,
+                               std::string* etag, int64_t* size) {
+  const std::shared_ptr<grpc::Channel> channel = channel_for_(token);
+  // Existence and the caller's right to read it, every time: a cached glb
+  // is served only to whom the service would give the reenactment.
+  {
+    grpc::ClientContext context;
+    SetDeadline(context, options_.call_timeout_s);
+    v1::GetReenactmentRequest get;
+    get.set_reenactment_id(id);
+    v1::ReenactmentSummary summary;
+    if (grpc::Status status = v1::Reenactments::NewStub(channel)->Get(&context, get, &summary);
+        !status.ok()) {
+      if (status.error_code() == grpc::StatusCode::NOT_FOUND) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        etags_.erase(id);
+        build_locks_.erase(id);
+      }
+      return FromGrpcStatus(status);
+    }
+  }
+  std::shared_ptr<std::mutex> build_lock;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::shared_ptr<std::mutex>& slot = build_locks_[id];
+    if (slot == nullptr) slot = std::make_shared<std::mutex>();
+    build_lock = slot;
+  }
+  std::lock_guard<std::mutex> building(*build_lock);
+  *path = options_.glb_path(id);
+  std::error_code error;
+  const auto on_disk = std::filesystem::file_size(*path, error);
+  if (!error) {
+    *size = static_cast<int64_t>(on_disk);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (const auto it = etags_.find(id); it != etags_.end()) {
+      *etag = it->second;
+      return absl::OkStatus();
+    }
+  }
+  std::string bytes;
+  if (!error) {
+    // On disk from before a restart: its ETag from its bytes.
+    ASSIGN_OR_RETURN(bytes, ReadRange(*path, 0, *size));
+  } else {
+    const auto started = std::chrono::steady_clock::now();
+    client::ConnectionOptions connection;
+    connection.timeout_s = options_.call_timeout_s;
+    ASSIGN_OR_RETURN(
+        const ReenactmentData data,
+        client::ReenactmentsClient(channel, connection).Fetch(id, /*skip_keyframes=*/true));
+    GltfExportSummary summary;
+    ASSIGN_OR_RETURN(bytes, ExportReenactmentGlb(data, GltfExportOptions{}, &summary));
+    RETURN_IF_ERROR(WriteFileAtomically(*path, bytes));
+    if (!options_.still_stored(id)) {
+      // Deleted while it was built: what it shows must not stay.
+      std::filesystem::remove(*path, error);
+      return absl::NotFoundError(absl::StrCat("no reenactment ", id));
+    }
+    log::Info("glb_built",
+              {{"reenactment_id", id},
+               {"bytes", static_cast<int64_t>(bytes.size())},
+               {"seconds",
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}},
+              absl::StrCat("built the glTF of reenactment ", id, ": ", summary.BriefReport()));
+  }
+  *size = static_cast<int64_t>(bytes.size());
+  *etag = EtagOf(bytes);
+  std::lock_guard<std::mutex> lock(mutex_);
+  etags_[id] = *etag;
+  return absl::OkStatus();
+}
+
+WebResponse WebApi::Model(const WebRequest& request, const std::string& id) {
+  std::string path, etag;
+  int64_t size = 0;
+  if (absl::Status status = EnsureGlb(id, request.token, &path, &etag, &size); !status.ok()) {
+    return ErrorResponse(status);
+  }
+  WebResponse response;
+  response.content_type = "model/gltf-binary";
+  response.headers.emplace_back("ETag", etag);
+  response.headers.emplace_back("Accept-Ranges", "bytes");
+  response.headers.emplace_back("Cache-Control", "private, no-cache");
+  if (!request.if_none_match.empty() &&
+      (request.if_none_match == etag || request.if_none_match == "*" ||
+       absl::StrContains(request.if_none_match, etag))) {
+    response.status = 304;
+    return response;
+  }
+  int64_t first = 0, last = size - 1;
+  bool partial = false;
+  if (!request.range.empty() && (request.if_range.empty() || request.if_range == etag)) {
+    bool ignore = false;
+    if (ParseRange(request.range, size, &first, &last, &ignore)) {
+      partial = true;
+    } else if (!ignore) {
+      WebResponse refused = ErrorResponse(absl::OutOfRangeError(
+          absl::StrCat("range ", request.range, " is outside the ", size, " bytes of the glb")));
+      refused.status = 416;
+      refused.headers.emplace_back("Content-Range", absl::StrCat("bytes */", size));
+      return refused;
+    }
+  }
+  if (partial) {
+    response.status = 206;
+    response.headers.emplace_back("Content-Range",
+                                  absl::StrCat("bytes ", first, "-", last, "/", size));
+  } else {
+    first = 0;
+    last = size - 1;
+  }
+  if (request.method == "HEAD") {
+    response.headers.emplace_back("Content-Length", absl::StrCat(last - first + 1));
+    return response;
+  }
+  absl::StatusOr<std::string> bytes = ReadRange(path, first, last - first + 1);
+  if (!bytes.ok()) return ErrorResponse(bytes.status());
+  response.body = *std::move(bytes);
+  return response;
+}
+
+WebResponse WebApi::ListJobs(const WebRequest& request) {
+  v1::ListJobsRequest list;
+  int32_t page_size = 0;
+  std::string page_token;
+  if (absl::Status paging = ReadPaging(request, &page_size, &page_token); !paging.ok()) {
+    return ErrorResponse(paging);
+  }
+  bool live_only = false;
+  if (const auto it = request.query.find("live"); it != request.query.end()) {
+    if (it->second != "0" && it->second != "1") {
+      return ErrorResponse(absl::InvalidArgumentError(
+          absl::StrCat("live must be 0 or 1, got \"", it->second, "\"")));
+    }
+    live_only = it->second == "1";
+  }
+  list.set_page_size(page_size);
+  list.set_page_token(page_token);
+  if (live_only) list.set_state(v1::JOB_STATE_RUNNING);
+  grpc::ClientContext context;
+  SetDeadline(context, options_.call_timeout_s);
+  v1::ListJobsResponse listed;
+  if (grpc::Status status =
+          v1::Jobs::NewStub(channel_for_(request.token))->List(&context, list, &listed);
+      !status.ok()) {
+    return ErrorResponse(FromGrpcStatus(status));
+  }
+  json items = json::array();
+  for (const v1::Job& job : listed.jobs()) {
+    if (!live_only || IsLive(job)) items.push_back(JobJson(job));
+  }
+  WebResponse response = JsonResponse(items);
+  if (!listed.next_page_token().empty()) {
+    response.headers.emplace_back("X-Next-Page-Token", listed.next_page_token());
+  }
+  return response;
+}
+
+int WebApi::Follow(const std::string& job_id, const std::string& token, const SendFunction& send) {
+  bool client_gone = false;
+  Eigen::Vector3d rest_root = Eigen::Vector3d::Zero();
+  const auto send_json = [&](const json& message) {
+    if (client_gone) return false;
+    if (!send(false, message.dump())) client_gone = true;
+    return !client_gone;
+  };
+  const auto on_event = [&](const v1::FollowEvent& event) -> bool {
+    switch (event.event_case()) {
+      case v1::FollowEvent::kMesh: {
+        const v1::BodyMesh& mesh = event.mesh();
+        GltfExportOptions glb_options;
+        glb_options.unlit = false;  // No atlas yet: a lit grey body shows its shape.
+        absl::StatusOr<std::string> glb = ExportBodyMeshGlb(mesh, glb_options);
+        if (!glb.ok()) {
+          send_json(json{{"type", "error"},
+                         {"code", absl::StatusCodeToString(absl::StatusCode::kDataLoss)},
+                         {"message", absl::StrCat("the live body mesh does not convert: ",
+                                                  glb.status().message())}});
+          return false;
+        }
+        const int root = body::Index(body::KinectV2Joint::kSpineBase);
+        if (mesh.rest_joints_m_size() > root) {
+          const v1::Vector3& j = mesh.rest_joints_m(root);
+          rest_root = Eigen::Vector3d(j.x(), j.y(), j.z());
+        }
+        if (!send_json(json{{"type", "mesh"},
+                            {"model_name", mesh.model_name()},
+                            {"vertices", mesh.rest_positions_m_f32().size() / 12},
+                            {"triangles", mesh.triangle_indices_size() / 3},
+                            {"bytes", glb->size()}})) {
+          return false;
+        }
+        if (!send(true, *glb)) client_gone = true;
+        return !client_gone;
+      }
+      case v1::FollowEvent::kFrame: {
+        const v1::PartFrame& frame = event.frame();
+        const v1::BodyPose& pose = frame.body();
+        json rotations = json::array();
+        for (const v1::Quaternion& q : pose.local_rotations()) {
+          rotations.push_back(json::array({q.x(), q.y(), q.z(), q.w()}));
+        }
+        json joints = json::array();
+        for (const v1::Vector3& j : frame.joints_in_world_m()) joints.push_back(Vector3Json(j));
+        const v1::Vector3& t = pose.root_translation_m();
+        return send_json(json{
+            {"type", "frame"},
+            {"frame_index", frame.frame_index()},
+            {"sequence", event.sequence()},
+            {"stamp_ns", frame.stamp_ns()},
+            {"arrived_unix_ns", event.arrived_unix_ns()},
+            {"published_unix_ns", event.published_unix_ns()},
+            {"sent_unix_ns", WallNowNs()},
+            {"fit_ms", event.fit_ms()},
+            {"frames_skipped", event.frames_skipped()},
+            {"valid", pose.valid()},
+            {"root_position_m",
+             json::array({rest_root.x() + t.x(), rest_root.y() + t.y(), rest_root.z() + t.z()})},
+            {"local_rotations", std::move(rotations)},
+            {"joints_m", std::move(joints)},
+        });
+      }
+      case v1::FollowEvent::kEnd:
+        return true;  // Follow returns it.
+      default:
+        return true;
+    }
+  };
+  client::ConnectionOptions connection;
+  connection.timeout_s = options_.call_timeout_s;
+  const absl::StatusOr<v1::FollowEnd> end =
+      client::ReenactmentsClient(channel_for_(token), connection).Follow(job_id, on_event);
+  if (client_gone) return 1001;
+  if (!end.ok()) {
+    send_json(json{{"type", "error"},
+                   {"code", absl::StatusCodeToString(end.status().code())},
+                   {"message", std::string(end.status().message())}});
+    return 4000 + HttpStatusOf(end.status().code());
+  }
+  std::string reason = absl::AsciiStrToLower(v1::FollowEndReason_Name(end->reason()));
+  constexpr absl::string_view kPrefix = "follow_end_reason_";
+  if (absl::StartsWith(reason, kPrefix)) reason = reason.substr(kPrefix.size());
+  send_json(json{{"type", "end"},
+                 {"reason", reason},
+                 {"message", end->message()},
+                 {"frames_received", end->frames_received()},
+                 {"frames_followed", end->frames_followed()},
+                 {"frames_skipped", end->frames_skipped()},
+                 {"frames_unfitted", end->frames_unfitted()}});
+  return client_gone ? 1001 : 1000;
+}
+
+}  // namespace reenact::server::http

@@ -23,7 +23,8 @@ cd "$(dirname "$0")/.."
 
 all_targets=(fuzz_mcap_summary fuzz_mcap_recovery fuzz_depth_codec fuzz_mask_rle
              fuzz_frame_set_validation fuzz_bvh fuzz_asf_amc fuzz_makehuman_obj
-             fuzz_makehuman_json fuzz_reenactment_file fuzz_board_spec fuzz_intrinsics_file)
+             fuzz_makehuman_json fuzz_reenactment_file fuzz_board_spec fuzz_intrinsics_file
+             fuzz_web_request)
 
 usage() {
   sed -n '2,/^set -euo/p' "$0" | sed -e '$d' -e 's/^# \{0,1\}//' >&2

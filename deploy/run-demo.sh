@@ -10,7 +10,10 @@
 # statistical body model (thesis ch. 4), whose fitted skeleton is also
 # exported as BVH; last, a synthetic learner practises the kick in front of
 # reenact-mirror (thesis 4.5.1) with the body-model teacher, which writes the
-# mirror video and a repetition report. Outputs go to ./out/demo.
+# mirror video and a repetition report. The server also serves the tablet app
+# (--http): the demo prints its address, with a viewer token, and in a
+# terminal waits for Enter before it stops the server. Outputs go to
+# ./out/demo.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/setup-debian.sh
@@ -32,8 +35,11 @@ viewer=$bin/reenact-viewer
 # per role; the server speaks TLS only and every call needs a token. The
 # capture daemon ingests with the capture token, the coach runs the jobs and
 # the viewer and the mirror only read.
-rm -rf "$out/server" "$out/spool" "$out/server.port" "$out/tls"
-bash deploy/make-certs.sh "$out/tls"
+# The tablet app (reenact-server --http) is served to the local network too,
+# so the certificate also names this machine's first network address.
+rm -rf "$out/server" "$out/spool" "$out/server.port" "$out/http.port" "$out/tls"
+lan_ip=$(hostname -I 2>/dev/null | awk '{print $1}' || true)
+bash deploy/make-certs.sh "$out/tls" ${lan_ip:+"$lan_ip"}
 for role in capture coach viewer; do
   "$reenact" auth add --file "$out/tls/tokens.json" --role "$role" --name "demo-$role" \
     > "$out/tls/$role.token"
@@ -41,14 +47,20 @@ done
 chmod 600 "$out/tls/"*.token
 export REENACT_TLS_CA="$out/tls/ca.pem"
 coach=(--token-file "$out/tls/coach.token")
+# The tablet app's port: 8443 when it is free, else any.
+http_port=8443
+if (exec 3<> /dev/tcp/127.0.0.1/8443) 2> /dev/null; then http_port=0; fi
 "$bin/reenact-server" --data "$out/server" --listen 127.0.0.1:0 --port-file "$out/server.port" \
   --tls-cert "$out/tls/server.pem" --tls-key "$out/tls/server.key" \
-  --auth "$out/tls/tokens.json" 2> "$out/server.log" &
+  --auth "$out/tls/tokens.json" --http "0.0.0.0:$http_port" --http-port-file "$out/http.port" \
+  2> "$out/server.log" &
 server_pid=$!
 trap 'kill $server_pid 2> /dev/null || true' EXIT
-for _ in $(seq 100); do [ -s "$out/server.port" ] && break; sleep 0.1; done
+for _ in $(seq 100); do [ -s "$out/server.port" ] && [ -s "$out/http.port" ] && break; sleep 0.1; done
 server=$(cat "$out/server.port")
+http_port=$(sed 's/.*://' "$out/http.port")
 echo "demo: reenact-server listening on $server (data in $out/server)"
+echo "demo: the tablet app on https://127.0.0.1:$http_port/ (TLS and tokens, as gRPC)"
 
 # The daemon records the take from its sensors (here: the synthetic take
 # played back in real time) and exits once the server has all of it on disk.
@@ -134,6 +146,17 @@ rm -rf "$out/mirror" "$out/mirror-report"
   --teacher "$reenactment_id" --cache "$out/cache" \
   --learner-take "$out/learner.mcap" --dtw --render-to "$out/mirror" \
   --report "$out/mirror-report" --width 960 --height 540
+# The tablet: the app on this machine's address, the viewer token in the
+# address's fragment (the page keeps it and never sends it in a URL). The
+# tablet must trust the demo's CA first (install ca.pem as a CA certificate).
+viewer_token=$(cat "$out/tls/viewer.token")
+echo
+echo "demo: watch on a tablet on this network (trust $PWD/$out/tls/ca.pem on it first):"
+echo "demo:   https://${lan_ip:-127.0.0.1}:$http_port/#token=$viewer_token"
+echo "demo:   (on this machine: https://127.0.0.1:$http_port/#token=$viewer_token)"
+if [ -t 0 ] && [ -t 1 ]; then
+  read -r -p "demo: press Enter to stop reenact-server and finish " _ || true
+fi
 kill -TERM $server_pid && wait $server_pid || true
 trap - EXIT
 echo

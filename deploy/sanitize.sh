@@ -45,7 +45,7 @@ for arg in "$@"; do
 done
 
 # The test binaries (ninja targets) of each set. CI's sets are the core
-# libraries and the server's store, RPC and job tests (ASan + UBSan), and
+# libraries and the server's store, RPC, job and HTTP tests (ASan + UBSan), and
 # the server's store and job tests (TSan): two more builds of the core of
 # the tree, which a cold 2-core machine adds within CI's time. --full adds
 # the rest: the live hub, the reenactment store and the capture daemon,
@@ -53,7 +53,7 @@ done
 # fuzzing").
 asan_tests=(
   base_test geometry_test body_test io_test rpc_security_test server_store_test
-  server_rpc_test server_jobs_test)
+  server_rpc_test server_jobs_test server_http_test)
 asan_full_tests=(
   "${asan_tests[@]}"
   io_reenactment_test server_live_test server_reenactments_test capture_test

@@ -606,6 +606,18 @@ void BoardSeeds() {
        R"("cy": 174.97, "distortion": [0.1, -0.05, 0.001, 0.002, 0.01]})");
 }
 
+// What the tablet app sends: targets of the API and the app, and the Range
+// headers of a resumed glTF download.
+void WebRequestSeeds() {
+  Seed("fuzz_web_request", "list.txt", "/api/v1/reenactments?page_size=20&page_token=abc%3D\n");
+  Seed("fuzz_web_request", "glb-range.txt",
+       "/api/v1/reenactments/r-20261124-213130-2a6f/model.glb\nbytes=1000-");
+  Seed("fuzz_web_request", "suffix.txt", "/api/v1/reenactments/r-1/model.glb\nbytes=-500");
+  Seed("fuzz_web_request", "follow.txt", "/api/v1/jobs/j-1/follow?access_token=abc+def\n");
+  Seed("fuzz_web_request", "deep-link.txt",
+       "/?reenactment=r-1&t=1.5&paused=1&yaw=-90&mirror=1\nbytes=0-0,5-9");
+}
+
 }  // namespace
 }  // namespace reenact::fuzz
 
@@ -631,6 +643,7 @@ int main(int argc, char** argv) {
   MakeHumanSeeds();
   ReenactmentSeeds();
   BoardSeeds();
+  WebRequestSeeds();
   if (missing_files > 0) {
     std::fprintf(stderr, "make_seeds: %d real files missing\n", missing_files);
   }

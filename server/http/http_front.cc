@@ -34,6 +34,7 @@
 #include "common/base/status_macros.h"
 #include "common/log/log.h"
 #include "server/http/web_api.h"
+#include "server/http/web_request.h"
 
 namespace reenact::server::http {
 namespace {
@@ -286,14 +287,11 @@ void HttpFront::Impl::Session(Stream& stream, Connection& connection) {
     }
     bhttp::request<bhttp::empty_body> request = parser.release();
     if (websocket::is_upgrade(request)) {
-      const std::string target(request.target());
-      std::map<std::string, std::string> query;
-      const size_t question = target.find('?');
       std::string path;
-      const bool decoded = PercentDecode(absl::string_view(target).substr(0, question), &path) &&
-                           (question == std::string::npos ||
-                            ParseQuery(absl::string_view(target).substr(question + 1), &query));
-      const std::string job_id = decoded ? WebApi::FollowJobId(path) : "";
+      std::map<std::string, std::string> query;
+      const bool parsed = ParseTarget(
+          absl::string_view(request.target().data(), request.target().size()), &path, &query);
+      const std::string job_id = parsed ? WebApi::FollowJobId(path) : "";
       if (!job_id.empty()) {
         FollowSocket(stream, connection, request, job_id, TokenOf(request, query));
         return;
@@ -340,13 +338,9 @@ bhttp::response<bhttp::string_body> HttpFront::Impl::Respond(
     const bhttp::request<bhttp::empty_body>& request) {
   WebRequest web;
   web.method = std::string(request.method_string());
-  const std::string target(request.target());
-  const size_t question = target.find('?');
   WebResponse answer;
-  if (!PercentDecode(absl::string_view(target).substr(0, question), &web.path) ||
-      (question != std::string::npos &&
-       !ParseQuery(absl::string_view(target).substr(question + 1), &web.query)) ||
-      web.path.empty() || web.path.front() != '/') {
+  if (!ParseTarget(absl::string_view(request.target().data(), request.target().size()), &web.path,
+                   &web.query)) {
     answer = ErrorResponse(absl::InvalidArgumentError("the request target is malformed"));
   } else {
     web.token = TokenOf(request, web.query);

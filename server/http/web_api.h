@@ -68,12 +68,6 @@ struct WebResponse {
   std::vector<std::pair<std::string, std::string>> headers;
 };
 
-// Splits "a=1&b=x%20y" into decoded pairs; false when an escape is malformed.
-bool ParseQuery(absl::string_view query, std::map<std::string, std::string>* out);
-// Decodes %XX escapes (and nothing else); false when one is malformed or
-// decodes to a NUL.
-bool PercentDecode(absl::string_view in, std::string* out);
-
 // The HTTP status of a gRPC status code (see above).
 int HttpStatusOf(absl::StatusCode code);
 // The JSON error answer of `status`.

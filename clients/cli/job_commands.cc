@@ -20,6 +20,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "clients/cli/commands.h"
+#include "clients/cli/progress_bar.h"
 #include "clients/cli/remote_flags.h"
 #include "clients/sdk/jobs_client.h"
 #include "common/base/flags.h"
@@ -68,60 +69,46 @@ absl::StatusOr<std::string> JobIdArgument(const Flags& flags, const std::string&
   return absl::InvalidArgumentError(absl::StrCat(command, " needs exactly one job: --job ID"));
 }
 
-// One redrawn line on stderr: stage, bar, percentage, frames, ETA (the
-// server's estimate). Log lines, when shown, go above it.
+// The job's progress on stderr (ProgressLine: redrawn on a terminal, plain
+// lines otherwise): stage, bar, percentage, frames, ETA (the server's
+// estimate). Log lines, when shown, go above it.
 class JobProgressLine {
  public:
-  JobProgressLine(std::ostream& err, bool enabled) : err_(err), enabled_(enabled) {}
+  JobProgressLine(std::ostream& err, bool enabled)
+      : line_(err, enabled, ProgressLine::IsTerminal(err)), err_(err), enabled_(enabled) {}
 
   void Update(const v1::JobEvent& event, bool show_logs) {
     if (!enabled_) return;
     if (show_logs) {
       for (const std::string& line : event.log_lines()) {
-        EndLine();
+        line_.EndLine();
         err_ << "  " << line << "\n";
       }
     }
     const v1::Job& job = event.job();
     const v1::JobProgress& p = job.progress();
-    std::string text;
     if (job.state() == v1::JOB_STATE_QUEUED) {
-      text = absl::StrCat("job ", job.job_id(), " queued");
-    } else {
-      constexpr int kWidth = 30;
-      const double fraction = std::clamp(p.fraction(), 0.0, 1.0);
-      const int filled = static_cast<int>(fraction * kWidth + 0.5);
-      text = absl::StrFormat("%-12s [%s%s] %5.1f%%", p.stage().empty() ? "starting" : p.stage(),
-                             std::string(filled, '#'), std::string(kWidth - filled, '.'),
-                             fraction * 100.0);
-      if (p.frames_total() > 0) {
-        absl::StrAppend(&text,
-                        absl::StrFormat("  %d/%d frames", p.frames_done(), p.frames_total()));
-      } else if (p.frames_done() > 0) {  // A live job following its take.
-        absl::StrAppend(&text, absl::StrFormat("  %d frames", p.frames_done()));
-      }
-      if (job.state() == v1::JOB_STATE_RUNNING)
-        absl::StrAppend(&text, "  ETA ", Duration(p.eta_s()));
+      line_.Show("queued", 0.0, absl::StrCat("job ", job.job_id(), " queued"));
+      return;
     }
-    if (text == last_) return;
-    // Pad over a longer previous line.
-    const size_t width = std::max(text.size(), last_.size());
-    last_ = text;
-    text.resize(width, ' ');
-    err_ << "\r" << text << std::flush;
-    drawn_ = true;
+    const double fraction = std::clamp(p.fraction(), 0.0, 1.0);
+    const std::string stage = p.stage().empty() ? "starting" : p.stage();
+    std::string text =
+        absl::StrFormat("%-12s %s %5.1f%%", stage, BarText(fraction), fraction * 100.0);
+    if (p.frames_total() > 0) {
+      absl::StrAppend(&text, absl::StrFormat("  %d/%d frames", p.frames_done(), p.frames_total()));
+    } else if (p.frames_done() > 0) {  // A live job following its take.
+      absl::StrAppend(&text, absl::StrFormat("  %d frames", p.frames_done()));
+    }
+    if (job.state() == v1::JOB_STATE_RUNNING) absl::StrAppend(&text, "  ETA ", Duration(p.eta_s()));
+    line_.Show(stage, fraction, text);
   }
-  void EndLine() {
-    if (enabled_ && drawn_) err_ << "\n";
-    drawn_ = false;
-    last_.clear();
-  }
+  void EndLine() { line_.EndLine(); }
 
  private:
+  ProgressLine line_;
   std::ostream& err_;
   bool enabled_;
-  bool drawn_ = false;
-  std::string last_;
 };
 
 // Ends a waited-for job: exit 0 when it succeeded; the reason on stderr

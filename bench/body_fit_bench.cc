@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "common/body/procedural_body.h"
+#include "common/bodyfit/body_fit.h"
 #include "common/synth/synthesizer.h"
 #include "server/recon/body/body_cloud.h"
-#include "common/bodyfit/body_fit.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::bodyfit {

@@ -85,11 +85,21 @@ int Run(int argc, char** argv) {
   }
 
   const std::string out = work + "/bench.reen";
-  const std::vector<std::string> worker_argv = {
-      bin + "/reenact-worker", "--take",           source,      "--method",
-      method,                  "--options-json",   options_json.dump(), "--out",
-      out,                     "--reenactment-id", "r-bench",   "--take-id",
-      "bench",                 "--job-id",         "bench"};
+  const std::vector<std::string> worker_argv = {bin + "/reenact-worker",
+                                                "--take",
+                                                source,
+                                                "--method",
+                                                method,
+                                                "--options-json",
+                                                options_json.dump(),
+                                                "--out",
+                                                out,
+                                                "--reenactment-id",
+                                                "r-bench",
+                                                "--take-id",
+                                                "bench",
+                                                "--job-id",
+                                                "bench"};
   SubprocessOptions sub;
   sub.stdout_path = work + "/progress.jsonl";
   sub.stderr_path = work + "/worker.log";
@@ -106,8 +116,8 @@ int Run(int argc, char** argv) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!exit.ok() || !exit->exited || exit->exit_code != 0) {
     std::cerr << "recon_e2e: the worker failed ("
-              << (exit.ok() ? exit->ToString() : std::string(exit.status().message()))
-              << "); see " << sub.stderr_path << "\n";
+              << (exit.ok() ? exit->ToString() : std::string(exit.status().message())) << "); see "
+              << sub.stderr_path << "\n";
     return 1;
   }
   struct rusage usage {};

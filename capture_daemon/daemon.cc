@@ -971,8 +971,8 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
     j["frame_sets_sent"] = stats.uplink.frame_sets_sent;
     // Not "ok" when the take did not reach the server whole: why it stopped.
     j["uplink_error"] = stats.uplink.last_error;
-    j["uplink_ok"] = stats.uplink.done &&
-                     stats.durable_sequence == static_cast<uint64_t>(stats.frame_sets);
+    j["uplink_ok"] =
+        stats.uplink.done && stats.durable_sequence == static_cast<uint64_t>(stats.frame_sets);
   } else {
     j["take_id"] = "";
     j["frame_sets"] = 0;

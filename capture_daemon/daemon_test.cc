@@ -1,8 +1,8 @@
 #include "capture_daemon/daemon.h"
 
 #include <filesystem>
-#include <set>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -110,8 +110,8 @@ TEST(Daemon, ControlServiceStartsAndStopsTakes) {
   }
   ASSERT_FALSE(address.empty());
   address.pop_back();  // Newline.
-  auto stub = v1::CaptureControl::NewStub(
-      grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+  auto stub =
+      v1::CaptureControl::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
 
   v1::ListSensorsResponse sensors;
   {
@@ -340,14 +340,16 @@ TEST(Daemon, DrainTimeoutLeavesSpoolThenRestartDeliversIt) {
   const auto takes = server.service().takes();
   ASSERT_EQ(takes.size(), 1u);
   EXPECT_TRUE(takes.begin()->second.closed);
-  EXPECT_EQ(takes.begin()->second.sets.size(), testing::ReadDepth(testing::SyntheticTakePath()).at("k0").size());
+  EXPECT_EQ(takes.begin()->second.sets.size(),
+            testing::ReadDepth(testing::SyntheticTakePath()).at("k0").size());
   EXPECT_TRUE(ListUnfinishedTakes(options.spool_dir).empty());
 }
 
 TEST(ReenactdFlags, ConfigFileAndFlagsMerge) {
   const std::string dir = reenact::testing::MakeTempDir("reenactd_flags");
   const std::string config = dir + "/reenactd.conf";
-  std::ofstream(config) << R"({"server": "studio:50051", "source": ["playback:a.mcap", "freenect:all"],
+  std::ofstream(config)
+      << R"({"server": "studio:50051", "source": ["playback:a.mcap", "freenect:all"],
                                 "spool-max-mb": 64, "fast": true, "sync-tolerance-ms": 5})";
   auto options = ParseReenactdFlags({"--config", config, "--spool-max-mb", "128", "--spool", dir});
   ASSERT_TRUE(options.ok()) << options.status();
@@ -361,7 +363,8 @@ TEST(ReenactdFlags, ConfigFileAndFlagsMerge) {
   ASSERT_EQ(replaced->sources.size(), 1u);
   EXPECT_EQ(replaced->sources[0].backend, "openni2");
 
-  EXPECT_TRUE(absl::IsInvalidArgument(ParseReenactdFlags({"--source", "playback:x", "--bogus"}).status()));
+  EXPECT_TRUE(
+      absl::IsInvalidArgument(ParseReenactdFlags({"--source", "playback:x", "--bogus"}).status()));
   EXPECT_TRUE(absl::IsInvalidArgument(
       ParseReenactdFlags({"--source", "playback:x", "--segmentation", "maybe"}).status()));
   std::ofstream(config) << R"({"colour": 1})";
@@ -386,7 +389,8 @@ TEST(ReenactdFlags, ConfigFileAndFlagsMerge) {
   std::ostringstream out;
   std::ostringstream err;
   EXPECT_EQ(RunReenactd({"--server", "x:1"}, out, err), kExitUsage);
-  EXPECT_EQ(RunReenactd({"--source", "playback:/no/such.mcap", "--spool", dir, "--control", ""}, out, err),
+  EXPECT_EQ(RunReenactd({"--source", "playback:/no/such.mcap", "--spool", dir, "--control", ""},
+                        out, err),
             kExitFailure);
   EXPECT_NE(err.str().find("/no/such.mcap"), std::string::npos) << err.str();
 }

@@ -266,10 +266,18 @@ absl::Status Player::OnMessage(const McapChannel& channel, const McapMessage& me
   v1::Frame scratch;
   google::protobuf::Message* target = nullptr;
   switch (stream) {
-    case Stream::kDepth: target = scratch.mutable_depth(); break;
-    case Stream::kColor: target = scratch.mutable_color(); break;
-    case Stream::kMask: target = scratch.mutable_mask(); break;
-    case Stream::kSkeleton: target = scratch.add_skeletons(); break;
+    case Stream::kDepth:
+      target = scratch.mutable_depth();
+      break;
+    case Stream::kColor:
+      target = scratch.mutable_color();
+      break;
+    case Stream::kMask:
+      target = scratch.mutable_mask();
+      break;
+    case Stream::kSkeleton:
+      target = scratch.add_skeletons();
+      break;
   }
   if (!target->ParseFromString(message.data)) {
     return absl::DataLossError(absl::StrCat(path_, ": message on ", channel.topic, " at log time ",
@@ -277,10 +285,18 @@ absl::Status Player::OnMessage(const McapChannel& channel, const McapMessage& me
   }
   int64_t index = 0;
   switch (stream) {
-    case Stream::kDepth: index = scratch.depth().frame_index(); break;
-    case Stream::kColor: index = scratch.color().frame_index(); break;
-    case Stream::kMask: index = scratch.mask().frame_index(); break;
-    case Stream::kSkeleton: index = scratch.skeletons(0).frame_index(); break;
+    case Stream::kDepth:
+      index = scratch.depth().frame_index();
+      break;
+    case Stream::kColor:
+      index = scratch.color().frame_index();
+      break;
+    case Stream::kMask:
+      index = scratch.mask().frame_index();
+      break;
+    case Stream::kSkeleton:
+      index = scratch.skeletons(0).frame_index();
+      break;
   }
   if (slot.pending && slot.pending->source_index != index) {
     PendingFrame done = std::move(*slot.pending);
@@ -300,9 +316,15 @@ absl::Status Player::OnMessage(const McapChannel& channel, const McapMessage& me
       slot.pending->source_device_ns = scratch.depth().device_stamp_ns();
       frame.mutable_depth()->Swap(scratch.mutable_depth());
       break;
-    case Stream::kColor: frame.mutable_color()->Swap(scratch.mutable_color()); break;
-    case Stream::kMask: frame.mutable_mask()->Swap(scratch.mutable_mask()); break;
-    case Stream::kSkeleton: frame.add_skeletons()->Swap(scratch.mutable_skeletons(0)); break;
+    case Stream::kColor:
+      frame.mutable_color()->Swap(scratch.mutable_color());
+      break;
+    case Stream::kMask:
+      frame.mutable_mask()->Swap(scratch.mutable_mask());
+      break;
+    case Stream::kSkeleton:
+      frame.add_skeletons()->Swap(scratch.mutable_skeletons(0));
+      break;
   }
   // A sensor whose stream went quiet for two frame periods has no more
   // messages for its pending frame: hand it over now, so that a stream that
@@ -310,7 +332,8 @@ absl::Status Player::OnMessage(const McapChannel& channel, const McapMessage& me
   for (int other = 0; other < size(); ++other) {
     std::optional<PendingFrame>& waiting = slots_[other].pending;
     if (other != i && waiting &&
-        static_cast<int64_t>(message.log_time_ns) > waiting->source_host_ns + 2 * frame_period_ns_) {
+        static_cast<int64_t>(message.log_time_ns) >
+            waiting->source_host_ns + 2 * frame_period_ns_) {
       PendingFrame done = std::move(*waiting);
       waiting.reset();
       Deliver(other, std::move(done), loop);
@@ -365,7 +388,8 @@ void Player::Deliver(int i, PendingFrame pending, int64_t loop) {
   ++slot.frames_delivered;
   delivering_ = -1;
   cv_.notify_all();
-  const bool last = !options_.loop && slot.delivered_this_pass >= static_cast<int64_t>(slot.depth_messages);
+  const bool last =
+      !options_.loop && slot.delivered_this_pass >= static_cast<int64_t>(slot.depth_messages);
   lock.unlock();
   if (last) End(i, absl::OkStatus());
 }

@@ -53,7 +53,8 @@ struct Collector {
   }
   bool WaitEnded(size_t n, double seconds) {
     std::unique_lock<std::mutex> lock(mutex);
-    return cv.wait_for(lock, std::chrono::duration<double>(seconds), [&] { return ended.size() >= n; });
+    return cv.wait_for(lock, std::chrono::duration<double>(seconds),
+                       [&] { return ended.size() >= n; });
   }
   bool WaitFrames(size_t n, double seconds) {
     std::unique_lock<std::mutex> lock(mutex);

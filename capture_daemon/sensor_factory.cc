@@ -37,7 +37,8 @@ absl::StatusOr<SensorList> OpenOne(const SourceSpec& spec, int source_number,
     options.first_index = 0;
     return OpenPlaybackSensors(spec.argument, options);
   }
-  const std::string argument = spec.argument == "all" || spec.argument == "any" ? "" : spec.argument;
+  const std::string argument =
+      spec.argument == "all" || spec.argument == "any" ? "" : spec.argument;
   if (spec.backend == "freenect" || spec.backend == "freenect2") {
     options.id_prefix = "k";
     options.first_index = NextIndex(taken, "k");
@@ -62,8 +63,8 @@ absl::StatusOr<std::vector<SourceSpec>> ParseSourceSpecs(const std::vector<std::
       spec.argument = colon == absl::string_view::npos ? "" : std::string(item.substr(colon + 1));
       if (spec.backend == "playback") {
         if (spec.argument.empty()) {
-          return absl::InvalidArgumentError(
-              absl::StrCat("source \"", std::string(item), "\": playback needs a file (playback:FILE)"));
+          return absl::InvalidArgumentError(absl::StrCat(
+              "source \"", std::string(item), "\": playback needs a file (playback:FILE)"));
         }
       } else if (spec.backend == "freenect") {
         if (spec.argument.empty()) spec.argument = "all";
@@ -89,8 +90,8 @@ absl::StatusOr<SensorList> OpenSources(const std::vector<SourceSpec>& specs,
   for (size_t i = 0; i < specs.size(); ++i) {
     absl::StatusOr<SensorList> sensors = OpenOne(specs[i], static_cast<int>(i), taken, options);
     if (!sensors.ok()) {
-      return absl::Status(sensors.status().code(),
-                          absl::StrCat("source ", specs[i].ToString(), ": ", sensors.status().message()));
+      return absl::Status(sensors.status().code(), absl::StrCat("source ", specs[i].ToString(),
+                                                                ": ", sensors.status().message()));
     }
     for (auto& sensor : *sensors) {
       const std::string id = sensor->info().sensor_id();

@@ -58,7 +58,8 @@ std::string SegmentName(uint64_t first_sequence) {
 }
 
 absl::Status ErrnoStatus(const std::string& what, const std::string& path) {
-  return absl::UnavailableError(absl::StrCat("spool: ", what, " ", path, ": ", std::strerror(errno)));
+  return absl::UnavailableError(
+      absl::StrCat("spool: ", what, " ", path, ": ", std::strerror(errno)));
 }
 
 // Reads exactly `size` bytes at `offset`; false at end of file.
@@ -134,7 +135,9 @@ absl::Status Spool::Scan() {
     }
     if (digits) found.emplace_back(first, entry.path().string());
   }
-  if (ec) return absl::UnavailableError(absl::StrCat("spool: cannot list ", options_.dir, ": ", ec.message()));
+  if (ec)
+    return absl::UnavailableError(
+        absl::StrCat("spool: cannot list ", options_.dir, ": ", ec.message()));
   std::sort(found.begin(), found.end());
   recovery_.segments = static_cast<int64_t>(found.size());
   bool damaged = false;
@@ -193,13 +196,14 @@ absl::Status Spool::ScanSegment(Segment& segment, bool* damaged) {
       break;
     }
     payload.resize(length);
-    ASSIGN_OR_RETURN(full, PreadAll(segment.fd, payload.data(), length, offset + kHeaderBytes,
-                                    segment.path));
+    ASSIGN_OR_RETURN(
+        full, PreadAll(segment.fd, payload.data(), length, offset + kHeaderBytes, segment.path));
     if (!full || RecordCrc(header + 8, payload.data(), length) != crc) {
       why = "CRC mismatch";
       break;
     }
-    const uint64_t expected = records_.empty() ? segment.first_sequence : records_.back().sequence + 1;
+    const uint64_t expected =
+        records_.empty() ? segment.first_sequence : records_.back().sequence + 1;
     if (sequence != expected) {
       why = absl::StrCat("sequence ", sequence, " where ", expected, " was expected");
       break;
@@ -214,8 +218,8 @@ absl::Status Spool::ScanSegment(Segment& segment, bool* damaged) {
   if (offset < file_bytes) {
     *damaged = true;
     recovery_.cut_bytes += file_bytes - offset;
-    absl::StrAppend(&recovery_.detail, recovery_.detail.empty() ? "" : "; ", segment.path,
-                    ": cut ", file_bytes - offset, " bytes at offset ", offset, " (", why, ")");
+    absl::StrAppend(&recovery_.detail, recovery_.detail.empty() ? "" : "; ", segment.path, ": cut ",
+                    file_bytes - offset, " bytes at offset ", offset, " (", why, ")");
     if (::ftruncate(segment.fd, offset) != 0) return ErrnoStatus("cannot truncate", segment.path);
   }
   return absl::OkStatus();
@@ -228,8 +232,10 @@ absl::StatusOr<Spool::Segment*> Spool::SegmentForAppend(int64_t record_bytes) {
   }
   Segment segment;
   segment.first_sequence = last_sequence_ + 1;
-  segment.path = (std::filesystem::path(options_.dir) / SegmentName(segment.first_sequence)).string();
-  segment.fd = ::open(segment.path.c_str(), O_RDWR | O_APPEND | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  segment.path =
+      (std::filesystem::path(options_.dir) / SegmentName(segment.first_sequence)).string();
+  segment.fd =
+      ::open(segment.path.c_str(), O_RDWR | O_APPEND | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (segment.fd < 0) return ErrnoStatus("cannot create", segment.path);
   // The segment's name must survive a power loss with the frames in it.
   if (absl::Status synced = SyncDirectory(options_.dir); !synced.ok()) {
@@ -244,7 +250,8 @@ absl::Status Spool::Append(v1::FrameSet&& set, int64_t* record_bytes) {
   const uint64_t sequence = set.sequence();
   std::string record(kHeaderBytes, '\0');
   if (!set.AppendToString(&record)) {
-    return absl::InvalidArgumentError(absl::StrCat("spool: frame set ", sequence, " does not serialize"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("spool: frame set ", sequence, " does not serialize"));
   }
   const size_t payload_bytes = record.size() - kHeaderBytes;
   if (payload_bytes > kMaxPayloadBytes) {
@@ -254,14 +261,17 @@ absl::Status Spool::Append(v1::FrameSet&& set, int64_t* record_bytes) {
   PutU32(record.data(), kRecordMagic);
   PutU32(record.data() + 4, static_cast<uint32_t>(payload_bytes));
   PutU64(record.data() + 8, sequence);
-  PutU32(record.data() + 16, RecordCrc(record.data() + 8, record.data() + kHeaderBytes, payload_bytes));
+  PutU32(record.data() + 16,
+         RecordCrc(record.data() + 8, record.data() + kHeaderBytes, payload_bytes));
   const int64_t size = static_cast<int64_t>(record.size());
 
   std::lock_guard<std::mutex> lock(mutex_);
   const bool holds_records = !records_.empty();
-  if (holds_records ? sequence != last_sequence_ + 1 : sequence <= acked_sequence_ || sequence == 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "spool: frame set ", sequence, " does not follow ", holds_records ? last_sequence_ : acked_sequence_));
+  if (holds_records ? sequence != last_sequence_ + 1
+                    : sequence <= acked_sequence_ || sequence == 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("spool: frame set ", sequence, " does not follow ",
+                     holds_records ? last_sequence_ : acked_sequence_));
   }
   if (bytes_ + size > options_.max_bytes) {
     ++refused_;
@@ -271,10 +281,12 @@ absl::Status Spool::Append(v1::FrameSet&& set, int64_t* record_bytes) {
   }
   if (!holds_records) last_sequence_ = sequence - 1;
   ASSIGN_OR_RETURN(Segment * segment, SegmentForAppend(size));
-  if (absl::Status s = WriteAll(segment->fd, record.data(), record.size(), segment->path); !s.ok()) {
+  if (absl::Status s = WriteAll(segment->fd, record.data(), record.size(), segment->path);
+      !s.ok()) {
     // Leave the segment as it was: no torn record behind.
     if (::ftruncate(segment->fd, segment->bytes) != 0) {
-      return absl::DataLossError(absl::StrCat(s.message(), "; and the partial record could not be cut"));
+      return absl::DataLossError(
+          absl::StrCat(s.message(), "; and the partial record could not be cut"));
     }
     return s;
   }
@@ -411,7 +423,8 @@ absl::Status Spool::RemoveAll() {
   std::error_code ec;
   std::filesystem::remove_all(options_.dir, ec);
   if (ec) {
-    return absl::UnavailableError(absl::StrCat("spool: cannot remove ", options_.dir, ": ", ec.message()));
+    return absl::UnavailableError(
+        absl::StrCat("spool: cannot remove ", options_.dir, ": ", ec.message()));
   }
   return absl::OkStatus();
 }

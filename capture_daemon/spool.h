@@ -54,10 +54,10 @@ struct SpoolOptions {
 
 // What opening an existing folder found.
 struct SpoolRecovery {
-  int64_t segments = 0;       // Segment files found.
-  int64_t records = 0;        // Intact records kept.
-  int64_t cut_bytes = 0;      // Bytes cut off (torn or corrupt tails).
-  std::string detail;         // Where and why, empty when nothing was cut.
+  int64_t segments = 0;   // Segment files found.
+  int64_t records = 0;    // Intact records kept.
+  int64_t cut_bytes = 0;  // Bytes cut off (torn or corrupt tails).
+  std::string detail;     // Where and why, empty when nothing was cut.
 };
 
 class Spool {
@@ -132,7 +132,7 @@ class Spool {
   SpoolOptions options_;
   mutable std::mutex mutex_;
   std::map<uint64_t, Segment> segments_;  // By first sequence.
-  std::deque<RecordRef> records_;          // Held records, by sequence.
+  std::deque<RecordRef> records_;         // Held records, by sequence.
   std::map<uint64_t, v1::FrameSet> cache_;
   int64_t cache_bytes_ = 0;
   uint64_t last_sequence_ = 0;

@@ -39,7 +39,8 @@ std::vector<v1::Frame> Simulate(const std::vector<SimSensor>& sensors, int frame
   for (int f = 0; f < frames; ++f) {
     for (const SimSensor& s : sensors) {
       const int64_t exposure = start_ns + f * kPeriodNs + s.phase_ns;
-      out.push_back(MakeFrame(s.id, f, exposure - s.clock_offset_ns, exposure + latency_ns + jitter(rng)));
+      out.push_back(
+          MakeFrame(s.id, f, exposure - s.clock_offset_ns, exposure + latency_ns + jitter(rng)));
     }
   }
   std::stable_sort(out.begin(), out.end(), [](const v1::Frame& a, const v1::Frame& b) {

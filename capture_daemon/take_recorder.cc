@@ -184,9 +184,10 @@ absl::Status TakeRecorder::Add(v1::FrameSet set) {
   }
   // Keep only the take's sensors.
   auto* frames = set.mutable_frames();
-  frames->erase(std::remove_if(frames->begin(), frames->end(),
-                               [this](const v1::Frame& f) { return !sensor_ids_.count(f.sensor_id()); }),
-                frames->end());
+  frames->erase(
+      std::remove_if(frames->begin(), frames->end(),
+                     [this](const v1::Frame& f) { return !sensor_ids_.count(f.sensor_id()); }),
+      frames->end());
   auto* missing = set.mutable_missing_sensor_ids();
   missing->erase(std::remove_if(missing->begin(), missing->end(),
                                 [this](const std::string& id) { return !sensor_ids_.count(id); }),
@@ -204,7 +205,8 @@ absl::Status TakeRecorder::Add(v1::FrameSet set) {
     const absl::Status appended = spool_->Append(std::move(set), &record_bytes);
     if (appended.ok()) break;
     std::unique_lock<std::mutex> lock(mutex_);
-    if (!absl::IsResourceExhausted(appended) || !options_.wait_when_full || stopped_ || no_wait_ || aborted_) {
+    if (!absl::IsResourceExhausted(appended) || !options_.wait_when_full || stopped_ || no_wait_ ||
+        aborted_) {
       if (absl::IsResourceExhausted(appended)) ++refused_;
       return appended;
     }

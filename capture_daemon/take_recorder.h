@@ -47,12 +47,12 @@ struct TakeRecorderOptions {
 // Figures of one take.
 struct TakeStats {
   std::string take_id;
-  int64_t frame_sets = 0;               // Spooled (numbered) sets.
-  int64_t frame_sets_refused = 0;       // Refused because the spool was full.
+  int64_t frame_sets = 0;          // Spooled (numbered) sets.
+  int64_t frame_sets_refused = 0;  // Refused because the spool was full.
   std::map<std::string, int64_t> frames_per_sensor;
-  int64_t bytes_total = 0;              // Spool record bytes of all sets.
+  int64_t bytes_total = 0;  // Spool record bytes of all sets.
   uint64_t durable_sequence = 0;
-  int64_t acked_sets = 0;               // Sets whose latency was measured.
+  int64_t acked_sets = 0;  // Sets whose latency was measured.
   int64_t latency_p50_ns = 0;
   int64_t latency_p99_ns = 0;
   int64_t latency_max_ns = 0;

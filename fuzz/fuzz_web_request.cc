@@ -20,17 +20,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       newline == std::string_view::npos ? std::string_view() : bytes.substr(newline + 1);
   std::string path;
   std::map<std::string, std::string> query;
-  if (reenact::server::http::ParseTarget(absl::string_view(target.data(), target.size()), &path, &query)) {
+  if (reenact::server::http::ParseTarget(absl::string_view(target.data(), target.size()), &path,
+                                         &query)) {
     if (path.empty() || path.front() != '/') reenact::fuzz::Fail("a parsed path must start with /");
     if (path.find('\0') != std::string::npos) reenact::fuzz::Fail("a parsed path holds a NUL");
     if (path.size() > target.size()) reenact::fuzz::Fail("decoding grew the path");
   }
-  for (const int64_t resource : {int64_t{0}, int64_t{1}, static_cast<int64_t>(target.size()),
-                                 int64_t{1} << 40}) {
+  for (const int64_t resource :
+       {int64_t{0}, int64_t{1}, static_cast<int64_t>(target.size()), int64_t{1} << 40}) {
     int64_t first = -1, last = -1;
     bool ignore = false;
-    if (reenact::server::http::ParseByteRange(absl::string_view(range.data(), range.size()), resource,
-                                              &first, &last, &ignore)) {
+    if (reenact::server::http::ParseByteRange(absl::string_view(range.data(), range.size()),
+                                              resource, &first, &last, &ignore)) {
       if (ignore || first < 0 || first > last || last >= resource) {
         reenact::fuzz::Fail("a range outside the resource was accepted");
       }

@@ -1,5 +1,7 @@
 #include "server/server.h"
 
+#include "proto/state_names.h"
+
 #include <chrono>
 #include <filesystem>
 #include <map>
@@ -80,16 +82,6 @@ std::set<std::string, std::less<>> CountedMethods() {
   methods.insert("/grpc.health.v1.Health/Check");
   methods.insert("/grpc.health.v1.Health/Watch");
   return methods;
-}
-
-// "queued" for JOB_STATE_QUEUED.
-std::string JobStateLabel(v1::JobState state) {
-  std::string name = absl::AsciiStrToLower(v1::JobState_Name(state));
-  constexpr absl::string_view kPrefix = "job_state_";
-  if (absl::string_view(name).substr(0, kPrefix.size()) == kPrefix) {
-    name = name.substr(kPrefix.size());
-  }
-  return name;
 }
 
 }  // namespace
@@ -227,7 +219,7 @@ void Server::CollectMetrics(metrics::Snapshot& out) const {
         v1::JOB_STATE_CANCELLED}) {
     const auto it = counts.find(state);
     out.AddGauge("reenact_jobs", "Jobs in the job store, by state.",
-                 {{"state", JobStateLabel(state)}},
+                 {{"state", JobStateName(state)}},
                  it == counts.end() ? 0.0 : static_cast<double>(it->second));
   }
   const auto queued = counts.find(v1::JOB_STATE_QUEUED);

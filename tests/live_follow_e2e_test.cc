@@ -116,11 +116,11 @@ TEST_F(LiveFollowEndToEnd, LiveBodyJobFollowsATakeWhileItIsRecorded) {
   // looped into a 6 s take: the live job starts a worker process and builds
   // its model while the take records, which on a loaded 2-core machine can
   // take more than the 2.5 s of the source alone.
-  std::unique_ptr<Subprocess> daemon = StartCommand(
-      dir_, "reenactd",
-      {Bin("reenactd"), "--server", address_, "--source", "playback:" + source, "--loop",
-       "--max-seconds", "6", "--once", "--take-name", "live", "--spool", dir_ + "/spool",
-       "--control", "127.0.0.1:0"});
+  std::unique_ptr<Subprocess> daemon =
+      StartCommand(dir_, "reenactd",
+                   {Bin("reenactd"), "--server", address_, "--source", "playback:" + source,
+                    "--loop", "--max-seconds", "6", "--once", "--take-name", "live", "--spool",
+                    dir_ + "/spool", "--control", "127.0.0.1:0"});
   ASSERT_NE(daemon, nullptr);
   // The take id is the daemon's (time, name and a random suffix): found once
   // the take is open.

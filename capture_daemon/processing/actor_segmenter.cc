@@ -15,9 +15,9 @@ namespace reenact::capture {
 namespace {
 
 constexpr double kMaxFloorTiltDeg = 40.0;
-constexpr int kFloorStride = 4;               // Every 4th pixel in x and y.
-constexpr double kMinFloorFraction = 0.03;    // Of the sampled points.
-constexpr double kMinValidFraction = 0.2;     // Of the background frames.
+constexpr int kFloorStride = 4;             // Every 4th pixel in x and y.
+constexpr double kMinFloorFraction = 0.03;  // Of the sampled points.
+constexpr double kMinValidFraction = 0.2;   // Of the background frames.
 
 }  // namespace
 
@@ -25,7 +25,8 @@ absl::Status SegmenterOptions::Validate() const {
   if (!(background_seconds >= 0 && background_seconds <= 600)) {
     return absl::InvalidArgumentError("background_seconds must be in [0, 600]");
   }
-  if (max_background_frames < 1) return absl::InvalidArgumentError("max_background_frames must be >= 1");
+  if (max_background_frames < 1)
+    return absl::InvalidArgumentError("max_background_frames must be >= 1");
   if (!(background_percentile > 0 && background_percentile <= 1)) {
     return absl::InvalidArgumentError("background_percentile must be in (0, 1]");
   }
@@ -87,7 +88,8 @@ void ActorSegmenter::BuildBackground() {
   const size_t n = static_cast<size_t>(intrinsics_.width) * intrinsics_.height;
   background_mm_ = DepthImageMm(intrinsics_.width, intrinsics_.height);
   const size_t frames = samples_.size();
-  const size_t min_valid = std::max<size_t>(1, static_cast<size_t>(std::ceil(kMinValidFraction * frames)));
+  const size_t min_valid =
+      std::max<size_t>(1, static_cast<size_t>(std::ceil(kMinValidFraction * frames)));
   std::vector<uint16_t> values;
   values.reserve(frames);
   for (size_t i = 0; i < n && frames > 0; ++i) {
@@ -96,7 +98,8 @@ void ActorSegmenter::BuildBackground() {
       if (sample.data[i] != 0) values.push_back(sample.data[i]);
     }
     if (values.size() < min_valid) continue;
-    const size_t k = static_cast<size_t>(std::lround(options_.background_percentile * (values.size() - 1)));
+    const size_t k =
+        static_cast<size_t>(std::lround(options_.background_percentile * (values.size() - 1)));
     std::nth_element(values.begin(), values.begin() + k, values.end());
     background_mm_.data[i] = values[k];
   }
@@ -157,9 +160,9 @@ void ActorSegmenter::FitFloor(const DepthImageMm& depth_mm) {
 absl::StatusOr<MaskImage> ActorSegmenter::Segment(const DepthImageMm& depth_mm, int64_t stamp_ns) {
   if (depth_mm.width != intrinsics_.width || depth_mm.height != intrinsics_.height ||
       depth_mm.data.size() != depth_mm.num_pixels()) {
-    return absl::InvalidArgumentError(absl::StrCat("depth image of ", depth_mm.width, "x", depth_mm.height,
-                                                   " px; the segmenter expects ", intrinsics_.width, "x",
-                                                   intrinsics_.height));
+    return absl::InvalidArgumentError(absl::StrCat("depth image of ", depth_mm.width, "x",
+                                                   depth_mm.height, " px; the segmenter expects ",
+                                                   intrinsics_.width, "x", intrinsics_.height));
   }
   MaskImage mask(depth_mm.width, depth_mm.height);
   if (!started_) {
@@ -169,7 +172,8 @@ absl::StatusOr<MaskImage> ActorSegmenter::Segment(const DepthImageMm& depth_mm, 
   if (!ready_) {
     const double elapsed_s = (stamp_ns - first_stamp_ns_) * 1e-9;
     if (options_.background_seconds > 0 && elapsed_s < options_.background_seconds) {
-      if (static_cast<int>(samples_.size()) < options_.max_background_frames) samples_.push_back(depth_mm);
+      if (static_cast<int>(samples_.size()) < options_.max_background_frames)
+        samples_.push_back(depth_mm);
       return mask;
     }
     if (!samples_.empty()) BuildBackground();

@@ -23,8 +23,7 @@ absl::StatusOr<SensorList> OpenFreenectSensors(const std::string& device,
 
 // OpenNI2 devices (PrimeSense, Asus Xtion, Orbbec, Kinect through a driver).
 // `uri`: a device URI, or empty/"any" for the first device.
-absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri,
-                                              const SourceOptions& options);
+absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const SourceOptions& options);
 
 // Kinect v2 through libfreenect2, when it was found at build time.
 // `serial`: a serial, or empty/"any".

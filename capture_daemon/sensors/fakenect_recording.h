@@ -51,7 +51,8 @@ inline uint8_t ColorValue(int i, int x, int y, int c) {
   return static_cast<uint8_t>((x * (c + 1) + y * 3 + i * 17) & 0xff);
 }
 
-inline void WriteFile(const std::string& path, const std::string& header, const void* data, size_t size) {
+inline void WriteFile(const std::string& path, const std::string& header, const void* data,
+                      size_t size) {
   std::ofstream out(path, std::ios::binary);
   out << header;
   out.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));

@@ -52,8 +52,8 @@ std::vector<PairedFrame> DepthColorPairer::Flush() {
   return out;
 }
 
-CapturedFrame ToCapturedFrame(PairedFrame paired, const std::string& sensor_id,
-                              int64_t* next_index, v1::SensorInfo* info) {
+CapturedFrame ToCapturedFrame(PairedFrame paired, const std::string& sensor_id, int64_t* next_index,
+                              v1::SensorInfo* info) {
   CapturedFrame frame;
   frame.frame.set_sensor_id(sensor_id);
   frame.frame.set_device_stamp_ns(paired.device_stamp_ns);

@@ -30,8 +30,8 @@ struct PairedFrame {
 // *next_index (which is then incremented). Also keeps `info` current: its
 // frame count, and its clock offset as the smallest host - device offset
 // seen so far (the frame with the least transfer latency in it).
-CapturedFrame ToCapturedFrame(PairedFrame paired, const std::string& sensor_id,
-                              int64_t* next_index, v1::SensorInfo* info);
+CapturedFrame ToCapturedFrame(PairedFrame paired, const std::string& sensor_id, int64_t* next_index,
+                              v1::SensorInfo* info);
 
 // Not thread-safe; one per sensor, fed from its event thread.
 class DepthColorPairer {

@@ -27,9 +27,9 @@
 #include <utility>
 
 #include <libfreenect2/frame_listener_impl.h>
-#include <libfreenect2/libfreenect2.hpp>
 #include <libfreenect2/logger.h>
 #include <libfreenect2/packet_pipeline.h>
+#include <libfreenect2/libfreenect2.hpp>
 
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/backends.h"
@@ -97,7 +97,9 @@ v1::SensorCalibration CalibrationOf(libfreenect2::Freenect2Device* device, const
 class Freenect2Sensor : public Sensor {
  public:
   Freenect2Sensor(libfreenect2::Freenect2Device* device, v1::SensorInfo info)
-      : device_(device), sensor_id_(info.sensor_id()), info_(std::move(info)),
+      : device_(device),
+        sensor_id_(info.sensor_id()),
+        info_(std::move(info)),
         listener_(libfreenect2::Frame::Color | libfreenect2::Frame::Depth) {}
 
   ~Freenect2Sensor() override {
@@ -114,11 +116,13 @@ class Freenect2Sensor : public Sensor {
 
   absl::Status Start(FrameCallback on_frame, EndCallback on_end) override {
     std::lock_guard<std::mutex> lock(control_mutex_);
-    if (started_) return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
+    if (started_)
+      return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
     device_->setColorFrameListener(&listener_);
     device_->setIrAndDepthFrameListener(&listener_);
     if (!device_->start()) {
-      return absl::UnavailableError(absl::StrCat(sensor_id_, ": libfreenect2 could not start streaming"));
+      return absl::UnavailableError(
+          absl::StrCat(sensor_id_, ": libfreenect2 could not start streaming"));
     }
     on_frame_ = std::move(on_frame);
     on_end_ = std::move(on_end);
@@ -162,8 +166,8 @@ class Freenect2Sensor : public Sensor {
       libfreenect2::FrameMap frames;
       if (!listener_.waitForNewFrame(frames, 100)) {
         if (SteadyNowNs() - last_frame_ns > SecondsToNs(kStallTimeoutS)) {
-          why = absl::UnavailableError(absl::StrCat(
-              sensor_id_, ": no frame for ", kStallTimeoutS, " s; the Kinect v2 stopped streaming"));
+          why = absl::UnavailableError(absl::StrCat(sensor_id_, ": no frame for ", kStallTimeoutS,
+                                                    " s; the Kinect v2 stopped streaming"));
           break;
         }
         continue;
@@ -195,7 +199,8 @@ class Freenect2Sensor : public Sensor {
     const auto* values = reinterpret_cast<const float*>(depth->data);
     for (size_t i = 0; i < depth_mm.data.size(); ++i) {
       const float v = values[i];
-      depth_mm.data[i] = (std::isfinite(v) && v > 0 && v < 65535) ? static_cast<uint16_t>(std::lround(v)) : 0;
+      depth_mm.data[i] =
+          (std::isfinite(v) && v > 0 && v < 65535) ? static_cast<uint16_t>(std::lround(v)) : 0;
     }
     frame.depth_mm = std::move(depth_mm);
     if (color != nullptr && color->bytes_per_pixel == 4) {
@@ -241,19 +246,23 @@ class Freenect2Sensor : public Sensor {
 
 bool Freenect2Built() { return true; }
 
-absl::StatusOr<SensorList> OpenFreenect2Sensors(const std::string& serial, const SourceOptions& options) {
+absl::StatusOr<SensorList> OpenFreenect2Sensors(const std::string& serial,
+                                                const SourceOptions& options) {
   std::lock_guard<std::mutex> lock(ContextMutex());
   libfreenect2::Freenect2& context = Context();
   const int count = context.enumerateDevices();
   const bool any = serial.empty() || serial == "any";
   if (count <= 0) {
-    return absl::NotFoundError(absl::StrCat("no Kinect v2 found (looked for: ", any ? "any" : serial, ")"));
+    return absl::NotFoundError(
+        absl::StrCat("no Kinect v2 found (looked for: ", any ? "any" : serial, ")"));
   }
   std::string wanted = any ? context.getDefaultDeviceSerialNumber() : serial;
   bool known = false;
   for (int i = 0; i < count; ++i) known = known || context.getDeviceSerialNumber(i) == wanted;
-  if (!known) return absl::NotFoundError(absl::StrCat("no Kinect v2 found (looked for: ", serial, ")"));
-  libfreenect2::Freenect2Device* device = context.openDevice(wanted, new libfreenect2::CpuPacketPipeline());
+  if (!known)
+    return absl::NotFoundError(absl::StrCat("no Kinect v2 found (looked for: ", serial, ")"));
+  libfreenect2::Freenect2Device* device =
+      context.openDevice(wanted, new libfreenect2::CpuPacketPipeline());
   if (device == nullptr) {
     return absl::UnavailableError(absl::StrCat("libfreenect2 could not open Kinect v2 ", wanted));
   }

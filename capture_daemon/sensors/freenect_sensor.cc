@@ -15,8 +15,8 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Core>
 #include <libfreenect.h>
+#include <Eigen/Core>
 
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/backends.h"
@@ -196,7 +196,10 @@ std::optional<freenect_frame_mode> FindVideoMode(freenect_video_format format) {
 class FreenectSensor : public Sensor {
  public:
   FreenectSensor(ContextPtr ctx, freenect_device* device, v1::SensorInfo info)
-      : ctx_(std::move(ctx)), device_(device), sensor_id_(info.sensor_id()), info_(std::move(info)),
+      : ctx_(std::move(ctx)),
+        device_(device),
+        sensor_id_(info.sensor_id()),
+        info_(std::move(info)),
         pairer_(SecondsToNs(0.5 / kFps)) {}
 
   ~FreenectSensor() override {
@@ -313,9 +316,9 @@ class FreenectSensor : public Sensor {
       timeval timeout{0, 100'000};
       const int rc = freenect_process_events_timeout(ctx_.get(), &timeout);
       if (rc < 0) {
-        why = absl::UnavailableError(absl::StrCat(
-            sensor_id_, ": libfreenect stopped delivering events (error ", rc,
-            "): the Kinect was unplugged or the recording ended", LogSuffix()));
+        why = absl::UnavailableError(
+            absl::StrCat(sensor_id_, ": libfreenect stopped delivering events (error ", rc,
+                         "): the Kinect was unplugged or the recording ended", LogSuffix()));
         break;
       }
       if (SteadyNowNs() - last_depth_steady_ns_ > SecondsToNs(kFreenectStallTimeoutS)) {
@@ -355,8 +358,9 @@ class FreenectSensor : public Sensor {
 };
 
 bool IsIndex(const std::string& s) {
-  return !s.empty() && s.size() < 4 &&
-         std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+  return !s.empty() && s.size() < 4 && std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isdigit(static_cast<unsigned char>(c));
+  });
 }
 
 struct Target {
@@ -386,8 +390,8 @@ absl::StatusOr<std::vector<Target>> ResolveTargets(const std::string& device) {
     targets.push_back({index, serial_of(index)});
   } else {
     if (!serials.empty() && std::find(serials.begin(), serials.end(), device) == serials.end()) {
-      return absl::NotFoundError(absl::StrCat("no Kinect v1 with serial ", device,
-                                              " (looked for: ", looked_for, ")"));
+      return absl::NotFoundError(
+          absl::StrCat("no Kinect v1 with serial ", device, " (looked for: ", looked_for, ")"));
     }
     targets.push_back({-1, device});
   }
@@ -405,9 +409,9 @@ absl::StatusOr<SensorList> OpenFreenectSensors(const std::string& device,
     const Target& target = targets[k];
     ASSIGN_OR_RETURN(ContextPtr ctx, InitContext());
     freenect_device* dev = nullptr;
-    const int rc = target.index >= 0
-                       ? freenect_open_device(ctx.get(), &dev, target.index)
-                       : freenect_open_device_by_camera_serial(ctx.get(), &dev, target.serial.c_str());
+    const int rc = target.index >= 0 ? freenect_open_device(ctx.get(), &dev, target.index)
+                                     : freenect_open_device_by_camera_serial(ctx.get(), &dev,
+                                                                             target.serial.c_str());
     const std::string uri = target.index >= 0 ? absl::StrCat("freenect:", target.index)
                                               : absl::StrCat("freenect:serial:", target.serial);
     if (rc < 0 || dev == nullptr) {

@@ -84,7 +84,8 @@ TEST(OpenFreenectSensors, WithoutAKinectFailsCleanly) {
   EXPECT_TRUE(sensors.status().code() == absl::StatusCode::kNotFound ||
               sensors.status().code() == absl::StatusCode::kUnavailable)
       << sensors.status();
-  EXPECT_NE(sensors.status().message().find("Kinect v1"), std::string_view::npos) << sensors.status();
+  EXPECT_NE(sensors.status().message().find("Kinect v1"), std::string_view::npos)
+      << sensors.status();
 }
 
 // ---------------------------------------------------------------- fakenect
@@ -116,8 +117,8 @@ TEST(FreenectSensor, PlaysAFakenectRecording) {
   auto exit = (*child)->Wait(90);
   ASSERT_TRUE(exit.ok()) << exit.status();
   const std::vector<char> err = ReadAll(options.stderr_path);
-  ASSERT_TRUE(exit->exited && exit->exit_code == 0)
-      << exit->ToString() << "\n" << std::string(err.begin(), err.end());
+  ASSERT_TRUE(exit->exited && exit->exit_code == 0) << exit->ToString() << "\n"
+                                                    << std::string(err.begin(), err.end());
 
   std::ifstream summary(out + "/summary.txt");
   std::string line, word;
@@ -185,9 +186,10 @@ TEST(FreenectSensor, PlaysAFakenectRecording) {
     }
     EXPECT_EQ(mismatched, 0) << "frame " << i << ": colour of another frame?";
   }
-  std::printf("fakenect playback: %d frames, depth error within half a raw step + 1 mm "
-              "(worst margin left %.2f mm)\n",
-              kFrames, -worst_excess_mm);
+  std::printf(
+      "fakenect playback: %d frames, depth error within half a raw step + 1 mm "
+      "(worst margin left %.2f mm)\n",
+      kFrames, -worst_excess_mm);
 }
 
 }  // namespace

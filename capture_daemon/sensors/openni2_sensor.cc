@@ -87,9 +87,14 @@ CameraIntrinsics PinholeFromFov(int width, int height, double hfov_rad, double v
 class Openni2Sensor : public Sensor {
  public:
   Openni2Sensor(std::unique_ptr<openni::Device> device, std::unique_ptr<openni::VideoStream> depth,
-                std::unique_ptr<openni::VideoStream> color, bool depth_in_100um, v1::SensorInfo info)
-      : device_(std::move(device)), depth_(std::move(depth)), color_(std::move(color)),
-        depth_in_100um_(depth_in_100um), sensor_id_(info.sensor_id()), info_(std::move(info)),
+                std::unique_ptr<openni::VideoStream> color, bool depth_in_100um,
+                v1::SensorInfo info)
+      : device_(std::move(device)),
+        depth_(std::move(depth)),
+        color_(std::move(color)),
+        depth_in_100um_(depth_in_100um),
+        sensor_id_(info.sensor_id()),
+        info_(std::move(info)),
         pairer_(SecondsToNs(0.5 / std::max(1.0, info_.nominal_fps()))) {}
 
   ~Openni2Sensor() override {
@@ -106,7 +111,8 @@ class Openni2Sensor : public Sensor {
 
   absl::Status Start(FrameCallback on_frame, EndCallback on_end) override {
     std::lock_guard<std::mutex> lock(control_mutex_);
-    if (started_) return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
+    if (started_)
+      return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
     if (depth_->start() != openni::STATUS_OK) {
       return absl::UnavailableError(
           absl::StrCat(sensor_id_, ": cannot start the depth stream: ", ExtendedError()));
@@ -160,7 +166,8 @@ class Openni2Sensor : public Sensor {
       if (rc != openni::STATUS_OK || ready < 0 || ready >= count ||
           streams[ready]->readFrame(&frame) != openni::STATUS_OK || !frame.isValid()) {
         why = absl::UnavailableError(absl::StrCat(
-            sensor_id_, ": OpenNI2 stopped delivering frames (device unplugged?): ", ExtendedError()));
+            sensor_id_,
+            ": OpenNI2 stopped delivering frames (device unplugged?): ", ExtendedError()));
         break;
       }
       last_frame_ns = SteadyNowNs();
@@ -185,7 +192,8 @@ class Openni2Sensor : public Sensor {
     DepthImageMm depth(frame.getWidth(), frame.getHeight());
     const auto* base = static_cast<const uint8_t*>(frame.getData());
     for (int y = 0; y < depth.height; ++y) {
-      const auto* row = reinterpret_cast<const uint16_t*>(base + static_cast<size_t>(y) * frame.getStrideInBytes());
+      const auto* row = reinterpret_cast<const uint16_t*>(base + static_cast<size_t>(y) *
+                                                                     frame.getStrideInBytes());
       for (int x = 0; x < depth.width; ++x) {
         depth.at(x, y) = depth_in_100um_ ? static_cast<uint16_t>((row[x] + 5) / 10) : row[x];
       }
@@ -199,8 +207,8 @@ class Openni2Sensor : public Sensor {
     const auto* base = static_cast<const uint8_t*>(frame.getData());
     const size_t row_bytes = static_cast<size_t>(color.width) * 3;
     for (int y = 0; y < color.height; ++y) {
-      std::memcpy(&color.data[y * row_bytes], base + static_cast<size_t>(y) * frame.getStrideInBytes(),
-                  row_bytes);
+      std::memcpy(&color.data[y * row_bytes],
+                  base + static_cast<size_t>(y) * frame.getStrideInBytes(), row_bytes);
     }
     const int64_t device_ns = static_cast<int64_t>(frame.getTimestamp()) * 1000;
     Deliver(pairer_.AddColor(std::move(color), device_ns));
@@ -240,11 +248,13 @@ absl::StatusOr<std::unique_ptr<openni::VideoStream>> CreateStream(openni::Device
                                                                   const openni::VideoMode& mode) {
   auto stream = std::make_unique<openni::VideoStream>();
   if (stream->create(device, type) != openni::STATUS_OK) {
-    return absl::UnavailableError(absl::StrCat("cannot create an OpenNI2 stream: ", ExtendedError()));
+    return absl::UnavailableError(
+        absl::StrCat("cannot create an OpenNI2 stream: ", ExtendedError()));
   }
   if (stream->setVideoMode(mode) != openni::STATUS_OK) {
     stream->destroy();
-    return absl::UnavailableError(absl::StrCat("cannot set the OpenNI2 video mode: ", ExtendedError()));
+    return absl::UnavailableError(
+        absl::StrCat("cannot set the OpenNI2 video mode: ", ExtendedError()));
   }
   stream->setMirroringEnabled(false);
   return stream;
@@ -263,7 +273,8 @@ absl::StatusOr<std::vector<Openni2DeviceEntry>> ListOpenni2Devices() {
   return out;
 }
 
-absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const SourceOptions& options) {
+absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri,
+                                              const SourceOptions& options) {
   ASSIGN_OR_RETURN(std::vector<Openni2DeviceEntry> devices, ListOpenni2Devices());
   const bool any = uri.empty() || uri == "any";
   const std::string looked_for = any ? "any" : uri;
@@ -278,15 +289,16 @@ absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const Sour
   auto device = std::make_unique<openni::Device>();
   // A URI that is not enumerated may still open (an .oni recording).
   if (device->open(open_uri.c_str()) != openni::STATUS_OK) {
-    return absl::NotFoundError(absl::StrCat("no OpenNI2 device found (looked for: ", looked_for,
-                                            "): ", ExtendedError()));
+    return absl::NotFoundError(
+        absl::StrCat("no OpenNI2 device found (looked for: ", looked_for, "): ", ExtendedError()));
   }
   const openni::SensorInfo* depth_info = device->getSensorInfo(openni::SENSOR_DEPTH);
   if (depth_info == nullptr) {
     device->close();
     return absl::FailedPreconditionError(absl::StrCat(open_uri, " has no depth sensor"));
   }
-  std::optional<openni::VideoMode> depth_mode = PickMode(*depth_info, openni::PIXEL_FORMAT_DEPTH_1_MM);
+  std::optional<openni::VideoMode> depth_mode =
+      PickMode(*depth_info, openni::PIXEL_FORMAT_DEPTH_1_MM);
   const bool depth_in_100um = !depth_mode.has_value();
   if (!depth_mode) depth_mode = PickMode(*depth_info, openni::PIXEL_FORMAT_DEPTH_100_UM);
   if (!depth_mode) {
@@ -310,7 +322,8 @@ absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const Sour
     }
   }
   bool registered = false;
-  if (color && device->isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
+  if (color &&
+      device->isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
     device->setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
     registered = device->getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
   }
@@ -323,8 +336,8 @@ absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const Sour
     serial[0] = '\0';
   }
   const openni::DeviceInfo& device_info = device->getDeviceInfo();
-  const std::string id = absl::StrCat(options.id_prefix.empty() ? "o" : options.id_prefix,
-                                      options.first_index);
+  const std::string id =
+      absl::StrCat(options.id_prefix.empty() ? "o" : options.id_prefix, options.first_index);
   const int depth_w = depth_mode->getResolutionX(), depth_h = depth_mode->getResolutionY();
   CameraIntrinsics depth_k = PinholeFromFov(depth_w, depth_h, depth->getHorizontalFieldOfView(),
                                             depth->getVerticalFieldOfView());
@@ -370,8 +383,8 @@ absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const Sour
   c->set_nominal_fps(depth_mode->getFps());
 
   SensorList sensors;
-  sensors.push_back(std::make_unique<Openni2Sensor>(std::move(device), std::move(depth),
-                                                    std::move(color), depth_in_100um, std::move(info)));
+  sensors.push_back(std::make_unique<Openni2Sensor>(
+      std::move(device), std::move(depth), std::move(color), depth_in_100um, std::move(info)));
   return sensors;
 }
 

@@ -50,9 +50,7 @@ constexpr KnownUsbSensor kKnown[] = {
     {0x2bc5, 0x0407, "orbbec_astra", "Astra Mini S", "openni2"},
 };
 
-std::string LibusbError(int rc) {
-  return absl::StrCat(libusb_error_name(rc), " (", rc, ")");
-}
+std::string LibusbError(int rc) { return absl::StrCat(libusb_error_name(rc), " (", rc, ")"); }
 
 UsbDeviceEntry EntryOf(libusb_device* device) {
   UsbDeviceEntry entry;
@@ -79,7 +77,8 @@ std::vector<UsbDeviceEntry> ListDevices(libusb_context* ctx) {
   return entries;
 }
 
-UsbHotplugEvent MakeEvent(UsbHotplugKind kind, const UsbDeviceEntry& entry, const KnownUsbSensor& known) {
+UsbHotplugEvent MakeEvent(UsbHotplugKind kind, const UsbDeviceEntry& entry,
+                          const KnownUsbSensor& known) {
   UsbHotplugEvent event;
   event.kind = kind;
   event.vendor_id = entry.vendor_id;
@@ -114,7 +113,8 @@ class LibusbHotplugMonitor : public UsbHotplugMonitor {
           LIBUSB_HOTPLUG_MATCH_ANY, &LibusbHotplugMonitor::HotplugThunk, this, &handle_);
       if (rc != LIBUSB_SUCCESS) use_hotplug_ = false;  // Fall back to polling.
     }
-    thread_ = std::thread([this, initial = std::move(initial)]() mutable { Loop(std::move(initial)); });
+    thread_ =
+        std::thread([this, initial = std::move(initial)]() mutable { Loop(std::move(initial)); });
     return absl::OkStatus();
   }
 
@@ -161,7 +161,8 @@ class LibusbHotplugMonitor : public UsbHotplugMonitor {
       events = DiffUsbDeviceLists(present_, after);
       present_.clear();
       for (const auto& entry : after) {
-        if (LookupKnownUsbSensor(entry.vendor_id, entry.product_id) != nullptr) present_.push_back(entry);
+        if (LookupKnownUsbSensor(entry.vendor_id, entry.product_id) != nullptr)
+          present_.push_back(entry);
       }
     }
     if (callback_) {
@@ -175,7 +176,8 @@ class LibusbHotplugMonitor : public UsbHotplugMonitor {
     } else {
       std::lock_guard<std::mutex> lock(present_mutex_);
       for (const auto& entry : initial) {
-        if (LookupKnownUsbSensor(entry.vendor_id, entry.product_id) != nullptr) present_.push_back(entry);
+        if (LookupKnownUsbSensor(entry.vendor_id, entry.product_id) != nullptr)
+          present_.push_back(entry);
       }
     }
     while (true) {
@@ -228,7 +230,8 @@ std::string UsbIdString(uint16_t vendor_id, uint16_t product_id) {
 
 std::string UsbHotplugEvent::ToString() const {
   return absl::StrCat(kind == UsbHotplugKind::kArrived ? "arrived " : "left ", usb_id(), " ", model,
-                      " ", component, " on bus ", bus, " port ", port_path.empty() ? "-" : port_path);
+                      " ", component, " on bus ", bus, " port ",
+                      port_path.empty() ? "-" : port_path);
 }
 
 std::vector<UsbHotplugEvent> DiffUsbDeviceLists(const std::vector<UsbDeviceEntry>& before,

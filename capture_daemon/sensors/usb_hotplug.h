@@ -108,8 +108,8 @@ class UsbHotplugMonitor {
  public:
   // Starts the monitor thread. Unavailable (with the reason) when USB cannot
   // be watched here: no /dev/bus/usb, or libusb fails to initialise.
-  static absl::StatusOr<std::unique_ptr<UsbHotplugMonitor>> Start(UsbHotplugCallback callback,
-                                                                  const UsbHotplugOptions& options = {});
+  static absl::StatusOr<std::unique_ptr<UsbHotplugMonitor>> Start(
+      UsbHotplugCallback callback, const UsbHotplugOptions& options = {});
   // Stops and joins the thread.
   virtual ~UsbHotplugMonitor() = default;
   // Stops and joins the thread; idempotent. No callback runs afterwards.

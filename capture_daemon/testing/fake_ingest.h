@@ -30,8 +30,9 @@ struct FakeTake {
 
 class FakeIngestService final : public v1::Ingest::Service {
  public:
-  grpc::Status Ingest(grpc::ServerContext* context,
-                      grpc::ServerReaderWriter<v1::IngestResponse, v1::IngestRequest>* stream) override {
+  grpc::Status Ingest(
+      grpc::ServerContext* context,
+      grpc::ServerReaderWriter<v1::IngestResponse, v1::IngestRequest>* stream) override {
     v1::IngestRequest request;
     std::string take_id;
     uint64_t since_ack = 0;
@@ -132,7 +133,8 @@ class FakeIngestServer {
   }
   ~FakeIngestServer() { Shutdown(); }
   void Shutdown() {
-    if (server_) server_->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
+    if (server_)
+      server_->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
     server_.reset();
   }
   bool ok() const { return server_ != nullptr && port_ != 0; }

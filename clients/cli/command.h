@@ -17,8 +17,8 @@ constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
 
-using CommandFn = std::function<int(const std::vector<std::string>& args, std::ostream& out,
-                                    std::ostream& err)>;
+using CommandFn =
+    std::function<int(const std::vector<std::string>& args, std::ostream& out, std::ostream& err)>;
 
 struct Command {
   std::vector<std::string> path;  // e.g. {"motion", "info"}.

@@ -27,13 +27,17 @@ std::vector<std::string> ExpandBareBoardFlag(std::vector<std::string> args) {
 }  // namespace
 
 int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(ExpandBareBoardFlag(args),
-                            {"motion",       "asf",   "joint-map",   "metres-per-unit",
-                             "body",         "shape", "sensors",     "seconds",
-                             "fps",          "out",   "color-width", "color-height",
-                             "jpeg-quality", "seed",  "distance",    "yaw-deg",
-                             "lead-in-s",    "board", "board-x-m",   "board-z-m",
-                             "board-yaw-deg", "sensor-skeleton"},
+  auto flags = Flags::Parse(ExpandBareBoardFlag(args), {"motion",        "asf",
+                                                        "joint-map",     "metres-per-unit",
+                                                        "body",          "shape",
+                                                        "sensors",       "seconds",
+                                                        "fps",           "out",
+                                                        "color-width",   "color-height",
+                                                        "jpeg-quality",  "seed",
+                                                        "distance",      "yaw-deg",
+                                                        "lead-in-s",     "board",
+                                                        "board-x-m",     "board-z-m",
+                                                        "board-yaw-deg", "sensor-skeleton"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -90,10 +94,10 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   if (const std::string skeleton = flags->GetOr("sensor-skeleton", "none"); skeleton == "truth") {
     options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   } else if (skeleton != "none") {
-    return ReportError(absl::InvalidArgumentError(
-                           "--sensor-skeleton: none (the daemon tracks) or truth, not \"" +
-                           skeleton + "\""),
-                       err);
+    return ReportError(
+        absl::InvalidArgumentError("--sensor-skeleton: none (the daemon tracks) or truth, not \"" +
+                                   skeleton + "\""),
+        err);
   }
   options.ground_truth_mesh = !flags->Has("no-mesh");
   const bool json = flags->Has("json");

@@ -36,18 +36,20 @@ nlohmann::json TakeInfoJson(const std::string& path, const TakeReader& take) {
   j["frames"] = take.frame_count();
   j["duration_s"] = take.duration_ns() * 1e-9;
   for (const auto& [id, calibration] : take.sensors()) {
-    j["sensors"].push_back({{"id", id},
-                            {"model", calibration.model()},
-                            {"depth", {calibration.depth_intrinsics().width_px(),
-                                       calibration.depth_intrinsics().height_px()}},
-                            {"color", {calibration.color_intrinsics().width_px(),
-                                       calibration.color_intrinsics().height_px()}},
-                            {"clock_offset_ns", calibration.clock_offset_ns()},
-                            {"world_anchor", calibration.world_anchor()},
-                            {"world_anchor_rms_px", calibration.world_anchor_rms_px()}});
+    j["sensors"].push_back(
+        {{"id", id},
+         {"model", calibration.model()},
+         {"depth",
+          {calibration.depth_intrinsics().width_px(), calibration.depth_intrinsics().height_px()}},
+         {"color",
+          {calibration.color_intrinsics().width_px(), calibration.color_intrinsics().height_px()}},
+         {"clock_offset_ns", calibration.clock_offset_ns()},
+         {"world_anchor", calibration.world_anchor()},
+         {"world_anchor_rms_px", calibration.world_anchor_rms_px()}});
   }
   for (const TakeChannel& c : take.channels()) {
-    j["channels"].push_back({{"topic", c.topic}, {"type", c.message_type}, {"messages", c.message_count}});
+    j["channels"].push_back(
+        {{"topic", c.topic}, {"type", c.message_type}, {"messages", c.message_count}});
   }
   const McapReadReport& report = take.report();
   j["read"] = {{"indexed", report.indexed}, {"complete", report.complete}};
@@ -62,16 +64,18 @@ nlohmann::json TakeInfoJson(const std::string& path, const TakeReader& take) {
 
 void PrintTakeInfo(const nlohmann::json& j, std::ostream& out) {
   out << j["file"].get<std::string>() << "\n"
-      << "  name       " << j["name"].get<std::string>() << (j["synthetic"].get<bool>() ? " (synthetic)" : "")
-      << "\n  motion     " << j["motion"].get<std::string>() << "\n  body       "
-      << j["body_model"].get<std::string>() << "\n  frames     " << j["frames"] << " at "
-      << j["fps"] << " fps, " << j["duration_s"] << " s\n";
+      << "  name       " << j["name"].get<std::string>()
+      << (j["synthetic"].get<bool>() ? " (synthetic)" : "") << "\n  motion     "
+      << j["motion"].get<std::string>() << "\n  body       " << j["body_model"].get<std::string>()
+      << "\n  frames     " << j["frames"] << " at " << j["fps"] << " fps, " << j["duration_s"]
+      << " s\n";
   for (const auto& s : j.value("sensors", nlohmann::json::array())) {
     out << "  sensor     " << s["id"].get<std::string>() << " " << s["model"].get<std::string>()
         << " depth " << s["depth"][0] << "x" << s["depth"][1] << " colour " << s["color"][0] << "x"
         << s["color"][1];
     const std::string anchor = s.value("world_anchor", "");
-    if (!anchor.empty()) out << " world " << anchor << " (RMS " << s["world_anchor_rms_px"] << " px)";
+    if (!anchor.empty())
+      out << " world " << anchor << " (RMS " << s["world_anchor_rms_px"] << " px)";
     out << "\n";
   }
   for (const auto& c : j.value("channels", nlohmann::json::array())) {
@@ -121,8 +125,9 @@ void DrawSkeleton(cv::Mat* color, double scale, const v1::Skeleton& skeleton,
     const Eigen::Vector3d p = *color_from_depth * FromProto(joint.position_in_depth_m());
     auto pixel = intrinsics->Project(p);
     if (!pixel) continue;
-    pixels[joint.name()] = {cv::Point(static_cast<int>(pixel->x() * scale), static_cast<int>(pixel->y() * scale)),
-                            joint.tracking_state()};
+    pixels[joint.name()] = {
+        cv::Point(static_cast<int>(pixel->x() * scale), static_cast<int>(pixel->y() * scale)),
+        joint.tracking_state()};
   }
   for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
     const auto joint = static_cast<body::KinectV2Joint>(j);
@@ -134,7 +139,8 @@ void DrawSkeleton(cv::Mat* color, double scale, const v1::Skeleton& skeleton,
     cv::line(*color, a->second.first, b->second.first, cv::Scalar(255, 255, 255), 2, cv::LINE_AA);
   }
   for (const auto& [name, p] : pixels) {
-    const cv::Scalar colour = p.second == v1::TRACKING_STATE_TRACKED ? cv::Scalar(0, 220, 0) : cv::Scalar(0, 220, 255);
+    const cv::Scalar colour =
+        p.second == v1::TRACKING_STATE_TRACKED ? cv::Scalar(0, 220, 0) : cv::Scalar(0, 220, 255);
     cv::circle(*color, p.first, 4, colour, -1, cv::LINE_AA);
   }
 }
@@ -148,7 +154,8 @@ absl::Status CollectFrames(const TakeReader& take, const std::string& topic,
   });
 }
 
-absl::StatusOr<std::map<int64_t, SheetFrame>> LoadSheetFrames(const TakeReader& take, const std::string& id,
+absl::StatusOr<std::map<int64_t, SheetFrame>> LoadSheetFrames(const TakeReader& take,
+                                                              const std::string& id,
                                                               const std::set<int64_t>& wanted) {
   std::map<int64_t, v1::ColorImage> colors;
   std::map<int64_t, v1::DepthImage> depths;
@@ -189,11 +196,13 @@ cv::Mat SheetRow(const SheetFrame& frame, const v1::SensorCalibration& calibrati
   if (!frame.color.empty()) {
     cv::Mat color = FitHeight(frame.color, kCellHeight, cv::INTER_AREA);
     if (frame.has_skeleton) {
-      DrawSkeleton(&color, static_cast<double>(kCellHeight) / frame.color.rows, frame.skeleton, calibration);
+      DrawSkeleton(&color, static_cast<double>(kCellHeight) / frame.color.rows, frame.skeleton,
+                   calibration);
     }
     cells.push_back(color);
   }
-  if (!frame.depth_mm.empty()) cells.push_back(FitHeight(DepthColormap(frame.depth_mm), kCellHeight, cv::INTER_NEAREST));
+  if (!frame.depth_mm.empty())
+    cells.push_back(FitHeight(DepthColormap(frame.depth_mm), kCellHeight, cv::INTER_NEAREST));
   if (!frame.mask.empty()) {
     cv::Mat mask_bgr;
     cv::cvtColor(frame.mask * 255, mask_bgr, cv::COLOR_GRAY2BGR);
@@ -203,7 +212,8 @@ cv::Mat SheetRow(const SheetFrame& frame, const v1::SensorCalibration& calibrati
   cv::Mat row;
   cv::hconcat(cells, row);
   cv::putText(row, label, cv::Point(8, 24), cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(0, 0, 0), 4);
-  cv::putText(row, label, cv::Point(8, 24), cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(255, 255, 255), 2);
+  cv::putText(row, label, cv::Point(8, 24), cv::FONT_HERSHEY_SIMPLEX, 0.7,
+              cv::Scalar(255, 255, 255), 2);
   return row;
 }
 
@@ -221,13 +231,15 @@ absl::Status WriteSheet(const TakeReader& take, int num_frames, const std::strin
     for (const auto& [f, frame] : frames) {
       const double t = take.info().fps() > 0 ? f / take.info().fps() : 0.0;
       char label[96];
-      std::snprintf(label, sizeof(label), "%s  frame %lld  t=%.2fs", id.c_str(), static_cast<long long>(f), t);
+      std::snprintf(label, sizeof(label), "%s  frame %lld  t=%.2fs", id.c_str(),
+                    static_cast<long long>(f), t);
       rows.push_back(SheetRow(frame, calibration, label));
       width = std::max(width, rows.back().cols);
     }
   }
   for (cv::Mat& row : rows) {
-    if (row.cols < width) cv::copyMakeBorder(row, row, 0, 0, 0, width - row.cols, cv::BORDER_CONSTANT);
+    if (row.cols < width)
+      cv::copyMakeBorder(row, row, 0, 0, 0, width - row.cols, cv::BORDER_CONSTANT);
   }
   cv::Mat sheet;
   cv::vconcat(rows, sheet);
@@ -272,14 +284,16 @@ int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::o
   if (!out_path.ok()) return ReportError(out_path.status(), err);
   if (!frames.ok()) return ReportError(frames.status(), err);
   if (flags->positional().size() != 1 || *frames < 1 || *frames > 32) {
-    return ReportError(absl::InvalidArgumentError("take sheet needs one FILE and 1..32 --frames"), err);
+    return ReportError(absl::InvalidArgumentError("take sheet needs one FILE and 1..32 --frames"),
+                       err);
   }
   auto take = TakeReader::Open(flags->positional()[0]);
   if (!take.ok()) {
     ReportError(take.status(), err);
     return kExitFailure;
   }
-  if (auto status = WriteSheet(**take, *frames, *out_path); !status.ok()) return ReportError(status, err);
+  if (auto status = WriteSheet(**take, *frames, *out_path); !status.ok())
+    return ReportError(status, err);
   out << "wrote " << *out_path << "\n";
   return kExitOk;
 }

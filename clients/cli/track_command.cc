@@ -166,15 +166,14 @@ int RunTrack(const std::vector<std::string>& args, std::ostream& out, std::ostre
         << "\n";
     return kExitOk;
   }
-  out << people->size() << (people->size() == 1 ? " person" : " people") << " in " << *path
-      << "\n";
+  out << people->size() << (people->size() == 1 ? " person" : " people") << " in " << *path << "\n";
   for (const tracking::TrackedPerson& person : *people) {
     int tracked = 0;
     for (const auto& j : person.joints) tracked += j.state == tracking::JointState::kTracked;
     const Eigen::Vector3d& c = person.centroid_in_camera_m;
-    out << "person " << person.person_id << ": " << person.num_pixels << " px, centroid ("
-        << c.x() << ", " << c.y() << ", " << c.z() << ") m, " << tracked << "/"
-        << body::kNumKinectV2Joints << " joints tracked\n";
+    out << "person " << person.person_id << ": " << person.num_pixels << " px, centroid (" << c.x()
+        << ", " << c.y() << ", " << c.z() << ") m, " << tracked << "/" << body::kNumKinectV2Joints
+        << " joints tracked\n";
     for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
       const tracking::TrackedJoint& joint = person.joints[j];
       out << "  " << body::KinectV2JointName(static_cast<body::KinectV2Joint>(j)) << " ("

@@ -117,29 +117,9 @@ absl::StatusOr<v1::Job> JobsClient::Get(const std::string& job_id) const {
 absl::StatusOr<v1::JobState> ParseJobState(const std::string& name) {
   const std::string lower = absl::AsciiStrToLower(name);
   if (lower == "all" || lower.empty()) return v1::JOB_STATE_UNSPECIFIED;
-  for (v1::JobState state : {v1::JOB_STATE_QUEUED, v1::JOB_STATE_RUNNING, v1::JOB_STATE_SUCCEEDED,
-                             v1::JOB_STATE_FAILED, v1::JOB_STATE_CANCELLED}) {
-    if (lower == JobStateName(state)) return state;
-  }
+  if (const std::optional<v1::JobState> state = JobStateFromName(lower)) return *state;
   return absl::InvalidArgumentError(absl::StrCat(
       "unknown job state \"", name, "\" (queued, running, succeeded, failed, cancelled, all)"));
-}
-
-std::string JobStateName(v1::JobState state) {
-  switch (state) {
-    case v1::JOB_STATE_QUEUED:
-      return "queued";
-    case v1::JOB_STATE_RUNNING:
-      return "running";
-    case v1::JOB_STATE_SUCCEEDED:
-      return "succeeded";
-    case v1::JOB_STATE_FAILED:
-      return "failed";
-    case v1::JOB_STATE_CANCELLED:
-      return "cancelled";
-    default:
-      return "unspecified";
-  }
 }
 
 bool JobFinished(v1::JobState state) {

@@ -15,6 +15,7 @@
 
 #include "absl/status/statusor.h"
 #include "clients/sdk/takes_client.h"
+#include "proto/state_names.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 
 namespace reenact::client {
@@ -56,8 +57,8 @@ class JobsClient {
 // "queued", "running", "succeeded", "failed", "cancelled" (any case; "all"
 // is UNSPECIFIED) -> the state; InvalidArgument for anything else.
 absl::StatusOr<v1::JobState> ParseJobState(const std::string& name);
-// "queued", ..., "cancelled"; "unspecified" otherwise.
-std::string JobStateName(v1::JobState state);
+// "queued", ... (proto/state_names.h).
+using ::reenact::JobStateName;
 // True for SUCCEEDED, FAILED and CANCELLED.
 bool JobFinished(v1::JobState state);
 

@@ -244,25 +244,10 @@ absl::Status CaptureClient::StreamFrames(
 
 absl::StatusOr<v1::TakeState> ParseTakeState(const std::string& name) {
   const std::string lower = absl::AsciiStrToLower(name);
-  if (lower == "recording") return v1::TAKE_STATE_RECORDING;
-  if (lower == "complete") return v1::TAKE_STATE_COMPLETE;
-  if (lower == "interrupted") return v1::TAKE_STATE_INTERRUPTED;
   if (lower == "all" || lower.empty()) return v1::TAKE_STATE_UNSPECIFIED;
+  if (const std::optional<v1::TakeState> state = TakeStateFromName(lower)) return *state;
   return absl::InvalidArgumentError(
       absl::StrCat("unknown take state '", name, "' (recording, complete, interrupted, all)"));
-}
-
-std::string TakeStateName(v1::TakeState state) {
-  switch (state) {
-    case v1::TAKE_STATE_RECORDING:
-      return "recording";
-    case v1::TAKE_STATE_COMPLETE:
-      return "complete";
-    case v1::TAKE_STATE_INTERRUPTED:
-      return "interrupted";
-    default:
-      return "unspecified";
-  }
 }
 
 }  // namespace reenact::client

@@ -16,6 +16,7 @@
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
 #include "common/rpc/channel.h"
+#include "proto/state_names.h"
 #include "reenact/v1/capture_control_service.grpc.pb.h"
 #include "reenact/v1/takes_service.grpc.pb.h"
 
@@ -110,7 +111,7 @@ class CaptureClient {
 // "RECORDING" -> TAKE_STATE_RECORDING etc. (case-insensitive);
 // InvalidArgument for anything else.
 absl::StatusOr<v1::TakeState> ParseTakeState(const std::string& name);
-// "recording", "complete", "interrupted", "unspecified".
-std::string TakeStateName(v1::TakeState state);
+// "recording", ... (proto/state_names.h).
+using ::reenact::TakeStateName;
 
 }  // namespace reenact::client

@@ -14,8 +14,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "clients/view/surface_distance.h"
 #include "common/base/status_macros.h"
+#include "common/geometry/surface_distance.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/proto_convert.h"
 #include "common/render/mesh_data.h"

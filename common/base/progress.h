@@ -8,8 +8,8 @@
 namespace reenact {
 
 struct Progress {
-  std::string stage;      // Short name of the current stage, e.g. "render".
-  double fraction = 0.0;  // 0..1 over the whole call.
+  std::string stage;        // Short name of the current stage, e.g. "render".
+  double fraction = 0.0;    // 0..1 over the whole call.
   int64_t items_done = 0;   // Frames (or other units) done so far.
   int64_t items_total = 0;  // Frames in all, 0 when unknown.
 };

@@ -9,9 +9,9 @@
 #define REENACT_CONCAT_(a, b) REENACT_CONCAT_INNER_(a, b)
 
 // Returns from the enclosing function when `expr` (an absl::Status) is not OK.
-#define RETURN_IF_ERROR(expr)                  \
-  do {                                         \
-    ::absl::Status _reenact_status = (expr);   \
+#define RETURN_IF_ERROR(expr)                          \
+  do {                                                 \
+    ::absl::Status _reenact_status = (expr);           \
     if (!_reenact_status.ok()) return _reenact_status; \
   } while (false)
 

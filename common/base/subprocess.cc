@@ -35,8 +35,8 @@ std::string ExitInfo::ToString() const {
   return absl::StrCat("killed by signal ", signal, " (", strsignal(signal), ")");
 }
 
-absl::StatusOr<std::unique_ptr<Subprocess>> Subprocess::Start(
-    const std::vector<std::string>& argv, const SubprocessOptions& options) {
+absl::StatusOr<std::unique_ptr<Subprocess>> Subprocess::Start(const std::vector<std::string>& argv,
+                                                              const SubprocessOptions& options) {
   if (argv.empty()) return absl::InvalidArgumentError("Subprocess::Start: empty argv");
   // Everything the child needs is prepared before fork: after fork only
   // async-signal-safe calls are allowed.

@@ -23,6 +23,8 @@ inline int64_t WallNowNs() {
 }
 
 inline double NsToSeconds(int64_t ns) { return static_cast<double>(ns) * 1e-9; }
-inline int64_t SecondsToNs(double s) { return static_cast<int64_t>(s * 1e9 + (s >= 0 ? 0.5 : -0.5)); }
+inline int64_t SecondsToNs(double s) {
+  return static_cast<int64_t>(s * 1e9 + (s >= 0 ? 0.5 : -0.5));
+}
 
 }  // namespace reenact

@@ -98,7 +98,9 @@ class BvhWriter {
     const Bone& bone = bones_[index];
     const std::string indent(static_cast<size_t>(2 * depth), ' ');
     const bool end_site = !bone.parent.empty() && bone.name == bone.parent + "_end";
-    text += indent + (depth == 0 ? "ROOT " + bone.name : end_site ? "End Site" : "JOINT " + bone.name);
+    text += indent + (depth == 0 ? "ROOT " + bone.name
+                      : end_site ? "End Site"
+                                 : "JOINT " + bone.name);
     const V offset = File(bone.at_cm - parent_at_cm);
     text += "\n" + indent + "{\n" + indent + "  OFFSET " + std::to_string(offset.x()) + " " +
             std::to_string(offset.y()) + " " + std::to_string(offset.z()) + "\n";
@@ -155,110 +157,108 @@ void ExpectFigure(const std::string& name, const std::vector<Bone>& bones, Joint
 // lShldr, lForeArm, lHand, lMid1-2, lThumb1-2; lButtock, lThigh, lShin,
 // lFoot and its end site (no toes).
 std::vector<Bone> DazPoserBones() {
-  return BothSides(
-      {{"hip", "", {0, 100, 0}},
-       {"abdomen", "hip", {0, 112, 0}},
-       {"chest", "abdomen", {0, 125, 0}},
-       {"neck", "chest", {0, 150, 0}},
-       {"head", "neck", {0, 160, 0}},
-       {"leftEye", "head", {3, 168, 8}},
-       {"leftEye_end", "leftEye", {4, 168, 8}}},
-      [](char side, double k) {
-        const std::string s(1, side == 'L' ? 'l' : 'r');
-        return std::vector<Bone>{
-            {s + "Collar", "chest", S(k, 3, 146, 0)},
-            {s + "Shldr", s + "Collar", S(k, 18, 146, 0)},
-            {s + "ForeArm", s + "Shldr", S(k, 46, 146, 0)},
-            {s + "Hand", s + "ForeArm", S(k, 72, 146, 0)},
-            {s + "Thumb1", s + "Hand", S(k, 75, 146, 3)},
-            {s + "Thumb2", s + "Thumb1", S(k, 78, 146, 5)},
-            {s + "Thumb2_end", s + "Thumb2", S(k, 80, 146, 6)},
-            {s + "Mid1", s + "Hand", S(k, 81, 146, 0)},
-            {s + "Mid2", s + "Mid1", S(k, 84.5, 146, 0)},
-            {s + "Mid2_end", s + "Mid2", S(k, 89, 146, 0)},
-            {s + "Buttock", "hip", S(k, 9, 104, 0)},
-            {s + "Thigh", s + "Buttock", S(k, 9, 95, 0)},
-            {s + "Shin", s + "Thigh", S(k, 9, 52, 0)},
-            {s + "Foot", s + "Shin", S(k, 9, 8, 0)},
-            {s + "Foot_end", s + "Foot", S(k, 9, 1, 12)},
-        };
-      });
+  return BothSides({{"hip", "", {0, 100, 0}},
+                    {"abdomen", "hip", {0, 112, 0}},
+                    {"chest", "abdomen", {0, 125, 0}},
+                    {"neck", "chest", {0, 150, 0}},
+                    {"head", "neck", {0, 160, 0}},
+                    {"leftEye", "head", {3, 168, 8}},
+                    {"leftEye_end", "leftEye", {4, 168, 8}}},
+                   [](char side, double k) {
+                     const std::string s(1, side == 'L' ? 'l' : 'r');
+                     return std::vector<Bone>{
+                         {s + "Collar", "chest", S(k, 3, 146, 0)},
+                         {s + "Shldr", s + "Collar", S(k, 18, 146, 0)},
+                         {s + "ForeArm", s + "Shldr", S(k, 46, 146, 0)},
+                         {s + "Hand", s + "ForeArm", S(k, 72, 146, 0)},
+                         {s + "Thumb1", s + "Hand", S(k, 75, 146, 3)},
+                         {s + "Thumb2", s + "Thumb1", S(k, 78, 146, 5)},
+                         {s + "Thumb2_end", s + "Thumb2", S(k, 80, 146, 6)},
+                         {s + "Mid1", s + "Hand", S(k, 81, 146, 0)},
+                         {s + "Mid2", s + "Mid1", S(k, 84.5, 146, 0)},
+                         {s + "Mid2_end", s + "Mid2", S(k, 89, 146, 0)},
+                         {s + "Buttock", "hip", S(k, 9, 104, 0)},
+                         {s + "Thigh", s + "Buttock", S(k, 9, 95, 0)},
+                         {s + "Shin", s + "Thigh", S(k, 9, 52, 0)},
+                         {s + "Foot", s + "Shin", S(k, 9, 8, 0)},
+                         {s + "Foot_end", s + "Foot", S(k, 9, 1, 12)},
+                     };
+                   });
 }
 
 // Daz Genesis 3/8: split torso, neck and limb bones (Bend then Twist),
 // carpals, three finger joints, metatarsals and toes.
 std::vector<Bone> DazGenesisBones() {
-  return BothSides(
-      {{"hip", "", {0, 100, 0}},
-       {"pelvis", "hip", {0, 98, 0}},
-       {"abdomenLower", "hip", {0, 104, 0}},
-       {"abdomenUpper", "abdomenLower", {0, 114, 0}},
-       {"chestLower", "abdomenUpper", {0, 125, 0}},
-       {"chestUpper", "chestLower", {0, 138, 0}},
-       {"neckLower", "chestUpper", {0, 150, 0}},
-       {"neckUpper", "neckLower", {0, 155, 0}},
-       {"head", "neckUpper", {0, 160, 0}}},
-      [](char side, double k) {
-        const std::string s(1, side == 'L' ? 'l' : 'r');
-        return std::vector<Bone>{
-            {s + "Collar", "chestUpper", S(k, 3, 146, 0)},
-            {s + "ShldrBend", s + "Collar", S(k, 18, 146, 0)},
-            {s + "ShldrTwist", s + "ShldrBend", S(k, 32, 146, 0)},
-            {s + "ForearmBend", s + "ShldrTwist", S(k, 46, 146, 0)},
-            {s + "ForearmTwist", s + "ForearmBend", S(k, 59, 146, 0)},
-            {s + "Hand", s + "ForearmTwist", S(k, 72, 146, 0)},
-            {s + "Thumb1", s + "Hand", S(k, 75, 146, 3)},
-            {s + "Thumb2", s + "Thumb1", S(k, 78, 146, 5)},
-            {s + "Thumb3", s + "Thumb2", S(k, 79, 146, 5.5)},
-            {s + "Thumb3_end", s + "Thumb3", S(k, 80, 146, 6)},
-            {s + "Carpal3", s + "Hand", S(k, 76, 146, 0)},
-            {s + "Mid1", s + "Carpal3", S(k, 81, 146, 0)},
-            {s + "Mid2", s + "Mid1", S(k, 84.5, 146, 0)},
-            {s + "Mid3", s + "Mid2", S(k, 87, 146, 0)},
-            {s + "Mid3_end", s + "Mid3", S(k, 89, 146, 0)},
-            {s + "ThighBend", "pelvis", S(k, 9, 95, 0)},
-            {s + "ThighTwist", s + "ThighBend", S(k, 9, 75, 0)},
-            {s + "Shin", s + "ThighTwist", S(k, 9, 52, 0)},
-            {s + "Foot", s + "Shin", S(k, 9, 8, 0)},
-            {s + "Metatarsals", s + "Foot", S(k, 9, 4, 6)},
-            {s + "Toe", s + "Metatarsals", S(k, 9, 1, 12)},
-            {s + "Toe_end", s + "Toe", S(k, 9, 0, 18)},
-        };
-      });
+  return BothSides({{"hip", "", {0, 100, 0}},
+                    {"pelvis", "hip", {0, 98, 0}},
+                    {"abdomenLower", "hip", {0, 104, 0}},
+                    {"abdomenUpper", "abdomenLower", {0, 114, 0}},
+                    {"chestLower", "abdomenUpper", {0, 125, 0}},
+                    {"chestUpper", "chestLower", {0, 138, 0}},
+                    {"neckLower", "chestUpper", {0, 150, 0}},
+                    {"neckUpper", "neckLower", {0, 155, 0}},
+                    {"head", "neckUpper", {0, 160, 0}}},
+                   [](char side, double k) {
+                     const std::string s(1, side == 'L' ? 'l' : 'r');
+                     return std::vector<Bone>{
+                         {s + "Collar", "chestUpper", S(k, 3, 146, 0)},
+                         {s + "ShldrBend", s + "Collar", S(k, 18, 146, 0)},
+                         {s + "ShldrTwist", s + "ShldrBend", S(k, 32, 146, 0)},
+                         {s + "ForearmBend", s + "ShldrTwist", S(k, 46, 146, 0)},
+                         {s + "ForearmTwist", s + "ForearmBend", S(k, 59, 146, 0)},
+                         {s + "Hand", s + "ForearmTwist", S(k, 72, 146, 0)},
+                         {s + "Thumb1", s + "Hand", S(k, 75, 146, 3)},
+                         {s + "Thumb2", s + "Thumb1", S(k, 78, 146, 5)},
+                         {s + "Thumb3", s + "Thumb2", S(k, 79, 146, 5.5)},
+                         {s + "Thumb3_end", s + "Thumb3", S(k, 80, 146, 6)},
+                         {s + "Carpal3", s + "Hand", S(k, 76, 146, 0)},
+                         {s + "Mid1", s + "Carpal3", S(k, 81, 146, 0)},
+                         {s + "Mid2", s + "Mid1", S(k, 84.5, 146, 0)},
+                         {s + "Mid3", s + "Mid2", S(k, 87, 146, 0)},
+                         {s + "Mid3_end", s + "Mid3", S(k, 89, 146, 0)},
+                         {s + "ThighBend", "pelvis", S(k, 9, 95, 0)},
+                         {s + "ThighTwist", s + "ThighBend", S(k, 9, 75, 0)},
+                         {s + "Shin", s + "ThighTwist", S(k, 9, 52, 0)},
+                         {s + "Foot", s + "Shin", S(k, 9, 8, 0)},
+                         {s + "Metatarsals", s + "Foot", S(k, 9, 4, 6)},
+                         {s + "Toe", s + "Metatarsals", S(k, 9, 1, 12)},
+                         {s + "Toe_end", s + "Toe", S(k, 9, 0, 18)},
+                     };
+                   });
 }
 
 // Mixamo, every name under the namespace `ns` ("mixamorig:" or none).
 std::vector<Bone> MixamoBones(const std::string& ns) {
-  std::vector<Bone> bones = BothSides(
-      {{"Hips", "", {0, 100, 0}},
-       {"Spine", "Hips", {0, 110, 0}},
-       {"Spine1", "Spine", {0, 125, 0}},
-       {"Spine2", "Spine1", {0, 138, 0}},
-       {"Neck", "Spine2", {0, 150, 0}},
-       {"Head", "Neck", {0, 160, 0}},
-       {"HeadTop_End", "Head", {0, 178, 0}}},
-      [](char side, double k) {
-        const std::string s = side == 'L' ? "Left" : "Right";
-        return std::vector<Bone>{
-            {s + "Shoulder", "Spine2", S(k, 3, 146, 0)},
-            {s + "Arm", s + "Shoulder", S(k, 18, 146, 0)},
-            {s + "ForeArm", s + "Arm", S(k, 46, 146, 0)},
-            {s + "Hand", s + "ForeArm", S(k, 72, 146, 0)},
-            {s + "HandThumb1", s + "Hand", S(k, 75, 146, 3)},
-            {s + "HandThumb2", s + "HandThumb1", S(k, 78, 146, 5)},
-            {s + "HandThumb3", s + "HandThumb2", S(k, 79, 146, 5.5)},
-            {s + "HandThumb4", s + "HandThumb3", S(k, 80, 146, 6)},
-            {s + "HandMiddle1", s + "Hand", S(k, 81, 146, 0)},
-            {s + "HandMiddle2", s + "HandMiddle1", S(k, 84.5, 146, 0)},
-            {s + "HandMiddle3", s + "HandMiddle2", S(k, 87, 146, 0)},
-            {s + "HandMiddle4", s + "HandMiddle3", S(k, 89, 146, 0)},
-            {s + "UpLeg", "Hips", S(k, 9, 95, 0)},
-            {s + "Leg", s + "UpLeg", S(k, 9, 52, 0)},
-            {s + "Foot", s + "Leg", S(k, 9, 8, 0)},
-            {s + "ToeBase", s + "Foot", S(k, 9, 1, 12)},
-            {s + "Toe_End", s + "ToeBase", S(k, 9, 0, 18)},
-        };
-      });
+  std::vector<Bone> bones =
+      BothSides({{"Hips", "", {0, 100, 0}},
+                 {"Spine", "Hips", {0, 110, 0}},
+                 {"Spine1", "Spine", {0, 125, 0}},
+                 {"Spine2", "Spine1", {0, 138, 0}},
+                 {"Neck", "Spine2", {0, 150, 0}},
+                 {"Head", "Neck", {0, 160, 0}},
+                 {"HeadTop_End", "Head", {0, 178, 0}}},
+                [](char side, double k) {
+                  const std::string s = side == 'L' ? "Left" : "Right";
+                  return std::vector<Bone>{
+                      {s + "Shoulder", "Spine2", S(k, 3, 146, 0)},
+                      {s + "Arm", s + "Shoulder", S(k, 18, 146, 0)},
+                      {s + "ForeArm", s + "Arm", S(k, 46, 146, 0)},
+                      {s + "Hand", s + "ForeArm", S(k, 72, 146, 0)},
+                      {s + "HandThumb1", s + "Hand", S(k, 75, 146, 3)},
+                      {s + "HandThumb2", s + "HandThumb1", S(k, 78, 146, 5)},
+                      {s + "HandThumb3", s + "HandThumb2", S(k, 79, 146, 5.5)},
+                      {s + "HandThumb4", s + "HandThumb3", S(k, 80, 146, 6)},
+                      {s + "HandMiddle1", s + "Hand", S(k, 81, 146, 0)},
+                      {s + "HandMiddle2", s + "HandMiddle1", S(k, 84.5, 146, 0)},
+                      {s + "HandMiddle3", s + "HandMiddle2", S(k, 87, 146, 0)},
+                      {s + "HandMiddle4", s + "HandMiddle3", S(k, 89, 146, 0)},
+                      {s + "UpLeg", "Hips", S(k, 9, 95, 0)},
+                      {s + "Leg", s + "UpLeg", S(k, 9, 52, 0)},
+                      {s + "Foot", s + "Leg", S(k, 9, 8, 0)},
+                      {s + "ToeBase", s + "Foot", S(k, 9, 1, 12)},
+                      {s + "Toe_End", s + "ToeBase", S(k, 9, 0, 18)},
+                  };
+                });
   for (Bone& bone : bones) {
     bone.name = ns + bone.name;
     if (!bone.parent.empty()) bone.parent = ns + bone.parent;
@@ -270,44 +270,43 @@ std::vector<Bone> MixamoBones(const std::string& ns) {
 // body, spine05 at the pelvis, neck01-03, clavicle, shoulder01, upperarm01-02,
 // lowerarm01-02, wrist, metacarpals, fingers, pelvis.L, upperleg01-02, ...).
 std::vector<Bone> MakeHumanBones() {
-  return BothSides(
-      {{"root", "", {0, 100, -5}},
-       {"spine05", "root", {0, 100, 0}},
-       {"spine04", "spine05", {0, 108, 0}},
-       {"spine03", "spine04", {0, 116, 0}},
-       {"spine02", "spine03", {0, 125, 0}},
-       {"spine01", "spine02", {0, 138, 0}},
-       {"neck01", "spine01", {0, 150, 0}},
-       {"neck02", "neck01", {0, 155, 0}},
-       {"neck03", "neck02", {0, 157.5, 0}},
-       {"head", "neck03", {0, 160, 0}}},
-      [](char side, double k) {
-        const std::string s = side == 'L' ? ".L" : ".R";
-        return std::vector<Bone>{
-            {"clavicle" + s, "spine01", S(k, 3, 146, 0)},
-            {"shoulder01" + s, "clavicle" + s, S(k, 12, 146, 0)},
-            {"upperarm01" + s, "shoulder01" + s, S(k, 18, 146, 0)},
-            {"upperarm02" + s, "upperarm01" + s, S(k, 32, 146, 0)},
-            {"lowerarm01" + s, "upperarm02" + s, S(k, 46, 146, 0)},
-            {"lowerarm02" + s, "lowerarm01" + s, S(k, 59, 146, 0)},
-            {"wrist" + s, "lowerarm02" + s, S(k, 72, 146, 0)},
-            {"finger1-1" + s, "wrist" + s, S(k, 75, 146, 3)},
-            {"finger1-2" + s, "finger1-1" + s, S(k, 78, 146, 5)},
-            {"finger1-3" + s, "finger1-2" + s, S(k, 80, 146, 6)},
-            {"metacarpal2" + s, "wrist" + s, S(k, 76, 146, 0)},
-            {"finger3-1" + s, "metacarpal2" + s, S(k, 81, 146, 0)},
-            {"finger3-2" + s, "finger3-1" + s, S(k, 85, 146, 0)},
-            {"finger3-3" + s, "finger3-2" + s, S(k, 89, 146, 0)},
-            {"pelvis" + s, "root", S(k, 4, 100, 0)},
-            {"upperleg01" + s, "pelvis" + s, S(k, 9, 95, 0)},
-            {"upperleg02" + s, "upperleg01" + s, S(k, 9, 80, 0)},
-            {"lowerleg01" + s, "upperleg02" + s, S(k, 9, 52, 0)},
-            {"lowerleg02" + s, "lowerleg01" + s, S(k, 9, 30, 0)},
-            {"foot" + s, "lowerleg02" + s, S(k, 9, 8, 0)},
-            {"metatarsal3" + s, "foot" + s, S(k, 9, 4, 6)},
-            {"toe3-1" + s, "metatarsal3" + s, S(k, 9, 1, 12)},
-        };
-      });
+  return BothSides({{"root", "", {0, 100, -5}},
+                    {"spine05", "root", {0, 100, 0}},
+                    {"spine04", "spine05", {0, 108, 0}},
+                    {"spine03", "spine04", {0, 116, 0}},
+                    {"spine02", "spine03", {0, 125, 0}},
+                    {"spine01", "spine02", {0, 138, 0}},
+                    {"neck01", "spine01", {0, 150, 0}},
+                    {"neck02", "neck01", {0, 155, 0}},
+                    {"neck03", "neck02", {0, 157.5, 0}},
+                    {"head", "neck03", {0, 160, 0}}},
+                   [](char side, double k) {
+                     const std::string s = side == 'L' ? ".L" : ".R";
+                     return std::vector<Bone>{
+                         {"clavicle" + s, "spine01", S(k, 3, 146, 0)},
+                         {"shoulder01" + s, "clavicle" + s, S(k, 12, 146, 0)},
+                         {"upperarm01" + s, "shoulder01" + s, S(k, 18, 146, 0)},
+                         {"upperarm02" + s, "upperarm01" + s, S(k, 32, 146, 0)},
+                         {"lowerarm01" + s, "upperarm02" + s, S(k, 46, 146, 0)},
+                         {"lowerarm02" + s, "lowerarm01" + s, S(k, 59, 146, 0)},
+                         {"wrist" + s, "lowerarm02" + s, S(k, 72, 146, 0)},
+                         {"finger1-1" + s, "wrist" + s, S(k, 75, 146, 3)},
+                         {"finger1-2" + s, "finger1-1" + s, S(k, 78, 146, 5)},
+                         {"finger1-3" + s, "finger1-2" + s, S(k, 80, 146, 6)},
+                         {"metacarpal2" + s, "wrist" + s, S(k, 76, 146, 0)},
+                         {"finger3-1" + s, "metacarpal2" + s, S(k, 81, 146, 0)},
+                         {"finger3-2" + s, "finger3-1" + s, S(k, 85, 146, 0)},
+                         {"finger3-3" + s, "finger3-2" + s, S(k, 89, 146, 0)},
+                         {"pelvis" + s, "root", S(k, 4, 100, 0)},
+                         {"upperleg01" + s, "pelvis" + s, S(k, 9, 95, 0)},
+                         {"upperleg02" + s, "upperleg01" + s, S(k, 9, 80, 0)},
+                         {"lowerleg01" + s, "upperleg02" + s, S(k, 9, 52, 0)},
+                         {"lowerleg02" + s, "lowerleg01" + s, S(k, 9, 30, 0)},
+                         {"foot" + s, "lowerleg02" + s, S(k, 9, 8, 0)},
+                         {"metatarsal3" + s, "foot" + s, S(k, 9, 4, 6)},
+                         {"toe3-1" + s, "metatarsal3" + s, S(k, 9, 1, 12)},
+                     };
+                   });
 }
 
 // Rigify limbs, each bone named `prefix` + name ("DEF-" for a generated
@@ -348,42 +347,41 @@ std::vector<Bone> RigifyLimbs(char side, double k, const std::string& prefix,
 
 // Blender 2.8+ metarig: spine (the pelvis) to spine.006 (the head).
 std::vector<Bone> RigifyMetarigBones() {
-  return BothSides(
-      {{"spine", "", {0, 100, 0}},
-       {"spine.001", "spine", {0, 112, 0}},
-       {"spine.002", "spine.001", {0, 125, 0}},
-       {"spine.003", "spine.002", {0, 138, 0}},
-       {"spine.004", "spine.003", {0, 150, 0}},
-       {"spine.005", "spine.004", {0, 155, 0}},
-       {"spine.006", "spine.005", {0, 160, 0}},
-       {"spine.006_end", "spine.006", {0, 178, 0}}},
-      [](char side, double k) {
-        std::vector<Bone> bones = RigifyLimbs(side, k, "", "spine.003", "spine", false);
-        bones.push_back({std::string("pelvis") + (side == 'L' ? ".L" : ".R"), "spine",
-                         S(k, 4, 100, 0)});  // Not mapped.
-        return bones;
-      });
+  return BothSides({{"spine", "", {0, 100, 0}},
+                    {"spine.001", "spine", {0, 112, 0}},
+                    {"spine.002", "spine.001", {0, 125, 0}},
+                    {"spine.003", "spine.002", {0, 138, 0}},
+                    {"spine.004", "spine.003", {0, 150, 0}},
+                    {"spine.005", "spine.004", {0, 155, 0}},
+                    {"spine.006", "spine.005", {0, 160, 0}},
+                    {"spine.006_end", "spine.006", {0, 178, 0}}},
+                   [](char side, double k) {
+                     std::vector<Bone> bones =
+                         RigifyLimbs(side, k, "", "spine.003", "spine", false);
+                     bones.push_back({std::string("pelvis") + (side == 'L' ? ".L" : ".R"), "spine",
+                                      S(k, 4, 100, 0)});  // Not mapped.
+                     return bones;
+                   });
 }
 
 // A generated rig in the older hips/spine/chest/neck/head naming: deform
 // bones ("DEF-", split limbs) beside controls with plain names placed
 // elsewhere (behind the body), which must not be taken.
 std::vector<Bone> RigifyGeneratedBones() {
-  return BothSides(
-      {{"root", "", {0, 0, 0}},
-       {"hips", "root", {0, 110, -30}},
-       {"chest", "root", {0, 140, -30}},
-       {"neck", "root", {0, 150, -30}},
-       {"head", "root", {0, 170, -30}},
-       {"DEF-hips", "root", {0, 100, 0}},
-       {"DEF-spine", "DEF-hips", {0, 112, 0}},
-       {"DEF-chest", "DEF-spine", {0, 125, 0}},
-       {"DEF-neck", "DEF-chest", {0, 150, 0}},
-       {"DEF-head", "DEF-neck", {0, 160, 0}},
-       {"DEF-head_end", "DEF-head", {0, 178, 0}}},
-      [](char side, double k) {
-        return RigifyLimbs(side, k, "DEF-", "DEF-chest", "DEF-hips", true);
-      });
+  return BothSides({{"root", "", {0, 0, 0}},
+                    {"hips", "root", {0, 110, -30}},
+                    {"chest", "root", {0, 140, -30}},
+                    {"neck", "root", {0, 150, -30}},
+                    {"head", "root", {0, 170, -30}},
+                    {"DEF-hips", "root", {0, 100, 0}},
+                    {"DEF-spine", "DEF-hips", {0, 112, 0}},
+                    {"DEF-chest", "DEF-spine", {0, 125, 0}},
+                    {"DEF-neck", "DEF-chest", {0, 150, 0}},
+                    {"DEF-head", "DEF-neck", {0, 160, 0}},
+                    {"DEF-head_end", "DEF-head", {0, 178, 0}}},
+                   [](char side, double k) {
+                     return RigifyLimbs(side, k, "DEF-", "DEF-chest", "DEF-hips", true);
+                   });
 }
 
 TEST(BvhNaming, DazPoserAsInCmuDazReleaseIsRecognised) {
@@ -517,7 +515,8 @@ TEST(BvhNaming, JointMapMakesAnUnknownNamingReadable) {
   int mapped = 0;
   for (int j = 0; j < kNumKinectV2Joints; ++j) mapped += mapped_pose.valid[j] ? 1 : 0;
   EXPECT_EQ(mapped, 12);
-  EXPECT_LT((mapped_pose.position_m[Index(J::kShoulderLeft)] - V(0.18, 1.46, 0)).norm(), 0.01 * kMm);
+  EXPECT_LT((mapped_pose.position_m[Index(J::kShoulderLeft)] - V(0.18, 1.46, 0)).norm(),
+            0.01 * kMm);
 }
 
 TEST(MatchJointSet, LongNameListsAreCutAtForty) {
@@ -546,8 +545,9 @@ TEST(ParseJointMap, BadMapsAreClearErrors) {
       {R"("SpineBase")", "found JSON of type string"},
       {R"({"Pelvis": 3})", "'Pelvis' maps to JSON of type number"},
       {R"({"Pelvis": {"to": "SpineBase"}})", "'Pelvis' maps to JSON of type object"},
-      {R"({"Pelvis": "Pelvis"})", "'Pelvis' maps to 'Pelvis', not a Kinect v2 joint (one of "
-                                  "SpineBase, SpineMid,"},
+      {R"({"Pelvis": "Pelvis"})",
+       "'Pelvis' maps to 'Pelvis', not a Kinect v2 joint (one of "
+       "SpineBase, SpineMid,"},
       {R"({"Pelvis": "spinebase"})", "not a Kinect v2 joint"},
       {R"({"": "SpineBase"})", "an empty joint name"},
       {R"({"a": "Head", "b": "Head"})", "both 'a' and 'b' map to Head"},

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <charconv>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -27,7 +27,6 @@ namespace {
 // Largest MakeHuman file read (base.obj is 1.7 MB; targets and JSON are
 // smaller): a FIFO, a device or a runaway file is refused before it is read.
 constexpr uint64_t kMaxMakeHumanFileBytes = uint64_t{256} << 20;
-
 
 constexpr double kMetresPerDecimetre = 0.1;
 constexpr char kBodyGroup[] = "body";

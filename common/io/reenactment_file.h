@@ -32,8 +32,8 @@ inline constexpr std::string_view kReenactmentBodyMeshTopic = "/reenactment/body
 // A whole reenactment in memory.
 struct ReenactmentData {
   v1::ReenactmentInfo info;
-  std::vector<v1::PartMesh> parts;          // In part-id order.
-  std::vector<v1::PartFrame> frames;        // In frame order.
+  std::vector<v1::PartMesh> parts;    // In part-id order.
+  std::vector<v1::PartFrame> frames;  // In frame order.
   std::vector<v1::TextureKeyframe> keyframes;
   // Body-model reenactments: the skinned mesh (each frame then holds a
   // BodyPose). Empty (no message) for rigid-part reenactments.

@@ -18,28 +18,53 @@ using J = KinectV2Joint;
 // adult; proportions after Drillis and Contini's segment-length ratios.
 Eigen::Vector3d RestOffset(J joint) {
   switch (joint) {
-    case J::kSpineBase: return {0, 0.93, 0};
-    case J::kSpineMid: return {0, 0.21, 0};
-    case J::kSpineShoulder: return {0, 0.23, 0};
-    case J::kNeck: return {0, 0.07, 0};
-    case J::kHead: return {0, 0.15, 0.01};
-    case J::kShoulderLeft: return {0.18, -0.03, 0};
-    case J::kShoulderRight: return {-0.18, -0.03, 0};
-    case J::kElbowLeft: return {0.29, 0, 0};
-    case J::kElbowRight: return {-0.29, 0, 0};
-    case J::kWristLeft: return {0.25, 0, 0};
-    case J::kWristRight: return {-0.25, 0, 0};
-    case J::kHandLeft: return {0.08, 0, 0};
-    case J::kHandRight: return {-0.08, 0, 0};
-    case J::kHandTipLeft: return {0.09, 0, 0};
-    case J::kHandTipRight: return {-0.09, 0, 0};
-    case J::kThumbLeft: return {0.05, 0, 0.04};
-    case J::kThumbRight: return {-0.05, 0, 0.04};
-    case J::kHipLeft: return {0.09, -0.05, 0};
-    case J::kHipRight: return {-0.09, -0.05, 0};
-    case J::kKneeLeft: case J::kKneeRight: return {0, -0.43, 0};
-    case J::kAnkleLeft: case J::kAnkleRight: return {0, -0.40, 0};
-    case J::kFootLeft: case J::kFootRight: return {0, -0.05, 0.13};
+    case J::kSpineBase:
+      return {0, 0.93, 0};
+    case J::kSpineMid:
+      return {0, 0.21, 0};
+    case J::kSpineShoulder:
+      return {0, 0.23, 0};
+    case J::kNeck:
+      return {0, 0.07, 0};
+    case J::kHead:
+      return {0, 0.15, 0.01};
+    case J::kShoulderLeft:
+      return {0.18, -0.03, 0};
+    case J::kShoulderRight:
+      return {-0.18, -0.03, 0};
+    case J::kElbowLeft:
+      return {0.29, 0, 0};
+    case J::kElbowRight:
+      return {-0.29, 0, 0};
+    case J::kWristLeft:
+      return {0.25, 0, 0};
+    case J::kWristRight:
+      return {-0.25, 0, 0};
+    case J::kHandLeft:
+      return {0.08, 0, 0};
+    case J::kHandRight:
+      return {-0.08, 0, 0};
+    case J::kHandTipLeft:
+      return {0.09, 0, 0};
+    case J::kHandTipRight:
+      return {-0.09, 0, 0};
+    case J::kThumbLeft:
+      return {0.05, 0, 0.04};
+    case J::kThumbRight:
+      return {-0.05, 0, 0.04};
+    case J::kHipLeft:
+      return {0.09, -0.05, 0};
+    case J::kHipRight:
+      return {-0.09, -0.05, 0};
+    case J::kKneeLeft:
+    case J::kKneeRight:
+      return {0, -0.43, 0};
+    case J::kAnkleLeft:
+    case J::kAnkleRight:
+      return {0, -0.40, 0};
+    case J::kFootLeft:
+    case J::kFootRight:
+      return {0, -0.05, 0.13};
   }
   return {0, 0, 0};
 }
@@ -73,24 +98,29 @@ KeyPose ArmsDown(double deg, KeyPose extra = {}) {
 
 std::vector<Key> ArmRaiseKeys() {
   // Lateral raise: down, overhead, down; slow (8 s cycle).
-  return {{0.0, ArmsDown(78)}, {3.0, ArmsDown(-80)}, {4.0, ArmsDown(-80)},
-          {7.0, ArmsDown(78)}, {8.0, ArmsDown(78)}};
+  return {{0.0, ArmsDown(78)},
+          {3.0, ArmsDown(-80)},
+          {4.0, ArmsDown(-80)},
+          {7.0, ArmsDown(78)},
+          {8.0, ArmsDown(78)}};
 }
 
 std::vector<Key> SquatKeys() {
   KeyPose stand = ArmsDown(78);
   KeyPose low = {{J::kShoulderLeft, {0, -80, 0}}, {J::kShoulderRight, {0, 80, 0}},
-                 {J::kSpineMid, {25, 0, 0}},       {J::kHipLeft, {-95, 0, 4}},
-                 {J::kHipRight, {-95, 0, -4}},     {J::kKneeLeft, {105, 0, 0}},
-                 {J::kKneeRight, {105, 0, 0}},     {J::kAnkleLeft, {-15, 0, 0}},
+                 {J::kSpineMid, {25, 0, 0}},      {J::kHipLeft, {-95, 0, 4}},
+                 {J::kHipRight, {-95, 0, -4}},    {J::kKneeLeft, {105, 0, 0}},
+                 {J::kKneeRight, {105, 0, 0}},    {J::kAnkleLeft, {-15, 0, 0}},
                  {J::kAnkleRight, {-15, 0, 0}}};
   return {{0.0, stand}, {0.5, stand}, {2.0, low}, {2.5, low}, {4.0, stand}};
 }
 
 std::vector<Key> FrontKickKeys() {
   // Guard: upper arms down and forward, forearms up in front of the chest.
-  KeyPose guard = {{J::kShoulderLeft, {0, -20, -70}}, {J::kShoulderRight, {0, 20, 70}},
-                   {J::kElbowLeft, {0, -110, 0}},     {J::kElbowRight, {0, 110, 0}}};
+  KeyPose guard = {{J::kShoulderLeft, {0, -20, -70}},
+                   {J::kShoulderRight, {0, 20, 70}},
+                   {J::kElbowLeft, {0, -110, 0}},
+                   {J::kElbowRight, {0, 110, 0}}};
   KeyPose chamber = guard, extend = guard, land = guard;
   chamber[J::kHipRight] = {-85, 0, 0};
   chamber[J::kKneeRight] = {100, 0, 0};
@@ -101,8 +131,8 @@ std::vector<Key> FrontKickKeys() {
   extend[J::kSpineMid] = {-12, 0, 0};
   land[J::kHipRight] = {-20, 0, 0};
   land[J::kKneeRight] = {30, 0, 0};
-  return {{0.0, guard},   {0.6, guard},   {1.0, chamber}, {1.3, extend},
-          {1.6, chamber}, {2.0, land},    {2.4, guard},   {3.0, guard}};
+  return {{0.0, guard},   {0.6, guard}, {1.0, chamber}, {1.3, extend},
+          {1.6, chamber}, {2.0, land},  {2.4, guard},   {3.0, guard}};
 }
 
 std::vector<Key> KeysFor(std::string_view name) {
@@ -131,8 +161,9 @@ std::vector<std::string> BuiltinMotionNames() { return {"arm-raise", "squat", "f
 absl::StatusOr<body::Motion> MakeBuiltinMotion(std::string_view name, double seconds, double fps) {
   const std::vector<Key> keys = KeysFor(name);
   if (keys.empty()) {
-    return absl::NotFoundError(absl::StrCat("unknown built-in motion '", std::string(name),
-                                            "'; known: ", absl::StrJoin(BuiltinMotionNames(), ", ")));
+    return absl::NotFoundError(
+        absl::StrCat("unknown built-in motion '", std::string(name),
+                     "'; known: ", absl::StrJoin(BuiltinMotionNames(), ", ")));
   }
   if (!(seconds > 0) || !(fps > 0)) {
     return absl::InvalidArgumentError("built-in motion: seconds and fps must be positive");

@@ -44,7 +44,8 @@ const std::vector<Bone>& ClothingBones() {
   return bones;
 }
 
-double SegmentDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+double SegmentDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                       const Eigen::Vector3d& b) {
   const Eigen::Vector3d ab = b - a;
   const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
   return (p - (a + t * ab)).norm();
@@ -62,8 +63,8 @@ std::array<Eigen::Vector3d, body::kNumKinectV2Joints> RestJoints(const body::Bod
 ClothingRegion RefineRegion(ClothingRegion region, const Eigen::Vector3d& p,
                             const std::array<Eigen::Vector3d, body::kNumKinectV2Joints>& joints) {
   const double waist_y = joints[body::Index(J::kSpineBase)].y() + 0.04;
-  const double ankle_y = 0.5 * (joints[body::Index(J::kAnkleLeft)].y() +
-                                joints[body::Index(J::kAnkleRight)].y());
+  const double ankle_y =
+      0.5 * (joints[body::Index(J::kAnkleLeft)].y() + joints[body::Index(J::kAnkleRight)].y());
   if (region == ClothingRegion::kShirt && p.y() < waist_y) return ClothingRegion::kTrousers;
   if (region == ClothingRegion::kTrousers && p.y() < ankle_y + 0.02) return ClothingRegion::kShoe;
   if (region == ClothingRegion::kSkin) {
@@ -78,23 +79,30 @@ ClothingRegion RefineRegion(ClothingRegion region, const Eigen::Vector3d& p,
 // the rest position so that misplaced texture is visible.
 std::array<uint8_t, 3> RegionColor(ClothingRegion region, const Eigen::Vector3d& p) {
   switch (region) {
-    case ClothingRegion::kSkin: return {224, 172, 138};
-    case ClothingRegion::kHair: return {58, 38, 26};
+    case ClothingRegion::kSkin:
+      return {224, 172, 138};
+    case ClothingRegion::kHair:
+      return {58, 38, 26};
     case ClothingRegion::kShirt: {
       // 5 cm horizontal stripes, red and white, with a thin dark pinstripe.
       const double band = std::fmod(p.y() / 0.05 + 1000.0, 2.0);
       if (std::abs(band - 1.0) < 0.06) return {40, 40, 60};
-      return band < 1.0 ? std::array<uint8_t, 3>{200, 30, 40} : std::array<uint8_t, 3>{235, 235, 225};
+      return band < 1.0 ? std::array<uint8_t, 3>{200, 30, 40}
+                        : std::array<uint8_t, 3>{235, 235, 225};
     }
-    case ClothingRegion::kSleeve: return {20, 140, 140};
+    case ClothingRegion::kSleeve:
+      return {20, 140, 140};
     case ClothingRegion::kTrousers: {
       // Denim blue with a 4 cm diagonal check.
       const bool check = (static_cast<int>(std::floor((p.y() + p.x()) / 0.04)) +
-                          static_cast<int>(std::floor((p.y() - p.z()) / 0.04))) % 2 == 0;
+                          static_cast<int>(std::floor((p.y() - p.z()) / 0.04))) %
+                             2 ==
+                         0;
       return check ? std::array<uint8_t, 3>{40, 60, 120} : std::array<uint8_t, 3>{60, 85, 150};
     }
     case ClothingRegion::kShoe:
-      return p.y() < 0.02 ? std::array<uint8_t, 3>{230, 230, 230} : std::array<uint8_t, 3>{25, 25, 25};
+      return p.y() < 0.02 ? std::array<uint8_t, 3>{230, 230, 230}
+                          : std::array<uint8_t, 3>{25, 25, 25};
   }
   return {255, 0, 255};
 }
@@ -109,7 +117,8 @@ void Dilate(RgbImage* image, std::vector<uint8_t>* painted, int passes) {
         if ((*painted)[y * w + x]) continue;
         const int nx[4] = {x - 1, x + 1, x, x}, ny[4] = {y, y, y - 1, y + 1};
         for (int n = 0; n < 4; ++n) {
-          if (nx[n] < 0 || ny[n] < 0 || nx[n] >= w || ny[n] >= h || !(*painted)[ny[n] * w + nx[n]]) {
+          if (nx[n] < 0 || ny[n] < 0 || nx[n] >= w || ny[n] >= h ||
+              !(*painted)[ny[n] * w + nx[n]]) {
             continue;
           }
           for (int c = 0; c < 3; ++c) image->at(x, y, c) = image->at(nx[n], ny[n], c);
@@ -129,12 +138,14 @@ std::vector<ClothingRegion> ClassifyClothingRegions(const body::BodyModel& model
   std::vector<ClothingRegion> regions(model.triangles.size(), ClothingRegion::kSkin);
   for (size_t t = 0; t < model.triangles.size(); ++t) {
     const Eigen::Vector3i& tri = model.triangles[t];
-    const Eigen::Vector3d c = (model.template_vertices_m.col(tri[0]) +
-                               model.template_vertices_m.col(tri[1]) +
-                               model.template_vertices_m.col(tri[2])) / 3.0;
+    const Eigen::Vector3d c =
+        (model.template_vertices_m.col(tri[0]) + model.template_vertices_m.col(tri[1]) +
+         model.template_vertices_m.col(tri[2])) /
+        3.0;
     double best = 1e9;
     for (const Bone& bone : ClothingBones()) {
-      const double d = SegmentDistance(c, joints[body::Index(bone.from)], joints[body::Index(bone.to)]);
+      const double d =
+          SegmentDistance(c, joints[body::Index(bone.from)], joints[body::Index(bone.to)]);
       if (d < best) {
         best = d;
         regions[t] = bone.region;
@@ -157,18 +168,23 @@ RgbImage PaintClothingTexture(const body::BodyModel& model, int size) {
       const Eigen::Vector2f& q = model.uvs[uvt[k]];
       uv[k] = {q.x() * size - 0.5, (1.0 - q.y()) * size - 0.5};  // Texel centres.
     }
-    const double area = (uv[1] - uv[0]).x() * (uv[2] - uv[0]).y() -
-                        (uv[1] - uv[0]).y() * (uv[2] - uv[0]).x();
+    const double area =
+        (uv[1] - uv[0]).x() * (uv[2] - uv[0]).y() - (uv[1] - uv[0]).y() * (uv[2] - uv[0]).x();
     if (std::abs(area) < 1e-12) continue;
-    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({uv[0].x(), uv[1].x(), uv[2].x()}))));
-    const int x1 = std::min(size - 1, static_cast<int>(std::ceil(std::max({uv[0].x(), uv[1].x(), uv[2].x()}))));
-    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({uv[0].y(), uv[1].y(), uv[2].y()}))));
-    const int y1 = std::min(size - 1, static_cast<int>(std::ceil(std::max({uv[0].y(), uv[1].y(), uv[2].y()}))));
+    const int x0 =
+        std::max(0, static_cast<int>(std::floor(std::min({uv[0].x(), uv[1].x(), uv[2].x()}))));
+    const int x1 = std::min(
+        size - 1, static_cast<int>(std::ceil(std::max({uv[0].x(), uv[1].x(), uv[2].x()}))));
+    const int y0 =
+        std::max(0, static_cast<int>(std::floor(std::min({uv[0].y(), uv[1].y(), uv[2].y()}))));
+    const int y1 = std::min(
+        size - 1, static_cast<int>(std::ceil(std::max({uv[0].y(), uv[1].y(), uv[2].y()}))));
     for (int y = y0; y <= y1; ++y) {
       for (int x = x0; x <= x1; ++x) {
         const Eigen::Vector2d p(x, y);
         auto edge = [&](int a, int b) {
-          return ((uv[b] - uv[a]).x() * (p - uv[a]).y() - (uv[b] - uv[a]).y() * (p - uv[a]).x()) / area;
+          return ((uv[b] - uv[a]).x() * (p - uv[a]).y() - (uv[b] - uv[a]).y() * (p - uv[a]).x()) /
+                 area;
         };
         const double w0 = edge(1, 2), w1 = edge(2, 0), w2 = edge(0, 1);
         const double tolerance = -0.02;  // Slightly conservative, closes hairline gaps.

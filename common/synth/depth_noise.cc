@@ -35,8 +35,10 @@ double IncidenceAngle(const FloatImage& depth, const CameraIntrinsics& k, int x,
   const bool steep_y = ya == yb && (zd - z) * (z - zu) > 0;
   if (steep_x || steep_y) return kHalfPi;
   if (xa == xb || ya == yb) return -1.0;
-  const Eigen::Vector3d dx = PointAt(k, xa, y, depth.at(xa, y)) - PointAt(k, xb, y, depth.at(xb, y));
-  const Eigen::Vector3d dy = PointAt(k, x, ya, depth.at(x, ya)) - PointAt(k, x, yb, depth.at(x, yb));
+  const Eigen::Vector3d dx =
+      PointAt(k, xa, y, depth.at(xa, y)) - PointAt(k, xb, y, depth.at(xb, y));
+  const Eigen::Vector3d dy =
+      PointAt(k, x, ya, depth.at(x, ya)) - PointAt(k, x, yb, depth.at(x, yb));
   const Eigen::Vector3d n = dx.cross(dy);
   const Eigen::Vector3d ray = PointAt(k, x, y, z);
   if (n.norm() < 1e-12) return -1.0;
@@ -91,12 +93,12 @@ DepthImageMm ApplyKinectV2DepthNoise(const FloatImage& ideal, const CameraIntrin
   for (int y = 0; y < ideal.height; ++y) {
     for (int x = 0; x < ideal.width; ++x) {
       // Lateral noise: sample the scene at a jittered position.
-      const int sx = std::clamp(
-          x + static_cast<int>(std::lround(normal(rng) * options.sigma_lateral_px)), 0,
-          ideal.width - 1);
-      const int sy = std::clamp(
-          y + static_cast<int>(std::lround(normal(rng) * options.sigma_lateral_px)), 0,
-          ideal.height - 1);
+      const int sx =
+          std::clamp(x + static_cast<int>(std::lround(normal(rng) * options.sigma_lateral_px)), 0,
+                     ideal.width - 1);
+      const int sy =
+          std::clamp(y + static_cast<int>(std::lround(normal(rng) * options.sigma_lateral_px)), 0,
+                     ideal.height - 1);
       double z = ideal.at(sx, sy);
       if (z <= 0) continue;
       // Flying pixels: mix with the farthest 4-neighbour across a discontinuity.

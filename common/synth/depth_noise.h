@@ -23,14 +23,14 @@
 namespace reenact::synth {
 
 struct DepthNoiseOptions {
-  bool enabled = true;              // false: only quantise to mm and apply the range.
-  double min_range_m = 0.5;         // Kinect v2 operating range.
+  bool enabled = true;       // false: only quantise to mm and apply the range.
+  double min_range_m = 0.5;  // Kinect v2 operating range.
   double max_range_m = 4.5;
-  double max_incidence_deg = 80.0;  // Beyond this the return is too weak: invalid.
-  double sigma_lateral_px = 0.5;    // Lateral jitter of the sampling position.
-  double edge_jump_m = 0.05;        // A depth step above this is a discontinuity.
+  double max_incidence_deg = 80.0;        // Beyond this the return is too weak: invalid.
+  double sigma_lateral_px = 0.5;          // Lateral jitter of the sampling position.
+  double edge_jump_m = 0.05;              // A depth step above this is a discontinuity.
   double flying_pixel_probability = 0.5;  // Chance that an edge pixel mixes returns.
-  double axial_noise_scale = 1.0;   // Multiplies sigma_z (1 = the published model).
+  double axial_noise_scale = 1.0;         // Multiplies sigma_z (1 = the published model).
 
   absl::Status Validate() const;
 };

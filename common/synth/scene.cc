@@ -20,7 +20,8 @@ render::MeshData Quad(const Eigen::Vector3f& origin, const Eigen::Vector3f& u,
   const Eigen::Vector3f normal = u.cross(v).normalized();
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) {
-      const float a = static_cast<float>(i) / subdivisions, b = static_cast<float>(j) / subdivisions;
+      const float a = static_cast<float>(i) / subdivisions,
+                  b = static_cast<float>(j) / subdivisions;
       mesh.positions_m.col(j * n + i) = origin + a * u + b * v;
       mesh.uvs.col(j * n + i) = Eigen::Vector2f(a * u.norm() / tile_m, b * v.norm() / tile_m);
       mesh.normals.col(j * n + i) = normal;

@@ -28,7 +28,8 @@ absl::StatusOr<std::vector<VirtualSensor>> MakeSensorRig(const SensorRigOptions&
   std::mt19937_64 rng(options.seed);
   std::uniform_int_distribution<int64_t> offset_ms(-5000, 5000);
   std::uniform_real_distribution<double> phase(0.0, 0.3);
-  auto color = ScaledIntrinsics(KinectV2ColorIntrinsics(), options.color_width, options.color_height);
+  auto color =
+      ScaledIntrinsics(KinectV2ColorIntrinsics(), options.color_width, options.color_height);
   if (!color.ok()) return color.status();
   std::vector<VirtualSensor> sensors;
   for (int i = 0; i < options.num_sensors; ++i) {
@@ -37,14 +38,16 @@ absl::StatusOr<std::vector<VirtualSensor>> MakeSensorRig(const SensorRigOptions&
     s.depth_intrinsics = KinectV2DepthIntrinsics();
     s.color_intrinsics = *color;
     s.color_from_depth = KinectV2ColorFromDepth();
-    const double azimuth = (options.first_azimuth_deg + 360.0 * i / options.num_sensors) * M_PI / 180.0;
+    const double azimuth =
+        (options.first_azimuth_deg + 360.0 * i / options.num_sensors) * M_PI / 180.0;
     const Eigen::Vector3d position(options.distance_m * std::sin(azimuth), options.height_m,
                                    options.distance_m * std::cos(azimuth));
     // Camera axes (OpenCV): z towards the actor's vertical axis, tilted down;
     // y down; x = y cross z.
     const double pitch = options.pitch_down_deg * M_PI / 180.0;
     const Eigen::Vector3d toward(-std::sin(azimuth), 0.0, -std::cos(azimuth));
-    const Eigen::Vector3d z = (std::cos(pitch) * toward - std::sin(pitch) * Eigen::Vector3d::UnitY()).normalized();
+    const Eigen::Vector3d z =
+        (std::cos(pitch) * toward - std::sin(pitch) * Eigen::Vector3d::UnitY()).normalized();
     const Eigen::Vector3d x = (-Eigen::Vector3d::UnitY()).cross(z).normalized();
     const Eigen::Vector3d y = z.cross(x);
     Eigen::Matrix3d world_from_camera;

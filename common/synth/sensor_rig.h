@@ -15,15 +15,15 @@
 namespace reenact::synth {
 
 struct SensorRigOptions {
-  int num_sensors = 2;            // Sensors evenly spaced on a circle round the actor.
-  double distance_m = 2.5;        // Horizontal distance of each sensor from the actor.
-  double height_m = 1.0;          // Height of the depth camera above the floor.
-  double pitch_down_deg = 5.0;    // Downward tilt of the sensors.
-  double first_azimuth_deg = 0.0; // 0: the first sensor stands on +Z, seeing the front.
-  int color_width = 1920;         // Colour resolution (intrinsics scale with it).
+  int num_sensors = 2;             // Sensors evenly spaced on a circle round the actor.
+  double distance_m = 2.5;         // Horizontal distance of each sensor from the actor.
+  double height_m = 1.0;           // Height of the depth camera above the floor.
+  double pitch_down_deg = 5.0;     // Downward tilt of the sensors.
+  double first_azimuth_deg = 0.0;  // 0: the first sensor stands on +Z, seeing the front.
+  int color_width = 1920;          // Colour resolution (intrinsics scale with it).
   int color_height = 1080;
   double fps = 30.0;
-  uint64_t seed = 1;              // Draws each sensor's clock offset.
+  uint64_t seed = 1;  // Draws each sensor's clock offset.
 
   absl::Status Validate() const;
 };

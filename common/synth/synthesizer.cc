@@ -621,8 +621,7 @@ absl::Status WriteTopology(TakeWriter* writer, const body::BodyModel& model, con
   return writer->WriteGroundTruthTopology(topology);
 }
 
-absl::Status WriteSensorMessages(TakeWriter* writer, const SensorMessages& m,
-                                 bool with_skeleton) {
+absl::Status WriteSensorMessages(TakeWriter* writer, const SensorMessages& m, bool with_skeleton) {
   RETURN_IF_ERROR(writer->WriteDepth(m.depth));
   RETURN_IF_ERROR(writer->WriteColor(m.color));
   RETURN_IF_ERROR(writer->WriteMask(m.mask));
@@ -675,8 +674,7 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
       ASSIGN_OR_RETURN(SensorMessages messages, pending.front().get());
       pending.pop_front();
       RETURN_IF_ERROR(WriteSensorMessages(
-          writer.get(), messages,
-          options.sensor_skeleton == SynthOptions::SensorSkeleton::kTruth));
+          writer.get(), messages, options.sensor_skeleton == SynthOptions::SensorSkeleton::kTruth));
     }
     return absl::OkStatus();
   };

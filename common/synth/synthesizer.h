@@ -39,9 +39,9 @@ struct SynthOptions {
   double fps = 30.0;               // Frame rate of every sensor.
   int color_width = 1920;          // Colour resolution (Kinect v2: 1920x1080).
   int color_height = 1080;
-  int jpeg_quality = 90;            // 1..100.
-  double color_noise_sigma = 2.0;   // Sensor noise of colour, 8-bit levels.
-  DepthNoiseOptions depth_noise;    // Kinect v2 time-of-flight noise.
+  int jpeg_quality = 90;           // 1..100.
+  double color_noise_sigma = 2.0;  // Sensor noise of colour, 8-bit levels.
+  DepthNoiseOptions depth_noise;   // Kinect v2 time-of-flight noise.
   // Whether each sensor's stream carries a skeleton. kNone (the default): it
   // carries none, as the depth cameras a user has (Kinect v1, OpenNI2,
   // Kinect v2 without its SDK), and the capture daemon's tracker makes them.

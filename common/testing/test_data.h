@@ -35,7 +35,7 @@ inline std::string MakeTempDir(const std::string& name) {
 }  // namespace reenact::testing
 
 // Fails the current test when a shared data file is absent.
-#define REENACT_REQUIRE_TEST_FILE(path)                                           \
-  ASSERT_TRUE(std::filesystem::exists(path))                                      \
-      << "missing shared test data: " << (path)                                   \
+#define REENACT_REQUIRE_TEST_FILE(path)         \
+  ASSERT_TRUE(std::filesystem::exists(path))    \
+      << "missing shared test data: " << (path) \
       << " (expected ../shared/data beside the checkout or $REENACT_TEST_DATA_DIR)"

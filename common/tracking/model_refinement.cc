@@ -27,7 +27,8 @@ bodyfit::PointCloud ToCloud(const PersonCloud& cloud) {
 bodyfit::SkeletonJoints ToSkeleton(const TrackedPerson& person) {
   bodyfit::SkeletonJoints s = bodyfit::NoSkeletonJoints();
   for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    if (person.joints[j].state != JointState::kNotTracked) s[j] = person.joints[j].position_in_camera_m;
+    if (person.joints[j].state != JointState::kNotTracked)
+      s[j] = person.joints[j].position_in_camera_m;
   }
   return s;
 }

@@ -30,6 +30,7 @@
 #include "common/log/log.h"
 #include "common/rpc/auth.h"
 #include "proto/grpc_status.h"
+#include "proto/state_names.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "reenact/v1/takes_service.grpc.pb.h"
@@ -107,14 +108,6 @@ json ReenactmentJson(const v1::ReenactmentSummary& summary, const std::string& t
       {"file_bytes", summary.file_bytes()},
       {"parts", info.part_names_size()},
   };
-}
-
-// "queued" for JOB_STATE_QUEUED.
-std::string JobStateName(v1::JobState state) {
-  std::string name = absl::AsciiStrToLower(v1::JobState_Name(state));
-  constexpr absl::string_view kPrefix = "job_state_";
-  if (absl::StartsWith(name, kPrefix)) name = name.substr(kPrefix.size());
-  return name;
 }
 
 // A job that follows its take while it records (method body, live=true).

@@ -59,7 +59,7 @@ bool ParseTarget(absl::string_view target, std::string* path,
 }
 
 bool ParseByteRange(absl::string_view header, int64_t size, int64_t* first, int64_t* last,
-                bool* ignore) {
+                    bool* ignore) {
   *ignore = false;
   constexpr absl::string_view kUnit = "bytes=";
   if (!absl::StartsWith(header, kUnit) || absl::StrContains(header, ',')) {

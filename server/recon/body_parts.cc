@@ -129,9 +129,9 @@ PartPoses PartPosesFromJoints(const JointArray25& joints) {
   // Parents come before children in part-id order except for the head
   // (parent chest, id 1); do the torso first.
   constexpr std::array<P, kNumBodyParts> kOrder = {
-      P::kChest,         P::kAbdomen,      P::kHead,         P::kUpperArmLeft, P::kForearmLeft,
-      P::kHandLeft,      P::kUpperArmRight, P::kForearmRight, P::kHandRight,    P::kThighLeft,
-      P::kShinLeft,      P::kFootLeft,     P::kThighRight,    P::kShinRight,    P::kFootRight};
+      P::kChest,    P::kAbdomen,       P::kHead,         P::kUpperArmLeft, P::kForearmLeft,
+      P::kHandLeft, P::kUpperArmRight, P::kForearmRight, P::kHandRight,    P::kThighLeft,
+      P::kShinLeft, P::kFootLeft,      P::kThighRight,   P::kShinRight,    P::kFootRight};
   const Vector3d shoulder_line = Line(joints, J::kShoulderRight, J::kShoulderLeft);
   const Vector3d hip_line = Line(joints, J::kHipRight, J::kHipLeft);
   for (P part : kOrder) {

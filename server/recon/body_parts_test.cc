@@ -110,9 +110,8 @@ TEST(PartPosesFromJoints, RestPoseAxesFollowTheHeader) {
 // Rotating the whole skeleton rotates every frame the same way.
 TEST(PartPosesFromJoints, EquivariantUnderRigidMotion) {
   const Joints joints = TPose();
-  const Eigen::Isometry3d motion =
-      Eigen::Translation3d(0.3, -0.1, 2.0) *
-      Eigen::AngleAxisd(1.1, Vector3d(0.2, 1.0, -0.3).normalized());
+  const Eigen::Isometry3d motion = Eigen::Translation3d(0.3, -0.1, 2.0) *
+                                   Eigen::AngleAxisd(1.1, Vector3d(0.2, 1.0, -0.3).normalized());
   Joints moved;
   for (int j = 0; j < body::kNumKinectV2Joints; ++j) moved[j] = motion * joints[j];
   const PartPoses a = PartPosesFromJoints(joints);
@@ -141,8 +140,7 @@ TEST(PartPosesFromJoints, ArmRaiseHasNoTwistJump) {
     const PartPoses poses = PartPosesFromJoints(joints);
     const Eigen::Matrix3d r = poses[Index(BodyPart::kUpperArmLeft)].world_from_part.linear();
     if (step > 0) {
-      const double step_deg =
-          Eigen::AngleAxisd(previous.transpose() * r).angle() * 180.0 / M_PI;
+      const double step_deg = Eigen::AngleAxisd(previous.transpose() * r).angle() * 180.0 / M_PI;
       max_step_deg = std::max(max_step_deg, step_deg);
     }
     previous = r;

@@ -52,19 +52,32 @@ std::pair<double, double> MeasureRange(P part) {
 
 std::optional<P> MirrorPart(P part) {
   switch (part) {
-    case P::kUpperArmLeft: return P::kUpperArmRight;
-    case P::kForearmLeft: return P::kForearmRight;
-    case P::kHandLeft: return P::kHandRight;
-    case P::kThighLeft: return P::kThighRight;
-    case P::kShinLeft: return P::kShinRight;
-    case P::kFootLeft: return P::kFootRight;
-    case P::kUpperArmRight: return P::kUpperArmLeft;
-    case P::kForearmRight: return P::kForearmLeft;
-    case P::kHandRight: return P::kHandLeft;
-    case P::kThighRight: return P::kThighLeft;
-    case P::kShinRight: return P::kShinLeft;
-    case P::kFootRight: return P::kFootLeft;
-    default: return std::nullopt;
+    case P::kUpperArmLeft:
+      return P::kUpperArmRight;
+    case P::kForearmLeft:
+      return P::kForearmRight;
+    case P::kHandLeft:
+      return P::kHandRight;
+    case P::kThighLeft:
+      return P::kThighRight;
+    case P::kShinLeft:
+      return P::kShinRight;
+    case P::kFootLeft:
+      return P::kFootRight;
+    case P::kUpperArmRight:
+      return P::kUpperArmLeft;
+    case P::kForearmRight:
+      return P::kForearmLeft;
+    case P::kHandRight:
+      return P::kHandLeft;
+    case P::kThighRight:
+      return P::kThighLeft;
+    case P::kShinRight:
+      return P::kShinLeft;
+    case P::kFootRight:
+      return P::kFootLeft;
+    default:
+      return std::nullopt;
   }
 }
 
@@ -92,9 +105,8 @@ std::vector<J> RequiredJoints() {
     joints.push_back(info.proximal);
     joints.push_back(info.distal);
   }
-  for (J j : {J::kSpineBase, J::kSpineShoulder, J::kShoulderLeft, J::kShoulderRight,
-              J::kWristLeft, J::kWristRight, J::kHipLeft, J::kHipRight, J::kAnkleLeft,
-              J::kAnkleRight}) {
+  for (J j : {J::kSpineBase, J::kSpineShoulder, J::kShoulderLeft, J::kShoulderRight, J::kWristLeft,
+              J::kWristRight, J::kHipLeft, J::kHipRight, J::kAnkleLeft, J::kAnkleRight}) {
     joints.push_back(j);
   }
   return joints;
@@ -254,9 +266,8 @@ absl::Status CylinderOptions::Validate() const {
 
 RepresentativeScore ScoreRepresentative(const JointArray& joints, double lambda) {
   RepresentativeScore s;
-  for (J j : {J::kSpineBase, J::kSpineShoulder, J::kShoulderLeft, J::kShoulderRight,
-              J::kWristLeft, J::kWristRight, J::kHipLeft, J::kHipRight, J::kAnkleLeft,
-              J::kAnkleRight}) {
+  for (J j : {J::kSpineBase, J::kSpineShoulder, J::kShoulderLeft, J::kShoulderRight, J::kWristLeft,
+              J::kWristRight, J::kHipLeft, J::kHipRight, J::kAnkleLeft, J::kAnkleRight}) {
     if (!IsJointValid(Joint(joints, j))) return s;
   }
   const Vector3d torso = Joint(joints, J::kSpineBase) - Joint(joints, J::kSpineShoulder);
@@ -295,9 +306,9 @@ absl::StatusOr<RepresentativeFrame> FindRepresentativeFrame(const TakeFrames& ta
   if (options.representative_instant >= 0) {
     const int i = options.representative_instant, s = options.representative_sensor;
     if (i >= take.num_instants() || s >= take.num_sensors() || !consider(i, s)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "representative_instant ", i, " / representative_sensor ", s,
-          " is not a view with a complete skeleton inside the depth image"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("representative_instant ", i, " / representative_sensor ", s,
+                       " is not a view with a complete skeleton inside the depth image"));
     }
     return best;
   }
@@ -320,21 +331,30 @@ double DefaultRadiusRate(BodyPart part) {
   // breadth) ~0.025H / 0.1H; thigh ~0.042H / 0.245H; shin ~0.028H / 0.246H;
   // foot ~0.024H / 0.1H.
   switch (part) {
-    case P::kHead: return 0.70;
-    case P::kChest: return 0.62;
-    case P::kAbdomen: return 0.72;
+    case P::kHead:
+      return 0.70;
+    case P::kChest:
+      return 0.62;
+    case P::kAbdomen:
+      return 0.72;
     case P::kUpperArmLeft:
-    case P::kUpperArmRight: return 0.16;
+    case P::kUpperArmRight:
+      return 0.16;
     case P::kForearmLeft:
-    case P::kForearmRight: return 0.145;
+    case P::kForearmRight:
+      return 0.145;
     case P::kHandLeft:
-    case P::kHandRight: return 0.25;
+    case P::kHandRight:
+      return 0.25;
     case P::kThighLeft:
-    case P::kThighRight: return 0.17;
+    case P::kThighRight:
+      return 0.17;
     case P::kShinLeft:
-    case P::kShinRight: return 0.115;
+    case P::kShinRight:
+      return 0.115;
     case P::kFootLeft:
-    case P::kFootRight: return 0.24;
+    case P::kFootRight:
+      return 0.24;
   }
   return 0.15;
 }
@@ -343,12 +363,12 @@ absl::StatusOr<std::array<PartRadius, kNumBodyParts>> FitPartRadii(
     const JointArray& joints_in_depth_m, const DepthImageMm& depth_mm, const MaskImage& actor,
     const CameraIntrinsics& k, const CylinderOptions& options) {
   RETURN_IF_ERROR(k.Validate());
-  if (depth_mm.width != k.width || depth_mm.height != k.height ||
-      actor.width != k.width || actor.height != k.height ||
-      depth_mm.data.size() != depth_mm.num_pixels() || actor.data.size() != actor.num_pixels()) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "depth ", depth_mm.width, "x", depth_mm.height, " and mask ", actor.width, "x",
-        actor.height, " must both be ", k.width, "x", k.height));
+  if (depth_mm.width != k.width || depth_mm.height != k.height || actor.width != k.width ||
+      actor.height != k.height || depth_mm.data.size() != depth_mm.num_pixels() ||
+      actor.data.size() != actor.num_pixels()) {
+    return absl::InvalidArgumentError(absl::StrCat("depth ", depth_mm.width, "x", depth_mm.height,
+                                                   " and mask ", actor.width, "x", actor.height,
+                                                   " must both be ", k.width, "x", k.height));
   }
   std::array<PartRadius, kNumBodyParts> radii;
   for (int p = 0; p < kNumBodyParts; ++p) {
@@ -500,7 +520,8 @@ absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
     data.parts.push_back(
         ToPartMesh(part, geometry, static_cast<float>(rate), static_cast<float>(l_ref)));
     fitted += model.radii[p].fitted ? 1 : 0;
-    (*data.info.mutable_figures())[absl::StrCat("radius_mm.", std::string(GetBodyPartInfo(part).name))] =
+    (*data.info
+          .mutable_figures())[absl::StrCat("radius_mm.", std::string(GetBodyPartInfo(part).name))] =
         1e3 * rate * l_ref;
   }
   if (log) {
@@ -534,9 +555,9 @@ absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
   }
 
   // Texture keyframes and baking.
-  ASSIGN_OR_RETURN(const RigidTexturingSummary texturing,
-                   AddRigidTextures(take, options.texturing, &data, stages.ForStage("texture"),
-                                    log));
+  ASSIGN_OR_RETURN(
+      const RigidTexturingSummary texturing,
+      AddRigidTextures(take, options.texturing, &data, stages.ForStage("texture"), log));
 
   auto& figures = *data.info.mutable_figures();
   figures["representative_frame"] = model.representative.instant;

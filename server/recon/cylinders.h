@@ -98,11 +98,11 @@ struct RepresentativeScore {
   double theta_right_rad = 0.0;  // Angle torso / right arm.
   double a_left = 0.0;           // |x| of the unit left arm vector.
   double a_right = 0.0;
-  double phi_left_rad = 0.0;     // Angle +x / left leg.
+  double phi_left_rad = 0.0;  // Angle +x / left leg.
   double phi_right_rad = 0.0;
-  double g = 0.0;                // Eq. 3.3: 1 when phi^R > phi^L.
-  double e = 0.0;                // Eq. 3.4.
-  bool valid = false;            // False when a joint the terms need is missing.
+  double g = 0.0;      // Eq. 3.3: 1 when phi^R > phi^L.
+  double e = 0.0;      // Eq. 3.4.
+  bool valid = false;  // False when a joint the terms need is missing.
 };
 
 // Eq. 3.3-3.4 on a skeleton in a depth-camera frame (OpenCV axes, metres).

@@ -27,8 +27,7 @@ absl::Status OptionReader::Int(const std::string& key, int* value, int min, int 
   return absl::OkStatus();
 }
 
-absl::Status OptionReader::Double(const std::string& key, double* value, double min,
-                                  double max) {
+absl::Status OptionReader::Double(const std::string& key, double* value, double min, double max) {
   known_.insert(key);
   auto it = options_.find(key);
   if (it == options_.end()) return absl::OkStatus();
@@ -100,8 +99,8 @@ absl::Status StageProgress::Report(const std::string& stage, int64_t done, int64
   const double within = total > 0 ? std::clamp(static_cast<double>(done) / total, 0.0, 1.0) : 0.0;
   Progress p;
   p.stage = stage;
-  p.fraction = total_weight_ > 0 ? std::clamp((start + weight * within) / total_weight_, 0.0, 1.0)
-                                 : 0.0;
+  p.fraction =
+      total_weight_ > 0 ? std::clamp((start + weight * within) / total_weight_, 0.0, 1.0) : 0.0;
   p.items_done = done;
   p.items_total = total;
   if (!callback_(p)) return absl::CancelledError(absl::StrCat("cancelled during ", stage));
@@ -115,11 +114,11 @@ ProgressCallback StageProgress::ForStage(const std::string& stage) const {
     const double start = StageStart(stage, &weight);
     Progress p = inner;
     p.stage = stage;
-    p.fraction = total_weight_ > 0
-                     ? std::clamp((start + weight * std::clamp(inner.fraction, 0.0, 1.0)) /
-                                      total_weight_,
-                                  0.0, 1.0)
-                     : 0.0;
+    p.fraction =
+        total_weight_ > 0
+            ? std::clamp((start + weight * std::clamp(inner.fraction, 0.0, 1.0)) / total_weight_,
+                         0.0, 1.0)
+            : 0.0;
     return callback_(p);
   };
 }

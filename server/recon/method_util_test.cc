@@ -42,10 +42,12 @@ TEST(OptionReader, ReadsTypedValuesAndRejectsUnknownKeys) {
 
 TEST(StageProgress, MapsStagesOntoOneFraction) {
   std::vector<Progress> seen;
-  StageProgress stages([&](const Progress& p) {
-    seen.push_back(p);
-    return true;
-  }, {{"a", 1.0}, {"b", 3.0}});
+  StageProgress stages(
+      [&](const Progress& p) {
+        seen.push_back(p);
+        return true;
+      },
+      {{"a", 1.0}, {"b", 3.0}});
   EXPECT_TRUE(stages.Report("a", 1, 2).ok());
   EXPECT_TRUE(stages.Report("b", 2, 4).ok());
   EXPECT_TRUE(stages.ForStage("b")({"inner", 1.0, 5, 5}));
@@ -84,8 +86,8 @@ TEST(MakePartFrame, WritesPosesScalesAndFiniteJoints) {
   EXPECT_NEAR(FromProto(frame.parts(2).world_from_part().translation_m()).y(), 1.0, 1e-12);
   ASSERT_EQ(frame.joints_in_world_m_size(), 25);
   // SpineShoulder is missing: it takes its parent SpineMid's position.
-  const Eigen::Vector3d shoulder = FromProto(
-      frame.joints_in_world_m(body::Index(body::KinectV2Joint::kSpineShoulder)));
+  const Eigen::Vector3d shoulder =
+      FromProto(frame.joints_in_world_m(body::Index(body::KinectV2Joint::kSpineShoulder)));
   EXPECT_NEAR((shoulder - Eigen::Vector3d(0, 1.2, 0)).norm(), 0.0, 1e-12);
   for (const v1::Vector3& j : frame.joints_in_world_m()) {
     EXPECT_TRUE(std::isfinite(j.x()) && std::isfinite(j.y()) && std::isfinite(j.z()));

@@ -71,9 +71,8 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   const bool cylinders = input.method == kRigidCylinders;
   const bool body = input.method == kBody;
   if (!cylinders && !body && input.method != kRigidCarved) {
-    return absl::InvalidArgumentError(absl::StrCat("unknown method \"", input.method,
-                                                   "\" (known: ",
-                                                   absl::StrJoin(MethodNames(), ", "), ")"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "unknown method \"", input.method, "\" (known: ", absl::StrJoin(MethodNames(), ", "), ")"));
   }
 #if !REENACT_HAVE_RIGID_CARVED
   if (!cylinders && !body) {
@@ -103,10 +102,11 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   const double load_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (log) {
-    log(absl::StrCat("load: ", take->num_instants(), " instants (", take->num_valid_instants(),
-                     " with a skeleton), ", take->num_sensors(), " sensors, ",
-                     take->grouped_by_frame_sets() ? "grouped by frame sets" : "grouped by frame index",
-                     ", ", load_s, " s"));
+    log(absl::StrCat(
+        "load: ", take->num_instants(), " instants (", take->num_valid_instants(),
+        " with a skeleton), ", take->num_sensors(), " sensors, ",
+        take->grouped_by_frame_sets() ? "grouped by frame sets" : "grouped by frame index", ", ",
+        load_s, " s"));
   }
 
   // The method.

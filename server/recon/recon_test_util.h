@@ -85,6 +85,6 @@ inline const SharedTake& GetSharedTake() {
 }  // namespace reenact::recon::testing
 
 // Fails the test when the shared take could not be made.
-#define RECON_REQUIRE_SHARED_TAKE()                                                  \
-  ASSERT_TRUE(::reenact::recon::testing::GetSharedTake().error.empty())              \
+#define RECON_REQUIRE_SHARED_TAKE()                                     \
+  ASSERT_TRUE(::reenact::recon::testing::GetSharedTake().error.empty()) \
       << "synthesis failed: " << ::reenact::recon::testing::GetSharedTake().error

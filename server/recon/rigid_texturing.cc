@@ -156,14 +156,12 @@ absl::StatusOr<RigidTexturingSummary> AddRigidTextures(const TakeFrames& take,
                              static_cast<int64_t>(jobs.size())})) {
     return absl::CancelledError("cancelled while baking textures");
   }
-  summary.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (log) {
-    log(absl::StrCat("texture: ", summary.keyframes, " keyframes (stride ",
-                     summary.keyframe_stride, ", ", summary.keyframes_skipped, " skipped), ",
-                     summary.bake.parts_baked, " parts baked, ",
-                     summary.bake.triangles_unobserved, "/", summary.bake.triangles,
-                     " triangles unobserved, ", summary.seconds, " s"));
+    log(absl::StrCat("texture: ", summary.keyframes, " keyframes (stride ", summary.keyframe_stride,
+                     ", ", summary.keyframes_skipped, " skipped), ", summary.bake.parts_baked,
+                     " parts baked, ", summary.bake.triangles_unobserved, "/",
+                     summary.bake.triangles, " triangles unobserved, ", summary.seconds, " s"));
   }
   return summary;
 }

@@ -76,22 +76,6 @@ ALTER TABLE takes ADD COLUMN owner TEXT NOT NULL DEFAULT '';
 };
 static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 
-v1::TakeState StateFromName(std::string_view name) {
-  if (name == "recording") return v1::TAKE_STATE_RECORDING;
-  if (name == "complete") return v1::TAKE_STATE_COMPLETE;
-  if (name == "interrupted") return v1::TAKE_STATE_INTERRUPTED;
-  return v1::TAKE_STATE_UNSPECIFIED;
-}
-
-v1::JobState JobStateFromName(std::string_view name) {
-  if (name == "queued") return v1::JOB_STATE_QUEUED;
-  if (name == "running") return v1::JOB_STATE_RUNNING;
-  if (name == "succeeded") return v1::JOB_STATE_SUCCEEDED;
-  if (name == "failed") return v1::JOB_STATE_FAILED;
-  if (name == "cancelled") return v1::JOB_STATE_CANCELLED;
-  return v1::JOB_STATE_UNSPECIFIED;
-}
-
 // A job's options as a JSON object of strings, and back (a malformed text
 // gives no options rather than failing the whole listing).
 std::string OptionsToJson(const google::protobuf::Map<std::string, std::string>& options) {
@@ -166,7 +150,7 @@ TakeRow RowFromStatement(const Statement& s) {
   v1::Take& t = row.take;
   t.set_take_id(s.Text(0));
   t.set_name(s.Text(1));
-  t.set_state(StateFromName(s.Text(2)));
+  t.set_state(TakeStateFromName(s.Text(2)).value_or(v1::TAKE_STATE_UNSPECIFIED));
   t.set_daemon_id(s.Text(3));
   t.set_created_unix_ns(s.Int(4));
   t.set_updated_unix_ns(s.Int(5));
@@ -194,7 +178,7 @@ v1::Job JobFromStatement(const Statement& s) {
   job.set_take_id(s.Text(1));
   job.set_method(s.Text(2));
   OptionsFromJson(s.Text(3), job.mutable_options());
-  job.set_state(JobStateFromName(s.Text(4)));
+  job.set_state(JobStateFromName(s.Text(4)).value_or(v1::JOB_STATE_UNSPECIFIED));
   v1::JobProgress* p = job.mutable_progress();
   p->set_stage(s.Text(5));
   p->set_fraction(s.Double(6));
@@ -211,36 +195,6 @@ v1::Job JobFromStatement(const Statement& s) {
 }
 
 }  // namespace
-
-std::string_view JobStateName(v1::JobState state) {
-  switch (state) {
-    case v1::JOB_STATE_QUEUED:
-      return "queued";
-    case v1::JOB_STATE_RUNNING:
-      return "running";
-    case v1::JOB_STATE_SUCCEEDED:
-      return "succeeded";
-    case v1::JOB_STATE_FAILED:
-      return "failed";
-    case v1::JOB_STATE_CANCELLED:
-      return "cancelled";
-    default:
-      return "unspecified";
-  }
-}
-
-std::string_view TakeStateName(v1::TakeState state) {
-  switch (state) {
-    case v1::TAKE_STATE_RECORDING:
-      return "recording";
-    case v1::TAKE_STATE_COMPLETE:
-      return "complete";
-    case v1::TAKE_STATE_INTERRUPTED:
-      return "interrupted";
-    default:
-      return "unspecified";
-  }
-}
 
 absl::StatusOr<std::unique_ptr<Catalog>> Catalog::Open(const std::string& path) {
   sqlite3* db = nullptr;

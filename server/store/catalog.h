@@ -30,6 +30,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "proto/state_names.h"
 #include "reenact/v1/jobs_service.pb.h"
 #include "reenact/v1/takes_service.pb.h"
 
@@ -51,11 +52,7 @@ struct TakeRow {
   std::string owner{};
 };
 
-// "recording", "complete", "interrupted" (the catalog's spelling of a state).
-std::string_view TakeStateName(v1::TakeState state);
-// "queued", "running", "succeeded", "failed", "cancelled" (the catalog's
-// spelling of a job state; "unspecified" otherwise).
-std::string_view JobStateName(v1::JobState state);
+// State names: proto/state_names.h (TakeStateName, JobStateName).
 
 class Catalog {
  public:

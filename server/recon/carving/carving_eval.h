@@ -9,14 +9,15 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "absl/status/statusor.h"
 #include "common/body/joint_set.h"
+#include "common/geometry/surface_distance.h"
 #include "common/io/proto_convert.h"
 #include "common/io/reenactment_file.h"
 #include "common/io/take.h"
@@ -26,88 +27,31 @@
 
 namespace reenact::recon::carving::testing {
 
-// Exact point-to-triangle-mesh distance with a uniform grid of triangles.
+// Distance from points to a triangle mesh (common/geometry's exact index),
+// clamped at 4 cells (16 cm): farther points count as that far, so that a
+// stray part does not swamp the mean.
 class SurfaceDistance {
  public:
-  SurfaceDistance(std::vector<Eigen::Vector3d> vertices, std::vector<Eigen::Vector3i> triangles,
-                  double cell_m = 0.04)
-      : vertices_(std::move(vertices)), triangles_(std::move(triangles)), cell_m_(cell_m) {
-    for (size_t t = 0; t < triangles_.size(); ++t) {
-      Eigen::Vector3d lo = vertices_[triangles_[t][0]];
-      Eigen::Vector3d hi = lo;
-      for (int k = 1; k < 3; ++k) {
-        lo = lo.cwiseMin(vertices_[triangles_[t][k]]);
-        hi = hi.cwiseMax(vertices_[triangles_[t][k]]);
-      }
-      const Eigen::Vector3i a = CellOf(lo);
-      const Eigen::Vector3i b = CellOf(hi);
-      for (int z = a.z(); z <= b.z(); ++z) {
-        for (int y = a.y(); y <= b.y(); ++y) {
-          for (int x = a.x(); x <= b.x(); ++x) grid_[Key({x, y, z})].push_back(static_cast<int>(t));
-        }
-      }
-    }
+  SurfaceDistance(const std::vector<Eigen::Vector3d>& vertices,
+                  const std::vector<Eigen::Vector3i>& triangles, double cell_m = 0.04)
+      : clamp_m_(4 * cell_m) {
+    Eigen::Matrix3Xd matrix(3, static_cast<Eigen::Index>(vertices.size()));
+    for (size_t v = 0; v < vertices.size(); ++v)
+      matrix.col(static_cast<Eigen::Index>(v)) = vertices[v];
+    absl::StatusOr<TriangleSurfaceIndex> index =
+        TriangleSurfaceIndex::Build(matrix, triangles, cell_m);
+    if (index.ok()) index_.emplace(*std::move(index));
   }
 
-  // Distance from `p` to the nearest triangle, metres (searched up to 4
-  // cells away; farther points report the search radius).
+  // Distance from `p` to the nearest triangle, metres, at most the clamp
+  // (also for an empty or invalid mesh).
   double Distance(const Eigen::Vector3d& p) const {
-    const Eigen::Vector3i centre = CellOf(p);
-    double best = std::numeric_limits<double>::infinity();
-    for (int radius = 1; radius <= 4; ++radius) {
-      for (int z = -radius; z <= radius; ++z) {
-        for (int y = -radius; y <= radius; ++y) {
-          for (int x = -radius; x <= radius; ++x) {
-            if (std::max({std::abs(x), std::abs(y), std::abs(z)}) < radius && radius > 1) continue;
-            auto it = grid_.find(Key(centre + Eigen::Vector3i(x, y, z)));
-            if (it == grid_.end()) continue;
-            for (int t : it->second) best = std::min(best, TriangleDistance(p, t));
-          }
-        }
-      }
-      if (best <= radius * cell_m_) return best;
-    }
-    return std::min(best, 4 * cell_m_);
+    return index_.has_value() ? std::min(index_->Distance(p), clamp_m_) : clamp_m_;
   }
 
  private:
-  Eigen::Vector3i CellOf(const Eigen::Vector3d& p) const {
-    return (p / cell_m_).array().floor().cast<int>();
-  }
-  static int64_t Key(const Eigen::Vector3i& c) {
-    return ((static_cast<int64_t>(c.x()) + 4096) << 26) |
-           ((static_cast<int64_t>(c.y()) + 4096) << 13) | (static_cast<int64_t>(c.z()) + 4096);
-  }
-  // Ericson, "Real-Time Collision Detection", 5.1.5: closest point on a triangle.
-  double TriangleDistance(const Eigen::Vector3d& p, int t) const {
-    const Eigen::Vector3d& a = vertices_[triangles_[t][0]];
-    const Eigen::Vector3d& b = vertices_[triangles_[t][1]];
-    const Eigen::Vector3d& c = vertices_[triangles_[t][2]];
-    const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-    if (d1 <= 0 && d2 <= 0) return (p - a).norm();
-    const Eigen::Vector3d bp = p - b;
-    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-    if (d3 >= 0 && d4 <= d3) return (p - b).norm();
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
-    const Eigen::Vector3d cp = p - c;
-    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-    if (d6 >= 0 && d5 <= d6) return (p - c).norm();
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-      return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
-    }
-    const double denominator = 1.0 / (va + vb + vc);
-    return (p - (a + ab * (vb * denominator) + ac * (vc * denominator))).norm();
-  }
-
-  std::vector<Eigen::Vector3d> vertices_;
-  std::vector<Eigen::Vector3i> triangles_;
-  double cell_m_;
-  std::unordered_map<int64_t, std::vector<int>> grid_;
+  std::optional<TriangleSurfaceIndex> index_;
+  double clamp_m_;
 };
 
 // Ground truth of a synthetic take, by frame index (synthetic takes group

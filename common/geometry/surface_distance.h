@@ -12,7 +12,7 @@
 
 #include "absl/status/statusor.h"
 
-namespace reenact::view {
+namespace reenact {
 
 // Unsigned distance from `p` to the triangle (a, b, c), any unit.
 double PointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
@@ -44,4 +44,4 @@ class TriangleSurfaceIndex {
   std::vector<int> cell_items_;
 };
 
-}  // namespace reenact::view
+}  // namespace reenact

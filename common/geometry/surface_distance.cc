@@ -1,4 +1,4 @@
-#include "clients/view/surface_distance.h"
+#include "common/geometry/surface_distance.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 
-namespace reenact::view {
+namespace reenact {
 
 double PointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                              const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
@@ -183,4 +183,4 @@ double TriangleSurfaceIndex::Distance(const Eigen::Vector3d& point_m) const {
   return best;
 }
 
-}  // namespace reenact::view
+}  // namespace reenact

@@ -1,13 +1,13 @@
-#include "clients/view/surface_distance.h"
+#include "common/geometry/surface_distance.h"
 
+#include <cmath>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
-#include "common/render/mesh_data.h"
-
-namespace reenact::view {
+namespace reenact {
 namespace {
 
 constexpr double kNm = 1e-9;
@@ -43,9 +43,37 @@ TEST(PointTriangleDistance, MatchesDenseSamplingInEveryRegion) {
   EXPECT_NEAR(PointTriangleDistance({2, 0, 0}, {0, 0, 0}, {1, 0, 0}, {1, 0, 0}), 1.0, kNm);
 }
 
+// A latitude-longitude sphere of `radius` about the origin: its vertices
+// (3 x N) and triangles.
+struct Sphere {
+  Eigen::Matrix3Xd vertices;
+  std::vector<Eigen::Vector3i> triangles;
+};
+Sphere UvSphere(double radius, int segments, int rings) {
+  Sphere s;
+  s.vertices.resize(3, (rings + 1) * (segments + 1));
+  for (int r = 0; r <= rings; ++r) {
+    const double theta = M_PI * r / rings;
+    for (int g = 0; g <= segments; ++g) {
+      const double phi = 2 * M_PI * g / segments;
+      s.vertices.col(r * (segments + 1) + g) =
+          radius * Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::cos(theta),
+                                   std::sin(theta) * std::sin(phi));
+    }
+  }
+  for (int r = 0; r < rings; ++r) {
+    for (int g = 0; g < segments; ++g) {
+      const int a = r * (segments + 1) + g, b = a + segments + 1;
+      s.triangles.emplace_back(a, b, a + 1);
+      s.triangles.emplace_back(a + 1, b, b + 1);
+    }
+  }
+  return s;
+}
+
 TEST(TriangleSurfaceIndex, AgreesWithBruteForceNearAndFar) {
-  const render::MeshData sphere = render::MakeUvSphere(0.3f, 24, 12);
-  const Eigen::Matrix3Xd vertices = sphere.positions_m.cast<double>();
+  const Sphere sphere = UvSphere(0.3, 24, 12);
+  const Eigen::Matrix3Xd& vertices = sphere.vertices;
   auto index = TriangleSurfaceIndex::Build(vertices, sphere.triangles, 0.05);
   ASSERT_TRUE(index.ok()) << index.status();
   std::mt19937 rng(5);
@@ -63,8 +91,8 @@ TEST(TriangleSurfaceIndex, AgreesWithBruteForceNearAndFar) {
 }
 
 TEST(TriangleSurfaceIndex, BadInputIsInvalidArgument) {
-  const render::MeshData sphere = render::MakeUvSphere(0.3f, 8, 4);
-  const Eigen::Matrix3Xd vertices = sphere.positions_m.cast<double>();
+  const Sphere sphere = UvSphere(0.3, 8, 4);
+  const Eigen::Matrix3Xd& vertices = sphere.vertices;
   EXPECT_EQ(TriangleSurfaceIndex::Build(vertices, {}, 0.05).status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(TriangleSurfaceIndex::Build(vertices, {{0, 1, 100000}}, 0.05).status().code(),
@@ -78,4 +106,4 @@ TEST(TriangleSurfaceIndex, BadInputIsInvalidArgument) {
 }
 
 }  // namespace
-}  // namespace reenact::view
+}  // namespace reenact

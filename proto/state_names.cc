@@ -28,7 +28,8 @@ const std::string& TakeStateName(v1::TakeState state) {
 
 const std::string& JobStateName(v1::JobState state) {
   static const std::string kQueued = "queued", kRunning = "running", kSucceeded = "succeeded",
-                           kFailed = "failed", kCancelled = "cancelled", kUnspecified = "unspecified";
+                           kFailed = "failed", kCancelled = "cancelled",
+                           kUnspecified = "unspecified";
   switch (state) {
     case v1::JOB_STATE_QUEUED:
       return kQueued;

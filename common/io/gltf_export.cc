@@ -49,7 +49,12 @@ constexpr double kStepLeadS = 1e-3;
 // Collects the model and its one binary buffer.
 class GlbBuilder {
  public:
-  GlbBuilder() { model_.buffers.emplace_back(); }
+  // A glTF 2.0 model with one (empty) buffer, naming its generator.
+  GlbBuilder() {
+    model_.asset.version = "2.0";
+    model_.asset.generator = "reenact gltf_export (tinygltf)";
+    model_.buffers.emplace_back();
+  }
   tinygltf::Model& model() { return model_; }
 
   // A bufferView over `bytes`, 4-byte aligned.
@@ -560,8 +565,6 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
   s = GltfExportSummary();
   GlbBuilder b;
   tinygltf::Model& model = b.model();
-  model.asset.version = "2.0";
-  model.asset.generator = "reenact gltf_export (tinygltf)";
 
   tinygltf::Node root;
   root.name = data.info.reenactment_id().empty() ? "reenactment" : data.info.reenactment_id();
@@ -619,8 +622,6 @@ absl::StatusOr<std::string> ExportBodyMeshGlb(const v1::BodyMesh& mesh,
   s = GltfExportSummary();
   GlbBuilder b;
   tinygltf::Model& model = b.model();
-  model.asset.version = "2.0";
-  model.asset.generator = "reenact gltf_export (tinygltf)";
   tinygltf::Node root;
   root.name = mesh.model_name().empty() ? "body" : mesh.model_name();
   model.nodes.push_back(std::move(root));

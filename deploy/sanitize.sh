@@ -57,7 +57,7 @@ asan_tests=(
 asan_full_tests=(
   "${asan_tests[@]}"
   io_reenactment_test server_live_test server_reenactments_test capture_test
-  bodyfit_test carving_test mirror_test png_test video_writer_test render_types_test
+  methods_test methods_registry_test bodyfit_test carving_test mirror_test png_test video_writer_test render_types_test
   tracking_test server_main_test worker_main_test capture_sensors_test cli_jobs_test
   viewer_test
   # tests/: the real programs over loopback, and our files read by other
@@ -70,7 +70,7 @@ asan_full_tests=(
 # frames can no longer be told apart (or suppressed) when the leak check
 # runs at exit. Memory errors and undefined behaviour are still caught.
 asan_render_tests=(
-  render_test board_test board_video_test synth_test recon_test body_method_test
+  render_test board_test board_video_test synth_test recon_test cylinders_test body_method_test
   rigid_carved_test capture_pipeline_test capture_processing_test cli_test cli_view_test
   mirror_app_test view_test
   capture_ingest_test reenactment_e2e_test live_follow_e2e_test body_fidelity_test

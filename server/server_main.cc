@@ -15,6 +15,8 @@
 #include "common/log/log.h"
 #include "server/http/http_front.h"
 #include "server/live/live_body_follower.h"
+#include "server/recon/methods.h"
+#include "server/recon/registry.h"
 #include "server/server.h"
 #include "server/server_flags.h"
 
@@ -61,6 +63,9 @@ int main(int argc, char** argv) {
   ServerOptions options = command_line->options;
   // Live jobs of method body.
   options.live.factory = MakeLiveBodyFollowerFactory(options.jobs.asset_roots);
+  // The methods jobs may name: the registry's, checked as the worker will.
+  options.jobs.methods = reenact::recon::MethodSpecs();
+  options.jobs.check_job = reenact::recon::CheckJob;
   // Recovered takes are logged by the store as it recovers them
   // (take_recovered).
   absl::StatusOr<std::unique_ptr<Server>> server = Server::Start(options);

@@ -13,7 +13,6 @@
 #include "common/base/files.h"
 #include "common/base/subprocess.h"
 #include "common/testing/test_data.h"
-#include "server/jobs/methods_list.h"
 #include "server/recon/methods.h"
 
 namespace reenact {
@@ -78,12 +77,6 @@ TEST(Worker, AMethodThatCannotRunExitsOneWithItsError) {
   ASSERT_TRUE(run.lines.back().contains("error")) << run.lines.back().dump();
   EXPECT_FALSE(run.lines.back()["error"].get<std::string>().empty());
   EXPECT_FALSE(std::filesystem::exists(out));
-}
-
-// The server checks submissions against its own list (so that it need not
-// link the reconstruction library); it must be the worker's.
-TEST(Worker, ServerMethodListIsTheWorkers) {
-  EXPECT_EQ(server::JobMethodNames(), recon::MethodNames());
 }
 
 }  // namespace

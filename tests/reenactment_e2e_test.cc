@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -248,6 +249,60 @@ class ReenactmentEndToEnd : public ::testing::Test {
 
 std::string* ReenactmentEndToEnd::dir_ = nullptr;
 Subprocess* ReenactmentEndToEnd::server_ = nullptr;
+
+// The registry as a client sees it: `reenact jobs methods` lists what the
+// server runs, and Submit names what is valid when a job gets it wrong.
+TEST_F(ReenactmentEndToEnd, JobsMethodsListsTheRegistryAndSubmitNamesWhatIsValid) {
+  const CommandResult listed = RunCommand(
+      *dir_, "methods", {Bin("reenact"), "jobs", "methods", "--server", address_(), "--json"});
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  const nlohmann::json methods = nlohmann::json::parse(listed.out, nullptr, false);
+  ASSERT_TRUE(methods.is_array() && methods.size() == 3) << listed.out;
+  std::map<std::string, nlohmann::json> by_name;
+  for (const nlohmann::json& m : methods) by_name[m["name"]] = m;
+  EXPECT_FALSE(by_name.at("rigid-cylinders")["live"].get<bool>());
+  EXPECT_TRUE(by_name.at("body")["live"].get<bool>());
+  EXPECT_EQ(by_name.at("rigid-cylinders")["texture_mode"], "pose-closest");
+  EXPECT_EQ(by_name.at("rigid-carved")["texture_mode"], "rotation-closest");
+  EXPECT_EQ(by_name.at("body")["texture_mode"], "body-atlas");
+  bool voxel = false;
+  for (const nlohmann::json& o : by_name.at("rigid-carved")["options"]) {
+    if (o["name"] != "voxel_mm") continue;
+    voxel = true;
+    EXPECT_EQ(o["type"], "double");
+    EXPECT_EQ(o["default"], "8");
+    EXPECT_DOUBLE_EQ(o["min"].get<double>(), 2.0);
+    EXPECT_DOUBLE_EQ(o["max"].get<double>(), 100.0);
+    EXPECT_FALSE(o["doc"].get<std::string>().empty());
+  }
+  EXPECT_TRUE(voxel) << listed.out;
+  const CommandResult text = RunCommand(
+      *dir_, "methods-text", {Bin("reenact"), "jobs", "methods", "--server", address_()});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("body: "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("can follow a take live"), std::string::npos) << text.out;
+
+  const CommandResult unknown =
+      RunCommand(*dir_, "submit-unknown-option",
+                 {Bin("reenact"), "jobs", "submit", "--server", address_(), "--take", take_id_(),
+                  "--method", "rigid-carved", "--option", "voxel_size=4"});
+  EXPECT_NE(unknown.exit_code, 0);
+  EXPECT_NE(unknown.err.find("voxel_size"), std::string::npos) << unknown.err;
+  EXPECT_NE(unknown.err.find("voxel_mm"), std::string::npos) << unknown.err;
+  // Options that only fail together: the method's own check runs at Submit.
+  const CommandResult across =
+      RunCommand(*dir_, "submit-across",
+                 {Bin("reenact"), "jobs", "submit", "--server", address_(), "--take", take_id_(),
+                  "--method", "rigid-carved", "--option", "voxel_mm=30", "--option", "mu_mm=20"});
+  EXPECT_NE(across.exit_code, 0);
+  EXPECT_NE(across.err.find("mu_mm"), std::string::npos) << across.err;
+  const CommandResult method = RunCommand(*dir_, "submit-unknown-method",
+                                          {Bin("reenact"), "jobs", "submit", "--server", address_(),
+                                           "--take", take_id_(), "--method", "rigid-carving"});
+  EXPECT_NE(method.exit_code, 0);
+  EXPECT_NE(method.err.find("rigid-cylinders, rigid-carved, body"), std::string::npos)
+      << method.err;
+}
 
 // Both rigid methods, submitted together: the server runs them side by side
 // (--jobs 2) in worker processes while the CLI draws progress bars.

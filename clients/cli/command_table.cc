@@ -108,12 +108,18 @@ std::vector<Command> BuildCommandTable() {
        RunCaptureStart},
       {{"capture", "stop"}, "[--daemon HOST:PORT]", "stop the take being recorded", RunCaptureStop},
       {{"jobs", "submit"},
-       "--take ID --method rigid-cylinders|rigid-carved|body [--model procedural|makehuman:NAME] "
+       "--take ID --method NAME [--model procedural|makehuman:NAME] "
        "[--option KEY=VALUE ...] [--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
-       "queue a reconstruction of a stored take (rigid parts, thesis ch. 3, or the body model, "
-       "ch. 4; --model is --option model= of body); --wait follows it with a progress bar; "
-       "body with --option live=true follows a take still recording (reenactments follow)",
+       "queue a reconstruction of a stored take by a method of `jobs methods` (rigid parts, "
+       "thesis ch. 3, or the body model, ch. 4; --model is --option model=); --wait follows it "
+       "with a progress bar; a live method with --option live=true follows a take still "
+       "recording (reenactments follow)",
        RunJobsSubmit},
+      {{"jobs", "methods"},
+       "[--server HOST:PORT] [--json]",
+       "the reconstruction methods the server runs: what each does, whether it can follow a "
+       "take live, and its options with types, defaults, bounds and documentation",
+       RunJobsMethods},
       {{"jobs", "list"},
        "[--server HOST:PORT] [--state queued|running|succeeded|failed|cancelled|all] "
        "[--take ID] [--page-size N] [--json]",

@@ -45,6 +45,7 @@ int RunCaptureStop(const std::vector<std::string>& args, std::ostream& out, std:
 // job_commands.cc
 int RunJobsSubmit(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunJobsMethods(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunJobsWatch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunJobsCancel(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

@@ -17,8 +17,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_replace.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/progress_bar.h"
 #include "clients/cli/remote_flags.h"
@@ -178,17 +181,13 @@ absl::StatusOr<std::map<std::string, std::string>> TakeOptions(std::vector<std::
   return options;
 }
 
-// `--model X`: shorthand for `--option model=X`, the body model of the
-// method "body" (procedural | makehuman:NAME). InvalidArgument with another
-// method or beside a different `--option model=`.
-absl::Status ApplyModelFlag(const Flags& flags, const std::string& method,
-                            std::map<std::string, std::string>* options) {
+// `--model X`: shorthand for `--option model=X`, the body model of a method
+// that has one (procedural | makehuman:NAME; the server refuses it for a
+// method without the option). InvalidArgument beside a different
+// `--option model=`.
+absl::Status ApplyModelFlag(const Flags& flags, std::map<std::string, std::string>* options) {
   if (!flags.Has("model")) return absl::OkStatus();
   const std::string model = flags.GetOr("model", "");
-  if (method != "body") {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--model chooses the body model of --method body; method \"", method, "\" has none"));
-  }
   if (model.empty()) {
     return absl::InvalidArgumentError("--model takes procedural or makehuman:NAME");
   }
@@ -219,7 +218,7 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   if (!take.ok()) return ReportError(take.status(), err);
   auto method = flags->Required("method");
   if (!method.ok()) return ReportError(method.status(), err);
-  if (absl::Status model = ApplyModelFlag(*flags, *method, &*options); !model.ok()) {
+  if (absl::Status model = ApplyModelFlag(*flags, &*options); !model.ok()) {
     return ReportError(model, err);
   }
   auto connection = ConnectionFromFlags(*flags);
@@ -282,6 +281,68 @@ int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::os
                            result);
   }
   if (jobs->empty()) out << "(no jobs)\n";
+  return kExitOk;
+}
+
+namespace {
+
+nlohmann::json MethodJson(const v1::MethodDescription& method) {
+  nlohmann::json options = nlohmann::json::array();
+  for (const v1::MethodOption& option : method.options()) {
+    nlohmann::json o = {
+        {"name", option.name()}, {"type", option.type()},     {"default", option.default_value()},
+        {"doc", option.doc()},   {"common", option.common()}, {"live_only", option.live_only()}};
+    if (option.has_bounds()) {
+      o["min"] = option.min();
+      o["max"] = option.max();
+    }
+    options.push_back(std::move(o));
+  }
+  std::string texture = absl::AsciiStrToLower(v1::TextureMode_Name(method.texture_mode()));
+  if (absl::StartsWith(texture, "texture_mode_")) texture = texture.substr(13);
+  absl::StrReplaceAll({{"_", "-"}}, &texture);
+  return {{"name", method.name()}, {"summary", method.summary()}, {"thesis", method.thesis()},
+          {"live", method.live()}, {"texture_mode", texture},     {"options", options}};
+}
+
+// "[0, 100]" for bounded options; "" otherwise.
+std::string Bounds(const v1::MethodOption& option) {
+  if (!option.has_bounds()) return "";
+  return absl::StrCat("[", option.min(), ", ", option.max(), "]");
+}
+
+}  // namespace
+
+int RunJobsMethods(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  if (!flags->positional().empty()) {
+    return ReportError(absl::InvalidArgumentError("jobs methods takes no arguments"), err);
+  }
+  auto connection = ConnectionFromFlags(*flags);
+  if (!connection.ok()) return ReportError(connection.status(), err);
+  auto methods = client::JobsClient(*connection).ListMethods();
+  if (!methods.ok()) return ReportRemoteError(methods.status(), err);
+  if (flags->Has("json")) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const v1::MethodDescription& method : *methods) j.push_back(MethodJson(method));
+    out << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  for (const v1::MethodDescription& method : *methods) {
+    const nlohmann::json j = MethodJson(method);
+    out << method.name() << ": " << method.summary() << "\n"
+        << "  thesis " << method.thesis() << "; textures " << j["texture_mode"].get<std::string>()
+        << "; " << (method.live() ? "can follow a take live (live=true)" : "offline only") << "\n";
+    for (const v1::MethodOption& option : method.options()) {
+      const char* scope = option.common() ? " (every method)" : option.live_only() ? " (live)" : "";
+      out << absl::StrFormat("  %-24s %-6s %-10s %-16s %s%s\n", option.name(), option.type(),
+                             option.default_value().empty() ? "\"\"" : option.default_value(),
+                             Bounds(option), option.doc(), scope);
+    }
+    out << "\n";
+  }
+  if (methods->empty()) out << "(no methods)\n";
   return kExitOk;
 }
 

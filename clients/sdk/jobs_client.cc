@@ -114,6 +114,15 @@ absl::StatusOr<v1::Job> JobsClient::Get(const std::string& job_id) const {
   return job;
 }
 
+absl::StatusOr<std::vector<v1::MethodDescription>> JobsClient::ListMethods() const {
+  grpc::ClientContext context;
+  SetDeadline(context, options_.timeout_s);
+  v1::ListMethodsResponse response;
+  const grpc::Status status = stub_->ListMethods(&context, v1::ListMethodsRequest(), &response);
+  if (!status.ok()) return WithAddress(status, options_.address);
+  return std::vector<v1::MethodDescription>(response.methods().begin(), response.methods().end());
+}
+
 absl::StatusOr<v1::JobState> ParseJobState(const std::string& name) {
   const std::string lower = absl::AsciiStrToLower(name);
   if (lower == "all" || lower.empty()) return v1::JOB_STATE_UNSPECIFIED;

@@ -48,6 +48,8 @@ class JobsClient {
                                             const std::string& take_id = "",
                                             int page_size = 0) const;
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
+  // The reconstruction methods the server runs, with their options.
+  absl::StatusOr<std::vector<v1::MethodDescription>> ListMethods() const;
 
  private:
   ConnectionOptions options_;

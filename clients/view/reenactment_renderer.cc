@@ -146,7 +146,7 @@ ReenactmentRenderer::ReenactmentRenderer(const ReenactmentData& data,
     : data_(data),
       renderer_(renderer),
       options_(options),
-      selection_(options.selection_from_method ? SelectionForMethod(data.info.method())
+      selection_(options.selection_from_method ? SelectionForReenactment(data.info)
                                                : options.selection),
       underlay_baked_(options.underlay_from_method ? selection_ == TextureSelection::kRotation
                                                    : options.underlay_baked),

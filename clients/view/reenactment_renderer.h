@@ -57,8 +57,8 @@ absl::StatusOr<TextureMode> ParseTextureMode(const std::string& name);
 
 struct ReenactmentRendererOptions {
   TextureMode mode = TextureMode::kVdtm;
-  // Keyframe ranking; by default the one the reenactment's method implies
-  // (SelectionForMethod of ReenactmentInfo.method).
+  // Keyframe ranking; by default the one the reenactment records
+  // (SelectionForReenactment of ReenactmentInfo).
   bool selection_from_method = true;
   TextureSelection selection = TextureSelection::kRotation;
   // VDTM: draw each part's baked texture (when it has one) behind its

@@ -51,8 +51,13 @@ absl::StatusOr<KeyframeCamera> MakeKeyframeCamera(const v1::TextureKeyframe& key
 
 }  // namespace
 
-TextureSelection SelectionForMethod(const std::string& method) {
-  return method == "rigid-cylinders" ? TextureSelection::kPose : TextureSelection::kRotation;
+TextureSelection SelectionForReenactment(const v1::ReenactmentInfo& info) {
+  if (info.texture_mode() == v1::TEXTURE_MODE_UNSPECIFIED) {
+    return info.method() == "rigid-cylinders" ? TextureSelection::kPose
+                                              : TextureSelection::kRotation;
+  }
+  return info.texture_mode() == v1::TEXTURE_MODE_POSE_CLOSEST ? TextureSelection::kPose
+                                                              : TextureSelection::kRotation;
 }
 
 Eigen::Affine3d PartPose::WorldFromPartScaled() const {

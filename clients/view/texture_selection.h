@@ -60,8 +60,11 @@ enum class TextureSelection {
   kPose,      // Eq. 3.6, one ranking for all parts.
 };
 
-// kPose for "rigid-cylinders", kRotation for anything else.
-TextureSelection SelectionForMethod(const std::string& method);
+// The ranking the reenactment records (ReenactmentInfo.texture_mode: kPose
+// for TEXTURE_MODE_POSE_CLOSEST, kRotation otherwise). Files written before
+// the field existed go by their method: kPose for rigid-cylinders, the one
+// method that ranked by pose then.
+TextureSelection SelectionForReenactment(const v1::ReenactmentInfo& info);
 
 // The pose of one part at one instant: point_in_world = scale *
 // (world_from_part.linear() * point_in_part) + world_from_part.translation().

@@ -124,7 +124,14 @@ TEST(RankByPose, PicksThePoseClosestKeyframeInTheViewersFrame) {
                     SolidKeyframe(0, "s1", {3, 3, 3})};
   auto model = VdtmModel::Create(data);
   ASSERT_TRUE(model.ok()) << model.status();
-  EXPECT_EQ(SelectionForMethod(data.info.method()), TextureSelection::kPose);
+  // A file from before texture_mode goes by its method; a recorded mode wins.
+  EXPECT_EQ(SelectionForReenactment(data.info), TextureSelection::kPose);
+  v1::ReenactmentInfo recorded = data.info;
+  recorded.set_texture_mode(v1::TEXTURE_MODE_ROTATION_CLOSEST);
+  EXPECT_EQ(SelectionForReenactment(recorded), TextureSelection::kRotation);
+  recorded.set_method("a-new-method");
+  recorded.set_texture_mode(v1::TEXTURE_MODE_POSE_CLOSEST);
+  EXPECT_EQ(SelectionForReenactment(recorded), TextureSelection::kPose);
   std::vector<double> distances;
   // Frame 2 (arm nearly as raised as frame 1) seen from s0's place.
   EXPECT_EQ(model->RankByPose(2, CameraFromWorld(0.0), &distances)[0], 1);

@@ -3,6 +3,7 @@
 // ranges, errors, tokens and roles, the app's files, TLS, the live follow as
 // a WebSocket, and the connection cap.
 #include "server/http/http_front.h"
+#include "server/jobs/testing/fake_worker_methods.h"
 
 #include <chrono>
 #include <filesystem>
@@ -190,6 +191,7 @@ class HttpFrontTest : public ::testing::Test {
   // front; `web_root` empty: no app.
   void Start(ServerOptions options = {}, HttpFrontOptions front = {}) {
     options.jobs.worker_path = REENACT_FAKE_WORKER;
+    options.jobs.methods = FakeWorkerMethods();
     options.jobs.concurrency = 1;
     options.jobs.poll_period_s = 0.02;
     options.live.factory = [](const v1::TakeInfo&, const std::vector<v1::SensorCalibration>&,

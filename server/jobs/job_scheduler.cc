@@ -89,15 +89,22 @@ absl::Status ValidateOptions(const google::protobuf::Map<std::string, std::strin
   return absl::OkStatus();
 }
 
-// The options the worker gets: the live-only ones left out.
+// Whether `spec` lists `key` as an option only a live follow reads.
+bool IsLiveOnly(const methods::MethodSpec* spec, const std::string& key) {
+  if (spec == nullptr) return false;
+  for (const methods::OptionSpec& option : spec->options) {
+    if (option.name == key) return option.live_only;
+  }
+  return false;
+}
+
+// The options the worker gets: the method's live-only ones left out.
 std::map<std::string, std::string> WorkerOptions(
+    const methods::MethodSpec* spec,
     const google::protobuf::Map<std::string, std::string>& options) {
   std::map<std::string, std::string> worker;
   for (const auto& [key, value] : options) {
-    if (std::find(kLiveOnlyOptions.begin(), kLiveOnlyOptions.end(), key) ==
-        kLiveOnlyOptions.end()) {
-      worker.emplace(key, value);
-    }
+    if (!IsLiveOnly(spec, key)) worker.emplace(key, value);
   }
   return worker;
 }
@@ -109,18 +116,18 @@ std::string OptionsJson(const std::map<std::string, std::string>& options) {
 }
 
 // Whether the job asks to follow its take (option live=true). InvalidArgument
-// for another value, or live=true with a method other than body.
-absl::StatusOr<bool> LiveOption(const v1::SubmitJobRequest& request) {
+// for another value, or live=true with a method that cannot follow a take.
+absl::StatusOr<bool> LiveOption(const v1::SubmitJobRequest& request,
+                                const methods::MethodSpec& spec) {
   const auto it = request.options().find("live");
   if (it == request.options().end() || it->second == "false") return false;
   if (it->second != "true") {
     return absl::InvalidArgumentError(
         absl::StrCat("option live takes true or false, not \"", Truncate(it->second, 80), "\""));
   }
-  if (request.method() != "body") {
+  if (!spec.live) {
     return absl::InvalidArgumentError(
-        absl::StrCat("option live=true follows a take with the body model: method body, not \"",
-                     Truncate(request.method(), 80), "\""));
+        absl::StrCat("method ", spec.name, " cannot follow a take live (option live)"));
   }
   return true;
 }
@@ -189,7 +196,6 @@ absl::Status JobSchedulerOptions::Validate() const {
     return absl::InvalidArgumentError(
         "job_retention_days must be >= 0 and retention_sweep_period_s > 0");
   }
-  if (methods.empty()) return absl::InvalidArgumentError("no job methods are configured");
   return store.Validate();
 }
 
@@ -237,18 +243,23 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
     if (stopping_) return absl::UnavailableError("the server is shutting down; submit later");
   }
   RETURN_IF_ERROR(ValidateTakeId(request.take_id()));
-  if (std::find(options_.methods.begin(), options_.methods.end(), request.method()) ==
-      options_.methods.end()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("unknown method \"", Truncate(request.method(), 80),
-                     "\"; methods: ", absl::StrJoin(options_.methods, ", ")));
+  if (options_.methods.empty()) {
+    return absl::FailedPreconditionError("this server runs no reconstruction methods");
   }
+  const methods::MethodSpec* spec = methods::FindMethod(options_.methods, request.method());
+  if (spec == nullptr) return methods::UnknownMethodError(options_.methods, request.method());
   RETURN_IF_ERROR(ValidateOptions(request.options()));
+  ASSIGN_OR_RETURN(const bool live, LiveOption(request, *spec));
+  const std::map<std::string, std::string> all_options(request.options().begin(),
+                                                       request.options().end());
+  RETURN_IF_ERROR(methods::CheckOptions(*spec, all_options));
+  if (options_.check_job) {
+    RETURN_IF_ERROR(options_.check_job(request.method(), WorkerOptions(spec, request.options())));
+  }
   if (const auto model = request.options().find("model"); model != request.options().end()) {
     // A model the workers could not find fails now, not after the queue.
     RETURN_IF_ERROR(body::ResolveAssetModelSpec(model->second, options_.asset_roots).status());
   }
-  ASSIGN_OR_RETURN(const bool live, LiveOption(request));
   ASSIGN_OR_RETURN(const v1::Take take, takes_->GetTake(request.take_id()));
   const bool recording = take.state() == v1::TAKE_STATE_RECORDING;
   if (recording) RETURN_IF_ERROR(CheckFollowable(take.take_id(), live));
@@ -717,21 +728,23 @@ void JobScheduler::Launch(const std::string& job_id) {
   process_options.stdout_path = run->progress_path;
   process_options.stderr_path = run->log_path;
   process_options.working_dir = dir.string();
-  std::vector<std::string> args = {worker_path_,
-                                   "--take",
-                                   *take_path,
-                                   "--method",
-                                   job->method(),
-                                   "--options-json",
-                                   OptionsJson(WorkerOptions(job->options())),
-                                   "--out",
-                                   run->out_path,
-                                   "--reenactment-id",
-                                   run->reenactment_id,
-                                   "--take-id",
-                                   job->take_id(),
-                                   "--job-id",
-                                   job_id};
+  std::vector<std::string> args = {
+      worker_path_,
+      "--take",
+      *take_path,
+      "--method",
+      job->method(),
+      "--options-json",
+      OptionsJson(
+          WorkerOptions(methods::FindMethod(options_.methods, job->method()), job->options())),
+      "--out",
+      run->out_path,
+      "--reenactment-id",
+      run->reenactment_id,
+      "--take-id",
+      job->take_id(),
+      "--job-id",
+      job_id};
   if (!options_.asset_roots.empty()) {
     args.insert(args.end(), {"--assets", absl::StrJoin(options_.asset_roots, ",")});
   }

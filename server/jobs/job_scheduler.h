@@ -40,8 +40,8 @@
 // (server/live/live_hub.h) follows the take for it; its progress counts the
 // frame sets followed (frames_done). When the take stops recording the
 // same job goes on with a worker on the stored take, before the queued jobs
-// (a new attempt; the options kLiveOnlyOptions are not passed to the
-// worker), and ends SUCCEEDED with its reenactment as usual. A live fit
+// (a new attempt; the method's live-only options, MethodSpec, are not
+// passed to the worker), and ends SUCCEEDED with its reenactment as usual. A live fit
 // that cannot start fails the job. A live job of a take that is not
 // recording simply runs offline. Cancel stops the follow at once. After a
 // restart a live job left RUNNING runs offline.
@@ -69,18 +69,15 @@
 #include "absl/status/statusor.h"
 #include "common/base/subprocess.h"
 #include "common/base/thread_pool.h"
+#include "common/methods/method_spec.h"
 #include "reenact/v1/jobs_service.pb.h"
 #include "server/jobs/job_store.h"
-#include "server/jobs/methods_list.h"
 #include "server/live/live_hub.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
 
-// Options of a live job that only its follow uses: the worker does not get
-// them ("shape_spacing": recon::LiveBodyFollower's).
-inline constexpr std::array<std::string_view, 2> kLiveOnlyOptions = {"live", "shape_spacing"};
 // The stage of a live job while it follows its take.
 inline constexpr char kFollowingStage[] = "following";
 
@@ -90,8 +87,15 @@ struct JobSchedulerOptions {
   std::string worker_path;
   // Workers running at a time; 0: std::thread::hardware_concurrency().
   int concurrency = 0;
-  // Method names Submit accepts (server/jobs/methods_list.h).
-  std::vector<std::string> methods = JobMethodNames();
+  // The methods Submit accepts, with their options (reenact-server: the
+  // registry, server/recon/registry.h). Submit checks a job's options
+  // against them (names, types, bounds). Empty: no job is accepted.
+  std::vector<methods::MethodSpec> methods;
+  // A deeper check of a job that Submit runs after the spec's (reenact-
+  // server: recon::CheckJob, the method's Validate()); empty: none.
+  std::function<absl::Status(const std::string& method,
+                             const std::map<std::string, std::string>& options)>
+      check_job;
   // How often running workers' output and exits are looked at, seconds.
   double poll_period_s = 0.1;
   // Cancel of a running job: SIGTERM, then SIGKILL after this long, seconds.
@@ -153,6 +157,8 @@ class JobScheduler {
   absl::StatusOr<v1::Job> Cancel(const std::string& job_id);
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
   std::vector<v1::Job> List(v1::JobState state, const std::string& take_id) const;
+  // The methods Submit accepts (JobSchedulerOptions::methods).
+  const std::vector<methods::MethodSpec>& methods() const { return options_.methods; }
   // FailedPrecondition naming a job of `take_id` that is queued or running
   // (a take is not deleted under a job that reads it).
   absl::Status CheckNoUnfinishedJobs(const std::string& take_id) const;

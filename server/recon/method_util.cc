@@ -10,69 +10,6 @@
 
 namespace reenact::recon {
 
-absl::Status OptionReader::Int(const std::string& key, int* value, int min, int max) {
-  known_.insert(key);
-  auto it = options_.find(key);
-  if (it == options_.end()) return absl::OkStatus();
-  int parsed = 0;
-  if (!absl::SimpleAtoi(it->second, &parsed)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option ", key, ": \"", it->second, "\" is not an integer"));
-  }
-  if (parsed < min || parsed > max) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option ", key, ": ", parsed, " is outside [", min, ", ", max, "]"));
-  }
-  *value = parsed;
-  return absl::OkStatus();
-}
-
-absl::Status OptionReader::Double(const std::string& key, double* value, double min, double max) {
-  known_.insert(key);
-  auto it = options_.find(key);
-  if (it == options_.end()) return absl::OkStatus();
-  double parsed = 0;
-  if (!absl::SimpleAtod(it->second, &parsed) || !std::isfinite(parsed)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option ", key, ": \"", it->second, "\" is not a finite number"));
-  }
-  if (parsed < min || parsed > max) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option ", key, ": ", parsed, " is outside [", min, ", ", max, "]"));
-  }
-  *value = parsed;
-  return absl::OkStatus();
-}
-
-absl::Status OptionReader::Bool(const std::string& key, bool* value) {
-  known_.insert(key);
-  auto it = options_.find(key);
-  if (it == options_.end()) return absl::OkStatus();
-  if (!absl::SimpleAtob(it->second, value)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option ", key, ": \"", it->second, "\" is not true or false"));
-  }
-  return absl::OkStatus();
-}
-
-absl::Status OptionReader::String(const std::string& key, std::string* value) {
-  known_.insert(key);
-  auto it = options_.find(key);
-  if (it != options_.end()) *value = it->second;
-  return absl::OkStatus();
-}
-
-absl::Status OptionReader::Finish() const {
-  std::vector<std::string> unknown;
-  for (const auto& [key, value] : options_) {
-    if (!known_.count(key)) unknown.push_back(key);
-  }
-  if (unknown.empty()) return absl::OkStatus();
-  return absl::InvalidArgumentError(absl::StrCat("unknown option", unknown.size() > 1 ? "s" : "",
-                                                 " ", absl::StrJoin(unknown, ", "),
-                                                 " (known: ", absl::StrJoin(known_, ", "), ")"));
-}
-
 StageProgress::StageProgress(const ProgressCallback& callback,
                              std::vector<std::pair<std::string, double>> stages)
     : callback_(callback), stages_(std::move(stages)) {

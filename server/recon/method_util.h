@@ -1,5 +1,4 @@
-// Helpers the reconstruction methods share: typed reading of option maps
-// (unknown keys are errors), progress over several stages, and the
+// Helpers the reconstruction methods share: progress over several stages, and the
 // reenact.v1 messages of part poses and frames.
 #pragma once
 
@@ -13,42 +12,16 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
+#include "common/methods/option_reader.h"
 #include "reenact/v1/reenactment.pb.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::recon {
 
-// Reads typed values out of a method's string options and remembers which
-// keys were read, so that Finish() can reject the rest:
-//
-//   OptionReader reader(options);
-//   double lambda = 0.5;
-//   RETURN_IF_ERROR(reader.Double("lambda", &lambda));
-//   RETURN_IF_ERROR(reader.Finish());  // InvalidArgument for unknown keys.
-//
-// Each getter leaves `*value` unchanged when the key is absent, and returns
-// InvalidArgument naming the key when the text does not parse as the type
-// (or, for Int/Double with bounds, lies outside [min, max]).
-class OptionReader {
- public:
-  explicit OptionReader(const std::map<std::string, std::string>& options) : options_(options) {}
-
-  absl::Status Int(const std::string& key, int* value, int min = INT32_MIN, int max = INT32_MAX);
-  absl::Status Double(const std::string& key, double* value, double min = -1e300,
-                      double max = 1e300);
-  // "true"/"false"/"1"/"0"/"yes"/"no".
-  absl::Status Bool(const std::string& key, bool* value);
-  absl::Status String(const std::string& key, std::string* value);
-
-  // InvalidArgument naming every key that no getter asked for, and listing
-  // the keys the method knows.
-  absl::Status Finish() const;
-
- private:
-  const std::map<std::string, std::string>& options_;
-  std::set<std::string> known_;
-};
+// The option reader the methods parse their string options with
+// (common/methods/option_reader.h).
+using methods::OptionReader;
 
 // Progress of a call made of several weighted stages, reported through one
 // ProgressCallback with `fraction` over the whole call.

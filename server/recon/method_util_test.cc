@@ -9,37 +9,6 @@
 namespace reenact::recon {
 namespace {
 
-TEST(OptionReader, ReadsTypedValuesAndRejectsUnknownKeys) {
-  const std::map<std::string, std::string> options = {
-      {"lambda", "0.25"}, {"segments", "12"}, {"bake", "false"}, {"name", "x"}};
-  OptionReader reader(options);
-  double lambda = 0.5;
-  int segments = 24, rings = 8;
-  bool bake = true;
-  std::string name;
-  EXPECT_TRUE(reader.Double("lambda", &lambda, 0, 10).ok());
-  EXPECT_TRUE(reader.Int("segments", &segments, 3, 100).ok());
-  EXPECT_TRUE(reader.Int("rings", &rings).ok());  // Absent: unchanged.
-  EXPECT_TRUE(reader.Bool("bake", &bake).ok());
-  EXPECT_TRUE(reader.String("name", &name).ok());
-  EXPECT_TRUE(reader.Finish().ok());
-  EXPECT_DOUBLE_EQ(lambda, 0.25);
-  EXPECT_EQ(segments, 12);
-  EXPECT_EQ(rings, 8);
-  EXPECT_FALSE(bake);
-  EXPECT_EQ(name, "x");
-
-  const std::map<std::string, std::string> bad = {
-      {"segments", "twelve"}, {"lambda", "1e400"}, {"rings", "0"}, {"mystery", "1"}};
-  OptionReader bad_reader(bad);
-  EXPECT_EQ(bad_reader.Int("segments", &segments).code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(bad_reader.Double("lambda", &lambda).code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(bad_reader.Int("rings", &rings, 1, 10).code(), absl::StatusCode::kInvalidArgument);
-  const absl::Status finish = bad_reader.Finish();
-  EXPECT_EQ(finish.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(finish.message().find("mystery"), std::string::npos) << finish;
-}
-
 TEST(StageProgress, MapsStagesOntoOneFraction) {
   std::vector<Progress> seen;
   StageProgress stages(

@@ -2,46 +2,44 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <filesystem>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "common/base/status_macros.h"
 #include "common/io/reenactment_file.h"
-#include "server/recon/body/body_method.h"
-#include "server/recon/cylinders.h"
-#include "server/recon/method_util.h"
+#include "server/recon/body_parts.h"
+#include "server/recon/registry.h"
 #include "server/recon/take_frames.h"
-#if REENACT_HAVE_RIGID_CARVED
-#include "server/recon/carving/rigid_carved.h"
-#endif
 
 namespace reenact::recon {
 namespace {
 
-constexpr char kRigidCylinders[] = "rigid-cylinders";
-constexpr char kRigidCarved[] = "rigid-carved";
-constexpr char kBody[] = "body";
 constexpr char kGenerator[] = "reenact-recon 0.1.0";
 
-// Options RunMethod itself reads (loading), taken out before the method
-// sees the rest.
-struct LoadOptions {
-  TakeFramesOptions frames;
-};
-
-absl::Status ReadLoadOptions(std::map<std::string, std::string>* options, LoadOptions* out) {
-  std::map<std::string, std::string> mine;
-  for (const char* key : {"threads", "max_frames"}) {
-    auto it = options->find(key);
-    if (it == options->end()) continue;
-    mine.insert(*it);
-    options->erase(it);
+// Splits the load options (LoadOptions' keys) from the method's.
+void SplitLoadOptions(const OptionMap& options, OptionMap* load, OptionMap* method) {
+  static const std::vector<methods::OptionSpec> load_keys = methods::DescribeOptions<LoadOptions>();
+  *method = options;
+  for (const methods::OptionSpec& key : load_keys) {
+    if (auto it = method->find(key.name); it != method->end()) {
+      load->insert(*it);
+      method->erase(it);
+    }
   }
-  OptionReader reader(mine);
-  RETURN_IF_ERROR(reader.Int("threads", &out->frames.num_threads, 0, 256));
-  RETURN_IF_ERROR(reader.Int("max_frames", &out->frames.max_instants, 0));
-  return reader.Finish();
+}
+
+v1::TextureMode TextureModeProto(methods::TextureMode mode) {
+  switch (mode) {
+    case methods::TextureMode::kPoseClosest:
+      return v1::TEXTURE_MODE_POSE_CLOSEST;
+    case methods::TextureMode::kRotationClosest:
+      return v1::TEXTURE_MODE_ROTATION_CLOSEST;
+    case methods::TextureMode::kBodyAtlas:
+      return v1::TEXTURE_MODE_BODY_ATLAS;
+  }
+  return v1::TEXTURE_MODE_UNSPECIFIED;
 }
 
 // Maps a method's own fractions (0..1, its stage names) into
@@ -63,34 +61,35 @@ int64_t NowUnixNs() {
 
 }  // namespace
 
-std::vector<std::string> MethodNames() { return {kRigidCylinders, kRigidCarved, kBody}; }
+absl::Status LoadOptions::Read(methods::OptionReader& reader) {
+  RETURN_IF_ERROR(reader.Int("threads", &frames.num_threads, 0, 256,
+                             "threads decoding the take (0: one per core)"));
+  return reader.Int("max_frames", &frames.max_instants, 0, INT_MAX,
+                    "use at most this many instants of the take (0: all)");
+}
+
+absl::Status CheckJob(const std::string& method, const OptionMap& options) {
+  const ReconstructionMethod* found = FindMethod(method);
+  if (found == nullptr) return methods::UnknownMethodError(MethodSpecs(), method);
+  OptionMap load_options, method_options;
+  SplitLoadOptions(options, &load_options, &method_options);
+  LoadOptions load;
+  RETURN_IF_ERROR(methods::ParseOptions(load_options, &load));
+  return found->CheckOptions(method_options);
+}
 
 absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::string& out_path,
                                        const ProgressCallback& progress, const LogCallback& log) {
   const auto start = std::chrono::steady_clock::now();
-  const bool cylinders = input.method == kRigidCylinders;
-  const bool body = input.method == kBody;
-  if (!cylinders && !body && input.method != kRigidCarved) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "unknown method \"", input.method, "\" (known: ", absl::StrJoin(MethodNames(), ", "), ")"));
-  }
-#if !REENACT_HAVE_RIGID_CARVED
-  if (!cylinders && !body) {
-    return absl::UnimplementedError("method rigid-carved is not built into this program");
-  }
-#endif
+  const ReconstructionMethod* method = FindMethod(input.method);
+  if (method == nullptr) return methods::UnknownMethodError(MethodSpecs(), input.method);
   if (out_path.empty()) return absl::InvalidArgumentError("no output path");
-  std::map<std::string, std::string> method_options = input.options;
+  OptionMap load_options, method_options;
+  SplitLoadOptions(input.options, &load_options, &method_options);
   LoadOptions load;
-  RETURN_IF_ERROR(ReadLoadOptions(&method_options, &load));
-  if (cylinders) {
-    // Reject bad options before the (slow) load.
-    CylinderOptions options;
-    OptionReader reader(method_options);
-    RETURN_IF_ERROR(options.Read(reader));
-    RETURN_IF_ERROR(reader.Finish());
-  }
-  if (body) RETURN_IF_ERROR(CheckBodyOptions(method_options));
+  RETURN_IF_ERROR(methods::ParseOptions(load_options, &load));
+  // Reject bad options before the (slow) load.
+  RETURN_IF_ERROR(method->CheckOptions(method_options));
 
   // Load.
   ASSIGN_OR_RETURN(std::unique_ptr<TakeFrames> take,
@@ -110,17 +109,8 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   }
 
   // The method.
-  const ProgressCallback method_progress = SubRange(progress, 0.15, 0.95);
-  absl::StatusOr<ReenactmentData> made;
-  if (cylinders) {
-    made = RunRigidCylinders(*take, method_options, method_progress, log);
-  } else if (body) {
-    made = RunBody(*take, method_options, input.asset_roots, method_progress, log);
-  } else {
-#if REENACT_HAVE_RIGID_CARVED
-    made = RunRigidCarved(*take, method_options, method_progress, log);
-#endif
-  }
+  const MethodContext context{input.asset_roots, SubRange(progress, 0.15, 0.95), log};
+  absl::StatusOr<ReenactmentData> made = method->Run(*take, method_options, context);
   if (!made.ok()) return made.status();
   ReenactmentData& data = *made;
 
@@ -130,6 +120,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   info.set_take_id(input.take_id);
   info.set_job_id(input.job_id);
   info.set_method(input.method);
+  info.set_texture_mode(TextureModeProto(method->spec().texture));
   info.mutable_options()->clear();
   for (const auto& [key, value] : input.options) (*info.mutable_options())[key] = value;
   info.set_created_unix_ns(NowUnixNs());

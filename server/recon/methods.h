@@ -1,33 +1,49 @@
-// The reconstruction methods a job can run, behind one entry point that the
-// worker process (reenact-worker) calls: read a take, build a reenactment,
-// write it to a file.
+// The one entry point of the reconstruction methods that the worker process
+// (reenact-worker) calls: read a take, run the method the job names (from
+// the registry, registry.h), write the reenactment to a file. The methods:
 //
 //   rigid-cylinders  thesis 3.3: cylinders from rectangles fitted in a
 //                    representative frame (Eq. 3.3-3.5), VDTM by the
-//                    pose-closest frame (Eq. 3.6).
+//                    pose-closest frame (Eq. 3.6); cylinders/.
 //   rigid-carved     thesis 3.4: per-part registration (Eq. 3.7-3.9),
 //                    per-part truncated SDF (Eq. 3.10-3.11), marching cubes,
-//                    VDTM by the rotation-closest frame (Eq. 3.13-3.15).
+//                    VDTM by the rotation-closest frame (Eq. 3.13-3.15);
+//                    carving/.
 //   body             thesis ch. 4: the statistical body model fitted to the
 //                    merged point clouds (Eq. 4.4-4.8), textured into an
-//                    atlas (4.4); body/body_method.h.
+//                    atlas (4.4); body/.
 #pragma once
 
-#include <functional>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
+#include "common/methods/option_reader.h"
+#include "server/recon/reconstruction_method.h"
+#include "server/recon/take_frames.h"
 
 namespace reenact::recon {
 
+// The options RunMethod reads itself (loading the take) before the method
+// gets the rest; every method accepts them.
+struct LoadOptions {
+  TakeFramesOptions frames;
+  absl::Status Read(methods::OptionReader& reader);
+  absl::Status Validate() const { return absl::OkStatus(); }
+};
+
+// Checks a job as the worker will run it: InvalidArgument for an unknown
+// method (naming the known ones) or options that the load or the method
+// reject (naming the key, or the known keys for an unknown one).
+absl::Status CheckJob(const std::string& method, const OptionMap& options);
+
 struct MethodInput {
   std::string take_path;  // The take's MCAP file.
-  std::string method;     // One of MethodNames().
+  std::string method;     // A registered method's name (registry.h).
   // Method options (strings as submitted); unknown keys are InvalidArgument.
-  std::map<std::string, std::string> options;
+  OptionMap options;
   // Ids written into ReenactmentInfo.
   std::string reenactment_id;
   std::string take_id;
@@ -44,12 +60,6 @@ struct MethodResult {
   int64_t file_bytes = 0;  // Size of the written reenactment file.
   std::map<std::string, double> figures;
 };
-
-// Human-readable log lines of a running method (one line per call).
-using LogCallback = std::function<void(const std::string& line)>;
-
-// Names of the methods RunMethod accepts.
-std::vector<std::string> MethodNames();
 
 // Runs `input.method` on the take and writes the reenactment to `out_path`
 // (through a temporary name: on failure nothing is left at `out_path`).

@@ -28,10 +28,6 @@ MethodInput CylindersInput() {
   return input;
 }
 
-TEST(MethodNames, ListsTheRigidAndBodyMethods) {
-  EXPECT_EQ(MethodNames(), (std::vector<std::string>{"rigid-cylinders", "rigid-carved", "body"}));
-}
-
 TEST(RunMethod, RigidCylindersWritesAValidReenactment) {
   RECON_REQUIRE_SHARED_TAKE();
   const std::string out = reenact::testing::MakeTempDir("recon_run") + "/r.reen";
@@ -57,6 +53,7 @@ TEST(RunMethod, RigidCylindersWritesAValidReenactment) {
   EXPECT_EQ(info.take_id(), "t-test");
   EXPECT_EQ(info.job_id(), "j-test");
   EXPECT_EQ(info.method(), "rigid-cylinders");
+  EXPECT_EQ(info.texture_mode(), v1::TEXTURE_MODE_POSE_CLOSEST);
   EXPECT_EQ(info.options().at("texture_size_px"), "128");
   EXPECT_EQ(info.frame_count(), instants);
   EXPECT_NEAR(info.fps(), 15.0, 1e-9);
@@ -140,7 +137,6 @@ TEST(RunMethod, RejectsUnknownMethodsAndOptions) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/r.reen"));
 }
 
-#if REENACT_HAVE_RIGID_CARVED
 // The dispatch to carving/rigid_carved.cc (its own tests measure it).
 TEST(RunMethod, RigidCarvedWritesAValidReenactment) {
   RECON_REQUIRE_SHARED_TAKE();
@@ -153,17 +149,11 @@ TEST(RunMethod, RigidCarvedWritesAValidReenactment) {
   auto data = ReadReenactmentFile(out, /*skip_keyframes=*/true);
   ASSERT_TRUE(data.ok()) << data.status();
   EXPECT_EQ(data->info.method(), "rigid-carved");
+  EXPECT_EQ(data->info.texture_mode(), v1::TEXTURE_MODE_ROTATION_CLOSEST);
   EXPECT_EQ(data->parts.size(), static_cast<size_t>(kNumBodyParts));
   EXPECT_EQ(data->frames.size(), static_cast<size_t>(GetSharedTake().summary.frames));
   EXPECT_TRUE(data->info.figures().contains("seconds"));
 }
-#else
-TEST(RunMethod, RigidCarvedIsUnimplementedUntilBuilt) {
-  MethodInput input = CylindersInput();
-  input.method = "rigid-carved";
-  EXPECT_EQ(RunMethod(input, "/tmp/unused.reen").status().code(), absl::StatusCode::kUnimplemented);
-}
-#endif
 
 TEST(RunMethod, BadTakesAreErrorsAndLeaveNoFile) {
   const std::string dir = reenact::testing::MakeTempDir("recon_bad_take");

@@ -13,12 +13,18 @@
 namespace reenact::recon {
 
 absl::Status RigidTexturingOptions::Read(OptionReader& reader) {
-  RETURN_IF_ERROR(reader.Int("keyframe_stride", &keyframe_stride, 0, 1000000));
-  RETURN_IF_ERROR(reader.Int("color_scale", &color_scale, 1, 8));
-  RETURN_IF_ERROR(reader.Bool("bake", &bake));
-  RETURN_IF_ERROR(reader.Int("texture_size_px", &baking.texture_size_px, 16, 8192));
-  RETURN_IF_ERROR(reader.Int("keyframe_jpeg_quality", &keyframe.jpeg_quality, 1, 100));
-  RETURN_IF_ERROR(reader.Int("max_crop_side_px", &keyframe.max_crop_side_px, 0, 16384));
+  RETURN_IF_ERROR(reader.Int("keyframe_stride", &keyframe_stride, 0, 1000000,
+                             "keep every k-th instant as a texture keyframe (0: by take length)"));
+  RETURN_IF_ERROR(reader.Int("color_scale", &color_scale, 1, 8,
+                             "decode colour at 1/k before cropping (1, 2, 4 or 8)"));
+  RETURN_IF_ERROR(
+      reader.Bool("bake", &bake, "bake static per-part textures (glTF, viewers without VDTM)"));
+  RETURN_IF_ERROR(reader.Int("texture_size_px", &baking.texture_size_px, 16, 8192,
+                             "side of each part's baked texture, pixels"));
+  RETURN_IF_ERROR(reader.Int("keyframe_jpeg_quality", &keyframe.jpeg_quality, 1, 100,
+                             "JPEG quality of the keyframe crops"));
+  RETURN_IF_ERROR(reader.Int("max_crop_side_px", &keyframe.max_crop_side_px, 0, 16384,
+                             "downscale keyframe crops to this longer side (0: never)"));
   return Validate();
 }
 

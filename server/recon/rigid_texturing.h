@@ -11,7 +11,7 @@
 #include "common/base/progress.h"
 #include "common/io/reenactment_file.h"
 #include "server/recon/method_util.h"
-#include "server/recon/methods.h"
+#include "server/recon/reconstruction_method.h"
 #include "server/recon/take_frames.h"
 #include "server/recon/texturing.h"
 

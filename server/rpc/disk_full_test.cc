@@ -14,6 +14,7 @@
 
 #include "common/testing/test_data.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
+#include "server/jobs/testing/fake_worker_methods.h"
 #include "server/testing/test_server.h"
 #include "server/testing/test_takes.h"
 
@@ -72,6 +73,7 @@ TEST(DiskFull, IngestFailsClearlyTheTakeIsInterruptedAndDeletingFreesSpace) {
   }
   ServerOptions options;
   options.jobs.worker_path = REENACT_FAKE_WORKER;
+  options.jobs.methods = FakeWorkerMethods();
   options.jobs.concurrency = 1;
   options.jobs.poll_period_s = 0.01;
   auto t = TestServer::Start(dir + "/mnt/data", options);

@@ -3,6 +3,7 @@
 // (Jobs.Submit live=true, Reenactments.Follow), then the same job runs
 // offline and ends SUCCEEDED.
 #include "server/rpc/follow_stream.h"
+#include "server/jobs/testing/fake_worker_methods.h"
 
 #include <chrono>
 #include <condition_variable>
@@ -36,7 +37,8 @@ using testing::TestServer;
 constexpr double kWaitS = 20.0;
 
 // A follower that makes a mesh at the first set and a posed frame with 25
-// joints per set; the factory refuses the option "bad".
+// joints per set; the factory refuses texture_scale=3 (as the real one's
+// Validate() does: a value within the option's bounds that Submit takes).
 class ScriptedFollower final : public LiveFollower {
  public:
   absl::StatusOr<LiveFit> Push(const v1::FrameSet& set) override {
@@ -61,12 +63,16 @@ class ScriptedFollower final : public LiveFollower {
 ServerOptions LiveServerOptions(const std::string& worker = REENACT_FAKE_WORKER) {
   ServerOptions options;
   options.jobs.worker_path = worker;
+  options.jobs.methods = FakeWorkerMethods();
   options.jobs.concurrency = 2;
   options.jobs.poll_period_s = 0.02;
   options.live.factory = [](const v1::TakeInfo&, const std::vector<v1::SensorCalibration>&,
                             const std::map<std::string, std::string>& job_options)
       -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
-    if (job_options.contains("bad")) return absl::InvalidArgumentError("unknown option bad");
+    if (const auto it = job_options.find("texture_scale");
+        it != job_options.end() && it->second == "3") {
+      return absl::InvalidArgumentError("colour denominator must be 1, 2, 4 or 8");
+    }
     return std::make_unique<ScriptedFollower>();
   };
   return options;
@@ -407,10 +413,12 @@ TEST_F(FollowStreamTest, ALiveFitThatCannotStartFailsTheJob) {
   IngestClient ingest(*t_->ingest);
   Open(ingest, "take-1");
   v1::Job job;
-  ASSERT_TRUE(Submit("take-1", "body", {{"live", "true"}, {"bad", "1"}}, &job).ok());
+  // Within the option's listed bounds, so Submit takes it (this server has
+  // no deeper check); the follower refuses it.
+  ASSERT_TRUE(Submit("take-1", "body", {{"live", "true"}, {"texture_scale", "3"}}, &job).ok());
   const v1::Job finished = WaitFinished(job.job_id());
   EXPECT_EQ(finished.state(), v1::JOB_STATE_FAILED);
-  EXPECT_NE(finished.error().find("unknown option bad"), std::string::npos) << finished.error();
+  EXPECT_NE(finished.error().find("colour denominator"), std::string::npos) << finished.error();
   ASSERT_TRUE(ingest.Close(0));
   ASSERT_TRUE(ingest.Finish().ok());
 }

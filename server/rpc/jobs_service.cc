@@ -106,6 +106,41 @@ absl::Status GetJob(ServerContext& context, const v1::GetJobRequest& request, v1
   return absl::OkStatus();
 }
 
+v1::ListMethodsResponse ListMethods(const std::vector<methods::MethodSpec>& specs) {
+  v1::ListMethodsResponse response;
+  for (const methods::MethodSpec& spec : specs) {
+    v1::MethodDescription& method = *response.add_methods();
+    method.set_name(spec.name);
+    method.set_summary(spec.summary);
+    method.set_thesis(spec.thesis);
+    method.set_live(spec.live);
+    switch (spec.texture) {
+      case methods::TextureMode::kPoseClosest:
+        method.set_texture_mode(v1::TEXTURE_MODE_POSE_CLOSEST);
+        break;
+      case methods::TextureMode::kRotationClosest:
+        method.set_texture_mode(v1::TEXTURE_MODE_ROTATION_CLOSEST);
+        break;
+      case methods::TextureMode::kBodyAtlas:
+        method.set_texture_mode(v1::TEXTURE_MODE_BODY_ATLAS);
+        break;
+    }
+    for (const methods::OptionSpec& option : spec.options) {
+      v1::MethodOption& out = *method.add_options();
+      out.set_name(option.name);
+      out.set_type(methods::OptionTypeName(option.type));
+      out.set_default_value(option.default_value);
+      out.set_has_bounds(option.has_bounds);
+      out.set_min(option.min);
+      out.set_max(option.max);
+      out.set_doc(option.doc);
+      out.set_common(option.common);
+      out.set_live_only(option.live_only);
+    }
+  }
+  return response;
+}
+
 grpc::ServerUnaryReactor* JobsService::Submit(grpc::CallbackServerContext* rpc,
                                               const v1::SubmitJobRequest* request,
                                               v1::Job* response) {
@@ -158,6 +193,18 @@ grpc::ServerUnaryReactor* JobsService::List(grpc::CallbackServerContext* rpc,
   if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/List")) return refused;
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
   reactor->Finish(ToGrpcStatus(ListJobs(context_, *request, response)));
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* JobsService::ListMethods(grpc::CallbackServerContext* rpc,
+                                                   const v1::ListMethodsRequest* /*request*/,
+                                                   v1::ListMethodsResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/ListMethods")) {
+    return refused;
+  }
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  *response = server::ListMethods(context_.jobs->methods());
+  reactor->Finish(grpc::Status::OK);
   return reactor;
 }
 

@@ -13,6 +13,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "absl/status/status.h"
+#include "common/methods/method_spec.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "server/rpc/server_context.h"
 
@@ -24,6 +25,8 @@ absl::Status SubmitJob(ServerContext& context, const v1::SubmitJobRequest& reque
 absl::Status ListJobs(ServerContext& context, const v1::ListJobsRequest& request,
                       v1::ListJobsResponse* response);
 absl::Status GetJob(ServerContext& context, const v1::GetJobRequest& request, v1::Job* response);
+// The scheduler's methods as the wire describes them.
+v1::ListMethodsResponse ListMethods(const std::vector<methods::MethodSpec>& specs);
 
 class JobsService final : public v1::Jobs::CallbackService {
  public:
@@ -38,6 +41,9 @@ class JobsService final : public v1::Jobs::CallbackService {
   grpc::ServerUnaryReactor* List(grpc::CallbackServerContext* rpc,
                                  const v1::ListJobsRequest* request,
                                  v1::ListJobsResponse* response) override;
+  grpc::ServerUnaryReactor* ListMethods(grpc::CallbackServerContext* rpc,
+                                        const v1::ListMethodsRequest* request,
+                                        v1::ListMethodsResponse* response) override;
   grpc::ServerUnaryReactor* Get(grpc::CallbackServerContext* rpc, const v1::GetJobRequest* request,
                                 v1::Job* response) override;
 

@@ -19,6 +19,7 @@ const rpc::Authorizer::MethodTable& ServerMethodAccess() {
       {"/reenact.v1.Jobs/Watch", rpc::kRead},
       {"/reenact.v1.Jobs/List", rpc::kRead},
       {"/reenact.v1.Jobs/Get", rpc::kRead},
+      {"/reenact.v1.Jobs/ListMethods", rpc::kRead},
       {"/reenact.v1.Reenactments/List", rpc::kRead},
       {"/reenact.v1.Reenactments/Get", rpc::kRead},
       {"/reenact.v1.Reenactments/Fetch", rpc::kRead},

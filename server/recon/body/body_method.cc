@@ -17,11 +17,10 @@
 #include "common/io/jpeg.h"
 #include "server/recon/body/body_cloud.h"
 #include "server/recon/body/body_texturing.h"
+#include "server/recon/body/live_body.h"
 #include "server/recon/method_util.h"
 
 namespace reenact::recon {
-namespace {}  // namespace
-
 namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -39,21 +38,36 @@ v1::Vector3 ToProto(const Eigen::Vector3d& p) {
 }  // namespace
 
 absl::Status BodyMethodOptions::Read(OptionReader& reader) {
-  RETURN_IF_ERROR(reader.String("model", &model));
-  RETURN_IF_ERROR(reader.Double("point_weight", &fit.point_weight, 1e-6, 1e6));
-  RETURN_IF_ERROR(reader.Double("smoothness_weight", &fit.smoothness_weight, 0, 1e6));
-  RETURN_IF_ERROR(reader.Double("skeleton_weight", &fit.skeleton_weight, 0, 1e6));
-  RETURN_IF_ERROR(reader.Int("shape_frames", &fit.shape_frames, 1, 100));
-  RETURN_IF_ERROR(reader.Int("rounds", &fit.rounds, 1, 100));
-  RETURN_IF_ERROR(reader.Int("iterations", &fit.iterations_per_round, 1, 1000));
-  RETURN_IF_ERROR(reader.Int("max_points", &fit.max_points, 10, 1000000));
-  RETURN_IF_ERROR(reader.Bool("refine_vertices", &fit.refine_vertices));
-  RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192));
-  RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10));
-  RETURN_IF_ERROR(reader.Int("texture_every", &atlas.every, 1, 10000));
-  RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8));
-  RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64));
-  RETURN_IF_ERROR(reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10));
+  RETURN_IF_ERROR(reader.String("model", &model,
+                                "body model: procedural, or makehuman:NAME (an asset folder of "
+                                "the server's --assets)"));
+  RETURN_IF_ERROR(reader.Double("point_weight", &fit.point_weight, 1e-6, 1e6, "w_z of Eq. 4.7"));
+  RETURN_IF_ERROR(reader.Double("smoothness_weight", &fit.smoothness_weight, 0, 1e6,
+                                "w_r of Eq. 4.7 (pose smoothness, Eq. 4.6)"));
+  RETURN_IF_ERROR(reader.Double("skeleton_weight", &fit.skeleton_weight, 0, 1e6,
+                                "weight of the sensors' skeleton prior per joint"));
+  RETURN_IF_ERROR(
+      reader.Int("shape_frames", &fit.shape_frames, 1, 100, "instants the shape is fitted on"));
+  RETURN_IF_ERROR(reader.Int("rounds", &fit.rounds, 1, 100, "correspondence rounds per frame"));
+  RETURN_IF_ERROR(reader.Int("iterations", &fit.iterations_per_round, 1, 1000,
+                             "Levenberg-Marquardt iterations per round"));
+  RETURN_IF_ERROR(reader.Int("max_points", &fit.max_points, 10, 1000000, "points per round"));
+  RETURN_IF_ERROR(reader.Bool("refine_vertices", &fit.refine_vertices,
+                              "fit the free-form mesh of step 2 (Eq. 4.7)"));
+  RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192, "atlas side, pixels"));
+  RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10,
+                                "visibility threshold T of thesis 4.4, metres"));
+  RETURN_IF_ERROR(
+      reader.Int("texture_every", &atlas.every, 1, 10000, "use every k-th instant for the atlas"));
+  RETURN_IF_ERROR(reader.Int("texture_scale", &atlas.colour_denominator, 1, 8,
+                             "decode colour at 1/k for the atlas"));
+  RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64,
+                                "p of the cos^p frontality weight of observations"));
+  return reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10,
+                       "texels must lie this near the sensor's own depth, metres (0: off)");
+}
+
+absl::Status BodyMethodOptions::Validate() const {
   if (!body::IsAssetModelSpec(model)) {
     return absl::InvalidArgumentError(absl::StrCat(
         "option model: expected 'procedural' or 'makehuman:NAME' (an asset folder of the "
@@ -77,33 +91,20 @@ v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit:
   return frame;
 }
 
-absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options) {
-  BodyMethodOptions parsed;
-  OptionReader reader(options);
-  RETURN_IF_ERROR(parsed.Read(reader));
-  return reader.Finish();
-}
-
-absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
-                                        const std::map<std::string, std::string>& options,
-                                        const std::vector<std::string>& asset_roots,
-                                        const ProgressCallback& progress, const LogCallback& log) {
-  BodyMethodOptions o;
-  o.asset_roots = asset_roots;
-  {
-    OptionReader reader(options);
-    RETURN_IF_ERROR(o.Read(reader));
-    RETURN_IF_ERROR(reader.Finish());
-  }
+absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take, const BodyMethodOptions& o,
+                                        const MethodContext& context) {
+  RETURN_IF_ERROR(o.Validate());
+  const LogCallback& log = context.log;
   const StageProgress stages(
-      progress,
+      context.progress,
       {{"model", 0.05}, {"clouds", 0.15}, {"shape", 0.1}, {"fit", 0.45}, {"texture", 0.25}});
   const auto start = std::chrono::steady_clock::now();
   const int n = take.num_instants();
 
   // The model.
   RETURN_IF_ERROR(stages.Report("model", 0, 1));
-  ASSIGN_OR_RETURN(const body::BodyModel model, body::LoadAssetModelSpec(o.model, o.asset_roots));
+  ASSIGN_OR_RETURN(const body::BodyModel model,
+                   body::LoadAssetModelSpec(o.model, context.asset_roots));
   ASSIGN_OR_RETURN(std::unique_ptr<bodyfit::BodyFitter> fitter,
                    bodyfit::BodyFitter::Create(model, o.fit));
   RETURN_IF_ERROR(stages.Report("model", 1, 1));
@@ -264,6 +265,18 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
         atlas.views, 100.0 * atlas.observed_fraction, texture_s));
   }
   return data;
+}
+
+const ReconstructionMethod& BodyMethod() {
+  static const TypedMethod<BodyMethodOptions> method(
+      {"body",
+       "a statistical body model fitted to the merged point clouds, textured into one atlas",
+       "ch. 4, Eq. 4.4-4.8",
+       /*live=*/true,
+       methods::TextureMode::kBodyAtlas,
+       {}},
+      &RunBody, methods::DescribeOptions<LiveBodyOptions>());
+  return method;
 }
 
 }  // namespace reenact::recon

@@ -3,7 +3,7 @@
 // shape for the take (body_fit.h), and the atlas (body_texturing.h); the
 // result is a body-model reenactment (common/io/body_reenactment.h).
 //
-// Options (strings, as submitted with the job):
+// Options (strings, as submitted with the job; BodyMethodOptions::Read):
 //   model              "procedural" (default) or "makehuman:NAME", NAME a
 //                      folder under the server's asset roots (model_spec.h)
 //   point_weight       w_z of Eq. 4.7 (1)
@@ -33,21 +33,24 @@
 #include "common/io/reenactment_file.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/method_util.h"
-#include "server/recon/methods.h"
+#include "server/recon/reconstruction_method.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::recon {
 
 // The method's options, read by key (the list above).
 struct BodyMethodOptions {
+  // "makehuman:NAME" is looked up in MethodContext::asset_roots (the
+  // server's --assets folders; a client names no server path).
   std::string model = "procedural";
-  // Where "makehuman:NAME" is looked up: the server's --assets folders. Set
-  // by the caller, never from the options (a client names no server path).
-  std::vector<std::string> asset_roots = {};
   bodyfit::BodyFitOptions fit;
   AtlasOptions atlas;
-  // InvalidArgument naming the key for a value that does not parse or fit.
+  // InvalidArgument naming the key for a value that does not parse or lies
+  // outside its bounds.
   absl::Status Read(OptionReader& reader);
+  // InvalidArgument for a model that is no asset name, or bad fit or atlas
+  // options.
+  absl::Status Validate() const;
 };
 
 // The PartFrame of one fitted instant: its BodyPose (with the offsets of
@@ -55,17 +58,16 @@ struct BodyMethodOptions {
 v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
                                bool valid);
 
-// Reads and checks the options without running (InvalidArgument naming the
-// key), so a job can be rejected before the take is loaded.
-absl::Status CheckBodyOptions(const std::map<std::string, std::string>& options);
-
-// Runs the method on a loaded take. InvalidArgument for bad options or a
-// take without a usable instant (no skeleton with a torso and no points);
-// Cancelled when `progress` returned false.
-// `asset_roots`: BodyMethodOptions::asset_roots.
+// Runs the method on a loaded take. InvalidArgument for options that fail
+// Validate() or a take without a usable instant (no skeleton with a torso
+// and no points); NotFound for a model name the context's asset roots do
+// not hold; Cancelled when the context's progress returned false.
 absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
-                                        const std::map<std::string, std::string>& options,
-                                        const std::vector<std::string>& asset_roots,
-                                        const ProgressCallback& progress, const LogCallback& log);
+                                        const BodyMethodOptions& options = {},
+                                        const MethodContext& context = {});
+
+// The method "body" for the registry (registry.cc); it can follow a take
+// live (live_body.h, LiveBodyOptions).
+const ReconstructionMethod& BodyMethod();
 
 }  // namespace reenact::recon

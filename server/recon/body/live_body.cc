@@ -35,6 +35,12 @@ struct LiveBodyFollower::State {
   std::optional<body::BodyPose> previous;
 };
 
+absl::Status LiveBodyOptions::Read(methods::OptionReader& reader) {
+  RETURN_IF_ERROR(reader.Bool("live", &live, "follow the take while it is recorded"));
+  return reader.Int("shape_spacing", &shape_spacing, 1, 10000,
+                    "live: frame sets between the samples the shape is fitted on");
+}
+
 LiveBodyFollower::LiveBodyFollower() : state_(std::make_unique<State>()) {}
 LiveBodyFollower::~LiveBodyFollower() { WaitForShape(); }
 
@@ -47,20 +53,20 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
     const std::map<std::string, std::string>& options,
     const std::vector<std::string>& asset_roots) {
   BodyMethodOptions o;
-  o.asset_roots = asset_roots;
   o.fit.refine_vertices = false;  // The preview carries poses only.
   std::unique_ptr<LiveBodyFollower> follower(new LiveBodyFollower());
   State& s = *follower->state_;
   {
     OptionReader reader(options);
     RETURN_IF_ERROR(o.Read(reader));
-    bool live = true;
-    RETURN_IF_ERROR(reader.Bool("live", &live));
-    RETURN_IF_ERROR(reader.Int("shape_spacing", &s.shape_spacing, 1, 10000));
+    LiveBodyOptions live;
+    RETURN_IF_ERROR(live.Read(reader));
     RETURN_IF_ERROR(reader.Finish());
+    RETURN_IF_ERROR(o.Validate());
+    s.shape_spacing = live.shape_spacing;
   }
   s.shape_frames = o.fit.shape_frames;
-  ASSIGN_OR_RETURN(s.model, body::LoadAssetModelSpec(o.model, o.asset_roots));
+  ASSIGN_OR_RETURN(s.model, body::LoadAssetModelSpec(o.model, asset_roots));
   ASSIGN_OR_RETURN(s.fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   ASSIGN_OR_RETURN(s.shape_fitter, bodyfit::BodyFitter::Create(s.model, o.fit));
   TakeFramesOptions frames;

@@ -22,12 +22,23 @@
 
 #include "absl/status/statusor.h"
 #include "common/body/body_model.h"
+#include "common/methods/option_reader.h"
 #include "reenact/v1/frame.pb.h"
 #include "reenact/v1/reenactment.pb.h"
 #include "reenact/v1/sensor.pb.h"
 #include "reenact/v1/take.pb.h"
 
 namespace reenact::recon {
+
+// The options only a live follow reads, beside the method body's own
+// (body_method.h); the worker that runs the method on the whole take never
+// gets them.
+struct LiveBodyOptions {
+  bool live = false;      // The job asks to follow its take ("live").
+  int shape_spacing = 5;  // FrameSets between shape samples.
+  absl::Status Read(methods::OptionReader& reader);
+  absl::Status Validate() const { return absl::OkStatus(); }
+};
 
 // What one FrameSet produced.
 struct LiveUpdate {
@@ -42,9 +53,8 @@ struct LiveUpdate {
 
 class LiveBodyFollower {
  public:
-  // `options`: the method body's options (body_method.h) plus
-  //   shape_spacing    FrameSets between shape samples (5)
-  // and "live" (ignored here); `asset_roots` as BodyMethodOptions'.
+  // `options`: the method body's options (body_method.h) and
+  // LiveBodyOptions'; `asset_roots`: the server's --assets folders.
   // InvalidArgument for bad options or calibrations; the model's errors.
   static absl::StatusOr<std::unique_ptr<LiveBodyFollower>> Create(
       const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,

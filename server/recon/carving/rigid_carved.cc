@@ -92,7 +92,7 @@
 #include "server/recon/carving/part_registration.h"
 #include "server/recon/carving/sensor_frame.h"
 #include "server/recon/carving/tsdf.h"
-#include "server/recon/cylinders.h"
+#include "server/recon/cylinders/cylinders.h"
 #include "server/recon/method_util.h"
 #include "server/recon/rigid_texturing.h"
 
@@ -114,109 +114,16 @@ constexpr int kFlowMarginPx = 12;
 // Most voxels of all part volumes together (8 bytes each).
 constexpr int64_t kMaxTotalVoxels = int64_t{1} << 27;
 
-struct CarvedOptions {
-  // Eq. 3.8 weights (options "w_o", "w_s_per_voxel", "twist_weight"): w_s =
-  // w_s_per_voxel x |V_b| per anchor (the thesis: 0.5; tuned here, see the
-  // file comment), twist_weight the weight of the X-axis anchor.
-  double w_o = 1.0;
-  double w_s_per_voxel = 0.005;
-  double twist_weight = 0.0;
-  // Voxel side and truncation mu of Eq. 3.11, millimetres ("voxel_mm", "mu_mm").
-  double voxel_mm = 8.0;
-  double mu_mm = 20.0;
-  // Registration ("max_iterations", "max_pair_distance_mm",
-  // "max_normal_angle_deg", "min_update_deg", "min_update_mm").
-  int max_iterations = 10;
-  double max_pair_distance_mm = 40.0;
-  double max_normal_angle_deg = 45.0;
-  double min_update_deg = 0.01;
-  double min_update_mm = 0.01;
-  // Depth decimation for registration and labels ("depth_step"), and the
-  // most points a part registers with per instant ("max_points_per_part").
-  int depth_step = 2;
-  int max_points_per_part = 1200;
-  // Optical flow ("use_flow"; "flow_width_px": colour is decoded at the
-  // smallest of 1, 1/2, 1/4, 1/8 of its size that is at least this wide).
-  bool use_flow = true;
-  int flow_width_px = 320;
-  // Depth pixels at discontinuities are dropped ("edge_filter_mm", 0: off;
-  // sensor_frame.h RemoveDepthEdges).
-  int edge_filter_mm = 30;
-  // Nominal part shapes (ShapeOf) scaled across the bone by radius_scale;
-  // volume boxes grow them by a quarter plus margin_mm ("radius_scale",
-  // "margin_mm").
-  double radius_scale = 1.0;
-  double margin_mm = 30.0;
-  // Fuse every fuse_stride-th instant ("fuse_stride"); 0: about 15 fused
-  // instants per second of take (every instant at 15 fps, every other at 30).
-  int fuse_stride = 0;
-  // Decoded depth and labels kept from registration for fusion, at most
-  // this many MiB ("cache_mb"); instants beyond are decoded again.
-  int cache_mb = 512;
-  // Mesh components smaller than this fraction of a part's largest are
-  // dropped as floaters ("min_component_fraction"; with sensors facing each
-  // other a part's front and back can be separate components).
-  double min_component_fraction = 0.1;
-  // Voxels no depth image observed (N*(v) = 0) that lie inside the part's
-  // nominal shape count as inside (-mu) when meshing ("fill_unseen").
-  bool fill_unseen = true;
-  // Depth pixels without a return that lie off the actor mask carve their
-  // whole ray as free space ("carve_no_return"; see MarkFreeRays).
-  bool carve_no_return = true;
-  // Label pixels by the nearest nominal part ("ownership"; false: the
-  // thesis' volumes: a part registers every point inside its box and fuses
-  // every pixel).
-  bool ownership = true;
-  RigidTexturingOptions texturing;
-
-  absl::Status Read(OptionReader& reader) {
-    RETURN_IF_ERROR(reader.Double("w_o", &w_o, 0.0, 1e6));
-    RETURN_IF_ERROR(reader.Double("w_s_per_voxel", &w_s_per_voxel, 0.0, 1e6));
-    RETURN_IF_ERROR(reader.Double("twist_weight", &twist_weight, 0.0, 1e3));
-    RETURN_IF_ERROR(reader.Double("voxel_mm", &voxel_mm, 2.0, 100.0));
-    RETURN_IF_ERROR(reader.Double("mu_mm", &mu_mm, 1.0, 500.0));
-    RETURN_IF_ERROR(reader.Int("max_iterations", &max_iterations, 1, 1000));
-    RETURN_IF_ERROR(reader.Double("max_pair_distance_mm", &max_pair_distance_mm, 1.0, 1000.0));
-    RETURN_IF_ERROR(reader.Double("max_normal_angle_deg", &max_normal_angle_deg, 1.0, 180.0));
-    RETURN_IF_ERROR(reader.Double("min_update_deg", &min_update_deg, 0.0, 10.0));
-    RETURN_IF_ERROR(reader.Double("min_update_mm", &min_update_mm, 0.0, 100.0));
-    RETURN_IF_ERROR(reader.Int("depth_step", &depth_step, 1, 16));
-    RETURN_IF_ERROR(reader.Int("max_points_per_part", &max_points_per_part, 10, 1000000));
-    RETURN_IF_ERROR(reader.Bool("use_flow", &use_flow));
-    RETURN_IF_ERROR(reader.Int("flow_width_px", &flow_width_px, 16, 8192));
-    RETURN_IF_ERROR(reader.Int("edge_filter_mm", &edge_filter_mm, 0, 10000));
-    RETURN_IF_ERROR(reader.Double("radius_scale", &radius_scale, 0.2, 5.0));
-    RETURN_IF_ERROR(reader.Double("margin_mm", &margin_mm, 0.0, 500.0));
-    RETURN_IF_ERROR(reader.Int("fuse_stride", &fuse_stride, 0, 1000));
-    RETURN_IF_ERROR(reader.Bool("ownership", &ownership));
-    RETURN_IF_ERROR(reader.Bool("fill_unseen", &fill_unseen));
-    RETURN_IF_ERROR(reader.Bool("carve_no_return", &carve_no_return));
-    RETURN_IF_ERROR(reader.Int("cache_mb", &cache_mb, 0, 1 << 20));
-    RETURN_IF_ERROR(reader.Double("min_component_fraction", &min_component_fraction, 0.0, 1.0));
-    RETURN_IF_ERROR(texturing.Read(reader));
-    return Validate();
-  }
-
-  absl::Status Validate() const {
-    if (mu_mm < voxel_mm) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("option mu_mm (", mu_mm, ") must be at least voxel_mm (", voxel_mm, ")"));
-    }
-    RETURN_IF_ERROR(RegistrationOptions().Validate());
-    return texturing.Validate();
-  }
-
-  carving::PartRegistrationOptions RegistrationOptions() const {
-    carving::PartRegistrationOptions options;
-    options.w_o = w_o;
-    options.max_pair_distance_m = max_pair_distance_mm * 1e-3;
-    options.max_normal_angle_deg = max_normal_angle_deg;
-    options.min_update_deg = min_update_deg;
-    options.min_update_mm = min_update_mm;
-    options.max_iterations = max_iterations;
-    return options;
-  }
-};
+carving::PartRegistrationOptions RegistrationOptionsOf(const RigidCarvedOptions& o) {
+  carving::PartRegistrationOptions options;
+  options.w_o = o.w_o;
+  options.max_pair_distance_m = o.max_pair_distance_mm * 1e-3;
+  options.max_normal_angle_deg = o.max_normal_angle_deg;
+  options.min_update_deg = o.min_update_deg;
+  options.min_update_mm = o.min_update_mm;
+  options.max_iterations = o.max_iterations;
+  return options;
+}
 
 // The nominal shape of a part, in bone lengths L (part frame): an elliptic
 // cylinder of half-axes rx L (along X) and rz L (along Z) from y0 L to y1 L,
@@ -389,8 +296,8 @@ struct SensorFrame {
 
 class RigidCarved {
  public:
-  RigidCarved(const TakeFrames& take, const CarvedOptions& options, const StageProgress& stages,
-              const LogCallback& log)
+  RigidCarved(const TakeFrames& take, const RigidCarvedOptions& options,
+              const StageProgress& stages, const LogCallback& log)
       : take_(take),
         options_(options),
         stages_(stages),
@@ -421,7 +328,7 @@ class RigidCarved {
       const std::vector<std::optional<TsdfVolume>>& volumes);
 
   const TakeFrames& take_;
-  const CarvedOptions& options_;
+  const RigidCarvedOptions& options_;
   const StageProgress& stages_;
   const LogCallback& log_;
   const int fuse_stride_;
@@ -718,7 +625,7 @@ void RigidCarved::RegisterInstant(int instant, const std::vector<SensorFrame>& p
     if (!pose_before) return;
     const std::vector<carving::SourcePoint> sources =
         PartSources(p, *pose_before, previous, current);
-    carving::PartRegistrationOptions options = options_.RegistrationOptions();
+    carving::PartRegistrationOptions options = RegistrationOptionsOf(options_);
     options.w_s = options_.w_s_per_voxel * static_cast<double>(track.box.num_voxels());
     std::vector<carving::SkeletonAnchor> anchors;
     Rigid3d initial;  // dT's first iterate: the skeleton's motion when known.
@@ -941,18 +848,86 @@ absl::StatusOr<ReenactmentData> RigidCarved::Run() {
 
 }  // namespace
 
+absl::Status RigidCarvedOptions::Read(OptionReader& reader) {
+  RETURN_IF_ERROR(
+      reader.Double("w_o", &w_o, 0.0, 1e6, "weight of the optical-flow term of Eq. 3.8"));
+  RETURN_IF_ERROR(reader.Double("w_s_per_voxel", &w_s_per_voxel, 0.0, 1e6,
+                                "skeleton weight w_s of Eq. 3.8 per voxel of the part's volume"));
+  RETURN_IF_ERROR(reader.Double("twist_weight", &twist_weight, 0.0, 1e3,
+                                "weight of the skeleton anchor on the part's X axis (twist)"));
+  RETURN_IF_ERROR(reader.Double("voxel_mm", &voxel_mm, 2.0, 100.0, "voxel side, millimetres"));
+  RETURN_IF_ERROR(reader.Double("mu_mm", &mu_mm, 1.0, 500.0,
+                                "truncation mu of Eq. 3.11, millimetres (>= voxel_mm)"));
+  RETURN_IF_ERROR(reader.Int("max_iterations", &max_iterations, 1, 1000,
+                             "registration iterations per instant"));
+  RETURN_IF_ERROR(reader.Double("max_pair_distance_mm", &max_pair_distance_mm, 1.0, 1000.0,
+                                "farthest point pair registration uses, millimetres"));
+  RETURN_IF_ERROR(reader.Double("max_normal_angle_deg", &max_normal_angle_deg, 1.0, 180.0,
+                                "largest normal disagreement of a pair, degrees"));
+  RETURN_IF_ERROR(reader.Double("min_update_deg", &min_update_deg, 0.0, 10.0,
+                                "registration stops below this rotation update, degrees"));
+  RETURN_IF_ERROR(reader.Double("min_update_mm", &min_update_mm, 0.0, 100.0,
+                                "registration stops below this translation update, millimetres"));
+  RETURN_IF_ERROR(
+      reader.Int("depth_step", &depth_step, 1, 16, "depth decimation for registration and labels"));
+  RETURN_IF_ERROR(reader.Int("max_points_per_part", &max_points_per_part, 10, 1000000,
+                             "most points a part registers with per instant"));
+  RETURN_IF_ERROR(
+      reader.Bool("use_flow", &use_flow, "use optical flow between instants (Eq. 3.8)"));
+  RETURN_IF_ERROR(reader.Int("flow_width_px", &flow_width_px, 16, 8192,
+                             "decode colour for the flow at least this wide, pixels"));
+  RETURN_IF_ERROR(reader.Int("edge_filter_mm", &edge_filter_mm, 0, 10000,
+                             "drop depth pixels at discontinuities above this step (0: off)"));
+  RETURN_IF_ERROR(reader.Double("radius_scale", &radius_scale, 0.2, 5.0,
+                                "scale of the nominal part shapes across the bone"));
+  RETURN_IF_ERROR(reader.Double("margin_mm", &margin_mm, 0.0, 500.0,
+                                "margin of the part volumes around their shapes, millimetres"));
+  RETURN_IF_ERROR(reader.Int("fuse_stride", &fuse_stride, 0, 1000,
+                             "fuse every k-th instant (0: about 15 per second)"));
+  RETURN_IF_ERROR(
+      reader.Bool("ownership", &ownership,
+                  "label pixels by the nearest nominal part (false: the thesis' volumes)"));
+  RETURN_IF_ERROR(reader.Bool("fill_unseen", &fill_unseen,
+                              "unobserved voxels inside the nominal shape count as inside"));
+  RETURN_IF_ERROR(reader.Bool("carve_no_return", &carve_no_return,
+                              "depth pixels without a return off the actor carve their ray"));
+  RETURN_IF_ERROR(reader.Int("cache_mb", &cache_mb, 0, 1 << 20,
+                             "decoded depth kept from registration for fusion, MiB"));
+  RETURN_IF_ERROR(reader.Double("min_component_fraction", &min_component_fraction, 0.0, 1.0,
+                                "drop mesh components below this fraction of the largest"));
+  return texturing.Read(reader);
+}
+
+absl::Status RigidCarvedOptions::Validate() const {
+  if (mu_mm < voxel_mm) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option mu_mm (", mu_mm, ") must be at least voxel_mm (", voxel_mm, ")"));
+  }
+  RETURN_IF_ERROR(RegistrationOptionsOf(*this).Validate());
+  return texturing.Validate();
+}
+
 absl::StatusOr<ReenactmentData> RunRigidCarved(const TakeFrames& take,
-                                               const std::map<std::string, std::string>& options,
-                                               const ProgressCallback& progress,
-                                               const LogCallback& log) {
-  CarvedOptions parsed;
-  OptionReader reader(options);
-  RETURN_IF_ERROR(parsed.Read(reader));
-  RETURN_IF_ERROR(reader.Finish());
-  const StageProgress stages(progress,
+                                               const RigidCarvedOptions& options,
+                                               const MethodContext& context) {
+  RETURN_IF_ERROR(options.Validate());
+  const StageProgress stages(context.progress,
                              {{"register", 0.3}, {"fuse", 0.2}, {"mesh", 0.05}, {"texture", 0.45}});
-  RigidCarved method(take, parsed, stages, log);
+  RigidCarved method(take, options, stages, context.log);
   return method.Run();
+}
+
+const ReconstructionMethod& RigidCarvedMethod() {
+  static const TypedMethod<RigidCarvedOptions> method(
+      {"rigid-carved",
+       "rigid body parts registered over the take and carved into truncated SDFs, textured by "
+       "the rotation-closest keyframe",
+       "3.4, Eq. 3.7-3.15",
+       /*live=*/false,
+       methods::TextureMode::kRotationClosest,
+       {}},
+      &RunRigidCarved);
+  return method;
 }
 
 }  // namespace reenact::recon

@@ -39,6 +39,13 @@ const carving::testing::Truth& SharedTruth() {
   return *truth;
 }
 
+// The method's options without baked textures (the tests measure shape).
+RigidCarvedOptions NoBake() {
+  RigidCarvedOptions options;
+  options.texturing.bake = false;
+  return options;
+}
+
 // Measured on the shared take (2026-11, this machine): carved vertices lie
 // 3.9 mm from the true surface on average (90 % within 8.4 mm), the true
 // surface 8.2 mm from the carved one, and the registered part frames 10.8 mm
@@ -47,10 +54,12 @@ const carving::testing::Truth& SharedTruth() {
 TEST(RunRigidCarved, CarvedPartsLieOnTheTrueSurface) {
   RECON_REQUIRE_SHARED_TAKE();
   std::vector<std::string> stages;
-  auto data = RunRigidCarved(SharedFrames(), {{"bake", "false"}}, [&](const Progress& p) {
+  MethodContext context;
+  context.progress = [&](const Progress& p) {
     if (stages.empty() || stages.back() != p.stage) stages.push_back(p.stage);
     return true;
-  });
+  };
+  auto data = RunRigidCarved(SharedFrames(), NoBake(), context);
   ASSERT_TRUE(data.ok()) << data.status();
   EXPECT_EQ(stages, (std::vector<std::string>{"register", "fuse", "mesh", "texture"}));
 
@@ -106,8 +115,10 @@ TEST(RunRigidCarved, CarvedPartsLieOnTheTrueSurface) {
 // machine): 6.37 mm with, 7.11 mm without.
 TEST(RunRigidCarved, NoReturnRaysOffTheActorCloseLimbSides) {
   RECON_REQUIRE_SHARED_TAKE();
-  auto with = RunRigidCarved(SharedFrames(), {{"bake", "false"}});
-  auto without = RunRigidCarved(SharedFrames(), {{"bake", "false"}, {"carve_no_return", "false"}});
+  RigidCarvedOptions no_return = NoBake();
+  no_return.carve_no_return = false;
+  auto with = RunRigidCarved(SharedFrames(), NoBake());
+  auto without = RunRigidCarved(SharedFrames(), no_return);
   ASSERT_TRUE(with.ok()) << with.status();
   ASSERT_TRUE(without.ok()) << without.status();
   auto closed = carving::testing::Evaluate(*with, SharedTruth(), 3);
@@ -126,9 +137,12 @@ TEST(RunRigidCarved, NoReturnRaysOffTheActorCloseLimbSides) {
 // tuned default must do better (this is what fixed the default).
 TEST(RunRigidCarved, TunedSkeletonWeightBeatsTheThesisWeight) {
   RECON_REQUIRE_SHARED_TAKE();
-  auto tuned = RunRigidCarved(SharedFrames(), {{"bake", "false"}, {"keyframe_stride", "1000"}});
-  auto thesis = RunRigidCarved(
-      SharedFrames(), {{"bake", "false"}, {"keyframe_stride", "1000"}, {"w_s_per_voxel", "0.5"}});
+  RigidCarvedOptions tuned_options = NoBake();
+  tuned_options.texturing.keyframe_stride = 1000;
+  RigidCarvedOptions thesis_options = tuned_options;
+  thesis_options.w_s_per_voxel = 0.5;
+  auto tuned = RunRigidCarved(SharedFrames(), tuned_options);
+  auto thesis = RunRigidCarved(SharedFrames(), thesis_options);
   ASSERT_TRUE(tuned.ok()) << tuned.status();
   ASSERT_TRUE(thesis.ok()) << thesis.status();
   auto tuned_accuracy = carving::testing::Evaluate(*tuned, SharedTruth(), 3);
@@ -147,16 +161,24 @@ TEST(RunRigidCarved, RejectsUnknownAndMalformedOptions) {
                                                        {{"mu_mm", "5"}, {"voxel_mm", "8"}},
                                                        {{"use_flow", "perhaps"}},
                                                        {{"color_scale", "3"}}}) {
-    auto result = RunRigidCarved(SharedFrames(), options);
+    // Through the registry, as a job's options arrive.
+    auto result = RigidCarvedMethod().Run(SharedFrames(), options, {});
     EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument)
         << options.begin()->first << ": " << result.status();
   }
+  // Typed options that fail Validate() are refused the same way.
+  RigidCarvedOptions thin;
+  thin.voxel_mm = 8.0;
+  thin.mu_mm = 5.0;
+  EXPECT_EQ(RunRigidCarved(SharedFrames(), thin).status().code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 TEST(RunRigidCarved, CancelsFromProgress) {
   RECON_REQUIRE_SHARED_TAKE();
-  auto result =
-      RunRigidCarved(SharedFrames(), {}, [](const Progress& p) { return p.stage != "fuse"; });
+  MethodContext context;
+  context.progress = [](const Progress& p) { return p.stage != "fuse"; };
+  auto result = RunRigidCarved(SharedFrames(), {}, context);
   EXPECT_EQ(result.status().code(), absl::StatusCode::kCancelled) << result.status();
 }
 

@@ -1,4 +1,4 @@
-#include "server/recon/cylinders.h"
+#include "server/recon/cylinders/cylinders.h"
 
 #include <cmath>
 #include <map>

@@ -1,7 +1,8 @@
-#include "server/recon/cylinders.h"
+#include "server/recon/cylinders/cylinders.h"
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <optional>
 
@@ -234,13 +235,18 @@ std::optional<PartRadius> FitPart(P part, const JointArray& joints, const DepthI
 }  // namespace
 
 absl::Status CylinderOptions::Read(OptionReader& reader) {
-  RETURN_IF_ERROR(reader.Double("lambda", &lambda, 0.0, 100.0));
-  RETURN_IF_ERROR(reader.Int("representative_instant", &representative_instant, -1));
-  RETURN_IF_ERROR(reader.Int("representative_sensor", &representative_sensor, -1));
-  RETURN_IF_ERROR(reader.Double("depth_window_m", &depth_window_m, 0.001, 2.0));
-  RETURN_IF_ERROR(reader.Int("segments", &segments, 3, 256));
-  RETURN_IF_ERROR(reader.Int("rings", &rings, 1, 256));
-  RETURN_IF_ERROR(reader.Double("head_top_extension", &head_top_extension, 0.0, 3.0));
+  RETURN_IF_ERROR(
+      reader.Double("lambda", &lambda, 0.0, 100.0, "weight of the leg-crossing term of Eq. 3.4"));
+  RETURN_IF_ERROR(reader.Int("representative_instant", &representative_instant, -1, INT_MAX,
+                             "force the representative frame's instant (-1: Eq. 3.5)"));
+  RETURN_IF_ERROR(reader.Int("representative_sensor", &representative_sensor, -1, INT_MAX,
+                             "force the representative frame's sensor index (-1: Eq. 3.5)"));
+  RETURN_IF_ERROR(reader.Double("depth_window_m", &depth_window_m, 0.001, 2.0,
+                                "depth window around the bone for a part's width, metres"));
+  RETURN_IF_ERROR(reader.Int("segments", &segments, 3, 256, "cylinder segments round"));
+  RETURN_IF_ERROR(reader.Int("rings", &rings, 1, 256, "cylinder rings along the bone"));
+  RETURN_IF_ERROR(reader.Double("head_top_extension", &head_top_extension, 0.0, 3.0,
+                                "head cylinder past the Head joint, bone lengths"));
   RETURN_IF_ERROR(texturing.Read(reader));
   return Validate();
 }
@@ -495,13 +501,11 @@ absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
 }
 
 absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
-                                                  const std::map<std::string, std::string>& opts,
-                                                  const ProgressCallback& progress,
-                                                  const LogCallback& log) {
-  CylinderOptions options;
-  OptionReader reader(opts);
-  RETURN_IF_ERROR(options.Read(reader));
-  RETURN_IF_ERROR(reader.Finish());
+                                                  const CylinderOptions& options,
+                                                  const MethodContext& context) {
+  RETURN_IF_ERROR(options.Validate());
+  const ProgressCallback& progress = context.progress;
+  const LogCallback& log = context.log;
   const StageProgress stages(progress, {{"shape", 0.05}, {"pose", 0.05}, {"texture", 0.9}});
 
   // Shape: Eq. 3.3-3.5, rectangles, radius rates.
@@ -575,6 +579,19 @@ absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
   data.info.set_fps(take.fps());
   for (const std::string& name : BodyPartNames()) data.info.add_part_names(name);
   return data;
+}
+
+const ReconstructionMethod& RigidCylindersMethod() {
+  static const TypedMethod<CylinderOptions> method(
+      {"rigid-cylinders",
+       "rough shape: a cylinder per body part from one representative frame, textured by the "
+       "pose-closest keyframe",
+       "3.3, Eq. 3.3-3.6",
+       /*live=*/false,
+       methods::TextureMode::kPoseClosest,
+       {}},
+      &RunRigidCylinders);
+  return method;
 }
 
 }  // namespace reenact::recon

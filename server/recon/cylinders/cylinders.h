@@ -58,7 +58,7 @@
 #include "common/io/reenactment_file.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/method_util.h"
-#include "server/recon/methods.h"
+#include "server/recon/reconstruction_method.h"
 #include "server/recon/rigid_texturing.h"
 #include "server/recon/take_frames.h"
 #include "server/recon/texturing.h"
@@ -167,10 +167,13 @@ absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
 // The whole method on a loaded take; same contract as RunRigidCarved
 // (carving/rigid_carved.h): returns parts, frames, keyframes and info
 // (frame_count, fps, part_names, figures); RunMethod fills the rest.
-// Progress stages "shape", "pose", "texture".
+// InvalidArgument for options that fail Validate(). Progress stages
+// "shape", "pose", "texture".
 absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
-                                                  const std::map<std::string, std::string>& options,
-                                                  const ProgressCallback& progress = {},
-                                                  const LogCallback& log = {});
+                                                  const CylinderOptions& options = {},
+                                                  const MethodContext& context = {});
+
+// The method "rigid-cylinders" for the registry (registry.cc).
+const ReconstructionMethod& RigidCylindersMethod();
 
 }  // namespace reenact::recon

@@ -1,0 +1,119 @@
+// The interface every reconstruction method implements, and TypedMethod, the
+// one implementation of it that the methods use: a public options struct
+// (Read(OptionReader&) with each option's bounds and documentation, and
+// Validate() for what spans options), a run function on a loaded take, and
+// the method's MethodSpec (name, summary, thesis sections, live or not,
+// texture mode). The registry (registry.h) lists every method once; the
+// worker runs them through RunMethod (methods.h), the server checks jobs
+// against them and lists them (Jobs.ListMethods, `reenact jobs methods`).
+//
+// Adding a method: a folder under server/recon with a CMakeLists.txt that
+// adds its sources to reenact_recon, a `const ReconstructionMethod&
+// <Name>Method()` built as below, and one line in registry.cc:
+//
+//   const ReconstructionMethod& RigidCylindersMethod() {
+//     static const TypedMethod<CylinderOptions> method(
+//         {"rigid-cylinders", "cylinders per body part ...", "3.3, Eq. 3.3-3.6",
+//          /*live=*/false, methods::TextureMode::kPoseClosest, {}},
+//         &RunRigidCylinders);
+//     return method;
+//   }
+#pragma once
+
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "common/base/progress.h"
+#include "common/io/reenactment_file.h"
+#include "common/methods/method_spec.h"
+#include "common/methods/option_reader.h"
+#include "server/recon/take_frames.h"
+
+namespace reenact::recon {
+
+using methods::OptionMap;
+
+// Human-readable log lines of a running method (one line per call).
+using LogCallback = std::function<void(const std::string& line)>;
+
+// What a method gets besides the take and its options.
+struct MethodContext {
+  // Folders whose subfolders an option model=makehuman:NAME names (the
+  // server's --assets); never from a client.
+  std::vector<std::string> asset_roots;
+  // Stages and fractions 0..1 of the method's own run; returning false
+  // cancels it (Cancelled).
+  ProgressCallback progress;
+  LogCallback log;
+};
+
+class ReconstructionMethod {
+ public:
+  virtual ~ReconstructionMethod() = default;
+
+  // Name, summary, live, texture mode and the options with their defaults.
+  virtual const methods::MethodSpec& spec() const = 0;
+
+  // InvalidArgument for an unknown key (naming the known ones), a value
+  // that does not parse or lies outside its bounds, or options that fail
+  // the struct's Validate(). Cheap: jobs are checked before the take loads.
+  virtual absl::Status CheckOptions(const OptionMap& options) const = 0;
+
+  // Builds the reenactment from a loaded take: parts, frames, keyframes and
+  // in `info` at least frame_count, fps and figures; RunMethod fills the
+  // bookkeeping (ids, method, options, sensors, texture mode) and writes it.
+  // CheckOptions' errors; InvalidArgument for a take the method cannot use;
+  // Cancelled when the context's progress returned false.
+  virtual absl::StatusOr<ReenactmentData> Run(const TakeFrames& take, const OptionMap& options,
+                                              const MethodContext& context) const = 0;
+};
+
+// A method whose options are the struct `Options`: default-constructible,
+// with `absl::Status Read(methods::OptionReader&)` and
+// `absl::Status Validate() const`.
+template <typename Options>
+class TypedMethod final : public ReconstructionMethod {
+ public:
+  using RunFunction = absl::StatusOr<ReenactmentData> (*)(const TakeFrames& take,
+                                                          const Options& options,
+                                                          const MethodContext& context);
+
+  // `spec`'s options are filled from Options' Read, followed by
+  // `live_options`: those only a live follow of the take reads (marked
+  // live_only; the worker never gets them).
+  TypedMethod(methods::MethodSpec spec, RunFunction run,
+              std::vector<methods::OptionSpec> live_options = {})
+      : spec_(std::move(spec)), run_(run) {
+    spec_.options = methods::DescribeOptions<Options>();
+    for (methods::OptionSpec& option : live_options) {
+      option.live_only = true;
+      spec_.options.push_back(std::move(option));
+    }
+  }
+
+  const methods::MethodSpec& spec() const override { return spec_; }
+
+  // Live-only options are the follower's to check (live_body.h).
+  absl::Status CheckOptions(const OptionMap& options) const override {
+    Options parsed;
+    return methods::ParseOptions(options, &parsed);
+  }
+
+  absl::StatusOr<ReenactmentData> Run(const TakeFrames& take, const OptionMap& options,
+                                      const MethodContext& context) const override {
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    return run_(take, parsed, context);
+  }
+
+ private:
+  methods::MethodSpec spec_;
+  RunFunction run_;
+};
+
+}  // namespace reenact::recon

@@ -176,6 +176,144 @@ std::string DefaultSpoolDir() {
   return "reenactd-spool";  // The working folder, as a last resort.
 }
 
+// ---------------------------------------------------------------------------
+// The parts of the daemon. Each guards its own fields; where one thread needs
+// several locks it takes them in this order:
+//   TakeBook::mutex, SensorSet::mutex, FramePath::mutex, SyncSnapshot::mutex.
+// BoardAnchoring's locks are taken alone or under the first two, and no lock
+// is taken under them.
+
+namespace {
+
+// The sensors, opened at start and by hotplug rescans. Entries are never
+// removed (a sensor that ended stays GONE), so the SensorEntry pointers the
+// sensor callbacks hold stay valid until the daemon goes.
+struct SensorSet {
+  // Guards `entries` and each entry's state and detail.
+  mutable std::mutex mutex;
+  std::vector<std::unique_ptr<SensorEntry>> entries;
+
+  std::vector<v1::SensorInfo> List() const {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::vector<v1::SensorInfo> out;
+    for (const auto& entry : entries) {
+      v1::SensorInfo info = entry->info;
+      info.set_state(entry->state);
+      info.set_detail(entry->detail);
+      info.set_frames_delivered(entry->frames.load());
+      out.push_back(std::move(info));
+    }
+    return out;
+  }
+
+  std::set<std::string> Ids() const {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::set<std::string> ids;
+    for (const auto& entry : entries) ids.insert(entry->info.sensor_id());
+    return ids;
+  }
+
+  bool AllGone() const {
+    std::lock_guard<std::mutex> lock(mutex);
+    return std::all_of(entries.begin(), entries.end(),
+                       [](const auto& e) { return e->state == v1::SENSOR_STATE_GONE; });
+  }
+
+  // A sensor with this id was here before and is gone.
+  bool WasGone(const std::string& sensor_id) const {
+    std::lock_guard<std::mutex> lock(mutex);
+    return std::any_of(entries.begin(), entries.end(), [&sensor_id](const auto& known) {
+      return known->info.sensor_id() == sensor_id && known->state == v1::SENSOR_STATE_GONE;
+    });
+  }
+
+  // "backend|serial|uri" of each streaming sensor: a rescan opens only the
+  // devices not among them.
+  std::set<std::string> StreamingKeys() const {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::set<std::string> keys;
+    for (const auto& entry : entries) {
+      if (entry->state == v1::SENSOR_STATE_STREAMING) keys.insert(KeyOf(entry->info));
+    }
+    return keys;
+  }
+  static std::string KeyOf(const v1::SensorInfo& info) {
+    return info.backend() + "|" + info.serial() + "|" + info.uri();
+  }
+
+  // Adds `entry` as streaming; returns it.
+  SensorEntry* Add(std::unique_ptr<SensorEntry> entry) {
+    std::lock_guard<std::mutex> lock(mutex);
+    entry->state = v1::SENSOR_STATE_STREAMING;
+    entries.push_back(std::move(entry));
+    return entries.back().get();
+  }
+
+  // Marks `entry` gone with `detail`; true when another sensor still streams.
+  bool MarkGone(SensorEntry* entry, const std::string& detail) {
+    std::lock_guard<std::mutex> lock(mutex);
+    entry->state = v1::SENSOR_STATE_GONE;
+    entry->detail = detail;
+    return std::any_of(entries.begin(), entries.end(), [entry](const auto& other) {
+      return other.get() != entry && other->state != v1::SENSOR_STATE_GONE;
+    });
+  }
+
+  // Stops every sensor and joins its thread. The sensors are stopped outside
+  // the lock: a sensor's end callback takes it.
+  void StopAll() {
+    std::vector<Sensor*> all;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      for (const auto& entry : entries) all.push_back(entry->sensor.get());
+    }
+    for (Sensor* sensor : all) sensor->Stop();
+  }
+};
+
+// The takes: the one being recorded and those still uploading.
+struct TakeBook {
+  // Guards every field below.
+  mutable std::mutex mutex;
+  std::shared_ptr<TakeRecorder> current;  // Being recorded.
+  int64_t current_started_steady_ns = 0;
+  double current_max_seconds = 0.0;
+  std::shared_ptr<TakeRecorder> once;                   // The --once take.
+  std::vector<std::shared_ptr<TakeRecorder>> draining;  // Stopped or resumed, not done.
+  std::set<const TakeRecorder*> resumed;                // Found in the spool at start.
+  std::shared_ptr<TakeRecorder> last;
+  // Uplink reconnects of the takes that are done.
+  int64_t reconnects_finished = 0;
+
+  // Reconnects of every take so far; the caller holds `mutex`.
+  int64_t ReconnectsLocked() const {
+    int64_t reconnects = reconnects_finished;
+    for (const auto& r : draining) reconnects += r->Stats().uplink.reconnects;
+    if (current) reconnects += current->Stats().uplink.reconnects;
+    return reconnects;
+  }
+};
+
+// The frame path: what the sensor threads share once a frame is processed.
+struct FramePath {
+  // Guards every field below. Held while a set is spooled, which may wait for
+  // spool space (SyncSnapshot keeps Status() from waiting with it).
+  std::mutex mutex;
+  std::unique_ptr<SyncGroup> sync;
+  std::shared_ptr<TakeRecorder> recording;  // The take the sets go to; null between takes.
+  std::vector<PendingEnd> pending_ends;     // Ends of recordings not yet told to the take.
+  int64_t refused_logged_steady_ns = 0;
+  int64_t snapshot_steady_ns = 0;
+};
+
+// Copy of the sync figures for Status().
+struct SyncSnapshot {
+  // Guards both fields.
+  mutable std::mutex mutex;
+  SyncSummary summary;
+  std::vector<v1::SensorSyncStats> sensors;
+};
+
 // The board anchoring of one take (DaemonOptions.anchor).
 struct TakeAnchoring {
   std::shared_ptr<TakeRecorder> take;
@@ -184,81 +322,201 @@ struct TakeAnchoring {
   int64_t started_steady_ns = 0;
 };
 
+// Board anchoring of the take being recorded, until its OpenTake is sent:
+// Start when the take starts (it holds the take's OpenTake back), Offer the
+// colour frames, Finish when Due or when the take stops.
+class BoardAnchoring {
+ public:
+  BoardAnchoring(const AnchorOptions* options, log::Logger* logger)
+      : options_(options), logger_(logger) {}
+
+  void Start(const std::shared_ptr<TakeRecorder>& recorder,
+             const std::vector<v1::SensorCalibration>& calibrations);
+  // From the sensor threads.
+  void Offer(const v1::Frame& frame);
+  // Every sensor finished, or anchor.timeout_s passed.
+  bool Due();
+  // Combines each sensor's detections, and sends the take's OpenTake with the
+  // anchored calibrations (the others as given, with a warning).
+  void Finish();
+
+ private:
+  const AnchorOptions* options_;
+  log::Logger* logger_;
+  // Guards state_.
+  std::mutex mutex_;
+  std::unique_ptr<TakeAnchoring> state_;
+  // Held through Finish, so that a StopTake waits for a finish in progress
+  // before it stops the take.
+  std::mutex finish_mutex_;
+};
+
+void BoardAnchoring::Start(const std::shared_ptr<TakeRecorder>& recorder,
+                           const std::vector<v1::SensorCalibration>& calibrations) {
+  auto state = std::make_unique<TakeAnchoring>();
+  state->take = recorder;
+  state->calibrations = calibrations;
+  state->started_steady_ns = SteadyNowNs();
+  for (const v1::SensorCalibration& calibration : calibrations) {
+    absl::StatusOr<std::unique_ptr<SensorAnchor>> anchor =
+        SensorAnchor::Create(*options_, calibration);
+    if (anchor.ok()) {
+      state->anchors[calibration.sensor_id()] = std::move(*anchor);
+    } else {
+      logger_->Warn("sensor_not_anchored",
+                    {{"sensor_id", calibration.sensor_id()}, {"error", anchor.status().message()}},
+                    absl::StrCat("sensor ", calibration.sensor_id(),
+                                 " cannot be anchored on the board; it keeps its calibration"));
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  state_ = std::move(state);
+}
+
+void BoardAnchoring::Offer(const v1::Frame& frame) {
+  if (!frame.has_color()) return;
+  std::shared_ptr<SensorAnchor> anchor;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!state_) return;
+    auto it = state_->anchors.find(frame.sensor_id());
+    if (it == state_->anchors.end()) return;
+    anchor = it->second;
+  }
+  anchor->Offer(frame.color());
+}
+
+bool BoardAnchoring::Due() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!state_) return false;
+  if (NsToSeconds(SteadyNowNs() - state_->started_steady_ns) >= options_->timeout_s) return true;
+  return std::all_of(state_->anchors.begin(), state_->anchors.end(),
+                     [](const auto& entry) { return entry.second->finished(); });
+}
+
+void BoardAnchoring::Finish() {
+  std::lock_guard<std::mutex> finish_lock(finish_mutex_);
+  std::unique_ptr<TakeAnchoring> state;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    state = std::move(state_);
+  }
+  if (!state) return;
+  const absl::StatusOr<std::string> anchor_name = WorldAnchorName(options_->board_spec);
+  std::vector<v1::SensorCalibration> calibrations = state->calibrations;
+  for (v1::SensorCalibration& calibration : calibrations) {
+    auto it = state->anchors.find(calibration.sensor_id());
+    if (it == state->anchors.end() || !anchor_name.ok()) continue;
+    absl::StatusOr<AnchorResult> found = it->second->Finish();
+    absl::StatusOr<v1::SensorCalibration> anchored =
+        found.ok() ? AnchorCalibration(calibration, *found, *anchor_name) : found.status();
+    if (!anchored.ok()) {
+      logger_->Warn("sensor_not_anchored",
+                    {{"sensor_id", calibration.sensor_id()},
+                     {"anchor", *anchor_name},
+                     {"error", anchored.status().message()}},
+                    absl::StrCat("sensor ", calibration.sensor_id(), " is not anchored on ",
+                                 *anchor_name, "; it keeps its calibration (world_anchor empty)"));
+      continue;
+    }
+    calibration = *std::move(anchored);
+    logger_->Info("sensor_anchored",
+                  {{"sensor_id", calibration.sensor_id()},
+                   {"anchor", *anchor_name},
+                   {"detections", found->detections},
+                   {"frames_tried", found->frames_tried},
+                   {"rms_px", found->rms_px}},
+                  absl::StrFormat("sensor %s anchored on %s: %d of %d colour frames, RMS %.2f px",
+                                  calibration.sensor_id(), *anchor_name, found->detections,
+                                  found->frames_tried, found->rms_px));
+  }
+  state->take->ReleaseOpen(calibrations);
+}
+
+// The CaptureControl gRPC server. Started by Run's start-up before the
+// io_context runs and read-only from then on.
+struct ControlEndpoint {
+  std::unique_ptr<rpc::Authorizer> auth;
+  std::unique_ptr<grpc::Service> service;
+  // Registered with the server, so it outlives it.
+  std::unique_ptr<rpc::HealthService> health;
+  std::unique_ptr<grpc::Server> server;
+  std::string bound_address;
+
+  // NOT_SERVING from now on (a drain or the end); ends the health watches,
+  // which a shutdown of the server would otherwise wait for.
+  void StopHealth() {
+    if (health) health->Shutdown();
+  }
+};
+
+}  // namespace
+
 struct Daemon::Impl {
+  // Set by Create, read-only afterwards.
   DaemonOptions options;
   std::string daemon_id;
   std::shared_ptr<grpc::Channel> channel;
   TakeRecorderOptions recorder_options;
-
-  boost::asio::io_context io;
-  boost::asio::signal_set signals{io, SIGINT, SIGTERM};
-  boost::asio::steady_timer timer{io};
-  std::unique_ptr<rpc::Authorizer> control_auth;
-  std::unique_ptr<grpc::Service> control_service;
-  // Registered with the control server, so it outlives it.
-  std::unique_ptr<rpc::HealthService> health;
-  std::unique_ptr<grpc::Server> control_server;
-  std::string bound_control;
-  std::unique_ptr<metrics::HttpExposer> metrics_exposer;
-  std::string bound_metrics;
-  std::atomic<bool> stop_requested{false};
-  std::atomic<int> signals_received{0};
   int64_t start_steady_ns = 0;
-  int64_t last_log_steady_ns = 0;
-
-  // Sensors, takes. Lock order: mutex before sync_mutex.
-  mutable std::mutex mutex;
-  std::vector<std::unique_ptr<SensorEntry>> sensors;
-  std::shared_ptr<TakeRecorder> take;  // Being recorded.
-  int64_t take_started_steady_ns = 0;
-  double take_max_seconds = 0.0;
-  std::shared_ptr<TakeRecorder> once_take;
-  std::vector<std::shared_ptr<TakeRecorder>> draining;  // Stopped or resumed, not done.
-  std::set<const TakeRecorder*> resumed;                // Found in the spool at start.
-  std::shared_ptr<TakeRecorder> last_take;
-  int64_t reconnects_finished = 0;
-
-  // The frame path.
-  std::mutex sync_mutex;
-  std::unique_ptr<SyncGroup> sync;
-  std::shared_ptr<TakeRecorder> recording;
-  int64_t refused_logged_steady_ns = 0;
-
-  // Copy of the sync figures for Status (the frame path may hold sync_mutex
-  // while it waits for spool space).
-  mutable std::mutex snapshot_mutex;
-  SyncSummary snapshot;
-  std::vector<v1::SensorSyncStats> snapshot_sensors;
-  int64_t snapshot_steady_ns = 0;
-
   // The daemon's events (options.log in options.log_options).
   log::Logger logger{nullptr, log::Options{}};
 
+  // The io_context and what only its thread (Run's) touches.
+  boost::asio::io_context io;
+  boost::asio::signal_set signals{io, SIGINT, SIGTERM};
+  boost::asio::steady_timer timer{io};
+  int64_t last_log_steady_ns = 0;
+  std::optional<absl::Status> once_result;
+  // Set from any thread.
+  std::atomic<bool> stop_requested{false};
+  std::atomic<int> signals_received{0};
+
+  ControlEndpoint control;
+  // Started by Create; read-only afterwards.
+  std::unique_ptr<metrics::HttpExposer> metrics_exposer;
+  std::string bound_metrics;
+
+  SensorSet sensors;
+  TakeBook takes;
+  FramePath frames;
+  SyncSnapshot snapshot;
+  BoardAnchoring anchoring{&options.anchor, &logger};
   // StreamFrames subscribers.
   LiveFrames live;
 
-  // Board anchoring of the take being recorded, until its OpenTake is sent.
-  std::mutex anchor_mutex;
-  std::unique_ptr<TakeAnchoring> anchoring;
-  // Held through FinishAnchoring, so that a StopTake waits for a finish in
-  // progress before it stops the take.
-  std::mutex anchor_finish_mutex;
-  void StartAnchoring(const std::shared_ptr<TakeRecorder>& recorder,
-                      const std::vector<v1::SensorCalibration>& calibrations);
-  void OfferToAnchoring(const v1::Frame& frame);
-  bool AnchoringDue();
-  void FinishAnchoring();
+  // --- Run's stages (Run's thread) ---
+  absl::Status StartUp(CaptureController* controller);
+  void ServeUntilStopped();
+  absl::Status Drain();
+  void ShutDown(const absl::Status& result);
 
-  // NOT_SERVING from now on (a drain or the end); ends the health watches,
-  // which a shutdown of the control server would otherwise wait for.
-  void StopHealth() {
-    if (health) health->Shutdown();
-  }
+  // --- start-up ---
+  SourceOptions MakeSourceOptions() const;
+  absl::Status StartServices(CaptureController* controller);
+  absl::Status StartControl(CaptureController* controller);
+  void ResumeUnfinished();
+  absl::Status StartOnceTake();
+  absl::Status AddSensors(SensorList opened);
+  absl::StatusOr<SensorEntry*> JoinSensor(std::unique_ptr<Sensor> sensor);
+  void StartSensor(SensorEntry* entry, bool returning);
+  void StopSensors() { sensors.StopAll(); }
+
+  // --- hotplug ---
+  std::unique_ptr<UsbHotplugMonitor> StartHotplug();
+  void OnUsbEvent(const UsbEvent& event);
+  void RescanHardware();
+
+  // --- drain and shutdown ---
+  std::vector<std::shared_ptr<TakeRecorder>> TakesOfThisRun();
+  void WaitUntilDurable(const std::vector<std::shared_ptr<TakeRecorder>>& ours);
+  absl::Status ReportDrained(const std::vector<std::shared_ptr<TakeRecorder>>& ours);
+  void AbandonUnfinished();
+  void WriteStats(const absl::Status& result);
 
   // --- frame path (sensor threads) ---
   void OnFrame(SensorEntry* entry, CapturedFrame frame);
-  // Ends of recordings not yet reported to the take (guarded by sync_mutex).
-  std::vector<PendingEnd> pending_ends;
+  void ReportPendingEndsLocked(const SensorEntry& entry, int64_t host_stamp_ns);
   void OnSensorEnd(SensorEntry* entry, const absl::Status& why);
   void RecordLocked(std::vector<v1::FrameSet> sets);
   void SnapshotLocked(bool force);
@@ -267,20 +525,15 @@ struct Daemon::Impl {
   absl::StatusOr<std::string> StartTake(const v1::StartTakeRequest& request);
   absl::StatusOr<v1::StopTakeResponse> StopTake(const std::string& reason, bool flush);
   v1::DaemonStatus Status();
-  std::vector<v1::SensorInfo> ListSensors();
 
-  // --- io thread ---
-  absl::Status AddSensors(SensorList opened);
-  absl::Status StartControl(CaptureController* controller);
-  void ResumeUnfinished();
+  // --- housekeeping (io thread) ---
   void ArmSignals();
   void ArmTimer();
   void Tick();
-  void StopSensors();
-  bool AllSensorsGone();
-  void RescanHardware();
-  void WriteStats(const absl::Status& result);
-  std::optional<absl::Status> once_result;
+  void ExpireStalledSets();
+  std::vector<std::shared_ptr<TakeRecorder>> CheckTakes();
+  void ReportFinished(const std::shared_ptr<TakeRecorder>& recorder);
+  void LogProgress();
 };
 
 // ---------------------------------------------------------------------------
@@ -296,28 +549,34 @@ void Daemon::Impl::OnFrame(SensorEntry* entry, CapturedFrame frame) {
     return;
   }
   ++entry->frames;
-  if (options.anchor.enabled()) OfferToAnchoring(frame.frame);
+  if (options.anchor.enabled()) anchoring.Offer(frame.frame);
   const int64_t host_stamp_ns = frame.frame.host_stamp_ns();
   entry->last_host_stamp_ns = host_stamp_ns;
-  std::lock_guard<std::mutex> lock(sync_mutex);
-  RecordLocked(sync->Add(std::move(frame.frame)));
-  if (!pending_ends.empty()) {
-    const double fps = entry->info.nominal_fps() > 0 ? entry->info.nominal_fps() : 30.0;
-    const int64_t margin_ns = static_cast<int64_t>(2e9 / fps);
-    for (auto it = pending_ends.begin(); it != pending_ends.end();) {
-      if (host_stamp_ns <= it->last_host_stamp_ns + margin_ns) {
-        ++it;
-        continue;
-      }
-      if (recording) recording->SensorLost(it->sensor_id, it->noticed_ns, it->reason);
-      it = pending_ends.erase(it);
-    }
-  }
+  std::lock_guard<std::mutex> lock(frames.mutex);
+  RecordLocked(frames.sync->Add(std::move(frame.frame)));
+  if (!frames.pending_ends.empty()) ReportPendingEndsLocked(*entry, host_stamp_ns);
   SnapshotLocked(false);
+}
+
+// Tells the take of the recordings that ended clearly before this frame of
+// `entry` (see PendingEnd).
+void Daemon::Impl::ReportPendingEndsLocked(const SensorEntry& entry, int64_t host_stamp_ns) {
+  const double fps = entry.info.nominal_fps() > 0 ? entry.info.nominal_fps() : 30.0;
+  const int64_t margin_ns = static_cast<int64_t>(2e9 / fps);
+  std::vector<PendingEnd>& pending_ends = frames.pending_ends;
+  for (auto it = pending_ends.begin(); it != pending_ends.end();) {
+    if (host_stamp_ns <= it->last_host_stamp_ns + margin_ns) {
+      ++it;
+      continue;
+    }
+    if (frames.recording) frames.recording->SensorLost(it->sensor_id, it->noticed_ns, it->reason);
+    it = pending_ends.erase(it);
+  }
 }
 
 void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
   for (const v1::FrameSet& set : sets) live.Publish(set);
+  TakeRecorder* const recording = frames.recording.get();
   if (recording == nullptr) return;
   for (v1::FrameSet& set : sets) {
     const absl::Status added = recording->Add(std::move(set));
@@ -325,8 +584,8 @@ void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
     const bool full = absl::IsResourceExhausted(added);
     if (full) SpoolRefusals().Increment();
     const int64_t now = SteadyNowNs();
-    if (now - refused_logged_steady_ns > kNanosPerSecond) {  // At most a line a second.
-      refused_logged_steady_ns = now;
+    if (now - frames.refused_logged_steady_ns > kNanosPerSecond) {  // At most a line a second.
+      frames.refused_logged_steady_ns = now;
       const int64_t refused = recording->Stats().frame_sets_refused;
       if (full) {
         logger.Error("limit_hit",
@@ -348,13 +607,13 @@ void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
 
 void Daemon::Impl::SnapshotLocked(bool force) {
   const int64_t now = SteadyNowNs();
-  if (!force && now - snapshot_steady_ns < 100'000'000) return;
-  snapshot_steady_ns = now;
-  SyncSummary summary = sync->Summary();
-  std::vector<v1::SensorSyncStats> sensor_stats = sync->SensorStats();
-  std::lock_guard<std::mutex> lock(snapshot_mutex);
-  snapshot = std::move(summary);
-  snapshot_sensors = std::move(sensor_stats);
+  if (!force && now - frames.snapshot_steady_ns < 100'000'000) return;
+  frames.snapshot_steady_ns = now;
+  SyncSummary summary = frames.sync->Summary();
+  std::vector<v1::SensorSyncStats> sensor_stats = frames.sync->SensorStats();
+  std::lock_guard<std::mutex> lock(snapshot.mutex);
+  snapshot.summary = std::move(summary);
+  snapshot.sensors = std::move(sensor_stats);
 }
 
 void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
@@ -362,15 +621,7 @@ void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
   const std::string reason = why.ok() ? "end of recording" : std::string(why.message());
   // The take is told of a lost sensor only while others stream on: the
   // last sensor to end ends the take instead.
-  bool others_streaming = false;
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    entry->state = v1::SENSOR_STATE_GONE;
-    entry->detail = reason;
-    for (const auto& other : sensors) {
-      if (other.get() != entry && other->state != v1::SENSOR_STATE_GONE) others_streaming = true;
-    }
-  }
+  const bool others_streaming = sensors.MarkGone(entry, reason);
   if (why.ok()) {
     logger.Info("sensor_ended", {{"sensor_id", id}, {"reason", reason}},
                 absl::StrCat("sensor ", id, " ended"));
@@ -379,23 +630,23 @@ void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
                 absl::StrCat("sensor ", id, " lost: ", reason));
   }
   {
-    std::lock_guard<std::mutex> lock(sync_mutex);
-    RecordLocked(sync->SensorLost(id));
-    if (recording && others_streaming) {
+    std::lock_guard<std::mutex> lock(frames.mutex);
+    RecordLocked(frames.sync->SensorLost(id));
+    if (frames.recording && others_streaming) {
       if (why.ok()) {
-        pending_ends.push_back({id, entry->last_host_stamp_ns.load(), WallNowNs(), reason});
+        frames.pending_ends.push_back({id, entry->last_host_stamp_ns.load(), WallNowNs(), reason});
       } else {
-        recording->SensorLost(id, WallNowNs(), reason);
+        frames.recording->SensorLost(id, WallNowNs(), reason);
       }
     }
     SnapshotLocked(true);
   }
   boost::asio::post(io, [this] {
-    if (!options.once || !AllSensorsGone()) return;
+    if (!options.once || !sensors.AllGone()) return;
     std::shared_ptr<TakeRecorder> current;
     {
-      std::lock_guard<std::mutex> lock(mutex);
-      current = take;
+      std::lock_guard<std::mutex> lock(takes.mutex);
+      current = takes.current;
     }
     if (current) (void)StopTake("end of source", /*flush=*/true);
   });
@@ -404,29 +655,19 @@ void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
 // ---------------------------------------------------------------------------
 // Control
 
-std::vector<v1::SensorInfo> Daemon::Impl::ListSensors() {
-  std::lock_guard<std::mutex> lock(mutex);
-  std::vector<v1::SensorInfo> out;
-  for (const auto& entry : sensors) {
-    v1::SensorInfo info = entry->info;
-    info.set_state(entry->state);
-    info.set_detail(entry->detail);
-    info.set_frames_delivered(entry->frames.load());
-    out.push_back(std::move(info));
-  }
-  return out;
-}
-
 absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& request) {
-  std::lock_guard<std::mutex> lock(mutex);
-  if (take) {
+  std::lock_guard<std::mutex> lock(takes.mutex);
+  // Held until the take records, so that a sensor that ends meanwhile is
+  // either left out of the take or reported to it.
+  std::lock_guard<std::mutex> sensors_lock(sensors.mutex);
+  if (takes.current) {
     return absl::FailedPreconditionError(
-        absl::StrCat("take ", take->take_id(), " is being recorded"));
+        absl::StrCat("take ", takes.current->take_id(), " is being recorded"));
   }
   if (stop_requested) return absl::FailedPreconditionError("reenactd is shutting down");
   std::vector<v1::SensorCalibration> calibrations;
   double fps = 0.0;
-  for (const auto& entry : sensors) {
+  for (const auto& entry : sensors.entries) {
     if (entry->state != v1::SENSOR_STATE_STREAMING) continue;
     v1::SensorCalibration calibration = entry->processor->calibration();
     calibration.set_sensor_id(entry->info.sensor_id());
@@ -444,18 +685,19 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
   ASSIGN_OR_RETURN(
       std::unique_ptr<TakeRecorder> recorder,
       TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info, calibrations));
+  std::shared_ptr<TakeRecorder>& take = takes.current;
   take = std::move(recorder);
   if (options.anchor.enabled()) {
-    take->HoldOpen();  // Before the first set: `recording` is set below.
-    StartAnchoring(take, calibrations);
+    take->HoldOpen();  // Before the first set: `frames.recording` is set below.
+    anchoring.Start(take, calibrations);
   }
-  take_started_steady_ns = SteadyNowNs();
-  take_max_seconds = request.max_seconds();
-  last_take = take;
+  takes.current_started_steady_ns = SteadyNowNs();
+  takes.current_max_seconds = request.max_seconds();
+  takes.last = take;
   {
-    std::lock_guard<std::mutex> sync_lock(sync_mutex);
-    recording = take;
-    pending_ends.clear();
+    std::lock_guard<std::mutex> frames_lock(frames.mutex);
+    frames.recording = take;
+    frames.pending_ends.clear();
   }
   logger.Info("take_started",
               {{"take_id", take_id}, {"name", info.name()}, {"sensors", calibrations.size()}},
@@ -464,21 +706,21 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
 }
 
 absl::StatusOr<v1::StopTakeResponse> Daemon::Impl::StopTake(const std::string& reason, bool flush) {
-  std::lock_guard<std::mutex> lock(mutex);
-  if (!take) return absl::FailedPreconditionError("no take is being recorded");
-  std::shared_ptr<TakeRecorder> stopping = std::move(take);
-  take = nullptr;
-  FinishAnchoring();
+  std::lock_guard<std::mutex> lock(takes.mutex);
+  if (!takes.current) return absl::FailedPreconditionError("no take is being recorded");
+  std::shared_ptr<TakeRecorder> stopping = std::move(takes.current);
+  takes.current = nullptr;
+  anchoring.Finish();
   stopping->StopWaiting();  // Frees the frame path if it waits for spool space.
   {
-    std::lock_guard<std::mutex> sync_lock(sync_mutex);
-    if (flush) RecordLocked(sync->Flush());
-    recording = nullptr;
-    pending_ends.clear();
+    std::lock_guard<std::mutex> frames_lock(frames.mutex);
+    if (flush) RecordLocked(frames.sync->Flush());
+    frames.recording = nullptr;
+    frames.pending_ends.clear();
     SnapshotLocked(true);
   }
   stopping->Stop(reason);
-  draining.push_back(stopping);
+  takes.draining.push_back(stopping);
   v1::StopTakeResponse response;
   response.set_take_id(stopping->take_id());
   response.set_frame_set_count(stopping->last_sequence());
@@ -495,19 +737,18 @@ v1::DaemonStatus Daemon::Impl::Status() {
   v1::DaemonStatus status;
   status.set_daemon_id(daemon_id);
   status.set_server_address(options.server_address);
-  std::vector<std::shared_ptr<TakeRecorder>> takes;
+  std::vector<std::shared_ptr<TakeRecorder>> all_takes;
   std::shared_ptr<TakeRecorder> current;
   std::shared_ptr<TakeRecorder> latest;
   {
-    std::lock_guard<std::mutex> lock(mutex);
-    current = take;
-    latest = last_take;
-    takes = draining;
-    if (take) takes.push_back(take);
-    status.set_reconnects(reconnects_finished);
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    current = takes.current;
+    latest = takes.last;
+    all_takes = takes.draining;
+    if (takes.current) all_takes.push_back(takes.current);
+    status.set_reconnects(takes.reconnects_finished);
   }
-  std::map<std::string, int64_t> refused_frames;
-  for (const auto& recorder : takes) {
+  for (const auto& recorder : all_takes) {
     const TakeStats stats = recorder->Stats();
     status.set_spool_frame_sets(status.spool_frame_sets() + stats.spool_frame_sets);
     status.set_spool_bytes(status.spool_bytes() + stats.spool_bytes);
@@ -530,162 +771,48 @@ v1::DaemonStatus Daemon::Impl::Status() {
     status.set_durable_sequence(stats.durable_sequence);
   }
   {
-    std::lock_guard<std::mutex> lock(snapshot_mutex);
-    status.set_frame_sets(snapshot.frame_sets);
-    status.set_skew_p50_ns(snapshot.skew_p50_ns);
-    status.set_skew_max_ns(snapshot.skew_max_ns);
-    for (const v1::SensorSyncStats& s : snapshot_sensors) *status.add_sync() = s;
+    std::lock_guard<std::mutex> lock(snapshot.mutex);
+    status.set_frame_sets(snapshot.summary.frame_sets);
+    status.set_skew_p50_ns(snapshot.summary.skew_p50_ns);
+    status.set_skew_max_ns(snapshot.summary.skew_max_ns);
+    for (const v1::SensorSyncStats& s : snapshot.sensors) *status.add_sync() = s;
   }
-  for (v1::SensorInfo& info : ListSensors()) *status.add_sensors() = std::move(info);
+  for (v1::SensorInfo& info : sensors.List()) *status.add_sensors() = std::move(info);
   return status;
 }
 
 // ---------------------------------------------------------------------------
-// Board anchoring
+// Start-up
 
-void Daemon::Impl::StartAnchoring(const std::shared_ptr<TakeRecorder>& recorder,
-                                  const std::vector<v1::SensorCalibration>& calibrations) {
-  auto state = std::make_unique<TakeAnchoring>();
-  state->take = recorder;
-  state->calibrations = calibrations;
-  state->started_steady_ns = SteadyNowNs();
-  for (const v1::SensorCalibration& calibration : calibrations) {
-    absl::StatusOr<std::unique_ptr<SensorAnchor>> anchor =
-        SensorAnchor::Create(options.anchor, calibration);
-    if (anchor.ok()) {
-      state->anchors[calibration.sensor_id()] = std::move(*anchor);
-    } else {
-      logger.Warn("sensor_not_anchored",
-                  {{"sensor_id", calibration.sensor_id()}, {"error", anchor.status().message()}},
-                  absl::StrCat("sensor ", calibration.sensor_id(),
-                               " cannot be anchored on the board; it keeps its calibration"));
-    }
+// Opens the sources and starts the sensors, then the services around them
+// (StartServices); arms the signals and the housekeeping timer.
+absl::Status Daemon::Impl::StartUp(CaptureController* controller) {
+  ASSIGN_OR_RETURN(SensorList opened, OpenSources(options.sources, MakeSourceOptions()));
+  RETURN_IF_ERROR(AddSensors(std::move(opened)));
+  if (absl::Status s = StartServices(controller); !s.ok()) {
+    StopSensors();
+    return s;
   }
-  std::lock_guard<std::mutex> lock(anchor_mutex);
-  anchoring = std::move(state);
+  ArmSignals();
+  ArmTimer();
+  return absl::OkStatus();
 }
 
-void Daemon::Impl::OfferToAnchoring(const v1::Frame& frame) {
-  if (!frame.has_color()) return;
-  std::shared_ptr<SensorAnchor> anchor;
-  {
-    std::lock_guard<std::mutex> lock(anchor_mutex);
-    if (!anchoring) return;
-    auto it = anchoring->anchors.find(frame.sensor_id());
-    if (it == anchoring->anchors.end()) return;
-    anchor = it->second;
-  }
-  anchor->Offer(frame.color());
+SourceOptions Daemon::Impl::MakeSourceOptions() const {
+  SourceOptions source_options;
+  source_options.fast = options.fast;
+  source_options.loop = options.loop;
+  return source_options;
 }
 
-bool Daemon::Impl::AnchoringDue() {
-  std::lock_guard<std::mutex> lock(anchor_mutex);
-  if (!anchoring) return false;
-  if (NsToSeconds(SteadyNowNs() - anchoring->started_steady_ns) >= options.anchor.timeout_s) {
-    return true;
-  }
-  return std::all_of(anchoring->anchors.begin(), anchoring->anchors.end(),
-                     [](const auto& entry) { return entry.second->finished(); });
-}
-
-// Combines each sensor's detections, and sends the take's OpenTake with the
-// anchored calibrations (the others as given, with a warning).
-void Daemon::Impl::FinishAnchoring() {
-  std::lock_guard<std::mutex> finish_lock(anchor_finish_mutex);
-  std::unique_ptr<TakeAnchoring> state;
-  {
-    std::lock_guard<std::mutex> lock(anchor_mutex);
-    state = std::move(anchoring);
-  }
-  if (!state) return;
-  const absl::StatusOr<std::string> anchor_name = WorldAnchorName(options.anchor.board_spec);
-  std::vector<v1::SensorCalibration> calibrations = state->calibrations;
-  for (v1::SensorCalibration& calibration : calibrations) {
-    auto it = state->anchors.find(calibration.sensor_id());
-    if (it == state->anchors.end() || !anchor_name.ok()) continue;
-    absl::StatusOr<AnchorResult> found = it->second->Finish();
-    absl::StatusOr<v1::SensorCalibration> anchored =
-        found.ok() ? AnchorCalibration(calibration, *found, *anchor_name) : found.status();
-    if (!anchored.ok()) {
-      logger.Warn("sensor_not_anchored",
-                  {{"sensor_id", calibration.sensor_id()},
-                   {"anchor", *anchor_name},
-                   {"error", anchored.status().message()}},
-                  absl::StrCat("sensor ", calibration.sensor_id(), " is not anchored on ",
-                               *anchor_name, "; it keeps its calibration (world_anchor empty)"));
-      continue;
-    }
-    calibration = *std::move(anchored);
-    logger.Info("sensor_anchored",
-                {{"sensor_id", calibration.sensor_id()},
-                 {"anchor", *anchor_name},
-                 {"detections", found->detections},
-                 {"frames_tried", found->frames_tried},
-                 {"rms_px", found->rms_px}},
-                absl::StrFormat("sensor %s anchored on %s: %d of %d colour frames, RMS %.2f px",
-                                calibration.sensor_id(), *anchor_name, found->detections,
-                                found->frames_tried, found->rms_px));
-  }
-  state->take->ReleaseOpen(calibrations);
-}
-
-// ---------------------------------------------------------------------------
-// Setup, housekeeping, shutdown
-
-absl::Status Daemon::Impl::AddSensors(SensorList opened) {
-  // Every sensor joins the sync group before any of them starts, so that no
-  // set leaves early for want of a sensor not yet known.
-  std::vector<SensorEntry*> added;
-  std::set<std::string> returning;  // Sensors seen before, gone, and back.
-  for (auto& sensor : opened) {
-    auto entry = std::make_unique<SensorEntry>();
-    entry->info = sensor->info();
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      for (const auto& known : sensors) {
-        if (known->info.sensor_id() == entry->info.sensor_id() &&
-            known->state == v1::SENSOR_STATE_GONE) {
-          returning.insert(entry->info.sensor_id());
-        }
-      }
-    }
-    ASSIGN_OR_RETURN(entry->processor, FrameProcessor::Create(entry->info, options.processing));
-    entry->sensor = std::move(sensor);
-    {
-      std::lock_guard<std::mutex> lock(sync_mutex);
-      RETURN_IF_ERROR(sync->AddSensor(entry->info.sensor_id(), entry->info.nominal_fps()));
-    }
-    std::lock_guard<std::mutex> lock(mutex);
-    entry->state = v1::SENSOR_STATE_STREAMING;
-    added.push_back(entry.get());
-    sensors.push_back(std::move(entry));
-  }
-  for (SensorEntry* raw : added) {
-    const absl::Status started =
-        raw->sensor->Start([this, raw](CapturedFrame frame) { OnFrame(raw, std::move(frame)); },
-                           [this, raw](const absl::Status& why) { OnSensorEnd(raw, why); });
-    const v1::SensorInfo& info = raw->info;
-    if (started.ok()) {
-      const bool back = returning.contains(info.sensor_id());
-      logger.Info(back ? "sensor_recovered" : "sensor_opened",
-                  {{"sensor_id", info.sensor_id()},
-                   {"backend", info.backend()},
-                   {"model", info.model()},
-                   {"serial", info.serial()},
-                   {"fps", info.nominal_fps()}},
-                  absl::StrCat("sensor ", info.sensor_id(), back ? " is back" : " streams"));
-      continue;
-    }
-    logger.Error("sensor_failed", {{"sensor_id", info.sensor_id()}, {"error", started.message()}},
-                 absl::StrCat("sensor ", info.sensor_id(), " did not start"));
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      raw->state = v1::SENSOR_STATE_GONE;
-      raw->detail = std::string(started.message());
-    }
-    std::lock_guard<std::mutex> lock(sync_mutex);
-    (void)sync->SensorLost(raw->info.sensor_id());
-  }
+// What starts once the sensors stream: the control service, the uploads of
+// takes left in the spool, and the --once take.
+absl::Status Daemon::Impl::StartServices(CaptureController* controller) {
+  if (sensors.AllGone()) return absl::FailedPreconditionError("no sensor streams");
+  // The control address (and its file) appear once the sensors stream.
+  RETURN_IF_ERROR(StartControl(controller));
+  ResumeUnfinished();
+  if (options.once) RETURN_IF_ERROR(StartOnceTake());
   return absl::OkStatus();
 }
 
@@ -697,10 +824,10 @@ absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
   if (!options.control_auth_file.empty()) {
     ASSIGN_OR_RETURN(tokens, rpc::TokenTable::Load(options.control_auth_file));
   }
-  control_auth = std::make_unique<rpc::Authorizer>(std::move(tokens), CaptureControlMethodAccess());
-  control_service = CreateCaptureControlService(
-      controller, control_auth->enabled() ? control_auth.get() : nullptr);
-  health = std::make_unique<rpc::HealthService>(
+  control.auth = std::make_unique<rpc::Authorizer>(std::move(tokens), CaptureControlMethodAccess());
+  control.service = CreateCaptureControlService(
+      controller, control.auth->enabled() ? control.auth.get() : nullptr);
+  control.health = std::make_unique<rpc::HealthService>(
       std::vector<std::string>{v1::CaptureControl::service_full_name()});
   std::set<std::string, std::less<>> counted = {"/grpc.health.v1.Health/Check",
                                                 "/grpc.health.v1.Health/Watch"};
@@ -708,21 +835,21 @@ absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(options.control_address, credentials, &port);
-  builder.RegisterService(control_service.get());
+  builder.RegisterService(control.service.get());
   // No token needed (common/rpc/health_service.h).
-  builder.RegisterService(health.get());
+  builder.RegisterService(control.health.get());
   builder.experimental().SetInterceptorCreators(rpc::RequestMetricsInterceptors(counted));
-  control_server = builder.BuildAndStart();
-  if (!control_server || port == 0) {
+  control.server = builder.BuildAndStart();
+  if (!control.server || port == 0) {
     return absl::UnavailableError(
         absl::StrCat("cannot listen on --control ", options.control_address));
   }
   const std::string host = options.control_address.substr(0, options.control_address.rfind(':'));
-  bound_control = absl::StrCat(host, ":", port);
-  logger.Info("control_listening", {{"address", bound_control}},
-              absl::StrCat("control service listening on ", bound_control));
+  control.bound_address = absl::StrCat(host, ":", port);
+  logger.Info("control_listening", {{"address", control.bound_address}},
+              absl::StrCat("control service listening on ", control.bound_address));
   if (!options.control_port_file.empty()) {
-    RETURN_IF_ERROR(WriteFileAtomically(options.control_port_file, bound_control + "\n"));
+    RETURN_IF_ERROR(WriteFileAtomically(options.control_port_file, control.bound_address + "\n"));
   }
   return absl::OkStatus();
 }
@@ -739,11 +866,124 @@ void Daemon::Impl::ResumeUnfinished() {
     std::shared_ptr<TakeRecorder> resumed_take = std::move(*opened);
     logger.Info("take_resumed", {{"take_id", resumed_take->take_id()}},
                 absl::StrCat("resuming the upload of spooled take ", resumed_take->take_id()));
-    std::lock_guard<std::mutex> lock(mutex);
-    resumed.insert(resumed_take.get());
-    draining.push_back(std::move(resumed_take));
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    takes.resumed.insert(resumed_take.get());
+    takes.draining.push_back(std::move(resumed_take));
   }
 }
+
+absl::Status Daemon::Impl::StartOnceTake() {
+  v1::StartTakeRequest request;
+  request.set_name(options.take_name);
+  request.set_max_seconds(options.max_seconds);
+  RETURN_IF_ERROR(StartTake(request).status());
+  std::lock_guard<std::mutex> lock(takes.mutex);
+  takes.once = takes.current;
+  return absl::OkStatus();
+}
+
+absl::Status Daemon::Impl::AddSensors(SensorList opened) {
+  // Every sensor joins the sync group before any of them starts, so that no
+  // set leaves early for want of a sensor not yet known.
+  std::vector<std::pair<SensorEntry*, bool>> added;  // With: seen before, gone, and back.
+  for (auto& sensor : opened) {
+    const bool returning = sensors.WasGone(sensor->info().sensor_id());
+    ASSIGN_OR_RETURN(SensorEntry* const entry, JoinSensor(std::move(sensor)));
+    added.emplace_back(entry, returning);
+  }
+  for (const auto& [entry, returning] : added) StartSensor(entry, returning);
+  return absl::OkStatus();
+}
+
+// Gives `sensor` its processor and a place in the sync group and the
+// SensorSet; not started yet.
+absl::StatusOr<SensorEntry*> Daemon::Impl::JoinSensor(std::unique_ptr<Sensor> sensor) {
+  auto entry = std::make_unique<SensorEntry>();
+  entry->info = sensor->info();
+  ASSIGN_OR_RETURN(entry->processor, FrameProcessor::Create(entry->info, options.processing));
+  entry->sensor = std::move(sensor);
+  {
+    std::lock_guard<std::mutex> lock(frames.mutex);
+    RETURN_IF_ERROR(frames.sync->AddSensor(entry->info.sensor_id(), entry->info.nominal_fps()));
+  }
+  return sensors.Add(std::move(entry));
+}
+
+void Daemon::Impl::StartSensor(SensorEntry* entry, bool returning) {
+  const absl::Status started =
+      entry->sensor->Start([this, entry](CapturedFrame frame) { OnFrame(entry, std::move(frame)); },
+                           [this, entry](const absl::Status& why) { OnSensorEnd(entry, why); });
+  const v1::SensorInfo& info = entry->info;
+  if (started.ok()) {
+    logger.Info(returning ? "sensor_recovered" : "sensor_opened",
+                {{"sensor_id", info.sensor_id()},
+                 {"backend", info.backend()},
+                 {"model", info.model()},
+                 {"serial", info.serial()},
+                 {"fps", info.nominal_fps()}},
+                absl::StrCat("sensor ", info.sensor_id(), returning ? " is back" : " streams"));
+    return;
+  }
+  logger.Error("sensor_failed", {{"sensor_id", info.sensor_id()}, {"error", started.message()}},
+               absl::StrCat("sensor ", info.sensor_id(), " did not start"));
+  sensors.MarkGone(entry, std::string(started.message()));
+  std::lock_guard<std::mutex> lock(frames.mutex);
+  (void)frames.sync->SensorLost(info.sensor_id());
+}
+
+// ---------------------------------------------------------------------------
+// Hotplug
+
+// USB hotplug for hardware sources: arrivals rescan the backends, and a
+// departure is logged (the sensor's own stream ends by itself). Without USB
+// access (e.g. a container without /dev/bus/usb) the daemon runs on; null
+// then, and without hardware sources.
+std::unique_ptr<UsbHotplugMonitor> Daemon::Impl::StartHotplug() {
+  const bool hardware = std::any_of(options.sources.begin(), options.sources.end(),
+                                    [](const SourceSpec& s) { return s.backend != "playback"; });
+  if (!hardware) return nullptr;
+  auto monitor = UsbHotplugMonitor::Start([this](const UsbHotplugEvent& event) {
+    logger.Info("usb_event",
+                {{"arrived", event.kind == UsbHotplugKind::kArrived}, {"usb_id", event.usb_id()}},
+                absl::StrCat("usb: ", event.ToString()));
+    OnUsbEvent(UsbEvent{event.kind == UsbHotplugKind::kArrived, event.usb_id(), ""});
+  });
+  if (!monitor.ok()) {
+    logger.Warn("usb_hotplug_off", {{"error", monitor.status().message()}},
+                "usb hotplug is off: new sensors are not noticed");
+    return nullptr;
+  }
+  return std::move(*monitor);
+}
+
+void Daemon::Impl::OnUsbEvent(const UsbEvent& event) {
+  if (!event.arrived) return;
+  boost::asio::post(io, [this] { RescanHardware(); });
+}
+
+void Daemon::Impl::RescanHardware() {
+  std::vector<SourceSpec> hardware;
+  for (const SourceSpec& spec : options.sources) {
+    if (spec.backend != "playback") hardware.push_back(spec);
+  }
+  if (hardware.empty()) return;
+  const std::set<std::string> streaming = sensors.StreamingKeys();
+  const SourceOptions source_options = MakeSourceOptions();
+  for (const SourceSpec& spec : hardware) {
+    absl::StatusOr<SensorList> opened = OpenSources({spec}, source_options);
+    if (!opened.ok()) continue;  // Nothing new there (or the device is busy).
+    SensorList fresh;
+    for (auto& sensor : *opened) {
+      if (!streaming.count(SensorSet::KeyOf(sensor->info()))) fresh.push_back(std::move(sensor));
+    }
+    if (absl::Status s = AddSensors(std::move(fresh)); !s.ok()) {
+      logger.Error("hotplug_failed", {{"error", s.message()}}, "new sensors could not be added");
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Housekeeping (io thread)
 
 void Daemon::Impl::ArmSignals() {
   signals.async_wait([this](const boost::system::error_code& error, int signal) {
@@ -773,38 +1013,45 @@ void Daemon::Impl::ArmTimer() {
   });
 }
 
-bool Daemon::Impl::AllSensorsGone() {
-  std::lock_guard<std::mutex> lock(mutex);
-  return std::all_of(sensors.begin(), sensors.end(),
-                     [](const auto& e) { return e->state == v1::SENSOR_STATE_GONE; });
-}
-
 void Daemon::Impl::Tick() {
   if (stop_requested) {
     io.stop();
     return;
   }
-  {
-    std::unique_lock<std::mutex> lock(sync_mutex, std::try_to_lock);
-    if (lock.owns_lock()) {
-      RecordLocked(sync->Expire(WallNowNs(), kStallNs));
-      SnapshotLocked(false);
-    }
+  ExpireStalledSets();
+  if (anchoring.Due()) anchoring.Finish();
+  for (const auto& recorder : CheckTakes()) ReportFinished(recorder);
+  if (options.verbose && SteadyNowNs() - last_log_steady_ns >= kNanosPerSecond) {
+    last_log_steady_ns = SteadyNowNs();
+    LogProgress();
   }
-  if (AnchoringDue()) FinishAnchoring();
+}
+
+// Sends the sets whose sensors stalled. Skipped while the frame path holds
+// its lock (it may wait for spool space); the next tick tries again.
+void Daemon::Impl::ExpireStalledSets() {
+  std::unique_lock<std::mutex> lock(frames.mutex, std::try_to_lock);
+  if (!lock.owns_lock()) return;
+  RecordLocked(frames.sync->Expire(WallNowNs(), kStallNs));
+  SnapshotLocked(false);
+}
+
+// Stops the current take when its uplink failed or its max_seconds passed;
+// returns the takes that are done (and no longer draining).
+std::vector<std::shared_ptr<TakeRecorder>> Daemon::Impl::CheckTakes() {
   std::shared_ptr<TakeRecorder> current;
   double max_seconds = 0;
   int64_t started_ns = 0;
   std::vector<std::shared_ptr<TakeRecorder>> finished;
   {
-    std::lock_guard<std::mutex> lock(mutex);
-    current = take;
-    max_seconds = take_max_seconds;
-    started_ns = take_started_steady_ns;
-    for (auto it = draining.begin(); it != draining.end();) {
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    current = takes.current;
+    max_seconds = takes.current_max_seconds;
+    started_ns = takes.current_started_steady_ns;
+    for (auto it = takes.draining.begin(); it != takes.draining.end();) {
       if ((*it)->done()) {
         finished.push_back(*it);
-        it = draining.erase(it);
+        it = takes.draining.erase(it);
       } else {
         ++it;
       }
@@ -816,98 +1063,177 @@ void Daemon::Impl::Tick() {
                  absl::StrCat("take ", current->take_id(), " failed while recording"));
     (void)StopTake("uplink failed", /*flush=*/false);
     finished.push_back(current);
-    std::lock_guard<std::mutex> lock(mutex);
-    draining.erase(std::remove(draining.begin(), draining.end(), current), draining.end());
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    takes.draining.erase(std::remove(takes.draining.begin(), takes.draining.end(), current),
+                         takes.draining.end());
   } else if (current && max_seconds > 0 && NsToSeconds(SteadyNowNs() - started_ns) >= max_seconds) {
     (void)StopTake("max seconds reached", /*flush=*/false);
   }
-  for (const auto& recorder : finished) {
-    recorder->WaitDone(0);  // Removes the spool folder of a closed take.
-    const absl::Status result = recorder->result();
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      reconnects_finished += recorder->Stats().uplink.reconnects;
+  return finished;
+}
+
+// Logs how a finished take ended; the end of the --once take ends Run.
+void Daemon::Impl::ReportFinished(const std::shared_ptr<TakeRecorder>& recorder) {
+  recorder->WaitDone(0);  // Removes the spool folder of a closed take.
+  const absl::Status result = recorder->result();
+  bool once = false;
+  {
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    takes.reconnects_finished += recorder->Stats().uplink.reconnects;
+    once = recorder == takes.once;
+  }
+  if (result.ok()) {
+    logger.Info("take_durable", {{"take_id", recorder->take_id()}},
+                absl::StrCat("take ", recorder->take_id(), " is durable on the server"));
+  } else {
+    logger.Error("take_failed", {{"take_id", recorder->take_id()}, {"error", result.message()}},
+                 absl::StrCat("take ", recorder->take_id(), " failed; its spool stays on disk"));
+  }
+  if (once) {
+    once_result = result;
+    io.stop();
+  }
+}
+
+// The per-second progress line (--verbose).
+void Daemon::Impl::LogProgress() {
+  const v1::DaemonStatus status = Status();
+  std::string line = absl::StrCat("sets ", status.frame_sets(), " skew p50 ",
+                                  absl::StrFormat("%.1f", Ms(status.skew_p50_ns())), " ms");
+  for (const auto& s : status.sync()) {
+    absl::StrAppend(&line, " | ", s.sensor_id(), " in ", s.frames_in(), " drop ",
+                    s.frames_dropped(), " dup ", s.frames_duplicate());
+  }
+  absl::StrAppend(&line, " | take ", status.take_id().empty() ? "-" : status.take_id(), " sent ",
+                  status.last_sequence(), " durable ", status.durable_sequence(), " spool ",
+                  status.spool_frame_sets(), " sets ", status.spool_bytes() >> 20, " MiB",
+                  status.server_connected() ? " connected" : " not connected", " reconnects ",
+                  status.reconnects());
+  logger.Info("progress",
+              {{"frame_sets", status.frame_sets()},
+               {"skew_p50_ms", Ms(status.skew_p50_ns())},
+               {"take_id", status.take_id()},
+               {"sent_sequence", status.last_sequence()},
+               {"durable_sequence", status.durable_sequence()},
+               {"spool_frame_sets", status.spool_frame_sets()},
+               {"spool_bytes", status.spool_bytes()},
+               {"connected", status.server_connected()},
+               {"reconnects", status.reconnects()}},
+              line);
+}
+
+// ---------------------------------------------------------------------------
+// Serving, draining, shutdown
+
+// Runs the io_context (signals, housekeeping, hotplug rescans, the end of the
+// --once take) until a stop, a signal or the end of the --once take.
+void Daemon::Impl::ServeUntilStopped() {
+  std::unique_ptr<UsbHotplugMonitor> hotplug = StartHotplug();
+  io.run();
+  hotplug.reset();
+  // Draining (or done): probes hear NOT_SERVING from here on.
+  control.StopHealth();
+}
+
+// The --once result; or a shutdown: stop the sensors, put what the sync
+// group holds in the take, close it, and wait for the server to make it
+// durable. Returns what Run returns.
+absl::Status Daemon::Impl::Drain() {
+  if (once_result.has_value() && !stop_requested) {
+    StopSensors();
+    return *once_result;
+  }
+  {
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    if (takes.current) takes.current->StopWaiting();
+  }
+  StopSensors();
+  (void)StopTake("stopped", /*flush=*/true);
+  const std::vector<std::shared_ptr<TakeRecorder>> ours = TakesOfThisRun();
+  WaitUntilDurable(ours);
+  return ReportDrained(ours);
+}
+
+// The takes still uploading that this run recorded (not resumed ones).
+std::vector<std::shared_ptr<TakeRecorder>> Daemon::Impl::TakesOfThisRun() {
+  std::vector<std::shared_ptr<TakeRecorder>> ours;
+  std::lock_guard<std::mutex> lock(takes.mutex);
+  for (const auto& r : takes.draining) {
+    if (!takes.resumed.count(r.get())) ours.push_back(r);
+  }
+  return ours;
+}
+
+// Runs the io_context until `ours` are done, a second signal, or
+// drain_timeout_s.
+void Daemon::Impl::WaitUntilDurable(const std::vector<std::shared_ptr<TakeRecorder>>& ours) {
+  auto all_done = [&ours] {
+    return std::all_of(ours.begin(), ours.end(), [](const auto& r) { return r->done(); });
+  };
+  io.restart();
+  const int64_t deadline = SteadyNowNs() + SecondsToNs(options.drain_timeout_s);
+  while (!all_done() && signals_received < 2 && SteadyNowNs() < deadline) {
+    io.run_for(std::chrono::milliseconds(50));
+    io.restart();
+  }
+}
+
+// Logs how each of `ours` ended; the first error (a failed take, or
+// DeadlineExceeded for one that is not durable yet) is the result.
+absl::Status Daemon::Impl::ReportDrained(const std::vector<std::shared_ptr<TakeRecorder>>& ours) {
+  absl::Status result = absl::OkStatus();
+  for (const auto& r : ours) {
+    if (r->done()) {
+      r->WaitDone(0);
+      if (result.ok()) result = r->result();
+      if (r->result().ok()) {
+        logger.Info("take_durable", {{"take_id", r->take_id()}},
+                    absl::StrCat("take ", r->take_id(), " is durable on the server"));
+      } else {
+        logger.Error("take_failed", {{"take_id", r->take_id()}, {"error", r->result().message()}},
+                     absl::StrCat("take ", r->take_id(), " failed"));
+      }
+      continue;
     }
+    const TakeStats stats = r->Stats();
+    const absl::Status timed_out = absl::DeadlineExceededError(
+        absl::StrCat("the server did not make take ", r->take_id(), " durable within ",
+                     options.drain_timeout_s, " s; ", stats.spool_frame_sets, " frame sets (",
+                     stats.spool_bytes, " bytes) stay in the spool ", options.spool_dir, "/",
+                     r->take_id(), " and are sent when reenactd starts again"));
     if (result.ok()) {
-      logger.Info("take_durable", {{"take_id", recorder->take_id()}},
-                  absl::StrCat("take ", recorder->take_id(), " is durable on the server"));
+      result = timed_out;  // The caller reports it.
     } else {
-      logger.Error("take_failed", {{"take_id", recorder->take_id()}, {"error", result.message()}},
-                   absl::StrCat("take ", recorder->take_id(), " failed; its spool stays on disk"));
-    }
-    if (recorder == once_take) {
-      once_result = result;
-      io.stop();
+      logger.Error("take_not_durable",
+                   {{"take_id", r->take_id()},
+                    {"spool_frame_sets", stats.spool_frame_sets},
+                    {"spool_bytes", stats.spool_bytes}},
+                   timed_out.message());
     }
   }
-  if (options.verbose && SteadyNowNs() - last_log_steady_ns >= kNanosPerSecond) {
-    last_log_steady_ns = SteadyNowNs();
-    const v1::DaemonStatus status = Status();
-    std::string line = absl::StrCat("sets ", status.frame_sets(), " skew p50 ",
-                                    absl::StrFormat("%.1f", Ms(status.skew_p50_ns())), " ms");
-    for (const auto& s : status.sync()) {
-      absl::StrAppend(&line, " | ", s.sensor_id(), " in ", s.frames_in(), " drop ",
-                      s.frames_dropped(), " dup ", s.frames_duplicate());
-    }
-    absl::StrAppend(&line, " | take ", status.take_id().empty() ? "-" : status.take_id(), " sent ",
-                    status.last_sequence(), " durable ", status.durable_sequence(), " spool ",
-                    status.spool_frame_sets(), " sets ", status.spool_bytes() >> 20, " MiB",
-                    status.server_connected() ? " connected" : " not connected", " reconnects ",
-                    status.reconnects());
-    logger.Info("progress",
-                {{"frame_sets", status.frame_sets()},
-                 {"skew_p50_ms", Ms(status.skew_p50_ns())},
-                 {"take_id", status.take_id()},
-                 {"sent_sequence", status.last_sequence()},
-                 {"durable_sequence", status.durable_sequence()},
-                 {"spool_frame_sets", status.spool_frame_sets()},
-                 {"spool_bytes", status.spool_bytes()},
-                 {"connected", status.server_connected()},
-                 {"reconnects", status.reconnects()}},
-                line);
+  return result;
+}
+
+// Ends Run: what still uploads is given up (its spool stays for the next
+// start), --stats-json is written, the StreamFrames calls and the control
+// service end.
+void Daemon::Impl::ShutDown(const absl::Status& result) {
+  AbandonUnfinished();
+  WriteStats(result);
+  live.Close();  // Ends the StreamFrames calls.
+  if (control.server) {
+    control.server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(500));
   }
 }
 
-void Daemon::Impl::StopSensors() {
-  std::vector<Sensor*> all;
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    for (const auto& entry : sensors) all.push_back(entry->sensor.get());
-  }
-  for (Sensor* sensor : all) sensor->Stop();
-}
-
-void Daemon::Impl::RescanHardware() {
-  std::vector<SourceSpec> hardware;
-  for (const SourceSpec& spec : options.sources) {
-    if (spec.backend != "playback") hardware.push_back(spec);
-  }
-  if (hardware.empty()) return;
-  std::set<std::string> streaming;
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    for (const auto& entry : sensors) {
-      if (entry->state == v1::SENSOR_STATE_STREAMING) {
-        streaming.insert(entry->info.backend() + "|" + entry->info.serial() + "|" +
-                         entry->info.uri());
-      }
-    }
-  }
-  SourceOptions source_options;
-  source_options.fast = options.fast;
-  source_options.loop = options.loop;
-  for (const SourceSpec& spec : hardware) {
-    absl::StatusOr<SensorList> opened = OpenSources({spec}, source_options);
-    if (!opened.ok()) continue;  // Nothing new there (or the device is busy).
-    SensorList fresh;
-    for (auto& sensor : *opened) {
-      const v1::SensorInfo info = sensor->info();
-      if (!streaming.count(info.backend() + "|" + info.serial() + "|" + info.uri())) {
-        fresh.push_back(std::move(sensor));
-      }
-    }
-    if (absl::Status s = AddSensors(std::move(fresh)); !s.ok()) {
-      logger.Error("hotplug_failed", {{"error", s.message()}}, "new sensors could not be added");
+void Daemon::Impl::AbandonUnfinished() {
+  std::lock_guard<std::mutex> lock(takes.mutex);
+  if (takes.current) takes.current->Abort();
+  for (const auto& r : takes.draining) {
+    if (r->done()) {
+      r->WaitDone(0);  // Removes the spool folder of a closed take.
+    } else {
+      r->Abort();
     }
   }
 }
@@ -919,8 +1245,8 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
   const double cpu_s = CpuSeconds(&user_us, &sys_us);
   SyncSummary sync_summary;
   {
-    std::lock_guard<std::mutex> lock(sync_mutex);
-    sync_summary = sync->Summary();
+    std::lock_guard<std::mutex> lock(frames.mutex);
+    sync_summary = frames.sync->Summary();
   }
   nlohmann::json j;
   j["daemon_id"] = daemon_id;
@@ -949,11 +1275,9 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
   std::shared_ptr<TakeRecorder> recorder;
   int64_t reconnects = 0;
   {
-    std::lock_guard<std::mutex> lock(mutex);
-    recorder = last_take;
-    reconnects = reconnects_finished;
-    for (const auto& r : draining) reconnects += r->Stats().uplink.reconnects;
-    if (take) reconnects += take->Stats().uplink.reconnects;
+    std::lock_guard<std::mutex> lock(takes.mutex);
+    recorder = takes.last;
+    reconnects = takes.ReconnectsLocked();
   }
   if (recorder) {
     const TakeStats stats = recorder->Stats();
@@ -997,8 +1321,8 @@ Daemon::~Daemon() {
   impl_->metrics_exposer.reset();  // No scrape reads the daemon from here on.
   impl_->StopSensors();
   impl_->live.Close();
-  impl_->StopHealth();  // Ends the health watches the shutdown would wait for.
-  if (impl_->control_server) impl_->control_server->Shutdown();
+  impl_->control.StopHealth();  // Ends the health watches the shutdown would wait for.
+  if (impl_->control.server) impl_->control.server->Shutdown();
 }
 
 absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& options) {
@@ -1023,7 +1347,7 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
   if (impl->recorder_options.wait_when_full) {
     impl->options.anchor.queued_frames = impl->options.anchor.frames;
   }
-  ASSIGN_OR_RETURN(impl->sync, SyncGroup::Create(options.sync));
+  ASSIGN_OR_RETURN(impl->frames.sync, SyncGroup::Create(options.sync));
   // The metrics endpoint answers from now on (before Run: no sensor yet),
   // so its address is known once Create returns.
   if (!options.metrics_address.empty()) {
@@ -1044,137 +1368,10 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
 }
 
 absl::Status Daemon::Run() {
-  Impl& d = *impl_;
-  SourceOptions source_options;
-  source_options.fast = d.options.fast;
-  source_options.loop = d.options.loop;
-  ASSIGN_OR_RETURN(SensorList opened, OpenSources(d.options.sources, source_options));
-  RETURN_IF_ERROR(d.AddSensors(std::move(opened)));
-  if (d.AllSensorsGone()) {
-    d.StopSensors();
-    return absl::FailedPreconditionError("no sensor streams");
-  }
-  // The control address (and its file) appear once the sensors stream.
-  if (absl::Status s = d.StartControl(this); !s.ok()) {
-    d.StopSensors();
-    return s;
-  }
-  d.ResumeUnfinished();
-  if (d.options.once) {
-    v1::StartTakeRequest request;
-    request.set_name(d.options.take_name);
-    request.set_max_seconds(d.options.max_seconds);
-    absl::StatusOr<std::string> take_id = d.StartTake(request);
-    if (!take_id.ok()) {
-      d.StopSensors();
-      return take_id.status();
-    }
-    std::lock_guard<std::mutex> lock(d.mutex);
-    d.once_take = d.take;
-  }
-  d.ArmSignals();
-  d.ArmTimer();
-  // USB hotplug for hardware sources: arrivals rescan the backends, and a
-  // departure is logged (the sensor's own stream ends by itself). Without
-  // USB access (e.g. a container without /dev/bus/usb) the daemon runs on.
-  std::unique_ptr<UsbHotplugMonitor> hotplug;
-  const bool hardware = std::any_of(d.options.sources.begin(), d.options.sources.end(),
-                                    [](const SourceSpec& s) { return s.backend != "playback"; });
-  if (hardware) {
-    auto monitor = UsbHotplugMonitor::Start([this](const UsbHotplugEvent& event) {
-      impl_->logger.Info(
-          "usb_event",
-          {{"arrived", event.kind == UsbHotplugKind::kArrived}, {"usb_id", event.usb_id()}},
-          absl::StrCat("usb: ", event.ToString()));
-      OnUsbEvent(UsbEvent{event.kind == UsbHotplugKind::kArrived, event.usb_id(), ""});
-    });
-    if (monitor.ok()) {
-      hotplug = std::move(*monitor);
-    } else {
-      d.logger.Warn("usb_hotplug_off", {{"error", monitor.status().message()}},
-                    "usb hotplug is off: new sensors are not noticed");
-    }
-  }
-  d.io.run();
-  hotplug.reset();
-  // Draining (or done): probes hear NOT_SERVING from here on.
-  d.StopHealth();
-
-  absl::Status result = absl::OkStatus();
-  if (d.once_result.has_value() && !d.stop_requested) {
-    result = *d.once_result;
-    d.StopSensors();
-  } else {
-    // Shut down: stop the sensors, put what the sync group holds in the
-    // take, close it, and wait for the server to make it durable.
-    {
-      std::lock_guard<std::mutex> lock(d.mutex);
-      if (d.take) d.take->StopWaiting();
-    }
-    d.StopSensors();
-    (void)d.StopTake("stopped", /*flush=*/true);
-    std::vector<std::shared_ptr<TakeRecorder>> ours;
-    {
-      std::lock_guard<std::mutex> lock(d.mutex);
-      for (const auto& r : d.draining) {
-        if (!d.resumed.count(r.get())) ours.push_back(r);
-      }
-    }
-    auto all_done = [&ours] {
-      return std::all_of(ours.begin(), ours.end(), [](const auto& r) { return r->done(); });
-    };
-    d.io.restart();
-    const int64_t deadline = SteadyNowNs() + SecondsToNs(d.options.drain_timeout_s);
-    while (!all_done() && d.signals_received < 2 && SteadyNowNs() < deadline) {
-      d.io.run_for(std::chrono::milliseconds(50));
-      d.io.restart();
-    }
-    for (const auto& r : ours) {
-      if (r->done()) {
-        r->WaitDone(0);
-        if (result.ok()) result = r->result();
-        if (r->result().ok()) {
-          d.logger.Info("take_durable", {{"take_id", r->take_id()}},
-                        absl::StrCat("take ", r->take_id(), " is durable on the server"));
-        } else {
-          d.logger.Error("take_failed",
-                         {{"take_id", r->take_id()}, {"error", r->result().message()}},
-                         absl::StrCat("take ", r->take_id(), " failed"));
-        }
-        continue;
-      }
-      const TakeStats stats = r->Stats();
-      const absl::Status timed_out = absl::DeadlineExceededError(
-          absl::StrCat("the server did not make take ", r->take_id(), " durable within ",
-                       d.options.drain_timeout_s, " s; ", stats.spool_frame_sets, " frame sets (",
-                       stats.spool_bytes, " bytes) stay in the spool ", d.options.spool_dir, "/",
-                       r->take_id(), " and are sent when reenactd starts again"));
-      if (result.ok()) {
-        result = timed_out;  // The caller reports it.
-      } else {
-        d.logger.Error("take_not_durable",
-                       {{"take_id", r->take_id()},
-                        {"spool_frame_sets", stats.spool_frame_sets},
-                        {"spool_bytes", stats.spool_bytes}},
-                       timed_out.message());
-      }
-    }
-  }
-  {
-    std::lock_guard<std::mutex> lock(d.mutex);
-    if (d.take) d.take->Abort();
-    for (const auto& r : d.draining) {
-      if (r->done()) {
-        r->WaitDone(0);  // Removes the spool folder of a closed take.
-      } else {
-        r->Abort();
-      }
-    }
-  }
-  d.WriteStats(result);
-  d.live.Close();  // Ends the StreamFrames calls.
-  if (d.control_server)
-    d.control_server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(500));
+  RETURN_IF_ERROR(impl_->StartUp(this));
+  impl_->ServeUntilStopped();
+  absl::Status result = impl_->Drain();
+  impl_->ShutDown(result);
   return result;
 }
 
@@ -1183,11 +1380,11 @@ void Daemon::RequestStop() {
   boost::asio::post(impl_->io, [this] { impl_->io.stop(); });
 }
 
-std::string Daemon::control_address() const { return impl_->bound_control; }
+std::string Daemon::control_address() const { return impl_->control.bound_address; }
 
 std::string Daemon::metrics_address() const { return impl_->bound_metrics; }
 
-std::vector<v1::SensorInfo> Daemon::ListSensors() { return impl_->ListSensors(); }
+std::vector<v1::SensorInfo> Daemon::ListSensors() { return impl_->sensors.List(); }
 
 absl::StatusOr<std::string> Daemon::StartTake(const v1::StartTakeRequest& request) {
   return impl_->StartTake(request);
@@ -1201,11 +1398,7 @@ v1::DaemonStatus Daemon::Status() { return impl_->Status(); }
 
 absl::StatusOr<uint64_t> Daemon::SubscribeFrames(const v1::StreamFramesRequest& request,
                                                  LiveFrames::Callback on_set) {
-  std::set<std::string> known;
-  {
-    std::lock_guard<std::mutex> lock(impl_->mutex);
-    for (const auto& entry : impl_->sensors) known.insert(entry->info.sensor_id());
-  }
+  const std::set<std::string> known = impl_->sensors.Ids();
   for (const auto* ids : {&request.sensor_ids(), &request.color_sensor_ids()}) {
     for (const std::string& id : *ids) {
       if (!known.count(id)) {
@@ -1223,9 +1416,6 @@ absl::StatusOr<uint64_t> Daemon::SubscribeFrames(const v1::StreamFramesRequest& 
 
 void Daemon::UnsubscribeFrames(uint64_t subscription) { impl_->live.Unsubscribe(subscription); }
 
-void Daemon::OnUsbEvent(const UsbEvent& event) {
-  if (!event.arrived) return;
-  boost::asio::post(impl_->io, [this] { impl_->RescanHardware(); });
-}
+void Daemon::OnUsbEvent(const UsbEvent& event) { impl_->OnUsbEvent(event); }
 
 }  // namespace reenact::capture

@@ -408,6 +408,9 @@ void Player::End(int i, const absl::Status& why) {
   cv_.notify_all();
 }
 
+// A view of one slot of the shared Player. Not a ThreadedSensor
+// (sensors/threaded_sensor.h): the sensors of a take share the player's one
+// thread, which reads the file once for all of them.
 class PlaybackSensor : public Sensor {
  public:
   PlaybackSensor(std::shared_ptr<Player> player, int index)

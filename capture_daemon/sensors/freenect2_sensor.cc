@@ -19,12 +19,11 @@
 // device stamps are libfreenect2's 32-bit frame timestamp, measured at 0.125 ms
 // per tick (libfreenect2 issue #849: consecutive frames 266-267 ticks apart at
 // 30 fps), unwrapped like KinectV1Clock.
-#include <atomic>
 #include <cmath>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <utility>
+#include <vector>
 
 #include <libfreenect2/frame_listener_impl.h>
 #include <libfreenect2/logger.h>
@@ -33,6 +32,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/backends.h"
+#include "capture_daemon/sensors/frame_pairing.h"
+#include "capture_daemon/sensors/threaded_sensor.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/geometry/camera.h"
@@ -94,12 +95,11 @@ v1::SensorCalibration CalibrationOf(libfreenect2::Freenect2Device* device, const
   return c;
 }
 
-class Freenect2Sensor : public Sensor {
+class Freenect2Sensor : public ThreadedSensor {
  public:
   Freenect2Sensor(libfreenect2::Freenect2Device* device, v1::SensorInfo info)
-      : device_(device),
-        sensor_id_(info.sensor_id()),
-        info_(std::move(info)),
+      : ThreadedSensor(std::move(info), {kStallTimeoutS, "frame", "the Kinect v2"}),
+        device_(device),
         listener_(libfreenect2::Frame::Color | libfreenect2::Frame::Depth) {}
 
   ~Freenect2Sensor() override {
@@ -109,45 +109,32 @@ class Freenect2Sensor : public Sensor {
     delete device_;
   }
 
-  v1::SensorInfo info() const override {
-    std::lock_guard<std::mutex> lock(info_mutex_);
-    return info_;
-  }
-
-  absl::Status Start(FrameCallback on_frame, EndCallback on_end) override {
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (started_)
-      return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
+ private:
+  absl::Status StartStreams() override {
     device_->setColorFrameListener(&listener_);
     device_->setIrAndDepthFrameListener(&listener_);
     if (!device_->start()) {
       return absl::UnavailableError(
-          absl::StrCat(sensor_id_, ": libfreenect2 could not start streaming"));
+          absl::StrCat(sensor_id(), ": libfreenect2 could not start streaming"));
     }
-    on_frame_ = std::move(on_frame);
-    on_end_ = std::move(on_end);
-    stop_requested_ = false;
-    started_ = true;
-    {
-      // The factory parameters are read from the device when streaming starts.
-      std::lock_guard<std::mutex> info_lock(info_mutex_);
-      info_.set_state(v1::SENSOR_STATE_STREAMING);
-      *info_.mutable_calibration() = CalibrationOf(device_, sensor_id_, info_.serial());
-    }
-    thread_ = std::thread([this] { EventLoop(); });
+    // The factory parameters are read from the device when streaming starts.
+    UpdateInfo([this](v1::SensorInfo& info) {
+      *info.mutable_calibration() = CalibrationOf(device_, sensor_id(), info.serial());
+    });
     return absl::OkStatus();
   }
 
-  void Stop() override {
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (!started_) return;
-    stop_requested_ = true;
-    if (thread_.joinable()) thread_.join();
-    device_->stop();
-    started_ = false;
+  void StopStreams() override { device_->stop(); }
+
+  absl::StatusOr<GrabResult> Grab() override {
+    libfreenect2::FrameMap frames;
+    if (!listener_.waitForNewFrame(frames, 100)) return GrabResult::kNoFrame;
+    NoteFrame();
+    Deliver(frames);
+    listener_.release(frames);
+    return GrabResult::kFrame;
   }
 
- private:
   int64_t DeviceNs(uint32_t ticks) {
     if (!clock_started_) {
       clock_started_ = true;
@@ -159,42 +146,16 @@ class Freenect2Sensor : public Sensor {
     return unwrapped_ticks_ * kNsPerTick;
   }
 
-  void EventLoop() {
-    int64_t last_frame_ns = SteadyNowNs();
-    absl::Status why;
-    while (!stop_requested_) {
-      libfreenect2::FrameMap frames;
-      if (!listener_.waitForNewFrame(frames, 100)) {
-        if (SteadyNowNs() - last_frame_ns > SecondsToNs(kStallTimeoutS)) {
-          why = absl::UnavailableError(absl::StrCat(sensor_id_, ": no frame for ", kStallTimeoutS,
-                                                    " s; the Kinect v2 stopped streaming"));
-          break;
-        }
-        continue;
-      }
-      last_frame_ns = SteadyNowNs();
-      Deliver(frames);
-      listener_.release(frames);
-    }
-    if (stop_requested_) return;
-    {
-      std::lock_guard<std::mutex> lock(info_mutex_);
-      info_.set_state(v1::SENSOR_STATE_GONE);
-      info_.set_detail(std::string(why.message()));
-    }
-    if (on_end_) on_end_(why);
-  }
-
+  // The listener hands depth and colour over together, so no pairing is
+  // needed: the pair goes out as one PairedFrame.
   void Deliver(libfreenect2::FrameMap& frames) {
     const int64_t host_ns = WallNowNs();
     libfreenect2::Frame* depth = frames[libfreenect2::Frame::Depth];
     libfreenect2::Frame* color = frames[libfreenect2::Frame::Color];
     if (depth == nullptr) return;
-    CapturedFrame frame;
-    frame.frame.set_sensor_id(sensor_id_);
-    frame.frame.set_device_stamp_ns(DeviceNs(depth->timestamp));
-    frame.frame.set_host_stamp_ns(host_ns);
-    frame.frame.set_frame_index(next_index_++);
+    PairedFrame paired;
+    paired.device_stamp_ns = DeviceNs(depth->timestamp);
+    paired.host_stamp_ns = host_ns;
     DepthImageMm depth_mm(static_cast<int>(depth->width), static_cast<int>(depth->height));
     const auto* values = reinterpret_cast<const float*>(depth->data);
     for (size_t i = 0; i < depth_mm.data.size(); ++i) {
@@ -202,7 +163,7 @@ class Freenect2Sensor : public Sensor {
       depth_mm.data[i] =
           (std::isfinite(v) && v > 0 && v < 65535) ? static_cast<uint16_t>(std::lround(v)) : 0;
     }
-    frame.depth_mm = std::move(depth_mm);
+    paired.depth_mm = std::move(depth_mm);
     if (color != nullptr && color->bytes_per_pixel == 4) {
       RgbImage rgb(static_cast<int>(color->width), static_cast<int>(color->height));
       const uint8_t* src = color->data;
@@ -211,35 +172,19 @@ class Freenect2Sensor : public Sensor {
         rgb.data[3 * i + 1] = src[4 * i + 1];
         rgb.data[3 * i + 2] = src[4 * i + 0];
       }
-      frame.color = std::move(rgb);
+      paired.color = std::move(rgb);
     }
-    {
-      std::lock_guard<std::mutex> lock(info_mutex_);
-      const int64_t offset = frame.frame.host_stamp_ns() - frame.frame.device_stamp_ns();
-      auto* calibration = info_.mutable_calibration();
-      if (next_index_ == 1 || offset < calibration->clock_offset_ns()) {
-        calibration->set_clock_offset_ns(offset);
-      }
-      info_.set_frames_delivered(next_index_);
-    }
-    if (on_frame_) on_frame_(std::move(frame));
+    std::vector<PairedFrame> out;
+    out.push_back(std::move(paired));
+    DeliverPaired(std::move(out));
   }
 
   libfreenect2::Freenect2Device* device_;
-  const std::string sensor_id_;
-  mutable std::mutex info_mutex_;
-  v1::SensorInfo info_;
   libfreenect2::SyncMultiFrameListener listener_;
-  std::mutex control_mutex_;
-  bool started_ = false;
-  std::atomic<bool> stop_requested_{false};
-  std::thread thread_;
-  FrameCallback on_frame_;
-  EndCallback on_end_;
+  // Capture-thread state.
   bool clock_started_ = false;
   uint32_t last_ticks_ = 0;
   int64_t unwrapped_ticks_ = 0;
-  int64_t next_index_ = 0;
 };
 
 }  // namespace

@@ -4,14 +4,12 @@
 #include <sys/time.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -21,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "capture_daemon/sensors/backends.h"
 #include "capture_daemon/sensors/frame_pairing.h"
+#include "capture_daemon/sensors/threaded_sensor.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/geometry/camera.h"
@@ -193,13 +192,12 @@ std::optional<freenect_frame_mode> FindVideoMode(freenect_video_format format) {
   return std::nullopt;
 }
 
-class FreenectSensor : public Sensor {
+class FreenectSensor : public ThreadedSensor {
  public:
   FreenectSensor(ContextPtr ctx, freenect_device* device, v1::SensorInfo info)
-      : ctx_(std::move(ctx)),
+      : ThreadedSensor(std::move(info), {kFreenectStallTimeoutS, "depth frame", "the Kinect"}),
+        ctx_(std::move(ctx)),
         device_(device),
-        sensor_id_(info.sensor_id()),
-        info_(std::move(info)),
         pairer_(SecondsToNs(0.5 / kFps)) {}
 
   ~FreenectSensor() override {
@@ -207,52 +205,46 @@ class FreenectSensor : public Sensor {
     if (device_ != nullptr) freenect_close_device(device_);
   }
 
-  v1::SensorInfo info() const override {
-    std::lock_guard<std::mutex> lock(info_mutex_);
-    return info_;
-  }
-
-  absl::Status Start(FrameCallback on_frame, EndCallback on_end) override {
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (started_) {
-      return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
-    }
+ private:
+  absl::Status StartStreams() override {
     RETURN_IF_ERROR(ConfigureModes());
-    on_frame_ = std::move(on_frame);
-    on_end_ = std::move(on_end);
     freenect_set_user(device_, this);
     freenect_set_depth_callback(device_, &FreenectSensor::DepthThunk);
     freenect_set_video_callback(device_, &FreenectSensor::VideoThunk);
     if (freenect_start_depth(device_) < 0) {
       return absl::UnavailableError(
-          absl::StrCat(sensor_id_, ": cannot start the depth stream", LogSuffix()));
+          absl::StrCat(sensor_id(), ": cannot start the depth stream", LogSuffix()));
     }
     if (freenect_start_video(device_) < 0) {
       freenect_stop_depth(device_);
       return absl::UnavailableError(
-          absl::StrCat(sensor_id_, ": cannot start the colour stream", LogSuffix()));
+          absl::StrCat(sensor_id(), ": cannot start the colour stream", LogSuffix()));
     }
-    started_ = true;
-    stop_requested_ = false;
-    {
-      std::lock_guard<std::mutex> info_lock(info_mutex_);
-      info_.set_state(v1::SENSOR_STATE_STREAMING);
-    }
-    thread_ = std::thread([this] { EventLoop(); });
     return absl::OkStatus();
   }
 
-  void Stop() override {
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (!started_) return;
-    stop_requested_ = true;
-    if (thread_.joinable()) thread_.join();
+  void StopStreams() override {
     freenect_stop_video(device_);
     freenect_stop_depth(device_);
-    started_ = false;
   }
 
- private:
+  // libfreenect calls OnDepth and OnVideo from inside
+  // freenect_process_events_timeout, on this thread. It does not say whether
+  // a frame came, so the stall check runs after every call; OnDepth restarts
+  // its clock (colour alone does not keep a stream alive).
+  absl::StatusOr<GrabResult> Grab() override {
+    timeval timeout{0, 100'000};
+    const int rc = freenect_process_events_timeout(ctx_.get(), &timeout);
+    if (rc < 0) {
+      return absl::UnavailableError(
+          absl::StrCat(sensor_id(), ": libfreenect stopped delivering events (error ", rc,
+                       "): the Kinect was unplugged or the recording ended", LogSuffix()));
+    }
+    return GrabResult::kNoFrame;
+  }
+
+  void FlushHeld() override { DeliverPaired(pairer_.Flush()); }
+
   absl::Status ConfigureModes() {
     std::optional<freenect_frame_mode> depth_mode = FindDepthMode(FREENECT_DEPTH_MM);
     depth_is_mm_ = depth_mode.has_value();
@@ -266,7 +258,7 @@ class FreenectSensor : public Sensor {
     if (freenect_set_depth_mode(device_, *depth_mode) < 0 ||
         freenect_set_video_mode(device_, *video_mode) < 0) {
       return absl::UnavailableError(
-          absl::StrCat(sensor_id_, ": cannot set the depth/colour modes", LogSuffix()));
+          absl::StrCat(sensor_id(), ": cannot set the depth/colour modes", LogSuffix()));
     }
     return absl::OkStatus();
   }
@@ -280,7 +272,7 @@ class FreenectSensor : public Sensor {
 
   void OnDepth(const void* data, uint32_t timestamp) {
     const int64_t host_ns = WallNowNs();
-    last_depth_steady_ns_ = SteadyNowNs();
+    NoteFrame();
     DepthImageMm depth(kWidth, kHeight);
     // libfreenect's buffer need not be 2-byte aligned (fakenect hands out a
     // pointer just past a recording's text header), so the samples are
@@ -289,72 +281,22 @@ class FreenectSensor : public Sensor {
     if (!depth_is_mm_) {
       for (uint16_t& value : depth.data) value = KinectV1RawToMm(value);
     }
-    Deliver(pairer_.AddDepth(std::move(depth), clock_.ToNs(timestamp), host_ns));
+    DeliverPaired(pairer_.AddDepth(std::move(depth), clock_.ToNs(timestamp), host_ns));
   }
 
   void OnVideo(const void* data, uint32_t timestamp) {
     RgbImage color(kWidth, kHeight);
     std::memcpy(color.data.data(), data, color.data.size());
-    Deliver(pairer_.AddColor(std::move(color), clock_.ToNs(timestamp)));
-  }
-
-  void Deliver(std::vector<PairedFrame> frames) {
-    for (PairedFrame& paired : frames) {
-      CapturedFrame frame;
-      {
-        std::lock_guard<std::mutex> lock(info_mutex_);
-        frame = ToCapturedFrame(std::move(paired), sensor_id_, &next_index_, &info_);
-      }
-      if (on_frame_) on_frame_(std::move(frame));
-    }
-  }
-
-  void EventLoop() {
-    last_depth_steady_ns_ = SteadyNowNs();
-    absl::Status why;
-    while (!stop_requested_) {
-      timeval timeout{0, 100'000};
-      const int rc = freenect_process_events_timeout(ctx_.get(), &timeout);
-      if (rc < 0) {
-        why = absl::UnavailableError(
-            absl::StrCat(sensor_id_, ": libfreenect stopped delivering events (error ", rc,
-                         "): the Kinect was unplugged or the recording ended", LogSuffix()));
-        break;
-      }
-      if (SteadyNowNs() - last_depth_steady_ns_ > SecondsToNs(kFreenectStallTimeoutS)) {
-        why = absl::UnavailableError(absl::StrCat(sensor_id_, ": no depth frame for ",
-                                                  kFreenectStallTimeoutS,
-                                                  " s; the Kinect stopped streaming"));
-        break;
-      }
-    }
-    if (stop_requested_) return;
-    Deliver(pairer_.Flush());
-    {
-      std::lock_guard<std::mutex> lock(info_mutex_);
-      info_.set_state(v1::SENSOR_STATE_GONE);
-      info_.set_detail(std::string(why.message()));
-    }
-    if (on_end_) on_end_(why);
+    DeliverPaired(pairer_.AddColor(std::move(color), clock_.ToNs(timestamp)));
   }
 
   ContextPtr ctx_;
   freenect_device* device_;
-  const std::string sensor_id_;
-  mutable std::mutex info_mutex_;
-  v1::SensorInfo info_;
-  std::mutex control_mutex_;
-  bool started_ = false;
-  std::atomic<bool> stop_requested_{false};
-  std::thread thread_;
-  FrameCallback on_frame_;
-  EndCallback on_end_;
-  // Event-thread state.
+  // Capture-thread state (depth_is_mm_ is set by StartStreams before the
+  // thread starts).
   bool depth_is_mm_ = false;
   DepthColorPairer pairer_;
   KinectV1Clock clock_;
-  int64_t next_index_ = 0;
-  std::atomic<int64_t> last_depth_steady_ns_{0};
 };
 
 bool IsIndex(const std::string& s) {

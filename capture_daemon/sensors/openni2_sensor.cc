@@ -1,12 +1,9 @@
 #include "capture_daemon/sensors/openni2_sensor.h"
 
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <memory>
-#include <mutex>
 #include <optional>
-#include <thread>
 #include <utility>
 
 #include <OpenNI.h>
@@ -15,6 +12,7 @@
 #include "absl/strings/str_format.h"
 #include "capture_daemon/sensors/backends.h"
 #include "capture_daemon/sensors/frame_pairing.h"
+#include "capture_daemon/sensors/threaded_sensor.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/geometry/camera.h"
@@ -84,18 +82,17 @@ CameraIntrinsics PinholeFromFov(int width, int height, double hfov_rad, double v
   return k;
 }
 
-class Openni2Sensor : public Sensor {
+class Openni2Sensor : public ThreadedSensor {
  public:
   Openni2Sensor(std::unique_ptr<openni::Device> device, std::unique_ptr<openni::VideoStream> depth,
                 std::unique_ptr<openni::VideoStream> color, bool depth_in_100um,
-                v1::SensorInfo info)
-      : device_(std::move(device)),
+                const v1::SensorInfo& info)
+      : ThreadedSensor(info, {kOpenni2StallTimeoutS, "frame", "the device"}),
+        device_(std::move(device)),
         depth_(std::move(depth)),
         color_(std::move(color)),
         depth_in_100um_(depth_in_100um),
-        sensor_id_(info.sensor_id()),
-        info_(std::move(info)),
-        pairer_(SecondsToNs(0.5 / std::max(1.0, info_.nominal_fps()))) {}
+        pairer_(SecondsToNs(0.5 / std::max(1.0, info.nominal_fps()))) {}
 
   ~Openni2Sensor() override {
     Stop();
@@ -104,88 +101,48 @@ class Openni2Sensor : public Sensor {
     device_->close();
   }
 
-  v1::SensorInfo info() const override {
-    std::lock_guard<std::mutex> lock(info_mutex_);
-    return info_;
-  }
-
-  absl::Status Start(FrameCallback on_frame, EndCallback on_end) override {
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (started_)
-      return absl::FailedPreconditionError(absl::StrCat(sensor_id_, " already started"));
+ private:
+  absl::Status StartStreams() override {
     if (depth_->start() != openni::STATUS_OK) {
       return absl::UnavailableError(
-          absl::StrCat(sensor_id_, ": cannot start the depth stream: ", ExtendedError()));
+          absl::StrCat(sensor_id(), ": cannot start the depth stream: ", ExtendedError()));
     }
     if (color_ && color_->start() != openni::STATUS_OK) {
       depth_->stop();
       return absl::UnavailableError(
-          absl::StrCat(sensor_id_, ": cannot start the colour stream: ", ExtendedError()));
+          absl::StrCat(sensor_id(), ": cannot start the colour stream: ", ExtendedError()));
     }
-    on_frame_ = std::move(on_frame);
-    on_end_ = std::move(on_end);
-    stop_requested_ = false;
-    started_ = true;
-    {
-      std::lock_guard<std::mutex> info_lock(info_mutex_);
-      info_.set_state(v1::SENSOR_STATE_STREAMING);
-    }
-    thread_ = std::thread([this] { EventLoop(); });
     return absl::OkStatus();
   }
 
-  void Stop() override {
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (!started_) return;
-    stop_requested_ = true;
-    if (thread_.joinable()) thread_.join();
+  void StopStreams() override {
     if (color_) color_->stop();
     depth_->stop();
-    started_ = false;
   }
 
- private:
-  void EventLoop() {
+  absl::StatusOr<GrabResult> Grab() override {
     openni::VideoStream* streams[2] = {depth_.get(), color_.get()};
     const int count = color_ ? 2 : 1;
-    int64_t last_frame_ns = SteadyNowNs();
-    absl::Status why;
-    while (!stop_requested_) {
-      int ready = -1;
-      const openni::Status rc = openni::OpenNI::waitForAnyStream(streams, count, &ready, 100);
-      if (rc == openni::STATUS_TIME_OUT) {
-        if (SteadyNowNs() - last_frame_ns > SecondsToNs(kOpenni2StallTimeoutS)) {
-          why = absl::UnavailableError(absl::StrCat(sensor_id_, ": no frame for ",
-                                                    kOpenni2StallTimeoutS,
-                                                    " s; the device stopped streaming"));
-          break;
-        }
-        continue;
-      }
-      openni::VideoFrameRef frame;
-      if (rc != openni::STATUS_OK || ready < 0 || ready >= count ||
-          streams[ready]->readFrame(&frame) != openni::STATUS_OK || !frame.isValid()) {
-        why = absl::UnavailableError(absl::StrCat(
-            sensor_id_,
-            ": OpenNI2 stopped delivering frames (device unplugged?): ", ExtendedError()));
-        break;
-      }
-      last_frame_ns = SteadyNowNs();
-      if (ready == 0) {
-        OnDepth(frame);
-      } else {
-        OnColor(frame);
-      }
+    int ready = -1;
+    const openni::Status rc = openni::OpenNI::waitForAnyStream(streams, count, &ready, 100);
+    if (rc == openni::STATUS_TIME_OUT) return GrabResult::kNoFrame;
+    openni::VideoFrameRef frame;
+    if (rc != openni::STATUS_OK || ready < 0 || ready >= count ||
+        streams[ready]->readFrame(&frame) != openni::STATUS_OK || !frame.isValid()) {
+      return absl::UnavailableError(absl::StrCat(
+          sensor_id(),
+          ": OpenNI2 stopped delivering frames (device unplugged?): ", ExtendedError()));
     }
-    if (stop_requested_) return;
-    Deliver(pairer_.Flush());
-    {
-      std::lock_guard<std::mutex> lock(info_mutex_);
-      info_.set_state(v1::SENSOR_STATE_GONE);
-      info_.set_detail(std::string(why.message()));
+    NoteFrame();
+    if (ready == 0) {
+      OnDepth(frame);
+    } else {
+      OnColor(frame);
     }
-    if (on_end_) on_end_(why);
+    return GrabResult::kFrame;
   }
+
+  void FlushHeld() override { DeliverPaired(pairer_.Flush()); }
 
   void OnDepth(const openni::VideoFrameRef& frame) {
     const int64_t host_ns = WallNowNs();
@@ -199,7 +156,7 @@ class Openni2Sensor : public Sensor {
       }
     }
     const int64_t device_ns = static_cast<int64_t>(frame.getTimestamp()) * 1000;
-    Deliver(pairer_.AddDepth(std::move(depth), device_ns, host_ns));
+    DeliverPaired(pairer_.AddDepth(std::move(depth), device_ns, host_ns));
   }
 
   void OnColor(const openni::VideoFrameRef& frame) {
@@ -211,35 +168,15 @@ class Openni2Sensor : public Sensor {
                   base + static_cast<size_t>(y) * frame.getStrideInBytes(), row_bytes);
     }
     const int64_t device_ns = static_cast<int64_t>(frame.getTimestamp()) * 1000;
-    Deliver(pairer_.AddColor(std::move(color), device_ns));
-  }
-
-  void Deliver(std::vector<PairedFrame> frames) {
-    for (PairedFrame& paired : frames) {
-      CapturedFrame frame;
-      {
-        std::lock_guard<std::mutex> lock(info_mutex_);
-        frame = ToCapturedFrame(std::move(paired), sensor_id_, &next_index_, &info_);
-      }
-      if (on_frame_) on_frame_(std::move(frame));
-    }
+    DeliverPaired(pairer_.AddColor(std::move(color), device_ns));
   }
 
   std::unique_ptr<openni::Device> device_;
   std::unique_ptr<openni::VideoStream> depth_;
   std::unique_ptr<openni::VideoStream> color_;
   const bool depth_in_100um_;
-  const std::string sensor_id_;
-  mutable std::mutex info_mutex_;
-  v1::SensorInfo info_;
-  std::mutex control_mutex_;
-  bool started_ = false;
-  std::atomic<bool> stop_requested_{false};
-  std::thread thread_;
-  FrameCallback on_frame_;
-  EndCallback on_end_;
+  // Capture-thread state.
   DepthColorPairer pairer_;
-  int64_t next_index_ = 0;
 };
 
 // Creates and configures one stream; nullptr when the device lacks the sensor.

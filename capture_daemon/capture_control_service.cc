@@ -13,8 +13,10 @@
 
 namespace reenact::capture {
 
-absl::StatusOr<uint64_t> CaptureController::SubscribeFrames(const v1::StreamFramesRequest&,
-                                                            LiveFrames::Callback) {
+// The callback by value: overrides keep it.
+absl::StatusOr<uint64_t> CaptureController::SubscribeFrames(
+    const v1::StreamFramesRequest&,
+    LiveFrames::Callback) {  // NOLINT(performance-unnecessary-value-param)
   return absl::UnimplementedError("this daemon streams no frames");
 }
 

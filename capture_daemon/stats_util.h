@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -15,7 +16,8 @@ namespace reenact::capture {
 inline int64_t Percentile(std::vector<int64_t> samples, double q) {
   if (samples.empty()) return 0;
   q = std::clamp(q, 0.0, 1.0);
-  const size_t rank = static_cast<size_t>(q * static_cast<double>(samples.size() - 1) + 0.5);
+  const size_t rank =
+      static_cast<size_t>(std::llround(q * static_cast<double>(samples.size() - 1)));
   std::nth_element(samples.begin(), samples.begin() + static_cast<std::ptrdiff_t>(rank),
                    samples.end());
   return samples[rank];

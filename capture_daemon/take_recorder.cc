@@ -79,7 +79,7 @@ TakeRecorder::~TakeRecorder() {
 }
 
 absl::StatusOr<std::unique_ptr<TakeRecorder>> TakeRecorder::Start(
-    std::shared_ptr<grpc::Channel> channel, const TakeRecorderOptions& options,
+    const std::shared_ptr<grpc::Channel>& channel, const TakeRecorderOptions& options,
     const std::string& take_id, const std::string& daemon_id, const v1::TakeInfo& info,
     const std::vector<v1::SensorCalibration>& sensors) {
   RETURN_IF_ERROR(options.uplink.Validate());
@@ -101,13 +101,13 @@ absl::StatusOr<std::unique_ptr<TakeRecorder>> TakeRecorder::Start(
   recorder->open_ = std::move(open);
   TakeRecorder* raw = recorder.get();
   recorder->uplink_ = std::make_unique<TakeUplink>(
-      std::move(channel), options.uplink, recorder->spool_.get(),
+      channel, options.uplink, recorder->spool_.get(),
       [raw](uint64_t durable, int64_t arrival_ns) { raw->OnAck(durable, arrival_ns); });
   return recorder;
 }
 
 absl::StatusOr<std::unique_ptr<TakeRecorder>> TakeRecorder::ResumeUnfinished(
-    std::shared_ptr<grpc::Channel> channel, const TakeRecorderOptions& options,
+    const std::shared_ptr<grpc::Channel>& channel, const TakeRecorderOptions& options,
     const std::string& dir) {
   RETURN_IF_ERROR(options.uplink.Validate());
   SpoolOptions spool_options = MakeSpoolOptions(options, dir);
@@ -132,7 +132,7 @@ absl::StatusOr<std::unique_ptr<TakeRecorder>> TakeRecorder::ResumeUnfinished(
   recorder->open_sent_ = true;
   TakeRecorder* raw = recorder.get();
   recorder->uplink_ = std::make_unique<TakeUplink>(
-      std::move(channel), options.uplink, recorder->spool_.get(),
+      channel, options.uplink, recorder->spool_.get(),
       [raw](uint64_t durable, int64_t arrival_ns) { raw->OnAck(durable, arrival_ns); });
   recorder->uplink_->SetOpen(open);
   recorder->uplink_->Close(close);
@@ -202,7 +202,9 @@ absl::Status TakeRecorder::Add(v1::FrameSet set) {
   for (const v1::Frame& frame : set.frames()) sensors.push_back(frame.sensor_id());
   int64_t record_bytes = 0;
   while (true) {
-    const absl::Status appended = spool_->Append(std::move(set), &record_bytes);
+    // Append moves from `set` only on success, so a retry sends it whole.
+    // NOLINTNEXTLINE(bugprone-use-after-move)
+    absl::Status appended = spool_->Append(std::move(set), &record_bytes);
     if (appended.ok()) break;
     std::unique_lock<std::mutex> lock(mutex_);
     if (!absl::IsResourceExhausted(appended) || !options_.wait_when_full || stopped_ || no_wait_ ||

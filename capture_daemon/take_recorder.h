@@ -68,7 +68,7 @@ class TakeRecorder {
   // take's description (start_stamp_ns is filled from the first set),
   // `sensors` every sensor of the take.
   static absl::StatusOr<std::unique_ptr<TakeRecorder>> Start(
-      std::shared_ptr<grpc::Channel> channel, const TakeRecorderOptions& options,
+      const std::shared_ptr<grpc::Channel>& channel, const TakeRecorderOptions& options,
       const std::string& take_id, const std::string& daemon_id, const v1::TakeInfo& info,
       const std::vector<v1::SensorCalibration>& sensors);
 
@@ -76,7 +76,7 @@ class TakeRecorder {
   // ListUnfinishedTakes): resends what the server lacks and closes it
   // (reason "daemon restarted" when it was never stopped).
   static absl::StatusOr<std::unique_ptr<TakeRecorder>> ResumeUnfinished(
-      std::shared_ptr<grpc::Channel> channel, const TakeRecorderOptions& options,
+      const std::shared_ptr<grpc::Channel>& channel, const TakeRecorderOptions& options,
       const std::string& dir);
 
   ~TakeRecorder();

@@ -61,7 +61,7 @@ bool IsNonRetryable(absl::StatusCode code) {
   }
 }
 
-TakeUplink::TakeUplink(std::shared_ptr<grpc::Channel> channel, const UplinkOptions& options,
+TakeUplink::TakeUplink(const std::shared_ptr<grpc::Channel>& channel, const UplinkOptions& options,
                        Spool* spool, AckCallback on_ack)
     : stub_(v1::Ingest::NewStub(channel)),
       options_(options),

@@ -81,8 +81,8 @@ class TakeUplink {
 
   // Starts the thread; it waits for SetOpen(). `spool` must outlive the
   // uplink.
-  TakeUplink(std::shared_ptr<grpc::Channel> channel, const UplinkOptions& options, Spool* spool,
-             AckCallback on_ack = {});
+  TakeUplink(const std::shared_ptr<grpc::Channel>& channel, const UplinkOptions& options,
+             Spool* spool, AckCallback on_ack = {});
   // Aborts and joins.
   ~TakeUplink();
   TakeUplink(const TakeUplink&) = delete;

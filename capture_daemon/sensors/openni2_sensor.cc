@@ -1,5 +1,6 @@
 #include "capture_daemon/sensors/openni2_sensor.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -204,6 +205,7 @@ absl::StatusOr<std::vector<Openni2DeviceEntry>> ListOpenni2Devices() {
   openni::Array<openni::DeviceInfo> list;
   openni::OpenNI::enumerateDevices(&list);
   std::vector<Openni2DeviceEntry> out;
+  out.reserve(std::max(0, list.getSize()));
   for (int i = 0; i < list.getSize(); ++i) {
     out.push_back({list[i].getUri(), list[i].getVendor(), list[i].getName(), UsbId(list[i])});
   }

@@ -63,6 +63,7 @@ UsbDeviceEntry EntryOf(libusb_device* device) {
   uint8_t ports[8];
   const int n = libusb_get_port_numbers(device, ports, sizeof(ports));
   std::vector<int> path;
+  path.reserve(std::max(0, n));
   for (int i = 0; i < n; ++i) path.push_back(ports[i]);
   entry.port_path = absl::StrJoin(path, ".");
   return entry;
@@ -113,8 +114,7 @@ class LibusbHotplugMonitor : public UsbHotplugMonitor {
           LIBUSB_HOTPLUG_MATCH_ANY, &LibusbHotplugMonitor::HotplugThunk, this, &handle_);
       if (rc != LIBUSB_SUCCESS) use_hotplug_ = false;  // Fall back to polling.
     }
-    thread_ =
-        std::thread([this, initial = std::move(initial)]() mutable { Loop(std::move(initial)); });
+    thread_ = std::thread([this, initial = std::move(initial)]() mutable { Loop(initial); });
     return absl::OkStatus();
   }
 
@@ -170,7 +170,7 @@ class LibusbHotplugMonitor : public UsbHotplugMonitor {
     }
   }
 
-  void Loop(std::vector<UsbDeviceEntry> initial) {
+  void Loop(const std::vector<UsbDeviceEntry>& initial) {
     if (options_.announce_present) {
       Apply(initial);
     } else {

@@ -29,7 +29,7 @@ class DaemonFrameFeed : public LiveFrameFeed {
 
   absl::Status Stream(const std::string& sensor_id,
                       const std::function<bool(const v1::LiveFrameSet&)>& on_set) override {
-    const absl::Status status = client_.StreamFrames(
+    absl::Status status = client_.StreamFrames(
         Request(sensor_id),
         [&](const v1::LiveFrameSet& set) { return !cancel_.cancelled() && on_set(set); }, &cancel_);
     if (status.code() == absl::StatusCode::kUnimplemented) {
@@ -90,7 +90,7 @@ class LiveLearnerSource : public LearnerSource {
                     Rigid3d color_from_depth, int64_t clock_offset_ns)
       : feed_(std::move(feed)),
         sensor_(std::move(sensor)),
-        color_from_depth_(color_from_depth),
+        color_from_depth_(std::move(color_from_depth)),
         clock_offset_ns_(clock_offset_ns) {
     thread_ = std::thread([this] { Receive(); });
   }

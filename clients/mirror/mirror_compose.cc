@@ -71,7 +71,10 @@ cv::Point Fixed(const cv::Point2d& p) {
                    static_cast<int>(std::lround(p.y * (1 << kShift))));
 }
 
+// `image` by value: a cv::Mat is a shared header, so drawing into the copy
+// draws into the caller's pixels (and callers pass views such as image(roi)).
 void DrawSkeleton(const CompositionInput& input, const CompositionOptions& options,
+                  // NOLINTNEXTLINE(performance-unnecessary-value-param)
                   const PanelMapping& m, const PanelRect& panel, cv::Mat image) {
   const auto pixels = JointPixels(*input.learner_in_color, input.color_intrinsics, m, panel);
   const Srgb8 grey{128, 128, 128};
@@ -113,6 +116,7 @@ absl::Status CheckTeacher(const CompositionInput& input, const PanelRect& panel)
 }
 
 // Side layout: the teacher's render, flipped, fills its panel.
+// NOLINTNEXTLINE(performance-unnecessary-value-param): a shared header, as above.
 void DrawTeacherPanel(const CompositionInput& input, const PanelRect& panel, cv::Mat image) {
   cv::Mat roi = image(ToRect(panel));
   cv::flip(WrapConst(*input.teacher_color), roi, 1);

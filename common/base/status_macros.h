@@ -5,6 +5,8 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 
+// NOLINTBEGIN(bugprone-macro-parentheses): `lhs` is a declaration
+// ("auto x"), which parentheses would break.
 #define REENACT_CONCAT_INNER_(a, b) a##b
 #define REENACT_CONCAT_(a, b) REENACT_CONCAT_INNER_(a, b)
 
@@ -23,3 +25,4 @@
   auto statusor = (rexpr);                           \
   if (!statusor.ok()) return statusor.status();      \
   lhs = std::move(statusor).value()
+// NOLINTEND(bugprone-macro-parentheses)

@@ -203,7 +203,6 @@ TEST_F(ObservedServer, HealthMetricsAndJsonLogsTellWhatHappened) {
     v1::SubmitJobRequest request;
     request.set_take_id("observed");
     request.set_method("rigid-carved");
-    (*request.mutable_options())["fake_steps"] = "2";
     ASSERT_TRUE(jobs->Submit(&context, request, &job).ok());
   }
   for (int i = 0;

@@ -204,13 +204,6 @@ TEST_F(JobCommands, SubmitModelIsTheBodyMethodsModelOption) {
 
 TEST_F(JobCommands, SubmitModelErrors) {
   service_.last_submit.Clear();
-  // Another method has no body model.
-  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved", "--model",
-                 "procedural"}),
-            kExitUsage);
-  EXPECT_NE(err_.str().find("--model chooses the body model of --method body"), std::string::npos)
-      << err_.str();
-  EXPECT_NE(err_.str().find("\"rigid-carved\""), std::string::npos) << err_.str();
   // --model and --option model= that disagree.
   EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--model", "procedural",
                  "--option", "model=makehuman:teacher"}),

@@ -149,6 +149,12 @@ std::map<std::string, Call> EveryRpc() {
     v1::Job r;
     return v1::Jobs::NewStub(ch)->Get(&c, q, &r);
   };
+  calls["/reenact.v1.Jobs/ListMethods"] = [](const auto& ch) {
+    grpc::ClientContext c;
+    Deadline(c);
+    v1::ListMethodsResponse r;
+    return v1::Jobs::NewStub(ch)->ListMethods(&c, v1::ListMethodsRequest(), &r);
+  };
   calls["/reenact.v1.Jobs/Watch"] = [](const auto& ch) {
     grpc::ClientContext c;
     Deadline(c);

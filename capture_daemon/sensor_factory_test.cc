@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "common/io/take_test_util.h"
+#include "common/io/testing/small_take.h"
 #include "common/testing/test_data.h"
 
 namespace reenact::capture {

@@ -27,6 +27,8 @@ packages=(
   libavformat-dev libavcodec-dev libswscale-dev
   xvfb xauth
   chromium
+  python3-yaml  # tests/deploy/check_kubernetes.py reads the Kubernetes manifests
+  slurm-wlm munge  # the scale-out tests run a one-node Slurm cluster (deploy/slurm)
 )
 # Node.js may come from elsewhere (with npm bundled); only add Debian's when
 # there is none.

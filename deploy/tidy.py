@@ -25,7 +25,7 @@ import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-NOT_PRODUCTION = ("_test.cc", "_test_util.cc")
+NOT_PRODUCTION = ("_test.cc",)
 NOT_PRODUCTION_DIRS = ("bench/", "fuzz/", "tests/")
 
 

@@ -24,6 +24,7 @@
 #include "server/rpc/reenactments_service.h"
 #include "server/rpc/rpc_auth.h"
 #include "server/rpc/takes_service.h"
+#include "server/rpc/work_service.h"
 #include "server/server_metrics.h"
 
 namespace reenact::server {
@@ -72,7 +73,8 @@ namespace {
 // The services the health service answers for, besides "" (the server).
 std::vector<std::string> HealthServiceNames() {
   return {v1::Ingest::service_full_name(), v1::Takes::service_full_name(),
-          v1::Jobs::service_full_name(), v1::Reenactments::service_full_name()};
+          v1::Jobs::service_full_name(), v1::Reenactments::service_full_name(),
+          v1::Work::service_full_name()};
 }
 
 // The methods reenact_rpc_requests_total names; any other is "other".
@@ -92,6 +94,7 @@ std::vector<std::unique_ptr<grpc::Service>> MakeServices(ServerContext& context)
   services.push_back(std::make_unique<TakesService>(context));
   services.push_back(std::make_unique<JobsService>(context));
   services.push_back(std::make_unique<ReenactmentsService>(context));
+  services.push_back(std::make_unique<WorkService>(context));
   return services;
 }
 

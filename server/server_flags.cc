@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <system_error>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "common/base/files.h"
@@ -23,6 +24,8 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                                     "depth-check",
                                                     "jobs",
                                                     "worker",
+                                                    "workers",
+                                                    "lease-ttl",
                                                     "max-name-bytes",
                                                     "max-notes-bytes",
                                                     "max-frame-pixels",
@@ -109,6 +112,23 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
     return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");
   }
   out.options.jobs.worker_path = flags.GetOr("worker", "");
+  if (const std::string workers = flags.GetOr("workers", "local"); workers == "none") {
+    out.options.jobs.local_workers = false;
+  } else if (workers != "local") {
+    const std::vector<std::string> parts = absl::StrSplit(workers, absl::MaxSplits(':', 1));
+    int count = 0;
+    if (parts.size() != 2 || parts[0] != "local" || !absl::SimpleAtoi(parts[1], &count) ||
+        count < 1 || count > 1024) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--workers takes local, local:N (1..1024 workers) or none, not \"", workers, "\""));
+    }
+    if (flags.Has("jobs") && out.options.jobs.concurrency != count) {
+      return absl::InvalidArgumentError("--jobs and --workers local:N name different counts");
+    }
+    out.options.jobs.concurrency = count;
+  }
+  ASSIGN_OR_RETURN(out.options.jobs.lease_ttl_s,
+                   flags.GetDouble("lease-ttl", out.options.jobs.lease_ttl_s));
   ASSIGN_OR_RETURN(out.options.jobs.job_retention_days,
                    flags.GetDouble("job-retention-days", out.options.jobs.job_retention_days));
   if (const std::string assets = flags.GetOr("assets", ""); !assets.empty()) {

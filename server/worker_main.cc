@@ -1,6 +1,16 @@
-// reenact-worker: one reconstruction job, run by reenact-server's job
-// scheduler in its own process (server/jobs/job_scheduler.h describes the
-// protocol; server/recon/methods.h the methods).
+// reenact-worker: runs reconstruction jobs, in one of two modes.
+//
+// On the network (server/worker/work_agent.h): leases jobs from a server's
+// Work service, anywhere the server can be reached, and runs each in a
+// scratch folder of its own:
+//
+//   reenact-worker --server HOST:PORT [--token-file F] [--tls-ca PEM]
+//                  [--once | --loop] [--methods a,b] [--scratch DIR]
+//                  [--name NAME] [--wait S] [--assets DIR[,DIR...]]
+//
+// One job (what the network mode runs as a child for each job, and what a
+// person can run by hand): server/jobs/worker_protocol.h describes the
+// protocol; server/recon/methods.h the methods.
 //
 //   reenact-worker --take FILE --method METHOD --out FILE
 //                  [--options-json '{"key":"value"}'] [--reenactment-id RID]
@@ -27,6 +37,8 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <string>
@@ -38,7 +50,9 @@
 #include "common/base/flags.h"
 #include "common/base/time.h"
 #include "common/log/log.h"
+#include "common/rpc/channel.h"
 #include "server/recon/methods.h"
+#include "server/worker/work_agent.h"
 
 namespace {
 
@@ -50,15 +64,25 @@ constexpr int kExitStopped = 3;
 constexpr int64_t kProgressPeriodNs = 100'000'000;
 
 constexpr char kUsage[] =
-    "usage: reenact-worker --take FILE --method METHOD --out FILE "
+    "usage: reenact-worker --server HOST:PORT [--token-file FILE (or REENACT_TOKEN)] "
+    "[--tls-ca PEM (or REENACT_TLS_CA)] [--once (one job, then exit) | --loop (jobs until "
+    "SIGTERM; the default)] [--methods a,b (only these methods)] [--scratch DIR (each job's "
+    "folder; default $TMPDIR)] [--name NAME (in the server's logs)] [--wait S (--once: how "
+    "long to wait for a job; default 60)] [--assets DIR[,DIR...]] [--log-format text|json] "
+    "[--log-level debug|info|warn|error]\n"
+    "   or: reenact-worker --take FILE --method METHOD --out FILE "
     "[--options-json '{\"key\":\"value\"}'] [--reenactment-id RID] [--take-id T] [--job-id J] "
     "[--assets DIR[,DIR...] (where model=makehuman:NAME is looked up)] "
     "[--log-format text|json (events on stderr; default text)] "
     "[--log-level debug|info|warn|error (default info)]";
 
 volatile sig_atomic_t g_stop_signal = 0;
+std::atomic<bool> g_stop{false};
 
-void OnStopSignal(int signal) { g_stop_signal = signal; }
+void OnStopSignal(int signal) {
+  g_stop_signal = signal;
+  g_stop.store(true);
+}
 
 void InstallSignals() {
   struct sigaction action {};
@@ -71,10 +95,14 @@ void InstallSignals() {
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
   sigprocmask(SIG_UNBLOCK, &signals, nullptr);
-  // SIGTERM when the server dies; it may have died before this call.
+}
+
+// SIGTERM when the parent (a server, or a network worker) dies; it may have
+// died before this call.
+void StopWithParent() {
   const pid_t parent = getppid();
   prctl(PR_SET_PDEATHSIG, SIGTERM);
-  if (getppid() != parent) g_stop_signal = SIGTERM;
+  if (getppid() != parent) OnStopSignal(SIGTERM);
 }
 
 // Writes one JSON line on stdout (whole lines, flushed, from any thread).
@@ -122,6 +150,82 @@ int Usage(Output& out, const std::string& message) {
   return kExitUsage;
 }
 
+// reenact-worker --server: jobs from a server's Work service, each run by
+// this program in its one-job mode as a child.
+int RunNetworkWorker(const reenact::Flags& flags, const char* argv0) {
+  for (const char* name :
+       {"take", "method", "out", "options-json", "reenactment-id", "take-id", "job-id"}) {
+    if (flags.Has(name)) {
+      std::fprintf(stderr, "reenact-worker: --%s is for one job; --server leases jobs\n%s\n", name,
+                   kUsage);
+      return kExitUsage;
+    }
+  }
+  if (flags.Has("once") && flags.Has("loop")) {
+    std::fprintf(stderr, "reenact-worker: --once or --loop, not both\n");
+    return kExitUsage;
+  }
+  const absl::StatusOr<reenact::log::Options> log_options = reenact::log::ParseOptions(
+      flags.GetOr("log-format", "text"), flags.GetOr("log-level", "info"));
+  if (!log_options.ok()) {
+    std::fprintf(stderr, "reenact-worker: %s\n",
+                 std::string(log_options.status().message()).c_str());
+    return kExitUsage;
+  }
+  reenact::log::Configure(*log_options);
+  reenact::server::WorkAgentOptions options;
+  options.server = flags.GetOr("server", "");
+  const absl::StatusOr<reenact::rpc::ClientSecurity> security =
+      reenact::rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""), flags.GetOr("token-file", ""));
+  if (!security.ok()) {
+    std::fprintf(stderr, "reenact-worker: %s\n", std::string(security.status().message()).c_str());
+    return kExitUsage;
+  }
+  options.security = *security;
+  std::error_code error;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", error);
+  options.job_program = error ? std::string(argv0) : self.string();
+  if (const char* program = std::getenv("REENACT_WORKER_JOB_PROGRAM");
+      program != nullptr && program[0] != '\0') {
+    options.job_program = program;  // Tests: a stand-in that plays the protocol.
+  }
+  if (const std::string methods = flags.GetOr("methods", ""); !methods.empty()) {
+    options.methods = absl::StrSplit(methods, ',', absl::SkipEmpty());
+  }
+  if (const std::string assets = flags.GetOr("assets", ""); !assets.empty()) {
+    options.asset_roots = absl::StrSplit(assets, ',', absl::SkipEmpty());
+  }
+  options.scratch_dir = flags.GetOr("scratch", "");
+  options.name = flags.GetOr("name", "");
+  options.once = flags.Has("once");
+  const absl::StatusOr<double> wait = flags.GetDouble("wait", options.once_wait_s);
+  if (!wait.ok() || !(*wait >= 0)) {
+    std::fprintf(stderr, "reenact-worker: --wait takes seconds >= 0\n");
+    return kExitUsage;
+  }
+  options.once_wait_s = *wait;
+  reenact::log::Info("worker_started",
+                     {{"server", options.server},
+                      {"once", options.once},
+                      {"methods", flags.GetOr("methods", "(all)")}},
+                     "reenact-worker started: leasing jobs from " + options.server);
+  const absl::StatusOr<reenact::server::WorkAgentSummary> summary =
+      reenact::server::RunWorkAgent(options, g_stop);
+  if (!summary.ok()) {
+    reenact::log::Error("worker_refused", {{"error", summary.status().message()}},
+                        "reenact-worker stops: " + std::string(summary.status().message()));
+    return kExitFailure;
+  }
+  reenact::log::Info("worker_finished",
+                     {{"jobs", summary->jobs},
+                      {"succeeded", summary->succeeded},
+                      {"not_succeeded", summary->not_succeeded}},
+                     "reenact-worker finished");
+  if (g_stop.load()) return kExitStopped;
+  // --once: a job that did not succeed is an error for the batch system.
+  return options.once && summary->jobs > 0 && summary->succeeded == 0 ? kExitFailure : kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -133,13 +237,16 @@ int main(int argc, char** argv) {
   const absl::StatusOr<reenact::Flags> flags =
       reenact::Flags::Parse(std::vector<std::string>(argv + 1, argv + argc),
                             {"take", "method", "options-json", "out", "reenactment-id", "take-id",
-                             "job-id", "assets", "log-format", "log-level"},
-                            {"help"});
+                             "job-id", "assets", "log-format", "log-level", "server", "token-file",
+                             "tls-ca", "methods", "scratch", "name", "wait"},
+                            {"help", "once", "loop"});
   if (!flags.ok()) return Usage(out, std::string(flags.status().message()));
   if (flags->Has("help")) {
     std::printf("%s\n", kUsage);
     return kExitOk;
   }
+  if (flags->Has("server")) return RunNetworkWorker(*flags, argv[0]);
+  StopWithParent();
   if (!flags->positional().empty()) {
     return Usage(out, "unexpected argument \"" + flags->positional().front() + "\"");
   }

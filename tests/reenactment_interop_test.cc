@@ -19,7 +19,7 @@
 #include "common/base/files.h"
 #include "common/io/gltf_export.h"
 #include "common/io/reenactment_file.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
 
 namespace reenact {

@@ -11,9 +11,9 @@
 #include <gtest/gtest.h>
 
 #include "common/io/reenactment_file.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
-#include "tests/reenactments_test_server.h"
+#include "tests/testing/reenactments_server.h"
 
 namespace reenact {
 namespace {

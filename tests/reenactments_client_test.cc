@@ -19,11 +19,11 @@
 #include "common/body/motion.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/reenactment_file.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
 #include "server/rpc/reenactments_service.h"
 #include "server/store/reenactment_store.h"
-#include "tests/reenactments_test_server.h"
+#include "tests/testing/reenactments_server.h"
 
 namespace reenact {
 namespace {

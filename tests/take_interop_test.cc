@@ -14,7 +14,7 @@
 
 #include "common/base/files.h"
 #include "common/io/take.h"
-#include "common/io/take_test_util.h"
+#include "common/io/testing/small_take.h"
 #include "common/testing/test_data.h"
 
 namespace reenact {

@@ -72,7 +72,7 @@ std::vector<Command> BuildCommandTable() {
        "motion seen by a fixed camera, as in a take; --no-refine: the forest alone)",
        RunTrackerEval},
       {{"auth", "add"},
-       "--file TOKENS.json --role viewer|capture|coach|admin --name NAME",
+       "--file TOKENS.json --role viewer|capture|coach|worker|admin --name NAME",
        "mint a random token for reenact-server --auth TOKENS.json (or reenactd --auth): appends "
        "its SHA-256 with the role and name to the file (made 0600 when new) and prints the token "
        "once; clients send it with --token-file FILE or REENACT_TOKEN",

@@ -45,6 +45,14 @@ nlohmann::json JobJson(const v1::Job& job) {
   nlohmann::json options = nlohmann::json::object();
   for (const auto& [key, value] : job.options()) options[key] = value;
   const v1::JobProgress& p = job.progress();
+  nlohmann::json history = nlohmann::json::array();
+  for (const v1::JobAttempt& a : job.attempt_history()) {
+    history.push_back({{"number", a.number()},
+                       {"worker", a.worker()},
+                       {"started_unix_ns", a.started_unix_ns()},
+                       {"ended_unix_ns", a.ended_unix_ns()},
+                       {"outcome", a.outcome()}});
+  }
   return {{"job_id", job.job_id()},
           {"take_id", job.take_id()},
           {"method", job.method()},
@@ -61,7 +69,8 @@ nlohmann::json JobJson(const v1::Job& job) {
           {"finished_unix_ns", job.finished_unix_ns()},
           {"reenactment_id", job.reenactment_id()},
           {"error", job.error()},
-          {"attempts", job.attempts()}};
+          {"attempts", job.attempts()},
+          {"attempt_history", history}};
 }
 
 // The job's id from --job or the one positional argument.
@@ -376,6 +385,12 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
       << "started      " << UtcTime(job->started_unix_ns()) << "\n"
       << "finished     " << UtcTime(job->finished_unix_ns()) << "\n"
       << "attempts     " << job->attempts() << "\n";
+  for (const v1::JobAttempt& a : job->attempt_history()) {
+    out << "  attempt " << a.number() << "  on " << a.worker() << ", "
+        << UtcTime(a.started_unix_ns()) << " .. "
+        << (a.ended_unix_ns() == 0 ? "running" : UtcTime(a.ended_unix_ns()))
+        << (a.outcome().empty() ? "" : ": " + a.outcome()) << "\n";
+  }
   if (!job->reenactment_id().empty()) out << "reenactment  " << job->reenactment_id() << "\n";
   if (!job->error().empty()) out << "error        " << job->error() << "\n";
   return kExitOk;

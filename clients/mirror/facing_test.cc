@@ -11,7 +11,7 @@
 
 #include "absl/strings/str_cat.h"
 
-#include "clients/mirror/mirror_test_util.h"
+#include "clients/mirror/testing/mocap_learners.h"
 
 namespace reenact::mirror {
 namespace {

@@ -12,10 +12,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "clients/mirror/fake_daemon_test_util.h"
 #include "clients/mirror/live_learner_source.h"
-#include "clients/mirror/mirror_app_test_util.h"
 #include "clients/mirror/mirror_cli.h"
+#include "clients/mirror/testing/fake_daemon.h"
+#include "clients/mirror/testing/synthetic_learners.h"
 #include "clients/sdk/takes_client.h"
 #include "common/base/status_macros.h"
 #include "common/io/proto_convert.h"

@@ -15,11 +15,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "clients/mirror/fake_daemon_test_util.h"
 #include "clients/mirror/mirror_app.h"
-#include "clients/mirror/mirror_app_test_util.h"
 #include "clients/mirror/mirror_cli.h"
 #include "clients/mirror/teacher_view.h"
+#include "clients/mirror/testing/fake_daemon.h"
+#include "clients/mirror/testing/synthetic_learners.h"
 
 namespace reenact::mirror {
 namespace {

@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "clients/mirror/mirror_test_util.h"
+#include "clients/mirror/testing/mocap_learners.h"
 #include "common/base/files.h"
 
 namespace reenact::mirror {

@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "clients/mirror/body_parts.h"
-#include "clients/mirror/mirror_test_util.h"
+#include "clients/mirror/testing/mocap_learners.h"
 
 namespace reenact::mirror {
 namespace {

@@ -6,8 +6,8 @@
 
 #include <gtest/gtest.h>
 
-#include "clients/mirror/mirror_test_util.h"
 #include "clients/mirror/pose_comparison.h"
+#include "clients/mirror/testing/mocap_learners.h"
 
 namespace reenact::mirror {
 namespace {

@@ -6,10 +6,10 @@
 
 #include <gtest/gtest.h>
 
-#include "clients/view/test_scene.h"
+#include "clients/view/testing/vdtm_scenes.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 
 namespace reenact::view {
 namespace {

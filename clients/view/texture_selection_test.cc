@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "clients/view/test_scene.h"
+#include "clients/view/testing/vdtm_scenes.h"
 
 namespace reenact::view {
 namespace {

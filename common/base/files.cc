@@ -98,4 +98,20 @@ absl::Status CreateDirectories(const std::string& path) {
   return absl::OkStatus();
 }
 
+absl::Status ReadAt(int fd, int64_t offset, int64_t n, std::string* out) {
+  out->resize(static_cast<size_t>(n));
+  int64_t done = 0;
+  while (done < n) {
+    const ssize_t got =
+        ::pread(fd, out->data() + done, static_cast<size_t>(n - done), offset + done);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) {
+      return absl::DataLossError(absl::StrCat("reading failed at byte ", offset + done, ": ",
+                                              got < 0 ? std::strerror(errno) : "end of file"));
+    }
+    done += got;
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace reenact

@@ -35,6 +35,11 @@ bool IsDiskFull(const absl::Status& status);
 // it stay so after a power loss. DataLoss naming the folder on failure.
 absl::Status SyncDirectory(const std::string& dir);
 
+// Reads exactly `n` bytes at `offset` of the open file `fd` into `out`
+// (resized to n), retrying short reads and EINTR. DataLoss naming the byte
+// where reading stopped (an error, or the end of the file).
+absl::Status ReadAt(int fd, int64_t offset, int64_t n, std::string* out);
+
 // Creates `path` and its parents if missing.
 absl::Status CreateDirectories(const std::string& path);
 

@@ -14,8 +14,8 @@
 #include "common/board/board_detector.h"
 #include "common/board/board_image.h"
 #include "common/board/board_spec.h"
-#include "common/board/board_test_util.h"
 #include "common/board/intrinsics_file.h"
+#include "common/board/testing/board_scenes.h"
 #include "common/testing/test_data.h"
 
 namespace reenact::board {

@@ -13,7 +13,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "common/board/board_detector.h"
-#include "common/board/board_test_util.h"
+#include "common/board/testing/board_scenes.h"
 #include "common/io/video_writer.h"
 #include "common/testing/test_data.h"
 

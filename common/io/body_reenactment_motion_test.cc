@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "common/io/body_reenactment.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
 
 namespace reenact {

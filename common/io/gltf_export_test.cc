@@ -11,7 +11,7 @@
 
 #include "common/base/files.h"
 #include "common/io/body_reenactment.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/io/tinygltf_config.h"
 #include "common/testing/test_data.h"
 

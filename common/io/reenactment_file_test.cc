@@ -9,7 +9,7 @@
 
 #include "common/base/files.h"
 #include "common/io/mcap_reader.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
 
 namespace reenact {

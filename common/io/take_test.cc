@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "common/base/files.h"
-#include "common/io/take_test_util.h"
+#include "common/io/testing/small_take.h"
 #include "common/testing/test_data.h"
 
 namespace reenact {

@@ -102,6 +102,8 @@ absl::string_view RoleName(Role role) {
       return "capture";
     case Role::kCoach:
       return "coach";
+    case Role::kWorker:
+      return "worker";
     case Role::kAdmin:
       return "admin";
   }
@@ -109,12 +111,12 @@ absl::string_view RoleName(Role role) {
 }
 
 absl::StatusOr<Role> ParseRole(absl::string_view name) {
-  for (Role role : {Role::kViewer, Role::kCapture, Role::kCoach, Role::kAdmin}) {
+  for (Role role : {Role::kViewer, Role::kCapture, Role::kCoach, Role::kWorker, Role::kAdmin}) {
     if (name == RoleName(role)) return role;
   }
   return absl::InvalidArgumentError(absl::StrCat("unknown role \"",
                                                  absl::CHexEscape(name.substr(0, kMaxNameLength)),
-                                                 "\" (viewer, capture, coach or admin)"));
+                                                 "\" (viewer, capture, coach, worker or admin)"));
 }
 
 uint32_t RoleAccess(Role role) {
@@ -125,8 +127,10 @@ uint32_t RoleAccess(Role role) {
       return kIngest;
     case Role::kCoach:
       return kRead | kManage;
+    case Role::kWorker:
+      return kWork;
     case Role::kAdmin:
-      return kRead | kIngest | kManage;
+      return kRead | kIngest | kManage | kWork;
   }
   return 0;
 }

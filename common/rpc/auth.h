@@ -31,9 +31,9 @@
 
 namespace reenact::rpc {
 
-enum class Role { kViewer, kCapture, kCoach, kAdmin };
+enum class Role { kViewer, kCapture, kCoach, kWorker, kAdmin };
 
-// "viewer", "capture", "coach", "admin".
+// "viewer", "capture", "coach", "worker", "admin".
 absl::string_view RoleName(Role role);
 // InvalidArgument for any other text.
 absl::StatusOr<Role> ParseRole(absl::string_view name);
@@ -43,6 +43,8 @@ enum Access : uint32_t {
   kRead = 1u << 0,
   kIngest = 1u << 1,
   kManage = 1u << 2,
+  // Leasing and running jobs (the Work service).
+  kWork = 1u << 3,
 };
 // The accesses `role` grants (admin: all).
 uint32_t RoleAccess(Role role);

@@ -87,10 +87,10 @@ TEST(TokenTable, RefusesFilesOthersCanReadAndMalformedOnes) {
 }
 
 TEST(Authorizer, EachRoleGetsItsAccessesAndNothingElse) {
-  const std::string tokens[] = {"tv", "tc", "to", "ta"};
+  const std::string tokens[] = {"tv", "tc", "to", "tw", "ta"};
   std::string json = R"({"tokens": [)";
-  const char* roles[] = {"viewer", "capture", "coach", "admin"};
-  for (int i = 0; i < 4; ++i) {
+  const char* roles[] = {"viewer", "capture", "coach", "worker", "admin"};
+  for (int i = 0; i < 5; ++i) {
     json += std::string(i ? "," : "") + R"({"name": ")" + roles[i] + R"(", "role": ")" + roles[i] +
             R"(", "sha256": ")" + Sha256Hex(tokens[i]) + R"("})";
   }
@@ -100,16 +100,19 @@ TEST(Authorizer, EachRoleGetsItsAccessesAndNothingElse) {
   const Authorizer auth(*table, {{"/s/Read", kRead},
                                  {"/s/Ingest", kIngest},
                                  {"/s/Manage", kManage},
-                                 {"/s/Start", kIngest | kManage}});
-  // Rows: viewer, capture, coach, admin; columns: Read, Ingest, Manage,
-  // Start, a method missing from the table.
-  const bool expected[4][5] = {{true, false, false, false, false},
-                               {false, true, false, true, false},
-                               {true, false, true, true, false},
-                               {true, true, true, true, true}};
-  const char* methods[] = {"/s/Read", "/s/Ingest", "/s/Manage", "/s/Start", "/s/Unknown"};
-  for (int r = 0; r < 4; ++r) {
-    for (int m = 0; m < 5; ++m) {
+                                 {"/s/Start", kIngest | kManage},
+                                 {"/s/Lease", kWork}});
+  // Rows: viewer, capture, coach, worker, admin; columns: Read, Ingest,
+  // Manage, Start, Lease, a method missing from the table.
+  const bool expected[5][6] = {{true, false, false, false, false, false},
+                               {false, true, false, true, false, false},
+                               {true, false, true, true, false, false},
+                               {false, false, false, false, true, false},
+                               {true, true, true, true, true, true}};
+  const char* methods[] = {"/s/Read",  "/s/Ingest", "/s/Manage",
+                           "/s/Start", "/s/Lease",  "/s/Unknown"};
+  for (int r = 0; r < 5; ++r) {
+    for (int m = 0; m < 6; ++m) {
       const auto got = auth.Authorize("Bearer " + tokens[r], methods[m]);
       if (expected[r][m]) {
         ASSERT_TRUE(got.ok()) << roles[r] << " " << methods[m] << ": " << got.status();
@@ -127,7 +130,7 @@ TEST(Authorizer, EachRoleGetsItsAccessesAndNothingElse) {
   const auto wrong = auth.Authorize("Bearer not-a-token", "/s/Read");
   EXPECT_EQ(wrong.status().code(), absl::StatusCode::kUnauthenticated);
   EXPECT_EQ(wrong.status().message().find("not-a-token"), std::string::npos);
-  EXPECT_EQ(auth.refusals(), 4 * 5 - 11 + 3);
+  EXPECT_EQ(auth.refusals(), 5 * 6 - 13 + 3);
 
   const Authorizer open(std::nullopt, {});
   const auto anonymous = open.Authorize(std::nullopt, "/s/Anything");
@@ -137,7 +140,7 @@ TEST(Authorizer, EachRoleGetsItsAccessesAndNothingElse) {
 }
 
 TEST(Role, NamesRoundTrip) {
-  for (Role role : {Role::kViewer, Role::kCapture, Role::kCoach, Role::kAdmin}) {
+  for (Role role : {Role::kViewer, Role::kCapture, Role::kCoach, Role::kWorker, Role::kAdmin}) {
     EXPECT_EQ(*ParseRole(RoleName(role)), role);
   }
   EXPECT_EQ(ParseRole("root").status().code(), absl::StatusCode::kInvalidArgument);

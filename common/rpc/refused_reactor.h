@@ -15,6 +15,14 @@ class RefusedWriter final : public grpc::ServerWriteReactor<T> {
   void OnDone() override { delete this; }
 };
 
+// A client-streaming reactor that ends at once with `status`.
+template <typename T>
+class RefusedReader final : public grpc::ServerReadReactor<T> {
+ public:
+  explicit RefusedReader(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
 // A bidirectional reactor that ends at once with `status`.
 template <typename Request, typename Response>
 class RefusedBidi final : public grpc::ServerBidiReactor<Request, Response> {

@@ -29,7 +29,7 @@
 #include "common/base/subprocess.h"
 #include "common/io/gltf_export.h"
 #include "common/io/reenactment_file.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/rpc/auth.h"
 #include "common/testing/test_data.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"

@@ -1,26 +1,23 @@
 #include "server/jobs/job_scheduler.h"
 
-#include <signal.h>
 #include <string.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
+#include <optional>
 #include <utility>
 
-#include <nlohmann/json.hpp>
-
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_join.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/body/model_spec.h"
 #include "common/log/log.h"
+#include "common/metrics/metrics.h"
+#include "server/jobs/worker_process.h"
+#include "server/jobs/worker_protocol.h"
 #include "server/server_metrics.h"
 #include "server/store/frame_set_validation.h"
 
@@ -29,11 +26,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Longest log line passed on, and longest quoted in an error.
-constexpr size_t kMaxLogLineChars = 2000;
-constexpr size_t kMaxQuotedLogChars = 300;
-// A worker line longer than this without a newline is cut into pieces.
-constexpr size_t kMaxPendingBytes = 1 << 20;
+absl::Status DiskFullRefusal() {
+  return absl::ResourceExhaustedError(
+      "the server's disk is full: the job was not stored; delete takes or reenactments and "
+      "submit again");
+}
+
 // Option keys and values Submit accepts.
 constexpr size_t kMaxOptionKeyChars = 64;
 constexpr size_t kMaxOptionValueChars = 4096;
@@ -42,12 +40,6 @@ constexpr int kMaxOptions = 64;
 std::string Truncate(std::string text, size_t max_chars) {
   if (text.size() > max_chars) text = text.substr(0, max_chars) + "...";
   return text;
-}
-
-// "SIGSEGV" for 11.
-std::string SignalName(int signal) {
-  const char* abbrev = sigabbrev_np(signal);
-  return abbrev != nullptr ? absl::StrCat("SIG", abbrev) : absl::StrCat("signal ", signal);
 }
 
 std::string UtcNow() {
@@ -87,32 +79,6 @@ absl::Status ValidateOptions(const google::protobuf::Map<std::string, std::strin
     }
   }
   return absl::OkStatus();
-}
-
-// Whether `spec` lists `key` as an option only a live follow reads.
-bool IsLiveOnly(const methods::MethodSpec* spec, const std::string& key) {
-  if (spec == nullptr) return false;
-  for (const methods::OptionSpec& option : spec->options) {
-    if (option.name == key) return option.live_only;
-  }
-  return false;
-}
-
-// The options the worker gets: the method's live-only ones left out.
-std::map<std::string, std::string> WorkerOptions(
-    const methods::MethodSpec* spec,
-    const google::protobuf::Map<std::string, std::string>& options) {
-  std::map<std::string, std::string> worker;
-  for (const auto& [key, value] : options) {
-    if (!IsLiveOnly(spec, key)) worker.emplace(key, value);
-  }
-  return worker;
-}
-
-std::string OptionsJson(const std::map<std::string, std::string>& options) {
-  nlohmann::json j = nlohmann::json::object();
-  for (const auto& [key, value] : options) j[key] = value;
-  return j.dump();
 }
 
 // Whether the job asks to follow its take (option live=true). InvalidArgument
@@ -157,32 +123,6 @@ void LogJobEnd(const v1::Job& job) {
 
 }  // namespace
 
-// One worker process and what was read of its output.
-struct JobScheduler::Running {
-  std::string job_id;
-  std::string reenactment_id;
-  std::string out_path;
-  std::string progress_path;
-  std::string log_path;
-  // Size of worker.log when this attempt began (earlier attempts' lines are
-  // not quoted).
-  int64_t log_offset = 0;
-  std::unique_ptr<Subprocess> process;
-  int64_t read_offset = 0;
-  std::string pending;  // An incomplete last line.
-  v1::JobProgress progress;
-  // (steady ns, fraction) over the ETA window.
-  std::deque<std::pair<int64_t, double>> samples;
-  std::string worker_error;  // Its {"error"} message.
-  std::string last_log;      // Its last {"log"} line.
-  // Guarded by mu_.
-  bool cancel_requested = false;
-  // Scheduler thread only.
-  bool term_sent = false;
-  bool kill_sent = false;
-  int64_t kill_at_ns = 0;
-};
-
 absl::Status JobSchedulerOptions::Validate() const {
   if (concurrency < 0) return absl::InvalidArgumentError("job concurrency must be >= 0");
   if (!(poll_period_s > 0 && poll_period_s <= 10)) {
@@ -196,6 +136,10 @@ absl::Status JobSchedulerOptions::Validate() const {
     return absl::InvalidArgumentError(
         "job_retention_days must be >= 0 and retention_sweep_period_s > 0");
   }
+  if (min_free_bytes < 0) return absl::InvalidArgumentError("min_free_bytes must be >= 0");
+  if (!(lease_ttl_s >= 0.5 && lease_ttl_s <= 3600)) {
+    return absl::InvalidArgumentError("lease_ttl_s must be in [0.5, 3600]");
+  }
   return store.Validate();
 }
 
@@ -206,7 +150,20 @@ JobScheduler::JobScheduler(const JobSchedulerOptions& options, std::string jobs_
       jobs_(jobs),
       takes_(takes),
       reenactments_(reenactments),
-      live_(live) {}
+      live_jobs_(live, jobs, mu_,
+                 {.publish = [this](const v1::Job& job, std::vector<std::string> logs,
+                                    bool last) { Publish(job, std::move(logs), last); },
+                  .end =
+                      [this](const std::string& job_id, v1::JobState state,
+                             const std::string& error, std::vector<std::string> logs) {
+                        EndJob(job_id, state, error, "", std::move(logs));
+                      },
+                  .log_end = &LogJobEnd,
+                  .wake_locked =
+                      [this] {
+                        wake_pending_ = true;
+                        wake_.notify_all();
+                      }}) {}
 
 absl::StatusOr<std::unique_ptr<JobScheduler>> JobScheduler::Start(
     const JobSchedulerOptions& options, const std::string& jobs_dir, JobStore* jobs,
@@ -262,7 +219,7 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   }
   ASSIGN_OR_RETURN(const v1::Take take, takes_->GetTake(request.take_id()));
   const bool recording = take.state() == v1::TAKE_STATE_RECORDING;
-  if (recording) RETURN_IF_ERROR(CheckFollowable(take.take_id(), live));
+  if (recording) RETURN_IF_ERROR(live_jobs_.CheckFollowable(take.take_id(), live));
   v1::Job job;
   job.set_take_id(request.take_id());
   job.set_method(request.method());
@@ -282,16 +239,20 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
         busy.message());
     return busy;
   }
+  if (options_.min_free_bytes > 0) {
+    const double free_bytes = metrics::FreeDiskBytes(jobs_dir_);
+    if (free_bytes >= 0 && free_bytes < static_cast<double>(options_.min_free_bytes)) {
+      log::Error("job_not_stored", {{"take_id", request.take_id()}, {"free_bytes", free_bytes}},
+                 "a submitted job was refused: the jobs folder's disk is full");
+      return DiskFullRefusal();
+    }
+  }
   absl::StatusOr<v1::Job> inserted = jobs_->Insert(std::move(job));
   if (!inserted.ok()) {
     log::Error("job_not_stored",
                {{"take_id", request.take_id()}, {"error", inserted.status().message()}},
                "a submitted job could not be stored");
-    if (IsDiskFull(inserted.status())) {
-      return absl::ResourceExhaustedError(
-          "the server's disk is full: the job was not stored; delete takes or reenactments "
-          "and submit again");
-    }
+    if (IsDiskFull(inserted.status())) return DiskFullRefusal();
     return absl::UnavailableError("the server could not store the job (its log says why)");
   }
   job = std::move(*inserted);
@@ -302,7 +263,7 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
              {"live", live && recording}},
             absl::StrCat("job ", job.job_id(), " queued"));
   if (recording) {
-    absl::StatusOr<v1::Job> following = FollowLocked(job);
+    absl::StatusOr<v1::Job> following = live_jobs_.FollowLocked(job);
     // FailedPrecondition: the take ended meanwhile; the job runs offline.
     if (following.ok() || !absl::IsFailedPrecondition(following.status())) return following;
   }
@@ -312,130 +273,32 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   return job;
 }
 
-absl::Status JobScheduler::CheckFollowable(const std::string& take_id, bool live) const {
-  if (!live) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "take ", take_id,
-        " is still being recorded; submit the job once it is complete (or, for the body "
-        "model, with option live=true to follow it now)"));
-  }
-  if (live_ == nullptr || !live_->enabled()) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("take ", take_id,
-                     " is still being recorded and this server cannot follow takes live; submit "
-                     "the job once the take is complete"));
-  }
-  if (!live_->Recording(take_id)) {
-    // The store has opened it; ingest has not told the hub yet.
-    return absl::UnavailableError(
-        absl::StrCat("take ", take_id, " is being opened; submit again in a moment"));
-  }
-  return absl::OkStatus();
-}
-
-absl::StatusOr<v1::Job> JobScheduler::FollowLocked(const v1::Job& job) {
-  const std::string job_id = job.job_id();
-  LiveJobCallbacks callbacks;
-  callbacks.progress = [this, job_id](int64_t frames) { LiveProgress(job_id, frames); };
-  callbacks.ended = [this, job_id](const LiveFollowSummary& summary) {
-    LiveEnded(job_id, summary);
-  };
-  const absl::Status followed = live_->Follow(
-      job_id, job.take_id(), {job.options().begin(), job.options().end()}, std::move(callbacks));
-  if (!followed.ok()) {
-    if (absl::IsFailedPrecondition(followed)) return followed;
-    // The job was stored: it fails with the reason rather than vanish.
-    const absl::StatusOr<v1::Job> failed = jobs_->Mutate(job_id, [&](v1::Job& j) {
-      j.set_state(v1::JOB_STATE_FAILED);
-      j.set_finished_unix_ns(WallNowNs());
-      j.set_error(absl::StrCat("the take could not be followed: ", followed.message()));
-    });
-    if (failed.ok()) LogJobEnd(*failed);
-    return followed;
-  }
-  following_.insert(job_id);
-  absl::StatusOr<v1::Job> running = jobs_->Mutate(job_id, [](v1::Job& j) {
-    j.set_state(v1::JOB_STATE_RUNNING);
-    j.set_started_unix_ns(WallNowNs());
-    j.mutable_progress()->set_stage(kFollowingStage);
-    j.mutable_progress()->set_eta_s(-1);
-  });
-  if (running.ok()) {
-    log::Info(
-        "job_started",
-        {{"job_id", job_id}, {"take_id", job.take_id()}, {"method", job.method()}, {"live", true}},
-        absl::StrCat("job ", job_id, " follows take ", job.take_id(), " live"));
-  }
-  return running;
-}
-
-void JobScheduler::LiveProgress(const std::string& job_id, int64_t frames_followed) {
-  // Only noted: the scheduler thread stores and publishes it (a catalog
-  // write must not hold up the follower).
-  std::lock_guard<std::mutex> lock(mu_);
-  if (following_.contains(job_id)) live_progress_[job_id] = frames_followed;
-}
-
-void JobScheduler::PublishLiveProgress() {
-  std::map<std::string, int64_t> noted;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    noted.swap(live_progress_);
-  }
-  for (const auto& [job_id, frames] : noted) {
-    absl::StatusOr<v1::Job> job;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (!following_.contains(job_id)) continue;  // Cancelled or ended meanwhile.
-      v1::JobProgress progress;
-      progress.set_stage(kFollowingStage);
-      progress.set_frames_done(frames);
-      progress.set_eta_s(-1);
-      job = jobs_->UpdateProgress(job_id, progress);
-    }
-    if (job.ok()) Publish(*job, {}, /*last=*/false);
-  }
-}
-
-void JobScheduler::LiveEnded(const std::string& job_id, const LiveFollowSummary& summary) {
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (following_.erase(job_id) == 0) return;
-    live_progress_.erase(job_id);
-    if (summary.reason != v1::FOLLOW_END_REASON_FAILED) {
-      // The take is stored: the same job goes on with a worker, before the
-      // queued jobs.
-      handoff_.push_back(job_id);
-      wake_pending_ = true;
-      wake_.notify_all();
-    }
-  }
-  std::vector<std::string> logs = {
-      absl::StrCat(summary.message, "; followed ", summary.frames_followed, " of ",
-                   summary.frames_received, " frame sets (", summary.frames_skipped, " skipped)")};
-  if (summary.reason == v1::FOLLOW_END_REASON_FAILED) {
-    EndJob(job_id, v1::JOB_STATE_FAILED, summary.message, "", std::move(logs));
-    return;
-  }
-  if (auto job = jobs_->Get(job_id); job.ok()) Publish(*job, std::move(logs), /*last=*/false);
-}
-
 absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
   RETURN_IF_ERROR(ValidateJobId(job_id));
   v1::Job job;
+  std::string leased_by;  // The network worker that held the job.
   {
     std::lock_guard<std::mutex> lock(mu_);
     ASSIGN_OR_RETURN(job, jobs_->Get(job_id));
     std::string error;
     if (job.state() == v1::JOB_STATE_RUNNING) {
-      if (auto it = running_.find(job_id); it != running_.end()) {
+      auto it = running_.find(job_id);
+      if (it != running_.end() && it->second->remote()) {
+        // Its worker hears it at its next heartbeat (Aborted) and stops; a
+        // launcher's worker (a Slurm job) is also cancelled there.
+        error = absl::StrCat("cancelled by a client (worker ", it->second->worker_name,
+                             " was leasing it)");
+        leased_by = it->second->worker_name;
+        ReleaseLocked(it->second->lease_id);
+      } else if (it != running_.end()) {
         it->second->cancel_requested = true;
         wake_pending_ = true;
         wake_.notify_all();
         return job;
+      } else {
+        error = live_jobs_.StopLocked(job_id);
+        if (error.empty()) return job;
       }
-      error = StopLiveLocked(job_id);
-      if (error.empty()) return job;
     } else if (job.state() == v1::JOB_STATE_QUEUED) {
       queue_.erase(std::remove(queue_.begin(), queue_.end(), job_id), queue_.end());
       error = "cancelled by a client before it started";
@@ -443,26 +306,17 @@ absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
       return job;
     }
     ASSIGN_OR_RETURN(job, jobs_->Mutate(job_id, [&](v1::Job& j) {
+      EndAttempt(j, "cancelled");
       j.set_state(v1::JOB_STATE_CANCELLED);
       j.set_finished_unix_ns(WallNowNs());
       j.set_error(error);
       j.mutable_progress()->set_eta_s(-1);
     }));
   }
+  if (!leased_by.empty() && options_.launcher) options_.launcher->CancelWorker(leased_by);
   LogJobEnd(job);
   Publish(job, {}, /*last=*/true);
   return job;
-}
-
-std::string JobScheduler::StopLiveLocked(const std::string& job_id) {
-  if (following_.erase(job_id) > 0) {
-    live_->Stop(job_id, v1::FOLLOW_END_REASON_CANCELLED, "the job was cancelled");
-    return "cancelled by a client while following its take";
-  }
-  const auto it = std::find(handoff_.begin(), handoff_.end(), job_id);
-  if (it == handoff_.end()) return "";
-  handoff_.erase(it);
-  return "cancelled by a client before its worker started";
 }
 
 absl::StatusOr<v1::Job> JobScheduler::Get(const std::string& job_id) const {
@@ -616,11 +470,23 @@ void JobScheduler::Loop() {
       if (stopping_) break;
     }
     PollRunning();
-    PublishLiveProgress();
+    live_jobs_.PublishProgress();
     StartQueued();
+    ExpireLeases();
+    ServeLeaseWaiters();
+    if (options_.launcher) {
+      int queued = 0;
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        queued = static_cast<int>(queue_.size());
+      }
+      options_.launcher->Reconcile(queued);
+    }
     SweepRetention();
   }
   StopWorkers();
+  EndLeaseWaiters();
+  if (options_.launcher) options_.launcher->Shutdown();
 }
 
 void JobScheduler::StartQueued() {
@@ -628,21 +494,26 @@ void JobScheduler::StartQueued() {
     std::string job_id;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      if (stopping_ || BusyLocked() >= concurrency_) return;
+      if (stopping_ || !options_.local_workers || BusyLocked() >= concurrency_) return;
       // Live jobs whose take was closed go first: they have run for a while.
-      std::deque<std::string>& source = handoff_.empty() ? queue_ : handoff_;
-      if (source.empty()) return;
-      job_id = source.front();
-      source.pop_front();
-      const bool started =
-          &source == &handoff_ ? StartHandoffLocked(job_id) : StartQueuedLocked(job_id);
+      bool handoff = false;
+      if (std::optional<std::string> next = live_jobs_.NextHandoffLocked()) {
+        job_id = std::move(*next);
+        handoff = true;
+      } else if (!queue_.empty()) {
+        job_id = queue_.front();
+        queue_.pop_front();
+      } else {
+        return;
+      }
+      const bool started = handoff ? StartHandoffLocked(job_id) : StartQueuedLocked(job_id);
       if (!started) continue;
     }
     Launch(job_id);
   }
 }
 
-bool JobScheduler::StartQueuedLocked(const std::string& job_id) {
+bool JobScheduler::StartQueuedLocked(const std::string& job_id, const std::string& worker) {
   // Under mu_, so that Cancel finds the job either queued or running.
   bool was_queued = false;
   const absl::StatusOr<v1::Job> job = jobs_->Mutate(job_id, [&](v1::Job& j) {
@@ -651,6 +522,7 @@ bool JobScheduler::StartQueuedLocked(const std::string& job_id) {
     j.set_state(v1::JOB_STATE_RUNNING);
     j.set_started_unix_ns(WallNowNs());
     j.set_attempts(j.attempts() + 1);
+    BeginAttempt(j, worker);
     j.clear_progress();
     j.mutable_progress()->set_stage("starting");
     j.mutable_progress()->set_eta_s(-1);
@@ -666,12 +538,13 @@ bool JobScheduler::StartQueuedLocked(const std::string& job_id) {
   return true;
 }
 
-bool JobScheduler::StartHandoffLocked(const std::string& job_id) {
+bool JobScheduler::StartHandoffLocked(const std::string& job_id, const std::string& worker) {
   bool was_running = false;
   const absl::StatusOr<v1::Job> job = jobs_->Mutate(job_id, [&](v1::Job& j) {
     was_running = j.state() == v1::JOB_STATE_RUNNING;
     if (!was_running) return;
     j.set_attempts(j.attempts() + 1);
+    BeginAttempt(j, worker);
     j.mutable_progress()->set_stage("starting");
     j.mutable_progress()->set_eta_s(-1);
   });
@@ -714,46 +587,22 @@ void JobScheduler::Launch(const std::string& job_id) {
   }
   run->reenactment_id = reenactments_->NewId();
   run->out_path = reenactments_->PathFor(run->reenactment_id);
-  run->progress_path = (dir / "progress.jsonl").string();
-  run->log_path = (dir / "worker.log").string();
-  fs::remove(run->progress_path, error);
-  {
-    std::ofstream log(run->log_path, std::ios::app);
-    log << "--- attempt " << job->attempts() << ", " << UtcNow() << ", reenactment "
-        << run->reenactment_id << " ---\n";
+  WorkerInvocation invocation;
+  invocation.worker_path = worker_path_;
+  invocation.take_path = *take_path;
+  invocation.out_path = run->out_path;
+  invocation.reenactment_id = run->reenactment_id;
+  invocation.asset_roots = options_.asset_roots;
+  absl::StatusOr<std::unique_ptr<WorkerProcess>> worker = WorkerProcess::Start(
+      WorkerArgs(*job, methods::FindMethod(options_.methods, job->method()), invocation),
+      dir.string(),
+      absl::StrCat("--- attempt ", job->attempts(), ", ", UtcNow(), ", reenactment ",
+                   run->reenactment_id, " ---"),
+      job->progress(), options_.eta_window_s);
+  if (!worker.ok()) {
+    return fail(absl::StrCat("cannot start the worker: ", worker.status().message()));
   }
-  run->log_offset = static_cast<int64_t>(fs::file_size(run->log_path, error));
-  if (error) run->log_offset = 0;
-  SubprocessOptions process_options;
-  process_options.stdout_path = run->progress_path;
-  process_options.stderr_path = run->log_path;
-  process_options.working_dir = dir.string();
-  std::vector<std::string> args = {
-      worker_path_,
-      "--take",
-      *take_path,
-      "--method",
-      job->method(),
-      "--options-json",
-      OptionsJson(
-          WorkerOptions(methods::FindMethod(options_.methods, job->method()), job->options())),
-      "--out",
-      run->out_path,
-      "--reenactment-id",
-      run->reenactment_id,
-      "--take-id",
-      job->take_id(),
-      "--job-id",
-      job_id};
-  if (!options_.asset_roots.empty()) {
-    args.insert(args.end(), {"--assets", absl::StrJoin(options_.asset_roots, ",")});
-  }
-  absl::StatusOr<std::unique_ptr<Subprocess>> process = Subprocess::Start(args, process_options);
-  if (!process.ok()) {
-    return fail(absl::StrCat("cannot start the worker: ", process.status().message()));
-  }
-  run->process = std::move(*process);
-  run->progress = job->progress();
+  run->worker = std::move(*worker);
   log::Info("job_started",
             {{"job_id", job_id},
              {"take_id", job->take_id()},
@@ -765,99 +614,13 @@ void JobScheduler::Launch(const std::string& job_id) {
   Publish(*job, {}, /*last=*/false);
 }
 
-bool JobScheduler::ReadOutput(Running& run, std::vector<std::string>* logs) {
-  std::ifstream in(run.progress_path, std::ios::binary);
-  if (!in) return false;
-  in.seekg(run.read_offset);
-  std::string fresh((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  run.read_offset += static_cast<int64_t>(fresh.size());
-  run.pending += fresh;
-  bool changed = false;
-  size_t start = 0;
-  while (true) {
-    size_t end = run.pending.find('\n', start);
-    if (end == std::string::npos) {
-      if (run.pending.size() - start < kMaxPendingBytes) break;
-      end = run.pending.size();
-    }
-    std::string line = run.pending.substr(start, end - start);
-    start = std::min(end + 1, run.pending.size());
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (!line.empty() && HandleLine(run, line, logs)) changed = true;
-  }
-  run.pending.erase(0, start);
-  if (changed) {
-    // One sample per read: lines read together arrived together.
-    run.samples.emplace_back(SteadyNowNs(), run.progress.fraction());
-    UpdateEta(run);
-  }
-  return changed;
-}
-
-bool JobScheduler::HandleLine(Running& run, const std::string& line,
-                              std::vector<std::string>* logs) {
-  const nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
-  if (!j.is_object()) {
-    run.last_log = Truncate(line, kMaxLogLineChars);
-    logs->push_back(run.last_log);
-    return false;
-  }
-  if (auto it = j.find("log"); it != j.end() && it->is_string()) {
-    run.last_log = Truncate(it->get<std::string>(), kMaxLogLineChars);
-    logs->push_back(run.last_log);
-  }
-  if (auto it = j.find("error"); it != j.end() && it->is_string()) {
-    run.worker_error = Truncate(it->get<std::string>(), kMaxLogLineChars);
-    logs->push_back("error: " + run.worker_error);
-  }
-  if (auto it = j.find("result"); it != j.end()) {
-    logs->push_back(Truncate("result: " + it->dump(), kMaxLogLineChars));
-  }
-  v1::JobProgress& p = run.progress;
-  bool progress = false;
-  if (auto it = j.find("stage"); it != j.end() && it->is_string()) {
-    p.set_stage(Truncate(it->get<std::string>(), 64));
-    progress = true;
-  }
-  if (auto it = j.find("fraction"); it != j.end() && it->is_number()) {
-    const double f = it->get<double>();
-    if (std::isfinite(f)) p.set_fraction(std::clamp(f, 0.0, 1.0));
-    progress = true;
-  }
-  if (auto it = j.find("frames_done"); it != j.end() && it->is_number_integer()) {
-    p.set_frames_done(it->get<int64_t>());
-  }
-  if (auto it = j.find("frames_total"); it != j.end() && it->is_number_integer()) {
-    p.set_frames_total(it->get<int64_t>());
-  }
-  return progress;
-}
-
-void JobScheduler::UpdateEta(Running& run) const {
-  // The rate of the fraction between the oldest sample in the window and the
-  // newest; (1 - fraction) / rate to go.
-  const int64_t window_ns = SecondsToNs(options_.eta_window_s);
-  while (run.samples.size() > 2 && run.samples.back().first - run.samples[1].first > window_ns) {
-    run.samples.pop_front();
-  }
-  v1::JobProgress& p = run.progress;
-  const auto& [t0, f0] = run.samples.front();
-  const auto& [t1, f1] = run.samples.back();
-  const double rate = t1 > t0 ? (f1 - f0) / NsToSeconds(t1 - t0) : 0.0;
-  if (p.fraction() >= 1.0) {
-    p.set_eta_s(0);
-  } else if (rate > 0) {
-    p.set_eta_s((1.0 - p.fraction()) / rate);
-  } else {
-    p.set_eta_s(-1);
-  }
-}
-
 void JobScheduler::PollRunning() {
   std::vector<Running*> runs;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    for (auto& [id, run] : running_) runs.push_back(run.get());
+    for (auto& [id, run] : running_) {
+      if (!run->remote()) runs.push_back(run.get());
+    }
   }
   for (Running* run : runs) {
     bool cancel = false;
@@ -866,9 +629,9 @@ void JobScheduler::PollRunning() {
       cancel = run->cancel_requested;
     }
     // Exit first, then read: whatever the worker wrote before exiting is in.
-    const std::optional<ExitInfo> exit = run->process->Poll();
+    const std::optional<ExitInfo> exit = run->worker->Poll();
     std::vector<std::string> logs;
-    const bool changed = ReadOutput(*run, &logs);
+    const bool changed = run->worker->ReadOutput(&logs);
     if (exit.has_value()) {
       std::unique_ptr<Running> owned;
       {
@@ -877,48 +640,18 @@ void JobScheduler::PollRunning() {
         owned = std::move(it->second);
         running_.erase(it);
       }
-      if (changed) (void)jobs_->UpdateProgress(owned->job_id, owned->progress);
+      if (changed) (void)jobs_->UpdateProgress(owned->job_id, owned->worker->progress());
       Finish(std::move(owned), *exit, std::move(logs));
       continue;
     }
     if (changed || !logs.empty()) {
       absl::StatusOr<v1::Job> job =
-          changed ? jobs_->UpdateProgress(run->job_id, run->progress) : jobs_->Get(run->job_id);
+          changed ? jobs_->UpdateProgress(run->job_id, run->worker->progress())
+                  : jobs_->Get(run->job_id);
       if (job.ok()) Publish(*job, std::move(logs), /*last=*/false);
     }
-    if (cancel && !run->term_sent) {
-      (void)run->process->Signal(SIGTERM);
-      run->term_sent = true;
-      run->kill_at_ns = SteadyNowNs() + SecondsToNs(options_.cancel_grace_s);
-    } else if (cancel && !run->kill_sent && SteadyNowNs() >= run->kill_at_ns) {
-      (void)run->process->Signal(SIGKILL);
-      run->kill_sent = true;
-    }
+    if (cancel) run->worker->Cancel(options_.cancel_grace_s);
   }
-}
-
-std::string JobScheduler::LastLog(const Running& run) const {
-  // The last line the worker wrote on stderr in this attempt, else its last
-  // {"log"} line.
-  std::ifstream in(run.log_path, std::ios::binary);
-  std::string tail;
-  if (in) {
-    in.seekg(0, std::ios::end);
-    const int64_t size = static_cast<int64_t>(in.tellg());
-    const int64_t from = std::max(run.log_offset, size - 4096);
-    if (size > from) {
-      in.seekg(from);
-      tail.resize(static_cast<size_t>(size - from));
-      in.read(tail.data(), static_cast<std::streamsize>(tail.size()));
-    }
-  }
-  while (!tail.empty() && (tail.back() == '\n' || tail.back() == '\r' || tail.back() == ' ')) {
-    tail.pop_back();
-  }
-  if (const size_t nl = tail.rfind('\n'); nl != std::string::npos) tail = tail.substr(nl + 1);
-  if (tail.empty()) tail = run.last_log;
-  if (tail.empty()) return "(none)";
-  return Truncate(tail, kMaxQuotedLogChars);
 }
 
 void JobScheduler::Finish(std::unique_ptr<Running> run, const ExitInfo& exit,
@@ -941,26 +674,14 @@ void JobScheduler::Finish(std::unique_ptr<Running> run, const ExitInfo& exit,
   fs::remove(run->out_path, error);
   if (cancelled) {
     EndJob(run->job_id, v1::JOB_STATE_CANCELLED,
-           run->kill_sent ? absl::StrCat("cancelled by a client (the worker was killed after ",
-                                         options_.cancel_grace_s, " s)")
-                          : "cancelled by a client",
+           run->worker->killed()
+               ? absl::StrCat("cancelled by a client (the worker was killed after ",
+                              options_.cancel_grace_s, " s)")
+               : "cancelled by a client",
            "", std::move(logs));
     return;
   }
-  std::string why;
-  if (!exit.exited) {
-    why = absl::StrCat("worker killed by signal ", exit.signal, " (", SignalName(exit.signal),
-                       "); last log: ", LastLog(*run));
-  } else if (exit.exit_code == 1 && !run->worker_error.empty()) {
-    why = run->worker_error;
-  } else if (exit.exit_code == 2) {
-    why = absl::StrCat("the worker refused its command line (exit code 2): ", LastLog(*run));
-  } else if (exit.exit_code == 3) {
-    why = absl::StrCat("the worker stopped early without a cancel (exit code 3); last log: ",
-                       LastLog(*run));
-  } else {
-    why = absl::StrCat("worker failed (exit code ", exit.exit_code, "); last log: ", LastLog(*run));
-  }
+  const std::string why = run->worker->FailureText(exit);
   EndJob(run->job_id, v1::JOB_STATE_FAILED, why, "", std::move(logs));
 }
 
@@ -978,6 +699,9 @@ void JobScheduler::Succeed(const std::string& job_id, const std::string& reenact
 void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const std::string& error,
                           const std::string& reenactment_id, std::vector<std::string> logs) {
   auto change = [&](v1::Job& j) {
+    EndAttempt(j, state == v1::JOB_STATE_SUCCEEDED   ? "succeeded"
+                  : state == v1::JOB_STATE_CANCELLED ? "cancelled"
+                                                     : "failed");
     j.set_state(state);
     j.set_finished_unix_ns(WallNowNs());
     j.set_error(error);
@@ -1007,20 +731,25 @@ void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const s
 void JobScheduler::StopWorkers() {
   std::map<std::string, std::unique_ptr<Running>> runs;
   {
+    // Leased jobs stay RUNNING: the next start queues them again, and their
+    // workers' calls meanwhile find no lease.
     std::lock_guard<std::mutex> lock(mu_);
-    runs.swap(running_);
+    for (auto it = running_.begin(); it != running_.end();) {
+      if (it->second->remote()) {
+        ++it;
+        continue;
+      }
+      runs.emplace(it->first, std::move(it->second));
+      it = running_.erase(it);
+    }
   }
-  for (auto& [id, run] : runs) (void)run->process->Signal(SIGTERM);
+  for (auto& [id, run] : runs) run->worker->Terminate();
   const int64_t deadline_ns = SteadyNowNs() + SecondsToNs(options_.shutdown_grace_s);
   for (auto& [id, run] : runs) {
     const double left_s = std::max(0.0, NsToSeconds(deadline_ns - SteadyNowNs()));
-    absl::StatusOr<ExitInfo> exit = run->process->Wait(left_s);
-    if (!exit.ok()) {
-      (void)run->process->Signal(SIGKILL);
-      exit = run->process->Wait();
-    }
+    const absl::StatusOr<ExitInfo> exit = run->worker->WaitOrKill(left_s);
     std::vector<std::string> logs;
-    ReadOutput(*run, &logs);
+    run->worker->ReadOutput(&logs);
     if (exit.ok() && exit->exited && exit->exit_code == 0) {
       Succeed(id, run->reenactment_id);  // It finished within the grace period.
       continue;
@@ -1039,7 +768,7 @@ void JobScheduler::StopWorkers() {
     }
     // The job stays RUNNING with its last progress: the next start queues it.
     (void)jobs_->Mutate(id, [&](v1::Job& j) {
-      *j.mutable_progress() = run->progress;
+      *j.mutable_progress() = run->worker->progress();
       j.mutable_progress()->set_eta_s(-1);
     });
   }

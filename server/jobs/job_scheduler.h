@@ -49,6 +49,11 @@
 // Thread-safe. One scheduler thread polls and starts workers; a second one
 // indexes finished reenactments so that a large file does not hold up the
 // progress of the other jobs.
+//
+// The parts: worker_protocol.h (the worker's command line, output lines and
+// log tail), eta.h (the ETA), worker_process.h (one attempt's process) and
+// live_jobs.h (the follows of live jobs); the scheduler holds the queue, the
+// slots, the store's job rows and the watches.
 #pragma once
 
 #include <array>
@@ -59,6 +64,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
@@ -71,15 +77,31 @@
 #include "common/base/thread_pool.h"
 #include "common/methods/method_spec.h"
 #include "reenact/v1/jobs_service.pb.h"
+#include "reenact/v1/work_service.pb.h"
+#include "server/jobs/eta.h"
 #include "server/jobs/job_store.h"
+#include "server/jobs/live_jobs.h"
+#include "server/jobs/worker_process.h"
 #include "server/live/live_hub.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
 
-// The stage of a live job while it follows its take.
-inline constexpr char kFollowingStage[] = "following";
+// Starts workers elsewhere for the jobs that wait (reenact-server --workers
+// slurm: server/jobs/slurm_launcher.h). The scheduler's loop calls it; it
+// must not block for long.
+class WorkerLauncher {
+ public:
+  virtual ~WorkerLauncher() = default;
+  // `queued` jobs wait for a worker now.
+  virtual void Reconcile(int queued) = 0;
+  // The job that `worker_name` leased was cancelled: stop that worker if it
+  // is one of this launcher's.
+  virtual void CancelWorker(const std::string& worker_name) = 0;
+  // The server stops: withdraw what has not started.
+  virtual void Shutdown() = 0;
+};
 
 struct JobSchedulerOptions {
   // The worker program; empty: reenact-worker beside the running program
@@ -115,6 +137,24 @@ struct JobSchedulerOptions {
   // model=makehuman:NAME names a folder in one of them. Passed on to the
   // workers; checked at Submit.
   std::vector<std::string> asset_roots;
+  // Submit refuses a job (RESOURCE_EXHAUSTED, "disk is full") while the
+  // jobs folder's file system has fewer free bytes than this: a job needs
+  // its row, its folder, its log and then its reenactment. 0: no check
+  // beyond the store's own write errors.
+  int64_t min_free_bytes = int64_t{1} << 20;
+  // Whether the server runs workers of its own (reenact-server --workers
+  // local:N; the N is `concurrency`). False (--workers none): queued jobs
+  // wait for workers that lease them over the Work service; `concurrency`
+  // then only bounds live jobs.
+  bool local_workers = true;
+  // A Work lease ends this long after its worker's last heartbeat (or
+  // upload chunk), seconds; the job is then queued again (FAILED once it
+  // had store.max_attempts attempts). Workers are asked to beat six times
+  // as often, and at least every 2 s.
+  double lease_ttl_s = 30.0;
+  // Starts network workers for queued jobs (with local_workers false);
+  // null: workers come by themselves.
+  std::shared_ptr<WorkerLauncher> launcher;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -180,11 +220,68 @@ class JobScheduler {
   // every watch with Unavailable, refuses new jobs. Idempotent.
   void Shutdown();
 
+  // The Work service (proto/reenact/v1/work_service.proto), for workers that
+  // connect over the network (server/jobs/job_leases.cc). A lease is one
+  // attempt of a job: it holds a job slot of its own, not one of the local
+  // ones, until the upload is committed, the worker fails it, the job is
+  // cancelled or the lease expires. Every call but Lease answers Aborted
+  // for a lease that no longer holds (the worker stops and forgets the job).
+  using LeaseDone = std::function<void(absl::StatusOr<v1::LeaseResponse>)>;
+  // Leases the oldest queued job of one of request.methods (all when empty):
+  // at once, or when one is queued within wait_s (at most 60 s); else an
+  // empty response. Calls `done` exactly once, from this thread or the
+  // scheduler's, without a lock held. FailedPrecondition for an unknown
+  // protocol version, Unavailable while shutting down.
+  void Lease(const v1::LeaseRequest& request, LeaseDone done);
+  // The take file of a lease's job, to stream to its worker.
+  absl::StatusOr<std::string> LeasedTakePath(const std::string& lease_id) const;
+  // Renews the lease, sets the job's progress (with the ETA) and passes the
+  // log lines to its watchers.
+  absl::StatusOr<v1::HeartbeatResponse> Heartbeat(const v1::HeartbeatRequest& request);
+  // Claims the attempt's one upload and renews the lease: the path to write
+  // the reenactment to (beside where it is stored). Aborted when the lease
+  // does not hold or an upload was already claimed.
+  absl::StatusOr<std::string> BeginUpload(const std::string& lease_id);
+  // Renews the lease of an upload under way; Aborted when it expired.
+  absl::Status ContinueUpload(const std::string& lease_id);
+  // Stores the uploaded file as the job's reenactment (it is read and
+  // validated) and ends the lease: the job SUCCEEDED, or FAILED with
+  // InvalidArgument when the file is no valid reenactment. Aborted when the
+  // lease expired meanwhile (the file is deleted, nothing is stored).
+  absl::StatusOr<v1::Job> CommitUpload(const std::string& lease_id);
+  // Gives a claimed upload back (the stream broke): the worker may upload
+  // again while the lease holds. Deletes what was written.
+  void AbortUpload(const std::string& lease_id);
+  // Ends the lease with the job FAILED (CANCELLED when a cancel was asked).
+  absl::StatusOr<v1::Job> FailLease(const v1::FailRequest& request);
+
   int concurrency() const { return concurrency_; }
   const std::string& worker_path() const { return worker_path_; }
 
  private:
-  struct Running;
+  // A job with a worker: a local worker process once Launch started it, or a
+  // Work lease of a worker over the network.
+  struct Running {
+    std::string job_id;
+    std::string reenactment_id;
+    std::string out_path;
+    // Scheduler thread only.
+    std::unique_ptr<WorkerProcess> worker;
+    // Guarded by mu_.
+    bool cancel_requested = false;
+
+    // A Work lease (empty for a local worker); all guarded by mu_.
+    std::string lease_id;
+    std::string worker_name;
+    // Steady time the lease ends unless renewed.
+    int64_t expires_ns = 0;
+    // The ETA from the worker's heartbeats.
+    std::optional<EtaEstimator> eta;
+    // The upload claimed (BeginUpload), and where it is written.
+    bool uploading = false;
+    std::string upload_path;
+    bool remote() const { return !lease_id.empty(); }
+  };
 
   JobScheduler(const JobSchedulerOptions& options, std::string jobs_dir, JobStore* jobs,
                TakeStore* takes, ReenactmentStore* reenactments, LiveHub* live);
@@ -197,39 +294,41 @@ class JobScheduler {
   // Starts queued jobs while slots are free (live jobs whose take ended
   // first).
   void StartQueued();
-  // Job slots in use: worker processes and live follows.
-  int BusyLocked() const { return static_cast<int>(running_.size() + following_.size()); }
+  // Job slots in use: local worker processes and live follows (leases to
+  // workers over the network hold slots of their own).
+  int BusyLocked() const {
+    return static_cast<int>(running_.size() - leases_.size()) + live_jobs_.FollowingLocked();
+  }
+  // Work leases (job_leases.cc). Answers waiting Lease calls with queued
+  // jobs, and empty ones past their wait.
+  void ServeLeaseWaiters();
+  // Takes the first queued job (a handoff first when this server has no
+  // local workers) that one of `methods` runs, RUNNING under a new lease.
+  // mu_ held.
+  std::optional<v1::WorkLease> LeaseQueuedLocked(const std::set<std::string>& methods,
+                                                 const std::string& worker_name);
+  // Queues again (or fails) the jobs of leases past their time.
+  void ExpireLeases();
+  // Queues a released lease's job again, first in line, or fails it when it
+  // had store.max_attempts attempts (`outcome`: how this attempt ended, in
+  // its history; `why`: what stopped it, for the error).
+  void Requeue(const Running& run, const std::string& outcome, const std::string& why);
+  // The Running of a lease that holds; Aborted otherwise. mu_ held.
+  absl::StatusOr<Running*> HeldLeaseLocked(const std::string& lease_id) const;
+  // Removes a lease and its Running. mu_ held.
+  std::unique_ptr<Running> ReleaseLocked(const std::string& lease_id);
+  // Answers the waiting Lease calls with Unavailable at shutdown.
+  void EndLeaseWaiters();
   // Marks a queued job RUNNING with a Running entry; false when it is no
   // longer queued. mu_ held.
-  bool StartQueuedLocked(const std::string& job_id);
+  bool StartQueuedLocked(const std::string& job_id, const std::string& worker = "local");
   // The same for a live job whose follow ended (it is RUNNING already).
-  bool StartHandoffLocked(const std::string& job_id);
-  // Submit of a recording take: OK when the job may follow it (live and a
-  // live hub that knows the take), else the error Submit answers.
-  absl::Status CheckFollowable(const std::string& take_id, bool live) const;
-  // Starts the follow of a stored job and makes it RUNNING. FailedPrecondition
-  // when the take stopped recording meanwhile (the job stays QUEUED); other
-  // errors fail the job. mu_ held.
-  absl::StatusOr<v1::Job> FollowLocked(const v1::Job& job);
-  // The live hub's callbacks (on its follower threads).
-  void LiveProgress(const std::string& job_id, int64_t frames_followed);
-  // Stores and publishes the progress LiveProgress noted (scheduler thread).
-  void PublishLiveProgress();
-  void LiveEnded(const std::string& job_id, const LiveFollowSummary& summary);
-  // Cancel of a live job that follows or waits for its worker: stops it and
-  // returns the job's error text; "" when the job is neither. mu_ held.
-  std::string StopLiveLocked(const std::string& job_id);
+  bool StartHandoffLocked(const std::string& job_id, const std::string& worker = "local");
   // Starts the worker of `job_id`, which StartQueued marked RUNNING.
   void Launch(const std::string& job_id);
   // Reads the workers' output, publishes progress, signals cancelled ones
   // and ends those that exited.
   void PollRunning();
-  // Reads what `run` appended to its progress file; true when the progress
-  // changed. New log lines go to `logs`.
-  bool ReadOutput(Running& run, std::vector<std::string>* logs);
-  // One line of worker output; true when it was progress.
-  bool HandleLine(Running& run, const std::string& line, std::vector<std::string>* logs);
-  void UpdateEta(Running& run) const;
   // Ends the job of a worker that exited (`logs`: its last log lines).
   void Finish(std::unique_ptr<Running> run, const ExitInfo& exit, std::vector<std::string> logs);
   // Indexes the reenactment of a worker that exited 0 and ends its job.
@@ -242,16 +341,12 @@ class JobScheduler {
   void StopWorkers();
   // Tells the job's watchers; `last` ends their watches.
   void Publish(const v1::Job& job, std::vector<std::string> logs, bool last);
-  // The worker's last stderr line of this attempt (else its last log line),
-  // quoted in a failed job's error.
-  std::string LastLog(const Running& run) const;
 
   const JobSchedulerOptions options_;
   const std::string jobs_dir_;
   JobStore* const jobs_;
   TakeStore* const takes_;
   ReenactmentStore* const reenactments_;
-  LiveHub* const live_;
   int concurrency_ = 1;
   std::string worker_path_;
 
@@ -263,12 +358,19 @@ class JobScheduler {
   bool stopping_ = false;
   std::deque<std::string> queue_;
   // Live jobs following their take, and those whose take ended, waiting
-  // for a worker slot.
-  std::set<std::string> following_;
-  std::deque<std::string> handoff_;
-  // Frames followed since the last PublishLiveProgress, per live job.
-  std::map<std::string, int64_t> live_progress_;
+  // for a worker slot (guarded by mu_).
+  LiveJobs live_jobs_;
   std::map<std::string, std::unique_ptr<Running>> running_;
+  // Work leases: lease id -> job id (their Running is in running_).
+  std::map<std::string, std::string> leases_;
+  // Lease calls waiting for a job, oldest first.
+  struct LeaseWaiter {
+    std::set<std::string> methods;
+    std::string worker_name;
+    int64_t deadline_ns = 0;
+    LeaseDone done;
+  };
+  std::deque<LeaseWaiter> lease_waiters_;
   std::thread thread_;
   // Indexes finished reenactments (ReenactmentStore::Add reads the file).
   std::unique_ptr<ThreadPool> finisher_;

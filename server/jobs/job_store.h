@@ -48,6 +48,14 @@ absl::Status ValidateJobId(std::string_view job_id);
 // True for SUCCEEDED, FAILED and CANCELLED.
 bool IsFinished(v1::JobState state);
 
+// Most attempts a job's attempt_history keeps (the oldest go first).
+inline constexpr int kMaxAttemptHistory = 16;
+// Notes a new attempt (number job.attempts(), which the caller has just
+// counted) by `worker`, started now.
+void BeginAttempt(v1::Job& job, const std::string& worker);
+// Ends the attempt that runs, if one does, with `outcome` now.
+void EndAttempt(v1::Job& job, const std::string& outcome);
+
 class JobStore {
  public:
   // Loads the jobs of `catalog`, which must outlive the store. The catalog's

@@ -160,6 +160,7 @@ TEST(JobStore, RequeueUnfinishedKeepsAttemptsAndGivesUp) {
                              [&](v1::Job& j) {
                                j.set_state(v1::JOB_STATE_RUNNING);
                                j.set_attempts(attempts);
+                               BeginAttempt(j, "node7/pid 42");
                              })
                     .ok());
     return job->job_id();
@@ -177,6 +178,13 @@ TEST(JobStore, RequeueUnfinishedKeepsAttemptsAndGivesUp) {
   EXPECT_EQ((*store)->Get(once)->state(), v1::JOB_STATE_QUEUED);
   EXPECT_EQ((*store)->Get(once)->attempts(), 1);
   EXPECT_EQ(catalog->GetJob(once)->state(), v1::JOB_STATE_QUEUED);
+  // The attempt's end is in its history, in the catalog too.
+  const absl::StatusOr<v1::Job> stored = catalog->GetJob(once);
+  ASSERT_EQ(stored->attempt_history_size(), 1);
+  EXPECT_EQ(stored->attempt_history(0).number(), 1);
+  EXPECT_EQ(stored->attempt_history(0).worker(), "node7/pid 42");
+  EXPECT_EQ(stored->attempt_history(0).outcome(), "server stopped");
+  EXPECT_GT(stored->attempt_history(0).ended_unix_ns(), 0);
   EXPECT_EQ((*store)->Get(twice)->state(), v1::JOB_STATE_FAILED);
   EXPECT_NE((*store)->Get(twice)->error().find("2 times"), std::string::npos);
   EXPECT_EQ((*store)->Get(done->job_id())->state(), v1::JOB_STATE_SUCCEEDED);

@@ -10,7 +10,7 @@
 #include "common/io/jpeg.h"
 #include "common/io/reenactment_file.h"
 #include "server/recon/body_parts.h"
-#include "server/recon/recon_test_util.h"
+#include "server/recon/testing/short_take.h"
 
 namespace reenact::recon {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
-#include "server/recon/recon_test_util.h"
+#include "server/recon/testing/short_take.h"
 
 namespace reenact::recon {
 namespace {

@@ -580,5 +580,29 @@ TEST(ServerFlags, JobsAndWorker) {
       absl::StatusCode::kInvalidArgument);
 }
 
+TEST(ServerFlags, WorkersAndLeases) {
+  auto parsed = ParseServerCommandLine(
+      {"--data", "d", "--listen", "127.0.0.1:1", "--workers", "local:4", "--lease-ttl", "12"});
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_TRUE(parsed->options.jobs.local_workers);
+  EXPECT_EQ(parsed->options.jobs.concurrency, 4);
+  EXPECT_EQ(parsed->options.jobs.lease_ttl_s, 12.0);
+  parsed = ParseServerCommandLine({"--data", "d", "--listen", "127.0.0.1:1", "--workers", "none"});
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_FALSE(parsed->options.jobs.local_workers);
+  for (const char* bad : {"local:0", "local:x", "remote", "local:2:3", ""}) {
+    EXPECT_EQ(ParseServerCommandLine({"--data", "d", "--listen", "127.0.0.1:1", "--workers", bad})
+                  .status()
+                  .code(),
+              absl::StatusCode::kInvalidArgument)
+        << bad;
+  }
+  EXPECT_EQ(ParseServerCommandLine(
+                {"--data", "d", "--listen", "127.0.0.1:1", "--workers", "local:2", "--jobs", "3"})
+                .status()
+                .code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
 }  // namespace
 }  // namespace reenact::server

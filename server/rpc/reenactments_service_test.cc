@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "common/io/reenactment_file.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
 #include "server/store/reenactment_store.h"
 

@@ -25,6 +25,11 @@ const rpc::Authorizer::MethodTable& ServerMethodAccess() {
       {"/reenact.v1.Reenactments/Fetch", rpc::kRead},
       {"/reenact.v1.Reenactments/Follow", rpc::kRead},
       {"/reenact.v1.Reenactments/Delete", rpc::kManage},
+      {"/reenact.v1.Work/Lease", rpc::kWork},
+      {"/reenact.v1.Work/ReadTake", rpc::kWork},
+      {"/reenact.v1.Work/Heartbeat", rpc::kWork},
+      {"/reenact.v1.Work/Upload", rpc::kWork},
+      {"/reenact.v1.Work/Fail", rpc::kWork},
   };
   return *table;
 }
@@ -40,8 +45,10 @@ absl::StatusOr<rpc::Principal> Authorize(const ServerContext& context,
   if (context.client_limits != nullptr) {
     // The calls that can last; a unary call counts only against max_calls.
     static const auto* const kStreams = new std::set<absl::string_view>{
-        "/reenact.v1.Ingest/Ingest", "/reenact.v1.Takes/Download", "/reenact.v1.Jobs/Watch",
-        "/reenact.v1.Reenactments/Fetch", "/reenact.v1.Reenactments/Follow"};
+        "/reenact.v1.Ingest/Ingest",       "/reenact.v1.Takes/Download",
+        "/reenact.v1.Jobs/Watch",          "/reenact.v1.Reenactments/Fetch",
+        "/reenact.v1.Reenactments/Follow", "/reenact.v1.Work/ReadTake",
+        "/reenact.v1.Work/Upload"};
     if (absl::Status allowed = context.client_limits->Check(rpc, kStreams->contains(method));
         !allowed.ok()) {
       LimitHit("client_calls", {{"rpc", method}, {"peer", rpc.peer()}}, allowed.message());

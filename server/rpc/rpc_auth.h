@@ -18,7 +18,9 @@ namespace reenact::server {
 //     Watch;
 //   ingest (capture, admin): Ingest;
 //   manage (coach, admin): Jobs.Submit, Jobs.Cancel, Takes.Delete,
-//     Reenactments.Delete.
+//     Reenactments.Delete;
+//   work (worker, admin): every Work call (Lease, ReadTake, Heartbeat,
+//     Upload, Fail).
 // The health service (grpc.health.v1.Health) is not here: its handlers ask
 // no authorizer, so probes without a token get their answer
 // (common/rpc/health_service.h).

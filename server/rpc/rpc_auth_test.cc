@@ -19,6 +19,7 @@
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "reenact/v1/takes_service.grpc.pb.h"
+#include "reenact/v1/work_service.grpc.pb.h"
 #include "server/server.h"
 #include "server/testing/test_takes.h"
 
@@ -43,6 +44,7 @@ Fixture& Shared() {
          std::vector<std::pair<std::string, rpc::Role>>{{"viewer", rpc::Role::kViewer},
                                                         {"capture", rpc::Role::kCapture},
                                                         {"coach", rpc::Role::kCoach},
+                                                        {"worker", rpc::Role::kWorker},
                                                         {"admin", rpc::Role::kAdmin},
                                                         {"capture-2", rpc::Role::kCapture}}) {
       auto token = rpc::AddToken(f->dir + "/tokens.json", role, name);
@@ -149,6 +151,56 @@ std::map<std::string, Call> EveryRpc() {
     v1::Job r;
     return v1::Jobs::NewStub(ch)->Get(&c, q, &r);
   };
+  // The Work calls name a lease that does not exist: an allowed caller
+  // gets ABORTED (or an empty lease), never a refusal.
+  calls["/reenact.v1.Work/Lease"] = [](const auto& ch) {
+    grpc::ClientContext c;
+    Deadline(c);
+    v1::LeaseRequest q;
+    q.set_protocol(v1::WORK_PROTOCOL_V1);
+    v1::LeaseResponse r;
+    return v1::Work::NewStub(ch)->Lease(&c, q, &r);
+  };
+  calls["/reenact.v1.Work/ReadTake"] = [](const auto& ch) {
+    grpc::ClientContext c;
+    Deadline(c);
+    v1::ReadTakeRequest q;
+    q.set_lease_id("no-such-lease");
+    auto reader = v1::Work::NewStub(ch)->ReadTake(&c, q);
+    v1::TakeChunk chunk;
+    while (reader->Read(&chunk)) {
+    }
+    return reader->Finish();
+  };
+  calls["/reenact.v1.Work/Heartbeat"] = [](const auto& ch) {
+    grpc::ClientContext c;
+    Deadline(c);
+    v1::HeartbeatRequest q;
+    q.set_lease_id("no-such-lease");
+    v1::HeartbeatResponse r;
+    return v1::Work::NewStub(ch)->Heartbeat(&c, q, &r);
+  };
+  calls["/reenact.v1.Work/Upload"] = [](const auto& ch) {
+    grpc::ClientContext c;
+    Deadline(c);
+    v1::UploadResponse r;
+    auto writer = v1::Work::NewStub(ch)->Upload(&c, &r);
+    v1::UploadChunk chunk;
+    chunk.set_lease_id("no-such-lease");
+    chunk.mutable_result()->set_file_bytes(1);
+    chunk.set_data("x");
+    writer->Write(chunk);
+    writer->WritesDone();
+    return writer->Finish();
+  };
+  calls["/reenact.v1.Work/Fail"] = [](const auto& ch) {
+    grpc::ClientContext c;
+    Deadline(c);
+    v1::FailRequest q;
+    q.set_lease_id("no-such-lease");
+    v1::FailResponse r;
+    return v1::Work::NewStub(ch)->Fail(&c, q, &r);
+  };
   calls["/reenact.v1.Jobs/ListMethods"] = [](const auto& ch) {
     grpc::ClientContext c;
     Deadline(c);
@@ -229,7 +281,7 @@ TEST(RpcAuth, EveryRpcIsInTheTableAndEveryRoleGetsExactlyItsAccess) {
   for (const auto& [method, access] : ServerMethodAccess()) {
     ASSERT_TRUE(calls.contains(method)) << method;
   }
-  for (const std::string role : {"viewer", "capture", "coach", "admin"}) {
+  for (const std::string role : {"viewer", "capture", "coach", "worker", "admin"}) {
     const auto channel = Channel(f.tokens.at(role));
     const uint32_t granted = rpc::RoleAccess(*rpc::ParseRole(role));
     for (const auto& [method, call] : calls) {

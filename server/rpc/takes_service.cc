@@ -10,6 +10,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "proto/grpc_status.h"
 #include "server/jobs/job_scheduler.h"
@@ -73,18 +74,10 @@ class DownloadStream final : public grpc::ServerWriteReactor<v1::TakeFileChunk> 
       return;
     }
     const int64_t n = std::min<int64_t>(chunk_bytes_, size_ - offset_);
-    std::string* data = chunk_.mutable_data();
-    data->resize(static_cast<size_t>(n));
-    int64_t done = 0;
-    while (done < n) {
-      const ssize_t got = ::pread(fd_, data->data() + done, n - done, offset_ + done);
-      if (got < 0 && errno == EINTR) continue;
-      if (got <= 0) {
-        Finish(ToGrpcStatus(absl::DataLossError(absl::StrCat(
-            "take ", take_id_, ": reading its file failed at byte ", offset_ + done))));
-        return;
-      }
-      done += got;
+    if (const absl::Status read = ReadAt(fd_, offset_, n, chunk_.mutable_data()); !read.ok()) {
+      Finish(
+          ToGrpcStatus(absl::DataLossError(absl::StrCat("take ", take_id_, ": ", read.message()))));
+      return;
     }
     if (context_.takes->FileGeneration(take_id_) != generation_) {
       Finish(ToGrpcStatus(absl::AbortedError(

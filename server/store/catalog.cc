@@ -73,6 +73,11 @@ CREATE INDEX jobs_by_state ON jobs (state);
     R"sql(
 ALTER TABLE takes ADD COLUMN owner TEXT NOT NULL DEFAULT '';
 )sql",
+    // Version 4: each job's attempts, where they ran and how they ended
+    // (a JSON list, AttemptsToJson).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN attempts_json TEXT NOT NULL DEFAULT '[]';
+)sql",
 };
 static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 
@@ -90,6 +95,34 @@ void OptionsFromJson(const std::string& text,
   if (!j.is_object()) return;
   for (const auto& [key, value] : j.items()) {
     (*out)[key] = value.is_string() ? value.get<std::string>() : value.dump();
+  }
+}
+
+std::string AttemptsToJson(const google::protobuf::RepeatedPtrField<v1::JobAttempt>& attempts) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const v1::JobAttempt& a : attempts) {
+    j.push_back({{"number", a.number()},
+                 {"worker", a.worker()},
+                 {"started_unix_ns", a.started_unix_ns()},
+                 {"ended_unix_ns", a.ended_unix_ns()},
+                 {"outcome", a.outcome()}});
+  }
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+// Leaves out what is not a list of objects (a row written by hand).
+void AttemptsFromJson(const std::string& text,
+                      google::protobuf::RepeatedPtrField<v1::JobAttempt>* out) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_array()) return;
+  for (const nlohmann::json& a : j) {
+    if (!a.is_object()) continue;
+    v1::JobAttempt* attempt = out->Add();
+    attempt->set_number(a.value("number", 0));
+    attempt->set_worker(a.value("worker", ""));
+    attempt->set_started_unix_ns(a.value("started_unix_ns", int64_t{0}));
+    attempt->set_ended_unix_ns(a.value("ended_unix_ns", int64_t{0}));
+    attempt->set_outcome(a.value("outcome", ""));
   }
 }
 
@@ -170,7 +203,8 @@ TakeRow RowFromStatement(const Statement& s) {
 
 constexpr const char* kJobColumns =
     "job_id, take_id, method, options_json, state, stage, fraction, frames_done, frames_total, "
-    "eta_s, submitted_unix_ns, started_unix_ns, finished_unix_ns, reenactment_id, error, attempts";
+    "eta_s, submitted_unix_ns, started_unix_ns, finished_unix_ns, reenactment_id, error, attempts, "
+    "attempts_json";
 
 v1::Job JobFromStatement(const Statement& s) {
   v1::Job job;
@@ -191,6 +225,7 @@ v1::Job JobFromStatement(const Statement& s) {
   job.set_reenactment_id(s.Text(13));
   job.set_error(s.Text(14));
   job.set_attempts(static_cast<int32_t>(s.Int(15)));
+  AttemptsFromJson(s.Text(16), job.mutable_attempt_history());
   return job;
 }
 
@@ -405,7 +440,7 @@ absl::Status Catalog::PutJob(const v1::Job& job) {
   const v1::JobProgress& p = job.progress();
   Statement s(db_, absl::StrCat("INSERT OR REPLACE INTO jobs (", kJobColumns,
                                 ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
-                                "?13, ?14, ?15, ?16)"));
+                                "?13, ?14, ?15, ?16, ?17)"));
   s.Bind(1, job.job_id())
       .Bind(2, job.take_id())
       .Bind(3, job.method())
@@ -421,7 +456,8 @@ absl::Status Catalog::PutJob(const v1::Job& job) {
       .Bind(13, job.finished_unix_ns())
       .Bind(14, job.reenactment_id())
       .Bind(15, job.error())
-      .Bind(16, int64_t{job.attempts()});
+      .Bind(16, int64_t{job.attempts()})
+      .Bind(17, AttemptsToJson(job.attempt_history()));
   s.Step();
   if (!s.ok()) return Error("storing job " + job.job_id());
   return absl::OkStatus();

@@ -15,7 +15,9 @@
 //            'cancelled'), stage, fraction, frames_done, frames_total, eta_s,
 //            submitted_unix_ns, started_unix_ns, finished_unix_ns,
 //            reenactment_id, error, attempts (version 2; no foreign key: a
-//            job's history outlives a deleted take)
+//            job's history outlives a deleted take), attempts_json (version
+//            4: a JSON list of {number, worker, started_unix_ns,
+//            ended_unix_ns, outcome})
 // Every commit is fsync'ed (synchronous=FULL); the store writes a recording
 // take's progress about once a second and every state change at once.
 #pragma once
@@ -56,7 +58,7 @@ struct TakeRow {
 
 class Catalog {
  public:
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
 
   // Opens (creating when missing) the catalog at `path` and brings its schema
   // to kSchemaVersion. Unavailable when the file cannot be opened or WAL mode

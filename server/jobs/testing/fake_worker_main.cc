@@ -5,7 +5,7 @@
 //   fake_steps     progress lines before the end (default 5)
 //   fake_step_ms   pause after each, milliseconds (default 20)
 //   fake_end       succeed (default): writes a small valid reenactment to
-//                  --out (common/io/reenactment_test_util.h) and exits 0;
+//                  --out (common/io/testing/small_reenactment.h) and exits 0;
 //                  fail: {"error":"fake failure"}, exit 1;
 //                  garbage: writes a file that is no reenactment, exit 0;
 //                  segv: raises SIGSEGV mid-way
@@ -30,7 +30,7 @@
 
 #include "common/base/flags.h"
 #include "common/io/reenactment_file.h"
-#include "common/io/reenactment_test_util.h"
+#include "common/io/testing/small_reenactment.h"
 
 namespace {
 

@@ -9,7 +9,7 @@
 
 #include "server/recon/carving/optical_flow.h"
 #include "server/recon/carving/sensor_frame.h"
-#include "server/recon/carving/test_scenes.h"
+#include "server/recon/carving/testing/analytic_scenes.h"
 
 namespace reenact::recon::carving {
 namespace {

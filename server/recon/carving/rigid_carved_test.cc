@@ -12,7 +12,7 @@
 #include "server/recon/body_parts.h"
 #include "server/recon/carving/carving_eval.h"
 #include "server/recon/methods.h"
-#include "server/recon/recon_test_util.h"
+#include "server/recon/testing/short_take.h"
 
 namespace reenact::recon {
 namespace {

@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "server/recon/carving/marching_cubes.h"
-#include "server/recon/carving/test_scenes.h"
+#include "server/recon/carving/testing/analytic_scenes.h"
 
 namespace reenact::recon::carving {
 namespace {

@@ -51,7 +51,7 @@ inline WrittenTake WriteTestTake(const std::string& path, int sensor_count, int 
   out.period_ns = 33'333'333;
   const int64_t start_ns = 5'000'000'000;
   out.info.set_name("test-take");
-  out.info.set_generator("take_test_util");
+  out.info.set_generator("testing/small_take");
   out.info.set_sensor_count(sensor_count);
   out.info.set_fps(30.0);
   out.info.set_start_stamp_ns(start_ns);

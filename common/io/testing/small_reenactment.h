@@ -124,7 +124,7 @@ inline ReenactmentData MakeTestReenactment(const TestReenactmentOptions& o = {})
   info.set_method("rigid-carved");
   (*info.mutable_options())["mu_mm"] = "20";
   info.set_created_unix_ns(1767268800000000000);
-  info.set_generator("reenactment_test_util");
+  info.set_generator("testing/small_reenactment");
   info.set_frame_count(o.frames);
   info.set_fps(30.0);
   (*info.mutable_figures())["registration_rms_mm"] = 3.5;

@@ -1,0 +1,419 @@
+// The Work service's side of the job scheduler (job_scheduler.h): leases of
+// queued jobs to workers that connect over the network, their heartbeats,
+// uploads and failures, and the expiry that queues a job again when its
+// worker stops answering.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "common/base/status_macros.h"
+#include "common/base/time.h"
+#include "common/log/log.h"
+#include "server/jobs/job_scheduler.h"
+#include "server/jobs/worker_protocol.h"
+
+namespace reenact::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+// The longest a Lease call waits for a job, seconds.
+constexpr double kMaxLeaseWaitS = 60.0;
+// Longest worker name kept.
+constexpr size_t kMaxWorkerNameChars = 128;
+
+std::string NewLeaseId(const std::string& job_id, int attempt) {
+  static std::mutex mu;
+  static std::mt19937_64 random{std::random_device{}()};
+  uint64_t salt = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    salt = random();
+  }
+  return absl::StrFormat("%s.%d.%016x", job_id, attempt, salt);
+}
+
+absl::Status NoLease(const std::string& lease_id) {
+  return absl::AbortedError(
+      absl::StrCat("lease ", lease_id.substr(0, 96),
+                   " is not held: it expired, its job was cancelled or ended, or the server "
+                   "restarted; drop the job"));
+}
+
+std::string WorkerName(const std::string& name) {
+  std::string kept = name.substr(0, kMaxWorkerNameChars);
+  for (char& c : kept) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  }
+  return kept.empty() ? "(unnamed)" : kept;
+}
+
+}  // namespace
+
+void JobScheduler::Lease(const v1::LeaseRequest& request, LeaseDone done) {
+  if (request.protocol() != v1::WORK_PROTOCOL_V1) {
+    done(absl::FailedPreconditionError(
+        absl::StrCat("this server speaks Work protocol 1; the worker asked for ",
+                     static_cast<int>(request.protocol()), ": run a worker of the same release")));
+    return;
+  }
+  if (!(request.wait_s() >= 0)) {
+    done(absl::InvalidArgumentError("wait_s must be >= 0"));
+    return;
+  }
+  std::set<std::string> methods;
+  for (const std::string& method : request.methods()) {
+    if (methods::FindMethod(options_.methods, method) == nullptr) {
+      done(methods::UnknownMethodError(options_.methods, method));
+      return;
+    }
+    methods.insert(method);
+  }
+  const std::string worker_name = WorkerName(request.worker_name());
+  std::optional<v1::WorkLease> lease;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_) {
+      done(absl::UnavailableError("the server is shutting down"));
+      return;
+    }
+    lease = LeaseQueuedLocked(methods, worker_name);
+    if (!lease.has_value() && request.wait_s() > 0) {
+      const double wait_s = std::min(request.wait_s(), kMaxLeaseWaitS);
+      lease_waiters_.push_back(
+          {std::move(methods), worker_name, SteadyNowNs() + SecondsToNs(wait_s), std::move(done)});
+      return;
+    }
+  }
+  v1::LeaseResponse response;
+  if (lease.has_value()) *response.mutable_lease() = std::move(*lease);
+  done(std::move(response));
+}
+
+std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std::string>& methods,
+                                                             const std::string& worker_name) {
+  auto runs = [&](const std::string& job_id) {
+    if (methods.empty()) return true;
+    const absl::StatusOr<v1::Job> job = jobs_->Get(job_id);
+    return job.ok() && methods.contains(job->method());
+  };
+  std::string job_id;
+  bool started = false;
+  // Without local workers, live jobs whose take ended go to leases too.
+  if (!options_.local_workers) {
+    if (std::optional<std::string> next = live_jobs_.NextHandoffLocked()) {
+      if (runs(*next)) {
+        job_id = *next;
+        started = StartHandoffLocked(job_id, worker_name);
+      } else {
+        live_jobs_.ReturnHandoffLocked(*next);
+      }
+    }
+  }
+  for (auto it = queue_.begin(); !started && it != queue_.end();) {
+    if (!runs(*it)) {
+      ++it;
+      continue;
+    }
+    job_id = *it;
+    it = queue_.erase(it);
+    started = StartQueuedLocked(job_id, worker_name);
+  }
+  if (!started) return std::nullopt;
+  Running& run = *running_.at(job_id);
+  const absl::StatusOr<v1::Job> job = jobs_->Get(job_id);
+  const absl::StatusOr<std::string> take_path =
+      job.ok() ? takes_->TakeFileForReading(job->take_id()) : job.status();
+  std::error_code error;
+  const int64_t take_bytes =
+      take_path.ok() ? static_cast<int64_t>(fs::file_size(*take_path, error)) : -1;
+  if (!job.ok() || !take_path.ok() || error) {
+    // The take went (deleted under a queued job cannot happen: Delete
+    // refuses; a file that cannot be read can): the job fails here.
+    const std::string why =
+        absl::StrCat("the take cannot be read: ",
+                     !take_path.ok() ? std::string(take_path.status().message()) : error.message());
+    running_.erase(job_id);
+    finisher_->Schedule([this, job_id, why] { EndJob(job_id, v1::JOB_STATE_FAILED, why); });
+    return std::nullopt;
+  }
+  run.lease_id = NewLeaseId(job_id, job->attempts());
+  run.worker_name = worker_name;
+  run.reenactment_id = reenactments_->NewId();
+  run.out_path = reenactments_->PathFor(run.reenactment_id);
+  run.expires_ns = SteadyNowNs() + SecondsToNs(options_.lease_ttl_s);
+  run.eta.emplace(options_.eta_window_s);
+  leases_[run.lease_id] = job_id;
+
+  v1::WorkLease lease;
+  lease.set_lease_id(run.lease_id);
+  *lease.mutable_job() = *job;
+  lease.mutable_job()->clear_options();
+  for (const auto& [key, value] :
+       WorkerOptions(methods::FindMethod(options_.methods, job->method()), job->options())) {
+    (*lease.mutable_job()->mutable_options())[key] = value;
+  }
+  lease.set_reenactment_id(run.reenactment_id);
+  lease.set_take_bytes(take_bytes);
+  lease.set_ttl_s(options_.lease_ttl_s);
+  // Often enough that a cancel reaches the worker within two seconds.
+  lease.set_heartbeat_period_s(std::min(2.0, options_.lease_ttl_s / 6));
+  log::Info("job_leased",
+            {{"job_id", job_id},
+             {"take_id", job->take_id()},
+             {"method", job->method()},
+             {"attempt", job->attempts()},
+             {"worker", worker_name},
+             {"reenactment_id", run.reenactment_id}},
+            absl::StrCat("job ", job_id, " leased to worker ", worker_name));
+  finisher_->Schedule([this, job = *job] { Publish(job, {}, /*last=*/false); });
+  return lease;
+}
+
+void JobScheduler::ServeLeaseWaiters() {
+  std::vector<std::pair<LeaseDone, v1::LeaseResponse>> answers;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const int64_t now_ns = SteadyNowNs();
+    for (auto it = lease_waiters_.begin(); it != lease_waiters_.end();) {
+      std::optional<v1::WorkLease> lease = queue_.empty() && !live_jobs_.HasHandoffLocked()
+                                               ? std::nullopt
+                                               : LeaseQueuedLocked(it->methods, it->worker_name);
+      if (!lease.has_value() && now_ns < it->deadline_ns) {
+        ++it;
+        continue;
+      }
+      v1::LeaseResponse response;
+      if (lease.has_value()) *response.mutable_lease() = std::move(*lease);
+      answers.emplace_back(std::move(it->done), std::move(response));
+      it = lease_waiters_.erase(it);
+    }
+  }
+  for (auto& [done, response] : answers) done(std::move(response));
+}
+
+void JobScheduler::EndLeaseWaiters() {
+  std::deque<LeaseWaiter> waiters;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    waiters.swap(lease_waiters_);
+  }
+  for (LeaseWaiter& waiter : waiters) {
+    waiter.done(absl::UnavailableError("the server is shutting down"));
+  }
+}
+
+absl::StatusOr<JobScheduler::Running*> JobScheduler::HeldLeaseLocked(
+    const std::string& lease_id) const {
+  const auto lease = leases_.find(lease_id);
+  if (lease == leases_.end()) return NoLease(lease_id);
+  const auto run = running_.find(lease->second);
+  if (run == running_.end() || SteadyNowNs() > run->second->expires_ns) return NoLease(lease_id);
+  return run->second.get();
+}
+
+std::unique_ptr<JobScheduler::Running> JobScheduler::ReleaseLocked(const std::string& lease_id) {
+  const auto lease = leases_.find(lease_id);
+  if (lease == leases_.end()) return nullptr;
+  const std::string job_id = lease->second;
+  leases_.erase(lease);
+  const auto run = running_.find(job_id);
+  if (run == running_.end()) return nullptr;
+  std::unique_ptr<Running> owned = std::move(run->second);
+  running_.erase(run);
+  if (owned->uploading) {
+    std::error_code error;
+    fs::remove(owned->upload_path, error);
+  }
+  return owned;
+}
+
+void JobScheduler::ExpireLeases() {
+  std::vector<std::unique_ptr<Running>> expired;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const int64_t now_ns = SteadyNowNs();
+    std::vector<std::string> ids;
+    for (const auto& [lease_id, job_id] : leases_) {
+      const auto run = running_.find(job_id);
+      if (run != running_.end() && now_ns > run->second->expires_ns) ids.push_back(lease_id);
+    }
+    for (const std::string& id : ids) expired.push_back(ReleaseLocked(id));
+  }
+  for (const std::unique_ptr<Running>& run : expired) {
+    if (run == nullptr) continue;
+    log::Warn(
+        "lease_expired",
+        {{"job_id", run->job_id}, {"worker", run->worker_name}, {"ttl_s", options_.lease_ttl_s}},
+        absl::StrCat("worker ", run->worker_name, " stopped answering for job ", run->job_id,
+                     " (no heartbeat in ", options_.lease_ttl_s, " s)"));
+    Requeue(*run, "lease expired", absl::StrCat("no heartbeat in ", options_.lease_ttl_s, " s"));
+  }
+}
+
+void JobScheduler::Requeue(const Running& run, const std::string& outcome, const std::string& why) {
+  const absl::StatusOr<v1::Job> job = jobs_->Get(run.job_id);
+  if (!job.ok()) return;
+  if (job->attempts() >= options_.store.max_attempts) {
+    EndJob(run.job_id, v1::JOB_STATE_FAILED,
+           absl::StrCat("its workers stopped ", job->attempts(),
+                        " times (the last: ", run.worker_name, ", ", why, ")"));
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  const absl::StatusOr<v1::Job> queued = jobs_->Mutate(run.job_id, [&](v1::Job& j) {
+    if (j.state() != v1::JOB_STATE_RUNNING) return;
+    EndAttempt(j, outcome);
+    j.set_state(v1::JOB_STATE_QUEUED);
+    j.mutable_progress()->set_stage("queued again");
+    j.mutable_progress()->set_eta_s(-1);
+  });
+  if (queued.ok() && queued->state() == v1::JOB_STATE_QUEUED) {
+    // First in line: it has waited already.
+    queue_.push_front(run.job_id);
+    wake_pending_ = true;
+    wake_.notify_all();
+    finisher_->Schedule([this, job = *queued] { Publish(job, {}, /*last=*/false); });
+  }
+}
+
+absl::StatusOr<std::string> JobScheduler::LeasedTakePath(const std::string& lease_id) const {
+  std::string take_id;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    ASSIGN_OR_RETURN(const Running* run, HeldLeaseLocked(lease_id));
+    ASSIGN_OR_RETURN(const v1::Job job, jobs_->Get(run->job_id));
+    take_id = job.take_id();
+  }
+  return takes_->TakeFileForReading(take_id);
+}
+
+absl::StatusOr<v1::HeartbeatResponse> JobScheduler::Heartbeat(const v1::HeartbeatRequest& request) {
+  v1::JobProgress progress = request.progress();
+  std::string job_id;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    ASSIGN_OR_RETURN(Running * run, HeldLeaseLocked(request.lease_id()));
+    const int64_t now_ns = SteadyNowNs();
+    run->expires_ns = now_ns + SecondsToNs(options_.lease_ttl_s);
+    progress.set_fraction(
+        std::clamp(std::isfinite(progress.fraction()) ? progress.fraction() : 0.0, 0.0, 1.0));
+    progress.set_frames_done(std::max<int64_t>(progress.frames_done(), 0));
+    progress.set_frames_total(std::max<int64_t>(progress.frames_total(), 0));
+    if (progress.stage().size() > 64) progress.mutable_stage()->resize(64);
+    progress.set_eta_s(run->eta->Update(now_ns, progress.fraction()));
+    job_id = run->job_id;
+  }
+  std::vector<std::string> logs;
+  for (const std::string& line : request.log_lines()) {
+    logs.push_back(line.substr(0, kMaxWorkerLogLineChars));
+  }
+  if (absl::StatusOr<v1::Job> job = jobs_->UpdateProgress(job_id, progress); job.ok()) {
+    Publish(*job, std::move(logs), /*last=*/false);
+  }
+  v1::HeartbeatResponse response;
+  response.set_ttl_s(options_.lease_ttl_s);
+  return response;
+}
+
+absl::StatusOr<std::string> JobScheduler::BeginUpload(const std::string& lease_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  ASSIGN_OR_RETURN(Running * run, HeldLeaseLocked(lease_id));
+  if (run->uploading) {
+    return absl::AbortedError(
+        absl::StrCat("lease ", lease_id, " is uploading already; one upload per attempt"));
+  }
+  run->uploading = true;
+  run->upload_path = run->out_path + ".upload";
+  run->expires_ns = SteadyNowNs() + SecondsToNs(options_.lease_ttl_s);
+  return run->upload_path;
+}
+
+absl::Status JobScheduler::ContinueUpload(const std::string& lease_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  ASSIGN_OR_RETURN(Running * run, HeldLeaseLocked(lease_id));
+  run->expires_ns = SteadyNowNs() + SecondsToNs(options_.lease_ttl_s);
+  return absl::OkStatus();
+}
+
+void JobScheduler::AbortUpload(const std::string& lease_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const absl::StatusOr<Running*> run = HeldLeaseLocked(lease_id);
+  if (!run.ok() || !(*run)->uploading) return;
+  std::error_code error;
+  fs::remove((*run)->upload_path, error);
+  (*run)->uploading = false;
+}
+
+absl::StatusOr<v1::Job> JobScheduler::CommitUpload(const std::string& lease_id) {
+  std::unique_ptr<Running> run;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const absl::StatusOr<Running*> held = HeldLeaseLocked(lease_id);
+    if (!held.ok()) {
+      // The file of an attempt that lost its lease is not stored.
+      const auto lease = leases_.find(lease_id);
+      if (lease != leases_.end()) (void)ReleaseLocked(lease_id);
+      return held.status();
+    }
+    if (!(*held)->uploading) return absl::AbortedError("no upload was begun for this lease");
+    // Ends the lease first: nothing can queue the job again from here.
+    leases_.erase(lease_id);
+    run = std::move(running_.at((*held)->job_id));
+    running_.erase(run->job_id);
+  }
+  std::error_code error;
+  fs::rename(run->upload_path, run->out_path, error);
+  if (error) {
+    fs::remove(run->upload_path, error);
+    EndJob(run->job_id, v1::JOB_STATE_FAILED,
+           absl::StrCat("the uploaded reenactment could not be stored: ", error.message()));
+    return absl::UnavailableError("the server could not store the upload (its log says why)");
+  }
+  Succeed(run->job_id, run->reenactment_id);
+  ASSIGN_OR_RETURN(v1::Job job, jobs_->Get(run->job_id));
+  if (job.state() != v1::JOB_STATE_SUCCEEDED) {
+    return absl::InvalidArgumentError(job.error());
+  }
+  log::Info("upload_committed",
+            {{"job_id", job.job_id()},
+             {"worker", run->worker_name},
+             {"reenactment_id", run->reenactment_id}},
+            absl::StrCat("job ", job.job_id(), ": the reenactment from worker ", run->worker_name,
+                         " is stored"));
+  return job;
+}
+
+absl::StatusOr<v1::Job> JobScheduler::FailLease(const v1::FailRequest& request) {
+  std::unique_ptr<Running> run;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    RETURN_IF_ERROR(HeldLeaseLocked(request.lease_id()).status());
+    run = ReleaseLocked(request.lease_id());
+  }
+  std::vector<std::string> logs;
+  for (const std::string& line : request.log_lines()) {
+    logs.push_back(line.substr(0, kMaxWorkerLogLineChars));
+  }
+  std::string error = request.error().substr(0, kMaxWorkerLogLineChars);
+  if (error.empty()) error = "the worker failed without saying why";
+  if (request.give_back()) {
+    if (auto job = jobs_->Get(run->job_id); job.ok() && !logs.empty()) {
+      Publish(*job, std::move(logs), /*last=*/false);
+    }
+    log::Info(
+        "lease_given_back", {{"job_id", run->job_id}, {"worker", run->worker_name}, {"why", error}},
+        absl::StrCat("worker ", run->worker_name, " gave job ", run->job_id, " back: ", error));
+    Requeue(*run, "given back", absl::StrCat("gave it back: ", error));
+    return jobs_->Get(run->job_id);
+  }
+  EndJob(run->job_id, run->cancel_requested ? v1::JOB_STATE_CANCELLED : v1::JOB_STATE_FAILED,
+         absl::StrCat(error, " (worker ", run->worker_name, ")"), "", std::move(logs));
+  return jobs_->Get(run->job_id);
+}
+
+}  // namespace reenact::server

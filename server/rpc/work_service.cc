@@ -1,0 +1,253 @@
+#include "server/rpc/work_service.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <memory>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
+#include "proto/grpc_status.h"
+#include "server/jobs/job_scheduler.h"
+#include "server/rpc/rpc_auth.h"
+
+namespace reenact::server {
+namespace {
+
+// Sends the take of a lease chunk by chunk.
+class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
+ public:
+  TakeStream(ServerContext& context, const v1::ReadTakeRequest& request) {
+    const absl::Status opened = Open(context, request.lease_id());
+    if (!opened.ok()) {
+      Finish(ToGrpcStatus(opened));
+      return;
+    }
+    Next();
+  }
+  ~TakeStream() override {
+    if (fd_ >= 0) ::close(fd_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the take stream was cancelled"));
+      return;
+    }
+    Next();
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  absl::Status Open(ServerContext& context, const std::string& lease_id) {
+    ASSIGN_OR_RETURN(const std::string path, context.jobs->LeasedTakePath(lease_id));
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    struct stat st {};
+    if (fd_ < 0 || ::fstat(fd_, &st) != 0) {
+      return absl::DataLossError(
+          absl::StrCat("the take of lease ", lease_id, " cannot be read: ", std::strerror(errno)));
+    }
+    size_ = static_cast<int64_t>(st.st_size);
+    return absl::OkStatus();
+  }
+
+  void Next() {
+    if (offset_ >= size_) {
+      Finish(grpc::Status::OK);
+      return;
+    }
+    const int64_t n = std::min<int64_t>(kWorkTakeChunkBytes, size_ - offset_);
+    if (const absl::Status read = ReadAt(fd_, offset_, n, chunk_.mutable_data()); !read.ok()) {
+      Finish(ToGrpcStatus(absl::DataLossError(absl::StrCat("the take: ", read.message()))));
+      return;
+    }
+    chunk_.set_offset(offset_);
+    offset_ += n;
+    StartWrite(&chunk_);
+  }
+
+  int fd_ = -1;
+  int64_t size_ = 0;
+  int64_t offset_ = 0;
+  v1::TakeChunk chunk_;
+};
+
+// Receives a reenactment into the path the scheduler gives and commits it.
+class UploadStream final : public grpc::ServerReadReactor<v1::UploadChunk> {
+ public:
+  UploadStream(ServerContext& context, v1::UploadResponse* response)
+      : context_(context), response_(response) {
+    StartRead(&chunk_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      End();
+      return;
+    }
+    const absl::Status taken = Take();
+    if (!taken.ok()) {
+      Fail(taken);
+      return;
+    }
+    chunk_.Clear();
+    StartRead(&chunk_);
+  }
+
+  void OnDone() override {
+    if (fd_ >= 0) ::close(fd_);
+    // A stream that broke gives its claim back; the worker may try again.
+    if (claimed_ && !finished_) context_.jobs->AbortUpload(lease_id_);
+    delete this;
+  }
+
+ private:
+  absl::Status Take() {
+    if (!claimed_) {
+      lease_id_ = chunk_.lease_id();
+      declared_ = chunk_.result().file_bytes();
+      if (declared_ <= 0 || declared_ > kMaxUploadBytes) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("result.file_bytes ", declared_, " is outside 1..", kMaxUploadBytes));
+      }
+      ASSIGN_OR_RETURN(path_, context_.jobs->BeginUpload(lease_id_));
+      claimed_ = true;
+      fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+      if (fd_ < 0) {
+        return absl::UnavailableError(
+            absl::StrCat("the server cannot write the upload: ", std::strerror(errno)));
+      }
+    } else {
+      if (!chunk_.lease_id().empty() && chunk_.lease_id() != lease_id_) {
+        return absl::InvalidArgumentError("an upload carries one lease");
+      }
+      RETURN_IF_ERROR(context_.jobs->ContinueUpload(lease_id_));
+    }
+    const std::string& data = chunk_.data();
+    if (written_ + static_cast<int64_t>(data.size()) > declared_) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the upload is longer than its file_bytes ", declared_));
+    }
+    size_t done = 0;
+    while (done < data.size()) {
+      const ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        return errno == ENOSPC ? absl::ResourceExhaustedError(
+                                     "the server's disk is full; the upload was not stored")
+                               : absl::UnavailableError(absl::StrCat(
+                                     "the server cannot write the upload: ", std::strerror(errno)));
+      }
+      done += static_cast<size_t>(n);
+    }
+    written_ += static_cast<int64_t>(data.size());
+    return absl::OkStatus();
+  }
+
+  void End() {
+    if (!claimed_) {
+      Fail(absl::InvalidArgumentError("an empty upload: the first message names the lease"));
+      return;
+    }
+    if (written_ != declared_) {
+      Fail(absl::InvalidArgumentError(
+          absl::StrCat("the upload ended after ", written_, " of ", declared_, " bytes")));
+      return;
+    }
+    // Syncing and reading the file back block: off the callback thread.
+    context_.blocking->Schedule([this] {
+      const bool synced = ::fsync(fd_) == 0;
+      ::close(fd_);
+      fd_ = -1;
+      if (!synced) {
+        Fail(absl::UnavailableError(
+            absl::StrCat("the server cannot write the upload: ", std::strerror(errno))));
+        return;
+      }
+      const absl::StatusOr<v1::Job> job = context_.jobs->CommitUpload(lease_id_);
+      finished_ = true;
+      if (job.ok()) *response_->mutable_job() = *job;
+      Finish(ToGrpcStatus(job.status()));
+    });
+  }
+
+  void Fail(const absl::Status& status) {
+    if (claimed_) context_.jobs->AbortUpload(lease_id_);
+    finished_ = true;
+    Finish(ToGrpcStatus(status));
+  }
+
+  ServerContext& context_;
+  v1::UploadResponse* const response_;
+  v1::UploadChunk chunk_;
+  std::string lease_id_;
+  std::string path_;
+  int fd_ = -1;
+  bool claimed_ = false;
+  bool finished_ = false;
+  int64_t declared_ = 0;
+  int64_t written_ = 0;
+};
+
+}  // namespace
+
+grpc::ServerUnaryReactor* WorkService::Lease(grpc::CallbackServerContext* rpc,
+                                             const v1::LeaseRequest* request,
+                                             v1::LeaseResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Work/Lease")) return refused;
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  context_.jobs->Lease(*request, [reactor, response](absl::StatusOr<v1::LeaseResponse> leased) {
+    if (leased.ok()) *response = std::move(*leased);
+    reactor->Finish(ToGrpcStatus(leased.status()));
+  });
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::TakeChunk>* WorkService::ReadTake(grpc::CallbackServerContext* rpc,
+                                                               const v1::ReadTakeRequest* request) {
+  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Work/ReadTake"); !who.ok()) {
+    return new rpc::RefusedWriter<v1::TakeChunk>(ToGrpcStatus(who.status()));
+  }
+  return new TakeStream(context_, *request);
+}
+
+grpc::ServerUnaryReactor* WorkService::Heartbeat(grpc::CallbackServerContext* rpc,
+                                                 const v1::HeartbeatRequest* request,
+                                                 v1::HeartbeatResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Work/Heartbeat")) {
+    return refused;
+  }
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  absl::StatusOr<v1::HeartbeatResponse> beat = context_.jobs->Heartbeat(*request);
+  if (beat.ok()) *response = std::move(*beat);
+  reactor->Finish(ToGrpcStatus(beat.status()));
+  return reactor;
+}
+
+grpc::ServerReadReactor<v1::UploadChunk>* WorkService::Upload(grpc::CallbackServerContext* rpc,
+                                                              v1::UploadResponse* response) {
+  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Work/Upload"); !who.ok()) {
+    return new rpc::RefusedReader<v1::UploadChunk>(ToGrpcStatus(who.status()));
+  }
+  return new UploadStream(context_, response);
+}
+
+grpc::ServerUnaryReactor* WorkService::Fail(grpc::CallbackServerContext* rpc,
+                                            const v1::FailRequest* request,
+                                            v1::FailResponse* response) {
+  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Work/Fail")) return refused;
+  grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  context_.blocking->Schedule([this, reactor, request, response] {
+    const absl::StatusOr<v1::Job> job = context_.jobs->FailLease(*request);
+    if (job.ok()) *response->mutable_job() = *job;
+    reactor->Finish(ToGrpcStatus(job.status()));
+  });
+  return reactor;
+}
+
+}  // namespace reenact::server

@@ -1,0 +1,374 @@
+// The Work service over loopback: an in-process server that starts no
+// workers of its own (--workers none), real reenact-worker processes that
+// lease its jobs from another working folder (each running the fake worker,
+// server/jobs/testing/fake_worker_main.cc, as its job program), and raw
+// calls that play a worker gone wrong.
+#include "server/rpc/work_service.h"
+
+#include <signal.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/base/subprocess.h"
+#include "common/base/time.h"
+#include "common/io/reenactment_file.h"
+#include "common/io/testing/small_reenactment.h"
+#include "common/testing/test_data.h"
+#include "reenact/v1/jobs_service.grpc.pb.h"
+#include "reenact/v1/reenactments_service.grpc.pb.h"
+#include "reenact/v1/work_service.grpc.pb.h"
+#include "server/jobs/testing/fake_worker_methods.h"
+#include "server/testing/test_server.h"
+#include "server/testing/test_takes.h"
+
+namespace reenact::server {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::IngestClient;
+using testing::MakeOpenTake;
+using testing::TestServer;
+
+constexpr double kWaitS = 20.0;
+
+// The bytes of a small valid reenactment file with the id `id`.
+std::string SmallReenactmentBytes(const std::string& dir, const std::string& id) {
+  const std::string path = dir + "/small.reen";
+  reenact::testing::TestReenactmentOptions options;
+  options.id = id;
+  EXPECT_TRUE(WriteReenactmentFile(reenact::testing::MakeTestReenactment(options), path).ok());
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+ServerOptions NetworkOnly(double lease_ttl_s = 30.0) {
+  ServerOptions options;
+  options.jobs.methods = FakeWorkerMethods();
+  options.jobs.local_workers = false;
+  options.jobs.concurrency = 1;
+  options.jobs.poll_period_s = 0.02;
+  options.jobs.lease_ttl_s = lease_ttl_s;
+  return options;
+}
+
+class Work : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = reenact::testing::MakeTempDir("work_service"); }
+  void TearDown() override {
+    for (auto& worker : workers_) {
+      (void)worker->Signal(SIGKILL);
+      (void)worker->Wait(5);
+    }
+    t_.reset();
+    std::error_code error;
+    fs::remove_all(dir_, error);
+  }
+
+  void StartServer(ServerOptions options) {
+    t_ = TestServer::Start(dir_ + "/data", std::move(options));
+    ASSERT_NE(t_, nullptr);
+    jobs_ = v1::Jobs::NewStub(t_->channel);
+    work_ = v1::Work::NewStub(t_->channel);
+    IngestClient client(*t_->ingest);
+    client.Open(MakeOpenTake("take", "daemon-a", 1));
+    client.SendSets(1, 4, 1);
+    client.Close(4);
+    ASSERT_TRUE(client.Finish().ok());
+  }
+
+  v1::Job Submit(const std::map<std::string, std::string>& options) {
+    grpc::ClientContext context;
+    v1::SubmitJobRequest request;
+    request.set_take_id("take");
+    request.set_method("rigid-carved");
+    for (const auto& [k, v] : options) (*request.mutable_options())[k] = v;
+    v1::Job job;
+    const grpc::Status status = jobs_->Submit(&context, request, &job);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return job;
+  }
+
+  v1::Job Get(const std::string& job_id) {
+    grpc::ClientContext context;
+    v1::GetJobRequest request;
+    request.set_job_id(job_id);
+    v1::Job job;
+    EXPECT_TRUE(jobs_->Get(&context, request, &job).ok());
+    return job;
+  }
+
+  // Polls the job until `done` holds or kWaitS passes.
+  v1::Job WaitFor(const std::string& job_id, const std::function<bool(const v1::Job&)>& done) {
+    const int64_t until = SteadyNowNs() + SecondsToNs(kWaitS);
+    v1::Job job = Get(job_id);
+    while (!done(job) && SteadyNowNs() < until) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      job = Get(job_id);
+    }
+    return job;
+  }
+
+  // A reenact-worker process against the test server, in a working folder
+  // of its own, with its own scratch folder.
+  Subprocess* StartWorker(const std::string& name, std::vector<std::string> extra = {}) {
+    const std::string home = dir_ + "/" + name;
+    fs::create_directories(home + "/scratch");
+    std::vector<std::string> argv = {REENACT_WORKER_BINARY,
+                                     "--server",
+                                     t_->server->address(),
+                                     "--scratch",
+                                     home + "/scratch",
+                                     "--name",
+                                     name};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    SubprocessOptions options;
+    options.working_dir = home;
+    options.stdout_path = home + "/worker.log";
+    options.stderr_path = home + "/worker.log";
+    options.env["REENACT_WORKER_JOB_PROGRAM"] = REENACT_FAKE_WORKER;
+    auto worker = Subprocess::Start(argv, options);
+    EXPECT_TRUE(worker.ok()) << worker.status();
+    if (!worker.ok()) return nullptr;
+    workers_.push_back(std::move(*worker));
+    return workers_.back().get();
+  }
+
+  std::string WorkerLog(const std::string& name) {
+    std::ifstream in(dir_ + "/" + name + "/worker.log");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+
+  int StoredReenactments() {
+    grpc::ClientContext context;
+    v1::ListReenactmentsRequest request;
+    v1::ListReenactmentsResponse response;
+    EXPECT_TRUE(v1::Reenactments::NewStub(t_->channel)->List(&context, request, &response).ok());
+    return response.reenactments_size();
+  }
+
+  v1::LeaseResponse Lease(double wait_s, grpc::Status* status,
+                          v1::WorkProtocol protocol = v1::WORK_PROTOCOL_V1) {
+    grpc::ClientContext context;
+    v1::LeaseRequest request;
+    request.set_protocol(protocol);
+    request.set_worker_name("raw");
+    request.set_wait_s(wait_s);
+    v1::LeaseResponse response;
+    *status = work_->Lease(&context, request, &response);
+    return response;
+  }
+
+  grpc::Status Upload(const std::string& lease_id, int64_t declared, const std::string& data,
+                      v1::UploadResponse* response) {
+    grpc::ClientContext context;
+    auto writer = work_->Upload(&context, response);
+    v1::UploadChunk chunk;
+    chunk.set_lease_id(lease_id);
+    chunk.mutable_result()->set_file_bytes(declared);
+    chunk.set_data(data);
+    writer->Write(chunk);
+    writer->WritesDone();
+    return writer->Finish();
+  }
+
+  std::string dir_;
+  std::unique_ptr<TestServer> t_;
+  std::unique_ptr<v1::Jobs::Stub> jobs_;
+  std::unique_ptr<v1::Work::Stub> work_;
+  std::vector<std::unique_ptr<Subprocess>> workers_;
+};
+
+TEST_F(Work, AWorkerElsewhereRunsAJobAndCleansItsScratch) {
+  StartServer(NetworkOnly());
+  const v1::Job job = Submit({{"fake_steps", "5"}});
+  Subprocess* worker = StartWorker("w1", {"--once", "--wait", "10"});
+  ASSERT_NE(worker, nullptr);
+  const absl::StatusOr<ExitInfo> exit = worker->Wait(kWaitS);
+  ASSERT_TRUE(exit.ok()) << WorkerLog("w1");
+  EXPECT_TRUE(exit->exited && exit->exit_code == 0) << exit->ToString() << WorkerLog("w1");
+  const v1::Job done = Get(job.job_id());
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.error();
+  EXPECT_EQ(done.attempts(), 1);
+  EXPECT_EQ(StoredReenactments(), 1);
+  EXPECT_TRUE(fs::is_empty(dir_ + "/w1/scratch")) << "the job's scratch folder is left";
+}
+
+TEST_F(Work, AKilledWorkerLosesItsLeaseAndASecondWorkerCompletesTheJob) {
+  StartServer(NetworkOnly(/*lease_ttl_s=*/1.0));
+  const v1::Job job = Submit({{"fake_steps", "100"}, {"fake_step_ms", "40"}});
+  Subprocess* first = StartWorker("first", {"--once", "--wait", "10"});
+  ASSERT_NE(first, nullptr);
+  const v1::Job running = WaitFor(job.job_id(), [](const v1::Job& j) {
+    return j.state() == v1::JOB_STATE_RUNNING && j.progress().fraction() > 0.02;
+  });
+  ASSERT_EQ(running.state(), v1::JOB_STATE_RUNNING) << WorkerLog("first");
+  ASSERT_TRUE(first->Signal(SIGKILL).ok());
+  (void)first->Wait(5);
+  const int64_t killed_ns = SteadyNowNs();
+  const v1::Job queued =
+      WaitFor(job.job_id(), [](const v1::Job& j) { return j.state() == v1::JOB_STATE_QUEUED; });
+  EXPECT_EQ(queued.state(), v1::JOB_STATE_QUEUED);
+  // Queued again once the lease ran out: after about the 1 s TTL.
+  EXPECT_LT(NsToSeconds(SteadyNowNs() - killed_ns), 3.0);
+
+  Subprocess* second = StartWorker("second", {"--once", "--wait", "10"});
+  ASSERT_NE(second, nullptr);
+  const v1::Job done = WaitFor(job.job_id(), [](const v1::Job& j) {
+    return j.state() == v1::JOB_STATE_SUCCEEDED || j.state() == v1::JOB_STATE_FAILED;
+  });
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.error() << WorkerLog("second");
+  EXPECT_EQ(done.attempts(), 2);
+  EXPECT_EQ(StoredReenactments(), 1);
+  // Where each attempt ran and how it ended.
+  ASSERT_EQ(done.attempt_history_size(), 2);
+  EXPECT_EQ(done.attempt_history(0).worker(), "first");
+  EXPECT_EQ(done.attempt_history(0).outcome(), "lease expired");
+  EXPECT_EQ(done.attempt_history(1).number(), 2);
+  EXPECT_EQ(done.attempt_history(1).worker(), "second");
+  EXPECT_EQ(done.attempt_history(1).outcome(), "succeeded");
+  EXPECT_GE(done.attempt_history(1).started_unix_ns(), done.attempt_history(0).ended_unix_ns());
+}
+
+TEST_F(Work, AnExpiredAttemptsUploadIsRefusedAndAnAttemptCommitsOnce) {
+  StartServer(NetworkOnly(/*lease_ttl_s=*/0.5));
+  const v1::Job job = Submit({});
+  grpc::Status status;
+  const v1::LeaseResponse first = Lease(5, &status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_TRUE(first.has_lease());
+  EXPECT_EQ(first.lease().job().job_id(), job.job_id());
+  EXPECT_EQ(first.lease().ttl_s(), 0.5);
+  // No heartbeat: the lease ends and the job is queued again.
+  WaitFor(job.job_id(), [](const v1::Job& j) { return j.state() == v1::JOB_STATE_QUEUED; });
+  const std::string stale = SmallReenactmentBytes(dir_, first.lease().reenactment_id());
+  v1::UploadResponse response;
+  const grpc::Status late =
+      Upload(first.lease().lease_id(), static_cast<int64_t>(stale.size()), stale, &response);
+  EXPECT_EQ(late.error_code(), grpc::StatusCode::ABORTED) << late.error_message();
+  EXPECT_EQ(StoredReenactments(), 0);
+
+  // The second attempt beats while it works, then uploads once.
+  const v1::LeaseResponse second = Lease(5, &status);
+  ASSERT_TRUE(second.has_lease());
+  const std::string file = SmallReenactmentBytes(dir_, second.lease().reenactment_id());
+  EXPECT_EQ(second.lease().job().attempts(), 2);
+  {
+    grpc::ClientContext context;
+    v1::HeartbeatRequest beat;
+    beat.set_lease_id(second.lease().lease_id());
+    beat.mutable_progress()->set_stage("fuse");
+    beat.mutable_progress()->set_fraction(0.5);
+    beat.add_log_lines("halfway");
+    v1::HeartbeatResponse answer;
+    ASSERT_TRUE(work_->Heartbeat(&context, beat, &answer).ok());
+    EXPECT_EQ(Get(job.job_id()).progress().stage(), "fuse");
+  }
+  const grpc::Status stored =
+      Upload(second.lease().lease_id(), static_cast<int64_t>(file.size()), file, &response);
+  ASSERT_TRUE(stored.ok()) << stored.error_message();
+  EXPECT_EQ(response.job().state(), v1::JOB_STATE_SUCCEEDED);
+  const grpc::Status again =
+      Upload(second.lease().lease_id(), static_cast<int64_t>(file.size()), file, &response);
+  EXPECT_EQ(again.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_EQ(StoredReenactments(), 1);
+}
+
+TEST_F(Work, BadCallsGetClearStatusesAndStoreNothing) {
+  StartServer(NetworkOnly());
+  const v1::Job job = Submit({});
+  grpc::Status status;
+  Lease(0, &status, v1::WORK_PROTOCOL_UNSPECIFIED);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  {
+    grpc::ClientContext context;
+    v1::LeaseRequest request;
+    request.set_protocol(v1::WORK_PROTOCOL_V1);
+    request.add_methods("no-such-method");
+    v1::LeaseResponse response;
+    EXPECT_EQ(work_->Lease(&context, request, &response).error_code(),
+              grpc::StatusCode::INVALID_ARGUMENT);
+  }
+  const v1::LeaseResponse lease = Lease(5, &status);
+  ASSERT_TRUE(lease.has_lease());
+  const std::string& id = lease.lease().lease_id();
+  v1::UploadResponse response;
+  // A hostile size: refused before anything is written.
+  EXPECT_EQ(Upload(id, int64_t{1} << 60, "x", &response).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  // More bytes than declared, fewer than declared, no valid reenactment.
+  EXPECT_EQ(Upload(id, 2, "xyz", &response).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(Upload(id, 10, "xyz", &response).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(Get(job.job_id()).state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(Upload(id, 3, "xyz", &response).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(Get(job.job_id()).state(), v1::JOB_STATE_FAILED);
+  EXPECT_EQ(StoredReenactments(), 0);
+  // Unknown leases.
+  grpc::ClientContext context;
+  v1::HeartbeatRequest beat;
+  beat.set_lease_id("no-such-lease");
+  v1::HeartbeatResponse answer;
+  EXPECT_EQ(work_->Heartbeat(&context, beat, &answer).error_code(), grpc::StatusCode::ABORTED);
+  // No leftovers beside the reenactments.
+  for (const auto& entry : fs::directory_iterator(dir_ + "/data/reenactments")) {
+    EXPECT_EQ(entry.path().extension(), ".reen") << entry.path();
+  }
+}
+
+TEST_F(Work, ACancelledJobStopsItsWorkersJob) {
+  StartServer(NetworkOnly());
+  const v1::Job job = Submit({{"fake_steps", "400"}, {"fake_step_ms", "50"}});
+  Subprocess* worker = StartWorker("w1", {"--once", "--wait", "10"});
+  ASSERT_NE(worker, nullptr);
+  WaitFor(job.job_id(), [](const v1::Job& j) { return j.progress().fraction() > 0.01; });
+  grpc::ClientContext context;
+  v1::CancelJobRequest request;
+  request.set_job_id(job.job_id());
+  v1::Job cancelled;
+  ASSERT_TRUE(jobs_->Cancel(&context, request, &cancelled).ok());
+  EXPECT_EQ(cancelled.state(), v1::JOB_STATE_CANCELLED);
+  const absl::StatusOr<ExitInfo> exit = worker->Wait(kWaitS);
+  ASSERT_TRUE(exit.ok()) << "the worker went on after the cancel\n" << WorkerLog("w1");
+  EXPECT_NE(WorkerLog("w1").find("lease_lost"), std::string::npos) << WorkerLog("w1");
+  EXPECT_EQ(Get(job.job_id()).state(), v1::JOB_STATE_CANCELLED);
+  EXPECT_EQ(StoredReenactments(), 0);
+}
+
+TEST_F(Work, AWorkerOutlivesAServerRestart) {
+  StartServer(NetworkOnly());
+  const std::string address = t_->server->address();
+  Subprocess* worker = StartWorker("w1", {"--loop"});
+  ASSERT_NE(worker, nullptr);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  t_.reset();  // The server goes; the worker keeps trying.
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ServerOptions options = NetworkOnly();
+  options.data_dir = dir_ + "/data";
+  options.listen_address = address;
+  auto server = Server::Start(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = grpc::CreateChannel((*server)->address(), grpc::InsecureChannelCredentials());
+  jobs_ = v1::Jobs::NewStub(channel);
+  const v1::Job job = Submit({{"fake_steps", "3"}});
+  const v1::Job done = WaitFor(job.job_id(), [](const v1::Job& j) {
+    return j.state() == v1::JOB_STATE_SUCCEEDED || j.state() == v1::JOB_STATE_FAILED;
+  });
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.error() << WorkerLog("w1");
+  EXPECT_NE(WorkerLog("w1").find("server_unreachable"), std::string::npos);
+  ASSERT_TRUE(worker->Signal(SIGTERM).ok());
+  const absl::StatusOr<ExitInfo> exit = worker->Wait(kWaitS);
+  ASSERT_TRUE(exit.ok());
+  EXPECT_EQ(exit->exit_code, 3) << exit->ToString();  // Stopped by SIGTERM.
+  jobs_.reset();
+  server->reset();
+}
+
+}  // namespace
+}  // namespace reenact::server

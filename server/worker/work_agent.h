@@ -1,0 +1,69 @@
+// The network side of reenact-worker (reenact-worker --server HOST:PORT):
+// leases jobs from a server's Work service (proto/reenact/v1/
+// work_service.proto), fetches each job's take into a scratch folder of its
+// own, runs the job there as a child process that speaks the worker
+// protocol on stdout (server/jobs/worker_protocol.h; the child is
+// reenact-worker itself in its one-job mode), relays its progress and log
+// lines by heartbeat, and uploads the reenactment or says why the job
+// failed. The scratch folder is deleted after each job; nothing is shared
+// with the server but the network.
+//
+// A lease the server no longer holds (it expired, the job was cancelled)
+// stops the child (SIGTERM, then SIGKILL after the grace period). A stop
+// request (SIGTERM to the worker) stops the child the same way and gives
+// the job back to the queue. A server that cannot be reached is retried
+// with a growing pause (at most retry_max_s), so a worker outlives a server
+// restart.
+#pragma once
+
+#include <atomic>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "common/rpc/channel.h"
+
+namespace reenact::server {
+
+struct WorkAgentOptions {
+  // The server: HOST:PORT, or unix:PATH.
+  std::string server;
+  rpc::ClientSecurity security;
+  // The program that runs one job (reenact-worker; tests give a fake).
+  std::string job_program;
+  // Methods this worker runs; empty: all the server lists.
+  std::vector<std::string> methods;
+  // Where each job's folder is made; empty: $TMPDIR or /tmp.
+  std::string scratch_dir;
+  // Body-model asset folders, passed to the job (--assets).
+  std::vector<std::string> asset_roots;
+  // For the server's logs and `jobs show`; empty: HOSTNAME/pid N.
+  std::string name;
+  // One job, then return (Slurm's sbatch runs one worker per job); else
+  // jobs until `stop`.
+  bool once = false;
+  // --once: how long to wait for a job before giving up, seconds.
+  double once_wait_s = 60;
+  // How long one Lease call waits on the server, seconds.
+  double lease_wait_s = 20;
+  double cancel_grace_s = 5;
+  double poll_period_s = 0.1;
+  // Longest pause between attempts to reach the server, seconds.
+  double retry_max_s = 10;
+};
+
+struct WorkAgentSummary {
+  int jobs = 0;
+  int succeeded = 0;
+  // Failed, lost (lease expired, cancelled) or given back.
+  int not_succeeded = 0;
+};
+
+// Runs jobs until `stop` becomes true (or, with once, after one job, or
+// when none came within once_wait_s). InvalidArgument for bad options;
+// the server's refusal when it refuses this worker for good (a bad token,
+// a wrong protocol, an unknown method).
+absl::StatusOr<WorkAgentSummary> RunWorkAgent(const WorkAgentOptions& options,
+                                              const std::atomic<bool>& stop);
+
+}  // namespace reenact::server

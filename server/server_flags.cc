@@ -26,6 +26,7 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                                     "worker",
                                                     "workers",
                                                     "lease-ttl",
+                                                    "slurm-config",
                                                     "max-name-bytes",
                                                     "max-notes-bytes",
                                                     "max-frame-pixels",
@@ -112,15 +113,21 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
     return absl::InvalidArgumentError("--jobs must be >= 1 (or 0: one per hardware thread)");
   }
   out.options.jobs.worker_path = flags.GetOr("worker", "");
-  if (const std::string workers = flags.GetOr("workers", "local"); workers == "none") {
+  const std::string workers = flags.GetOr("workers", "local");
+  out.slurm_config = flags.GetOr("slurm-config", "");
+  if ((workers == "slurm") != !out.slurm_config.empty()) {
+    return absl::InvalidArgumentError("--workers slurm and --slurm-config FILE go together");
+  }
+  if (workers == "none" || workers == "slurm") {
     out.options.jobs.local_workers = false;
   } else if (workers != "local") {
     const std::vector<std::string> parts = absl::StrSplit(workers, absl::MaxSplits(':', 1));
     int count = 0;
     if (parts.size() != 2 || parts[0] != "local" || !absl::SimpleAtoi(parts[1], &count) ||
         count < 1 || count > 1024) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "--workers takes local, local:N (1..1024 workers) or none, not \"", workers, "\""));
+      return absl::InvalidArgumentError(
+          absl::StrCat("--workers takes local, local:N (1..1024 workers), none or slurm, not \"",
+                       workers, "\""));
     }
     if (flags.Has("jobs") && out.options.jobs.concurrency != count) {
       return absl::InvalidArgumentError("--jobs and --workers local:N name different counts");

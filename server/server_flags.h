@@ -28,8 +28,11 @@ inline constexpr char kServerUsage[] =
     "[--port-file FILE] [--depth-check decode|header (default decode)] "
     "[--jobs N (workers at a time; default one per hardware thread)] "
     "[--worker PATH (default reenact-worker beside reenact-server)] "
-    "[--workers local|local:N|none (workers this server starts: N at a time, like --jobs; "
-    "none: only workers that connect, reenact-worker --server; default local)] "
+    "[--workers local|local:N|none|slurm (workers this server starts: N at a time, like "
+    "--jobs; none: only workers that connect, reenact-worker --server; slurm: Slurm batch jobs "
+    "that each run one such worker, see --slurm-config; default local)] "
+    "[--slurm-config FILE (--workers slurm: partition, account, time, worker, server, ... as "
+    "key = value lines; deploy/slurm/README.md)] "
     "[--lease-ttl S (a connected worker's job is queued again S seconds after its last "
     "heartbeat; default 30)] "
     "[--max-name-bytes N (a take's name, default 256)] "
@@ -71,6 +74,9 @@ struct ServerCommandLine {
   log::Options log{};
   // Where to write the bound "HOST:PORT\n" (empty: nowhere).
   std::string port_file;
+  // --workers slurm --slurm-config FILE: the launcher's config
+  // (server/jobs/slurm_launcher.h); empty otherwise.
+  std::string slurm_config;
   // --help was given.
   bool help = false;
 };

@@ -14,6 +14,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/log/log.h"
 #include "server/http/http_front.h"
+#include "server/jobs/slurm_launcher.h"
 #include "server/live/live_body_follower.h"
 #include "server/recon/methods.h"
 #include "server/recon/registry.h"
@@ -66,6 +67,16 @@ int main(int argc, char** argv) {
   // The methods jobs may name: the registry's, checked as the worker will.
   options.jobs.methods = reenact::recon::MethodSpecs();
   options.jobs.check_job = reenact::recon::CheckJob;
+  // --workers slurm: batch jobs that each run one network worker.
+  if (!command_line->slurm_config.empty()) {
+    absl::StatusOr<reenact::server::SlurmLauncherOptions> slurm =
+        reenact::server::ParseSlurmConfig(command_line->slurm_config);
+    if (!slurm.ok()) return FailRunning(slurm.status());
+    absl::StatusOr<std::unique_ptr<reenact::server::SlurmLauncher>> launcher =
+        reenact::server::SlurmLauncher::Create(*slurm);
+    if (!launcher.ok()) return FailRunning(launcher.status());
+    options.jobs.launcher = std::move(*launcher);
+  }
   // Recovered takes are logged by the store as it recovers them
   // (take_recovered).
   absl::StatusOr<std::unique_ptr<Server>> server = Server::Start(options);

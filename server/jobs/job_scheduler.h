@@ -81,27 +81,13 @@
 #include "server/jobs/eta.h"
 #include "server/jobs/job_store.h"
 #include "server/jobs/live_jobs.h"
+#include "server/jobs/worker_launcher.h"
 #include "server/jobs/worker_process.h"
 #include "server/live/live_hub.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
 
 namespace reenact::server {
-
-// Starts workers elsewhere for the jobs that wait (reenact-server --workers
-// slurm: server/jobs/slurm_launcher.h). The scheduler's loop calls it; it
-// must not block for long.
-class WorkerLauncher {
- public:
-  virtual ~WorkerLauncher() = default;
-  // `queued` jobs wait for a worker now.
-  virtual void Reconcile(int queued) = 0;
-  // The job that `worker_name` leased was cancelled: stop that worker if it
-  // is one of this launcher's.
-  virtual void CancelWorker(const std::string& worker_name) = 0;
-  // The server stops: withdraw what has not started.
-  virtual void Shutdown() = 0;
-};
 
 struct JobSchedulerOptions {
   // The worker program; empty: reenact-worker beside the running program

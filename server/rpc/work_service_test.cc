@@ -26,6 +26,7 @@
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "reenact/v1/work_service.grpc.pb.h"
 #include "server/jobs/testing/fake_worker_methods.h"
+#include "server/jobs/testing/jobs_calls.h"
 #include "server/testing/test_server.h"
 #include "server/testing/test_takes.h"
 
@@ -85,25 +86,9 @@ class Work : public ::testing::Test {
   }
 
   v1::Job Submit(const std::map<std::string, std::string>& options) {
-    grpc::ClientContext context;
-    v1::SubmitJobRequest request;
-    request.set_take_id("take");
-    request.set_method("rigid-carved");
-    for (const auto& [k, v] : options) (*request.mutable_options())[k] = v;
-    v1::Job job;
-    const grpc::Status status = jobs_->Submit(&context, request, &job);
-    EXPECT_TRUE(status.ok()) << status.error_message();
-    return job;
+    return testing::SubmitJob(*jobs_, "take", "rigid-carved", options);
   }
-
-  v1::Job Get(const std::string& job_id) {
-    grpc::ClientContext context;
-    v1::GetJobRequest request;
-    request.set_job_id(job_id);
-    v1::Job job;
-    EXPECT_TRUE(jobs_->Get(&context, request, &job).ok());
-    return job;
-  }
+  v1::Job Get(const std::string& job_id) { return testing::GetJob(*jobs_, job_id); }
 
   // Polls the job until `done` holds or kWaitS passes.
   v1::Job WaitFor(const std::string& job_id, const std::function<bool(const v1::Job&)>& done) {

@@ -99,7 +99,7 @@ tsan_exclude=(
   # service): uninstrumented libgrpc hands objects between threads through
   # synchronisation TSan cannot see, and each of these tests draws hundreds
   # of false reports.
-  '^(Tls|CaptureControlAuth|TakeUplink|Daemon|DaemonAnchor|ReenactdFlags|StreamFramesTest|Ingest|RpcAuth|Takes|JobsService|DiskFull|FollowStreamTest|Reenactments)\.'
+  '^(Tls|CaptureControlAuth|TakeUplink|Daemon|DaemonAnchor|ReenactdFlags|StreamFramesTest|Ingest|RpcAuth|Takes|JobsService|DiskFull|FollowStreamTest|Reenactments|Work|SlurmWorkers)\.'
   # Asserts real-time pacing (p90 within 50 ms), which TSan's slowdown breaks.
   '^PlaybackSensor\.RealTimePacingFollowsHostStamps$'
 )

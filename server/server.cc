@@ -107,8 +107,13 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   ASSIGN_OR_RETURN(const std::shared_ptr<grpc::ServerCredentials> credentials,
                    rpc::MakeServerCredentials(options.tls));
   std::optional<rpc::TokenTable> tokens;
+  std::string local_token;  // Its own workers' token, in memory only.
   if (!options.auth_file.empty()) {
     ASSIGN_OR_RETURN(tokens, rpc::TokenTable::Load(options.auth_file));
+    if (options.jobs.local_workers) {
+      ASSIGN_OR_RETURN(local_token, rpc::NewToken());
+      RETURN_IF_ERROR(tokens->Add("reenact-server local workers", rpc::Role::kWorker, local_token));
+    }
   }
   server->auth_ = std::make_unique<rpc::Authorizer>(std::move(tokens), ServerMethodAccess());
   // Workers run in their job's folder: every path handed to them (the take,
@@ -189,6 +194,9 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
                                                " (address in use, not local, or not permitted)"));
   }
   if (!options.listen_address.empty()) server->address_ = JoinHostPort(host, server->port_);
+  if (absolute.jobs.local_workers && server->jobs_->concurrency() > 0) {
+    server->StartLocalWorkers(local_token);
+  }
   if (!options.metrics_address.empty()) {
     Server* const s = server.get();
     ASSIGN_OR_RETURN(server->metrics_, metrics::HttpExposer::Start(options.metrics_address, [s] {
@@ -256,6 +264,26 @@ std::shared_ptr<grpc::Channel> Server::InProcessChannel(const std::string& token
                                                                        std::move(interceptors));
 }
 
+void Server::StartLocalWorkers(const std::string& token) {
+  const JobSchedulerOptions& jobs = options_.jobs;
+  LocalWorkersOptions local;
+  local.count = jobs_->concurrency();
+  local.job_program = jobs_->worker_path();
+  local.scratch_dir = options_.data_dir + "/scratch";
+  local.asset_roots = jobs.asset_roots;
+  local.cancel_grace_s = jobs.cancel_grace_s;
+  local.stop_grace_s = jobs.shutdown_grace_s;
+  local.poll_period_s = jobs.poll_period_s;
+  local.channel = InProcessChannel(token);
+  JobScheduler* const scheduler = jobs_.get();
+  local.local_take = [scheduler](const std::string& lease_id) -> std::optional<std::string> {
+    absl::StatusOr<std::string> path = scheduler->LeasedTakePath(lease_id);
+    if (!path.ok()) return std::nullopt;
+    return *std::move(path);
+  };
+  local_workers_ = std::make_unique<LocalWorkers>(std::move(local));
+}
+
 void Server::Shutdown() {
   if (shut_down_ || grpc_server_ == nullptr) return;
   shut_down_ = true;
@@ -265,8 +293,12 @@ void Server::Shutdown() {
   // Live follows first: their subscribers hear the end; their jobs stay
   // RUNNING.
   live_->Shutdown();
-  // Workers next: their jobs stay RUNNING and run again after a restart;
-  // watch streams end with UNAVAILABLE.
+  // Its own workers next: each stops its job, which stays RUNNING and runs
+  // again after a restart.
+  jobs_->StopLeasing();
+  if (local_workers_ != nullptr) local_workers_->Stop();
+  // Then the scheduler: network workers' jobs stay RUNNING until their
+  // leases lapse after a restart; watch streams end with UNAVAILABLE.
   jobs_->Shutdown();
   store_->Shutdown(absl::UnavailableError(
       "the server is shutting down; every acknowledged frame set is stored, resume the take "

@@ -22,6 +22,7 @@
 #include "common/rpc/health_service.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/jobs/job_store.h"
+#include "server/jobs/local_workers.h"
 #include "server/live/live_hub.h"
 #include "server/rpc/server_context.h"
 #include "server/store/reenactment_store.h"
@@ -130,6 +131,8 @@ class Server {
   void Wait();
 
  private:
+  // Starts --workers local:N over the in-process channel with `token`.
+  void StartLocalWorkers(const std::string& token);
   Server() = default;
 
   ServerOptions options_;
@@ -157,6 +160,8 @@ class Server {
   bool shut_down_ = false;
   // Last: destroyed first, so that no scrape reads a store being destroyed.
   std::unique_ptr<metrics::HttpExposer> metrics_;
+  // Its own workers (--workers local:N); last, so that they go first.
+  std::unique_ptr<LocalWorkers> local_workers_;
   std::string metrics_address_;
 };
 

@@ -206,6 +206,15 @@ absl::StatusOr<TokenTable> TokenTable::Load(const std::string& path) {
   return Parse(*text, path);
 }
 
+absl::Status TokenTable::Add(const std::string& name, Role role, absl::string_view token) {
+  for (const Entry& entry : entries_) {
+    if (entry.name == name)
+      return absl::AlreadyExistsError(absl::StrCat("token ", name, " exists"));
+  }
+  entries_.push_back({name, role, Sha256Hex(token)});
+  return absl::OkStatus();
+}
+
 std::optional<Principal> TokenTable::Find(absl::string_view token) const {
   const std::string hash = Sha256Hex(token);
   std::optional<Principal> found;

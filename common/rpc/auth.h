@@ -75,6 +75,9 @@ class TokenTable {
 
   // The principal whose token this is, compared in constant time per entry.
   std::optional<Principal> Find(absl::string_view token) const;
+  // Adds an entry held in memory only (a server's own workers get one);
+  // AlreadyExists when the name is taken.
+  absl::Status Add(const std::string& name, Role role, absl::string_view token);
   size_t size() const { return entries_.size(); }
 
  private:

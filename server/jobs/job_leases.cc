@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <utility>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
@@ -54,6 +56,18 @@ std::string WorkerName(const std::string& name) {
 
 }  // namespace
 
+bool IsLocalWorkerName(std::string_view name) { return name.starts_with(kLocalWorkerPrefix); }
+
+void JobScheduler::AppendWorkerLog(const std::string& job_id,
+                                   const std::vector<std::string>& lines) {
+  if (lines.empty()) return;
+  const fs::path dir = fs::path(jobs_dir_) / job_id;
+  std::error_code error;
+  fs::create_directories(dir, error);
+  std::ofstream log(dir / "worker.log", std::ios::app);
+  for (const std::string& line : lines) log << line << "\n";
+}
+
 void JobScheduler::Lease(const v1::LeaseRequest& request, LeaseDone done) {
   if (request.protocol() != v1::WORK_PROTOCOL_V1) {
     done(absl::FailedPreconditionError(
@@ -94,6 +108,11 @@ void JobScheduler::Lease(const v1::LeaseRequest& request, LeaseDone done) {
   done(std::move(response));
 }
 
+void JobScheduler::StopLeasing() {
+  std::lock_guard<std::mutex> lock(mu_);
+  leasing_stopped_ = true;
+}
+
 std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std::string>& methods,
                                                              const std::string& worker_name) {
   auto runs = [&](const std::string& job_id) {
@@ -101,17 +120,19 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
     const absl::StatusOr<v1::Job> job = jobs_->Get(job_id);
     return job.ok() && methods.contains(job->method());
   };
+  if (leasing_stopped_) return std::nullopt;
+  // This server's own workers share its job slots with live follows.
+  const bool local = IsLocalWorkerName(worker_name);
+  if (local && BusyLocked() >= concurrency_) return std::nullopt;
   std::string job_id;
   bool started = false;
-  // Without local workers, live jobs whose take ended go to leases too.
-  if (!options_.local_workers) {
-    if (std::optional<std::string> next = live_jobs_.NextHandoffLocked()) {
-      if (runs(*next)) {
-        job_id = *next;
-        started = StartHandoffLocked(job_id, worker_name);
-      } else {
-        live_jobs_.ReturnHandoffLocked(*next);
-      }
+  // Live jobs whose take ended go first: they have run for a while.
+  if (std::optional<std::string> next = live_jobs_.NextHandoffLocked()) {
+    if (runs(*next)) {
+      job_id = *next;
+      started = StartHandoffLocked(job_id, worker_name);
+    } else {
+      live_jobs_.ReturnHandoffLocked(*next);
     }
   }
   for (auto it = queue_.begin(); !started && it != queue_.end();) {
@@ -143,6 +164,8 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
   }
   run.lease_id = NewLeaseId(job_id, job->attempts());
   run.worker_name = worker_name;
+  run.local = local;
+  if (local) ++local_leases_;
   run.reenactment_id = reenactments_->NewId();
   run.out_path = reenactments_->PathFor(run.reenactment_id);
   run.expires_ns = SteadyNowNs() + SecondsToNs(options_.lease_ttl_s);
@@ -162,14 +185,17 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
   lease.set_ttl_s(options_.lease_ttl_s);
   // Often enough that a cancel reaches the worker within two seconds.
   lease.set_heartbeat_period_s(std::min(2.0, options_.lease_ttl_s / 6));
-  log::Info("job_leased",
+  log::Info("job_started",
             {{"job_id", job_id},
              {"take_id", job->take_id()},
              {"method", job->method()},
              {"attempt", job->attempts()},
              {"worker", worker_name},
              {"reenactment_id", run.reenactment_id}},
-            absl::StrCat("job ", job_id, " leased to worker ", worker_name));
+            absl::StrCat("job ", job_id, " started: leased to worker ", worker_name));
+  AppendWorkerLog(job_id,
+                  {absl::StrCat("--- attempt ", job->attempts(), ", ", UtcNowText(), ", worker ",
+                                worker_name, ", reenactment ", run.reenactment_id, " ---")});
   finisher_->Schedule([this, job = *job] { Publish(job, {}, /*last=*/false); });
   return lease;
 }
@@ -225,6 +251,7 @@ std::unique_ptr<JobScheduler::Running> JobScheduler::ReleaseLocked(const std::st
   if (run == running_.end()) return nullptr;
   std::unique_ptr<Running> owned = std::move(run->second);
   running_.erase(run);
+  if (owned->local) --local_leases_;
   if (owned->uploading) {
     std::error_code error;
     fs::remove(owned->upload_path, error);
@@ -312,6 +339,7 @@ absl::StatusOr<v1::HeartbeatResponse> JobScheduler::Heartbeat(const v1::Heartbea
   for (const std::string& line : request.log_lines()) {
     logs.push_back(line.substr(0, kMaxWorkerLogLineChars));
   }
+  AppendWorkerLog(job_id, logs);
   if (absl::StatusOr<v1::Job> job = jobs_->UpdateProgress(job_id, progress); job.ok()) {
     Publish(*job, std::move(logs), /*last=*/false);
   }
@@ -365,6 +393,7 @@ absl::StatusOr<v1::Job> JobScheduler::CommitUpload(const std::string& lease_id) 
     leases_.erase(lease_id);
     run = std::move(running_.at((*held)->job_id));
     running_.erase(run->job_id);
+    if (run->local) --local_leases_;
   }
   std::error_code error;
   fs::rename(run->upload_path, run->out_path, error);
@@ -399,6 +428,7 @@ absl::StatusOr<v1::Job> JobScheduler::FailLease(const v1::FailRequest& request) 
   for (const std::string& line : request.log_lines()) {
     logs.push_back(line.substr(0, kMaxWorkerLogLineChars));
   }
+  AppendWorkerLog(run->job_id, logs);
   std::string error = request.error().substr(0, kMaxWorkerLogLineChars);
   if (error.empty()) error = "the worker failed without saying why";
   if (request.give_back()) {
@@ -411,8 +441,7 @@ absl::StatusOr<v1::Job> JobScheduler::FailLease(const v1::FailRequest& request) 
     Requeue(*run, "given back", absl::StrCat("gave it back: ", error));
     return jobs_->Get(run->job_id);
   }
-  EndJob(run->job_id, run->cancel_requested ? v1::JOB_STATE_CANCELLED : v1::JOB_STATE_FAILED,
-         absl::StrCat(error, " (worker ", run->worker_name, ")"), "", std::move(logs));
+  EndJob(run->job_id, v1::JOB_STATE_FAILED, error, "", std::move(logs));
   return jobs_->Get(run->job_id);
 }
 

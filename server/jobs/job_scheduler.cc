@@ -42,15 +42,6 @@ std::string Truncate(std::string text, size_t max_chars) {
   return text;
 }
 
-std::string UtcNow() {
-  const std::time_t seconds = static_cast<std::time_t>(WallNowNs() / kNanosPerSecond);
-  std::tm tm{};
-  gmtime_r(&seconds, &tm);
-  char buffer[32];
-  std::strftime(buffer, sizeof(buffer), "%Y-%m-%d %H:%M:%SZ", &tm);
-  return buffer;
-}
-
 absl::StatusOr<std::string> DefaultWorkerPath() {
   std::error_code error;
   const fs::path self = fs::read_symlink("/proc/self/exe", error);
@@ -290,11 +281,6 @@ absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
                              " was leasing it)");
         leased_by = it->second->worker_name;
         ReleaseLocked(it->second->lease_id);
-      } else if (it != running_.end()) {
-        it->second->cancel_requested = true;
-        wake_pending_ = true;
-        wake_.notify_all();
-        return job;
       } else {
         error = live_jobs_.StopLocked(job_id);
         if (error.empty()) return job;
@@ -469,9 +455,7 @@ void JobScheduler::Loop() {
       wake_pending_ = false;
       if (stopping_) break;
     }
-    PollRunning();
     live_jobs_.PublishProgress();
-    StartQueued();
     ExpireLeases();
     ServeLeaseWaiters();
     if (options_.launcher) {
@@ -484,33 +468,8 @@ void JobScheduler::Loop() {
     }
     SweepRetention();
   }
-  StopWorkers();
   EndLeaseWaiters();
   if (options_.launcher) options_.launcher->Shutdown();
-}
-
-void JobScheduler::StartQueued() {
-  while (true) {
-    std::string job_id;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (stopping_ || !options_.local_workers || BusyLocked() >= concurrency_) return;
-      // Live jobs whose take was closed go first: they have run for a while.
-      bool handoff = false;
-      if (std::optional<std::string> next = live_jobs_.NextHandoffLocked()) {
-        job_id = std::move(*next);
-        handoff = true;
-      } else if (!queue_.empty()) {
-        job_id = queue_.front();
-        queue_.pop_front();
-      } else {
-        return;
-      }
-      const bool started = handoff ? StartHandoffLocked(job_id) : StartQueuedLocked(job_id);
-      if (!started) continue;
-    }
-    Launch(job_id);
-  }
 }
 
 bool JobScheduler::StartQueuedLocked(const std::string& job_id, const std::string& worker) {
@@ -556,135 +515,6 @@ bool JobScheduler::StartHandoffLocked(const std::string& job_id, const std::stri
   return true;
 }
 
-void JobScheduler::Launch(const std::string& job_id) {
-  Running* run = nullptr;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    run = running_.at(job_id).get();
-  }
-  auto fail = [&](const std::string& error) {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      running_.erase(job_id);
-    }
-    EndJob(job_id, v1::JOB_STATE_FAILED, error);
-  };
-  const absl::StatusOr<v1::Job> job = jobs_->Get(job_id);
-  if (!job.ok()) return fail(std::string(job.status().message()));
-  const absl::StatusOr<std::string> take_path = takes_->TakeFileForReading(job->take_id());
-  if (!take_path.ok()) {
-    return fail(absl::StrCat("the take cannot be read: ", take_path.status().message()));
-  }
-  const fs::path dir = fs::path(jobs_dir_) / job_id;
-  std::error_code error;
-  fs::create_directories(dir, error);
-  if (error) {
-    log::Error("job_folder_failed", {{"job_id", job_id}, {"error", error.message()}},
-               absl::StrCat("cannot create ", dir.string(), ": ", error.message()));
-    return fail(error == std::errc::no_space_on_device
-                    ? "the server's disk is full; delete takes or reenactments and submit again"
-                    : "the server could not create the job's folder (its log says why)");
-  }
-  run->reenactment_id = reenactments_->NewId();
-  run->out_path = reenactments_->PathFor(run->reenactment_id);
-  WorkerInvocation invocation;
-  invocation.worker_path = worker_path_;
-  invocation.take_path = *take_path;
-  invocation.out_path = run->out_path;
-  invocation.reenactment_id = run->reenactment_id;
-  invocation.asset_roots = options_.asset_roots;
-  absl::StatusOr<std::unique_ptr<WorkerProcess>> worker = WorkerProcess::Start(
-      WorkerArgs(*job, methods::FindMethod(options_.methods, job->method()), invocation),
-      dir.string(),
-      absl::StrCat("--- attempt ", job->attempts(), ", ", UtcNow(), ", reenactment ",
-                   run->reenactment_id, " ---"),
-      job->progress(), options_.eta_window_s);
-  if (!worker.ok()) {
-    return fail(absl::StrCat("cannot start the worker: ", worker.status().message()));
-  }
-  run->worker = std::move(*worker);
-  log::Info("job_started",
-            {{"job_id", job_id},
-             {"take_id", job->take_id()},
-             {"method", job->method()},
-             {"attempt", job->attempts()},
-             {"reenactment_id", run->reenactment_id},
-             {"live", false}},
-            absl::StrCat("job ", job_id, " started its worker"));
-  Publish(*job, {}, /*last=*/false);
-}
-
-void JobScheduler::PollRunning() {
-  std::vector<Running*> runs;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    for (auto& [id, run] : running_) {
-      if (!run->remote()) runs.push_back(run.get());
-    }
-  }
-  for (Running* run : runs) {
-    bool cancel = false;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      cancel = run->cancel_requested;
-    }
-    // Exit first, then read: whatever the worker wrote before exiting is in.
-    const std::optional<ExitInfo> exit = run->worker->Poll();
-    std::vector<std::string> logs;
-    const bool changed = run->worker->ReadOutput(&logs);
-    if (exit.has_value()) {
-      std::unique_ptr<Running> owned;
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        auto it = running_.find(run->job_id);
-        owned = std::move(it->second);
-        running_.erase(it);
-      }
-      if (changed) (void)jobs_->UpdateProgress(owned->job_id, owned->worker->progress());
-      Finish(std::move(owned), *exit, std::move(logs));
-      continue;
-    }
-    if (changed || !logs.empty()) {
-      absl::StatusOr<v1::Job> job =
-          changed ? jobs_->UpdateProgress(run->job_id, run->worker->progress())
-                  : jobs_->Get(run->job_id);
-      if (job.ok()) Publish(*job, std::move(logs), /*last=*/false);
-    }
-    if (cancel) run->worker->Cancel(options_.cancel_grace_s);
-  }
-}
-
-void JobScheduler::Finish(std::unique_ptr<Running> run, const ExitInfo& exit,
-                          std::vector<std::string> logs) {
-  bool cancelled = false;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    cancelled = run->cancel_requested;
-  }
-  if (exit.exited && exit.exit_code == 0) {
-    // Done, even when a cancel came too late to stop it.
-    if (!logs.empty()) {
-      if (auto job = jobs_->Get(run->job_id); job.ok()) Publish(*job, std::move(logs), false);
-    }
-    finisher_->Schedule(
-        [this, job_id = run->job_id, rid = run->reenactment_id] { Succeed(job_id, rid); });
-    return;
-  }
-  std::error_code error;
-  fs::remove(run->out_path, error);
-  if (cancelled) {
-    EndJob(run->job_id, v1::JOB_STATE_CANCELLED,
-           run->worker->killed()
-               ? absl::StrCat("cancelled by a client (the worker was killed after ",
-                              options_.cancel_grace_s, " s)")
-               : "cancelled by a client",
-           "", std::move(logs));
-    return;
-  }
-  const std::string why = run->worker->FailureText(exit);
-  EndJob(run->job_id, v1::JOB_STATE_FAILED, why, "", std::move(logs));
-}
-
 void JobScheduler::Succeed(const std::string& job_id, const std::string& reenactment_id) {
   const absl::StatusOr<v1::ReenactmentSummary> added = reenactments_->Add(reenactment_id);
   if (!added.ok()) {
@@ -726,52 +556,6 @@ void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const s
   }
   LogJobEnd(*job);
   Publish(*job, std::move(logs), /*last=*/true);
-}
-
-void JobScheduler::StopWorkers() {
-  std::map<std::string, std::unique_ptr<Running>> runs;
-  {
-    // Leased jobs stay RUNNING: the next start queues them again, and their
-    // workers' calls meanwhile find no lease.
-    std::lock_guard<std::mutex> lock(mu_);
-    for (auto it = running_.begin(); it != running_.end();) {
-      if (it->second->remote()) {
-        ++it;
-        continue;
-      }
-      runs.emplace(it->first, std::move(it->second));
-      it = running_.erase(it);
-    }
-  }
-  for (auto& [id, run] : runs) run->worker->Terminate();
-  const int64_t deadline_ns = SteadyNowNs() + SecondsToNs(options_.shutdown_grace_s);
-  for (auto& [id, run] : runs) {
-    const double left_s = std::max(0.0, NsToSeconds(deadline_ns - SteadyNowNs()));
-    const absl::StatusOr<ExitInfo> exit = run->worker->WaitOrKill(left_s);
-    std::vector<std::string> logs;
-    run->worker->ReadOutput(&logs);
-    if (exit.ok() && exit->exited && exit->exit_code == 0) {
-      Succeed(id, run->reenactment_id);  // It finished within the grace period.
-      continue;
-    }
-    std::error_code error;
-    fs::remove(run->out_path, error);
-    bool cancelled = false;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      cancelled = run->cancel_requested;
-    }
-    if (cancelled) {
-      EndJob(id, v1::JOB_STATE_CANCELLED, "cancelled by a client (stopped at server shutdown)", "",
-             std::move(logs));
-      continue;
-    }
-    // The job stays RUNNING with its last progress: the next start queues it.
-    (void)jobs_->Mutate(id, [&](v1::Job& j) {
-      *j.mutable_progress() = run->worker->progress();
-      j.mutable_progress()->set_eta_s(-1);
-    });
-  }
 }
 
 }  // namespace reenact::server

@@ -1,59 +1,50 @@
-// The active half of the job queue: runs QUEUED jobs (server/jobs/job_store.h)
-// in worker processes, at most `concurrency` at a time, oldest first, and
-// tells watchers about every change.
+// The active half of the job queue: hands QUEUED jobs (server/jobs/
+// job_store.h) to workers, oldest first, and tells watchers about every
+// change.
 //
-// A job's run: the scheduler marks it RUNNING (attempts + 1), makes
-// DATA/jobs/<job_id>/ and starts (common/base/subprocess.h)
+// Every job runs under a Work lease (proto/reenact/v1/work_service.proto;
+// job_leases.cc), whoever its worker is: one of the server's own
+// (--workers local:N: LocalWorkers, server/jobs/local_workers.h, at most
+// `concurrency` at a time, sharing the slots with live follows) or a network
+// worker (reenact-worker --server on any machine, a Slurm batch job started
+// by a WorkerLauncher, a Kubernetes pod). Both run the same agent
+// (server/worker/work_agent.h): it leases the job (RUNNING, attempts + 1, a
+// new entry in attempt_history), runs it as a child process in a scratch
+// folder of its own, with the worker's one-job command line and JSON lines
+// (worker_protocol.h), and relays progress and log lines by heartbeat. The
+// scheduler computes the ETA (eta.h), stores the progress (the store
+// throttles its writes), appends the log lines to DATA/jobs/<job_id>/
+// worker.log and publishes a JobEvent.
 //
-//   WORKER --take <take file> --method M --options-json '{"k":"v"}'
-//          --out <ReenactmentStore::PathFor(rid)> --reenactment-id rid
-//          --take-id T --job-id J
+// The end of an attempt: an upload -> ReenactmentStore::Add(rid) ->
+// SUCCEEDED with reenactment_id (FAILED when the file does not validate); a
+// Fail -> FAILED with the worker's reason ("worker killed by signal 11
+// (SIGSEGV); last log: ..."), or queued again when the worker gives the job
+// back; no heartbeat within `lease_ttl_s` -> queued again, first in line
+// (FAILED after store.max_attempts attempts). An upload of an attempt whose
+// lease ended is refused, so each attempt stores at most one reenactment.
 //
-// with stdout into DATA/jobs/<job_id>/progress.jsonl (new for each attempt)
-// and stderr appended to DATA/jobs/<job_id>/worker.log. The worker writes one
-// JSON object per line on stdout:
-//   {"stage":"register","fraction":0.42,"frames_done":120,"frames_total":300}
-//   {"log":"text"}                       a log line for watchers
-//   {"result":{...figures...}}           at the end of a success
-//   {"error":"message"}                  at the end of a failure
-// and exits 0 (success), 1 (failure), 2 (usage) or 3 (stopped by SIGTERM).
-// Any other line is passed on as a log line. Every `poll_period_s` the
-// scheduler reads what the running workers appended, updates the store (the
-// store throttles its writes) and publishes a JobEvent (the job and the new
-// log lines). ETA: the rate of the fraction over the last `eta_window_s`
-// seconds, (1 - fraction) / rate; -1 while unknown.
-//
-// The end of a worker: exit 0 -> ReenactmentStore::Add(rid) -> SUCCEEDED with
-// reenactment_id (FAILED when the file does not validate); exit 1 -> FAILED
-// with the worker's {"error"}; killed by a signal -> FAILED "worker killed by
-// signal 11 (SIGSEGV); last log: ..."; any other end -> FAILED naming it. A
-// failed worker's output file is removed. A worker never affects the server.
-//
-// Cancel: a QUEUED job is CANCELLED at once; a RUNNING one gets SIGTERM, and
-// SIGKILL after `cancel_grace_s`, then is CANCELLED. Shutdown: every worker
-// gets SIGTERM, SIGKILL after `shutdown_grace_s`, and its job stays RUNNING
-// in the store, so that the next start queues it again (JobStore::
-// RequeueUnfinished, attempts kept: the new run counts one more).
+// Cancel: a QUEUED job is CANCELLED at once; so is a RUNNING one, whose
+// lease ends: its worker stops the job at its next heartbeat (SIGTERM,
+// SIGKILL after the grace period) and a launcher's batch job is cancelled.
+// Shutdown: the server's own workers stop their jobs, which stay RUNNING in
+// the store, so that the next start queues them again (JobStore::
+// RequeueUnfinished, attempts kept); network workers find their leases gone.
 //
 // Live jobs (method body, option live=true) on a take still RECORDING: the
 // job becomes RUNNING at once, in stage "following", and the live hub
 // (server/live/live_hub.h) follows the take for it; its progress counts the
 // frame sets followed (frames_done). When the take stops recording the
-// same job goes on with a worker on the stored take, before the queued jobs
+// same job is leased to a worker on the stored take, before the queued jobs
 // (a new attempt; the method's live-only options, MethodSpec, are not
-// passed to the worker), and ends SUCCEEDED with its reenactment as usual. A live fit
-// that cannot start fails the job. A live job of a take that is not
-// recording simply runs offline. Cancel stops the follow at once. After a
-// restart a live job left RUNNING runs offline.
+// passed to the worker), and ends SUCCEEDED with its reenactment as usual.
+// A live fit that cannot start fails the job. A live job of a take that is
+// not recording simply runs offline. Cancel stops the follow at once. After
+// a restart a live job left RUNNING runs offline.
 //
-// Thread-safe. One scheduler thread polls and starts workers; a second one
-// indexes finished reenactments so that a large file does not hold up the
-// progress of the other jobs.
-//
-// The parts: worker_protocol.h (the worker's command line, output lines and
-// log tail), eta.h (the ETA), worker_process.h (one attempt's process) and
-// live_jobs.h (the follows of live jobs); the scheduler holds the queue, the
-// slots, the store's job rows and the watches.
+// Thread-safe. One scheduler thread serves waiting Lease calls, expires
+// leases, asks the launcher for workers and sweeps old jobs; a second one
+// indexes finished reenactments and publishes lease events.
 #pragma once
 
 #include <array>
@@ -104,11 +95,13 @@ struct JobSchedulerOptions {
   std::function<absl::Status(const std::string& method,
                              const std::map<std::string, std::string>& options)>
       check_job;
-  // How often running workers' output and exits are looked at, seconds.
+  // How often the scheduler looks at leases and waiting Lease calls, and
+  // the server's own workers at their jobs' processes, seconds.
   double poll_period_s = 0.1;
-  // Cancel of a running job: SIGTERM, then SIGKILL after this long, seconds.
+  // The server's own workers: a cancelled job's process gets SIGTERM, then
+  // SIGKILL after this long, seconds.
   double cancel_grace_s = 5.0;
-  // Server shutdown: SIGTERM to every worker, SIGKILL after this long.
+  // The same at server shutdown.
   double shutdown_grace_s = 2.0;
   // Window over which the ETA measures the rate of progress, seconds.
   double eta_window_s = 10.0;
@@ -153,6 +146,11 @@ struct JobSchedulerOptions {
 using JobEventCallback =
     std::function<void(const v1::JobEvent& event, bool last, const absl::Status& end)>;
 
+// Worker names this server gives its own workers ("local-1", ...): their
+// leases share the --jobs slots with live follows.
+inline constexpr char kLocalWorkerPrefix[] = "local-";
+bool IsLocalWorkerName(std::string_view name);
+
 class JobScheduler {
  public:
   // Makes `jobs_dir`, queues again what a previous server left RUNNING, and
@@ -176,10 +174,10 @@ class JobScheduler {
   // recording, unless the job is live and the server has a live hub;
   // Unavailable after Shutdown, or while the take is being opened.
   absl::StatusOr<v1::Job> Submit(const v1::SubmitJobRequest& request);
-  // Cancels a QUEUED job or a live job that follows its take (returned
-  // CANCELLED) or starts stopping a RUNNING worker (returned RUNNING; Watch
-  // tells when it is CANCELLED). A finished job is returned as it is. NotFound / InvalidArgument
-  // for unknown or malformed ids.
+  // Cancels a QUEUED job, a live job that follows its take, or a RUNNING
+  // job, whose lease ends (its worker stops it at its next heartbeat; a
+  // launcher's batch job is cancelled too); returned CANCELLED. A finished job is returned as it
+  // is. NotFound / InvalidArgument for unknown or malformed ids.
   absl::StatusOr<v1::Job> Cancel(const std::string& job_id);
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
   std::vector<v1::Job> List(v1::JobState state, const std::string& take_id) const;
@@ -219,6 +217,9 @@ class JobScheduler {
   // scheduler's, without a lock held. FailedPrecondition for an unknown
   // protocol version, Unavailable while shutting down.
   void Lease(const v1::LeaseRequest& request, LeaseDone done);
+  // No more leases from now on (the server stops its own workers before
+  // the rest); the other Work calls still answer.
+  void StopLeasing();
   // The take file of a lease's job, to stream to its worker.
   absl::StatusOr<std::string> LeasedTakePath(const std::string& lease_id) const;
   // Renews the lease, sets the job's progress (with the ETA) and passes the
@@ -251,13 +252,10 @@ class JobScheduler {
     std::string job_id;
     std::string reenactment_id;
     std::string out_path;
-    // Scheduler thread only.
-    std::unique_ptr<WorkerProcess> worker;
-    // Guarded by mu_.
-    bool cancel_requested = false;
-
-    // A Work lease (empty for a local worker); all guarded by mu_.
+    // The Work lease; all guarded by mu_.
     std::string lease_id;
+    // One of this server's own workers (they share its job slots).
+    bool local = false;
     std::string worker_name;
     // Steady time the lease ends unless renewed.
     int64_t expires_ns = 0;
@@ -277,14 +275,9 @@ class JobScheduler {
   void SweepRetention();
   // The folder and row of one finished job; the bytes freed.
   absl::StatusOr<int64_t> DeleteFinishedJob(const v1::Job& job);
-  // Starts queued jobs while slots are free (live jobs whose take ended
-  // first).
-  void StartQueued();
-  // Job slots in use: local worker processes and live follows (leases to
-  // workers over the network hold slots of their own).
-  int BusyLocked() const {
-    return static_cast<int>(running_.size() - leases_.size()) + live_jobs_.FollowingLocked();
-  }
+  // Job slots in use: leases of this server's own workers and live follows
+  // (leases to workers over the network hold slots of their own).
+  int BusyLocked() const { return local_leases_ + live_jobs_.FollowingLocked(); }
   // Work leases (job_leases.cc). Answers waiting Lease calls with queued
   // jobs, and empty ones past their wait.
   void ServeLeaseWaiters();
@@ -305,26 +298,18 @@ class JobScheduler {
   std::unique_ptr<Running> ReleaseLocked(const std::string& lease_id);
   // Answers the waiting Lease calls with Unavailable at shutdown.
   void EndLeaseWaiters();
+  // Appends to the job's worker.log (in its folder, made when missing).
+  void AppendWorkerLog(const std::string& job_id, const std::vector<std::string>& lines);
   // Marks a queued job RUNNING with a Running entry; false when it is no
   // longer queued. mu_ held.
   bool StartQueuedLocked(const std::string& job_id, const std::string& worker = "local");
   // The same for a live job whose follow ended (it is RUNNING already).
   bool StartHandoffLocked(const std::string& job_id, const std::string& worker = "local");
-  // Starts the worker of `job_id`, which StartQueued marked RUNNING.
-  void Launch(const std::string& job_id);
-  // Reads the workers' output, publishes progress, signals cancelled ones
-  // and ends those that exited.
-  void PollRunning();
-  // Ends the job of a worker that exited (`logs`: its last log lines).
-  void Finish(std::unique_ptr<Running> run, const ExitInfo& exit, std::vector<std::string> logs);
   // Indexes the reenactment of a worker that exited 0 and ends its job.
   void Succeed(const std::string& job_id, const std::string& reenactment_id);
   // Writes the job's end and tells its watchers (their last event).
   void EndJob(const std::string& job_id, v1::JobState state, const std::string& error,
               const std::string& reenactment_id = "", std::vector<std::string> logs = {});
-  // Stops every worker at shutdown, leaving their jobs RUNNING (CANCELLED
-  // when a cancel was under way; SUCCEEDED when it finished meanwhile).
-  void StopWorkers();
   // Tells the job's watchers; `last` ends their watches.
   void Publish(const v1::Job& job, std::vector<std::string> logs, bool last);
 
@@ -349,6 +334,9 @@ class JobScheduler {
   std::map<std::string, std::unique_ptr<Running>> running_;
   // Work leases: lease id -> job id (their Running is in running_).
   std::map<std::string, std::string> leases_;
+  // Leases held by this server's own workers (guarded by mu_).
+  int local_leases_ = 0;
+  bool leasing_stopped_ = false;
   // Lease calls waiting for a job, oldest first.
   struct LeaseWaiter {
     std::set<std::string> methods;

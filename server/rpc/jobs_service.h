@@ -2,9 +2,10 @@
 // run by the server's JobScheduler (server/jobs/job_scheduler.h). One handler
 // per RPC, reaching the scheduler through the context. Beyond the proto:
 //  - Malformed take or job ids are INVALID_ARGUMENT, unknown ones NOT_FOUND.
-//  - Cancel of a RUNNING job answers once the worker has stopped (at most the
-//    scheduler's grace period, 5 s), with the job CANCELLED; a job that
-//    ended meanwhile is answered as it ended.
+//  - Cancel of a RUNNING job answers at once with the job CANCELLED: its
+//    lease ends, and its worker hears so at its next heartbeat and stops
+//    the job (SIGTERM, SIGKILL after the grace period); a job that ended
+//    meanwhile is answered as it ended.
 //  - Watch coalesces: a slow reader gets the latest job with every log line
 //    since its previous event. At server shutdown a watch of an unfinished
 //    job ends with UNAVAILABLE (the job runs again after the restart).

@@ -55,6 +55,26 @@ std::string Script(const std::string& dir, const std::string& name, const std::s
   return path;
 }
 
+// Whether, within `timeout_s`, no process has `text` in its command line
+// (a job's worker process carries its job id).
+bool WaitNoProcessNaming(const std::string& text, double timeout_s) {
+  const int64_t until = SteadyNowNs() + SecondsToNs(timeout_s);
+  while (true) {
+    bool found = false;
+    std::error_code error;
+    for (auto it = fs::directory_iterator("/proc", error); !error && it != fs::directory_iterator();
+         it.increment(error)) {
+      std::string cmdline = ReadFileToString(it->path().string() + "/cmdline").value_or("");
+      std::replace(cmdline.begin(), cmdline.end(), '\0', ' ');
+      // Zombies have an empty command line.
+      if (cmdline.find(text) != std::string::npos) found = true;
+    }
+    if (!found) return true;
+    if (SteadyNowNs() > until) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 // Records a complete take of `sets` frame sets.
 void RecordTake(TestServer& t, const std::string& id, uint64_t sets = 3) {
   IngestClient client(*t.ingest);
@@ -285,11 +305,12 @@ TEST(JobsService, WatchSeesProgressAndTheReenactment) {
   ASSERT_TRUE(summary.ok()) << summary.status();
   EXPECT_EQ(summary->info().job_id(), end.job_id());
   EXPECT_EQ(summary->info().take_id(), "take1");
-  // The worker got the take's file and its output stays beside the job.
+  // The worker got the take's file (the server's own workers read it in
+  // place) and its log stays beside the job.
   const std::string job_dir = dir + "/data/jobs/" + end.job_id();
-  const std::string progress = ReadFileToString(job_dir + "/progress.jsonl").value_or("");
-  EXPECT_NE(progress.find("takes/take1.mcap"), std::string::npos) << progress;
-  EXPECT_TRUE(fs::exists(job_dir + "/worker.log"));
+  const std::string log = ReadFileToString(job_dir + "/worker.log").value_or("");
+  EXPECT_NE(log.find("takes/take1.mcap"), std::string::npos) << log;
+  EXPECT_NE(log.find("--- attempt 1"), std::string::npos) << log;
 
   // Watching a finished job: one event, then the end.
   events.clear();
@@ -384,8 +405,9 @@ TEST(JobsService, CancelStopsRunningAndQueuedJobs) {
   const double cancel_s = NsToSeconds(SteadyNowNs() - start_ns);
   std::cout << "[ figures  ] cancel of a running job answered in " << cancel_s << " s\n";
   EXPECT_EQ(job.state(), v1::JOB_STATE_CANCELLED) << job.error();
-  EXPECT_EQ(job.error(), "cancelled by a client");
-  EXPECT_LT(cancel_s, 5.0);  // SIGTERM sufficed: well within the grace period.
+  EXPECT_EQ(job.error().rfind("cancelled by a client (worker local-", 0), 0u) << job.error();
+  EXPECT_LT(cancel_s, 1.0);  // At once: the worker hears it at its next heartbeat.
+  EXPECT_TRUE(WaitNoProcessNaming(running.job_id(), 5.0)) << "the cancelled job's worker runs on";
   EXPECT_TRUE(t->server->reenactments().List().empty());
 
   // A worker that ignores SIGTERM is killed after the grace period.
@@ -401,7 +423,8 @@ TEST(JobsService, CancelStopsRunningAndQueuedJobs) {
   jobs2.WaitFor(deaf.job_id(), [](const v1::Job& j) { return j.progress().fraction() > 0; });
   ASSERT_TRUE(jobs2.Cancel(deaf.job_id(), &job).ok());
   EXPECT_EQ(job.state(), v1::JOB_STATE_CANCELLED);
-  EXPECT_NE(job.error().find("killed after 0.3 s"), std::string::npos) << job.error();
+  // SIGTERM, then SIGKILL 0.3 s later: gone well within a few seconds.
+  EXPECT_TRUE(WaitNoProcessNaming(deaf.job_id(), 5.0)) << "the deaf worker was not killed";
 }
 
 TEST(JobsService, RestartRequeuesRunningJobs) {

@@ -159,7 +159,8 @@ class Heartbeats {
         stage_changed_ = false;
       }
       Send();
-      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      // At most five beats a second (ten with a short period).
+      std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.2, period_s_ / 2)));
     }
   }
 
@@ -285,7 +286,9 @@ class Agent {
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(8 << 20);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-    stub_ = v1::Work::NewStub(rpc::MakeClientChannel(options.server, args, options.security));
+    stub_ = v1::Work::NewStub(options.channel != nullptr
+                                  ? options.channel
+                                  : rpc::MakeClientChannel(options.server, args, options.security));
   }
 
   absl::StatusOr<WorkAgentSummary> Run() {
@@ -358,11 +361,17 @@ class Agent {
   }
 
   bool RunJobIn(const v1::WorkLease& lease, const std::string& dir) {
-    Heartbeats beats(stub_.get(), lease.lease_id(),
-                     lease.heartbeat_period_s() > 0 ? lease.heartbeat_period_s() : 5.0);
-    const std::string take_path = (fs::path(dir) / "take.mcap").string();
+    double period_s = lease.heartbeat_period_s() > 0 ? lease.heartbeat_period_s() : 5.0;
+    if (options_.heartbeat_period_s > 0) period_s = std::min(period_s, options_.heartbeat_period_s);
+    Heartbeats beats(stub_.get(), lease.lease_id(), period_s);
+    std::string take_path = (fs::path(dir) / "take.mcap").string();
     const std::string out_path = (fs::path(dir) / "reenactment.rnr").string();
-    if (const absl::Status fetched = FetchTake(stub_.get(), lease, take_path); !fetched.ok()) {
+    std::optional<std::string> local =
+        options_.local_take ? options_.local_take(lease.lease_id()) : std::nullopt;
+    if (local.has_value()) {
+      take_path = *local;
+    } else if (const absl::Status fetched = FetchTake(stub_.get(), lease, take_path);
+               !fetched.ok()) {
       beats.Stop(false);
       if (absl::IsAborted(fetched)) return Lost(lease, std::string(fetched.message()));
       SendFail(lease, absl::StrCat("the worker could not fetch the take: ", fetched.message()), {},
@@ -382,8 +391,8 @@ class Agent {
         lease.job().progress(), 10.0);
     if (!started.ok()) {
       beats.Stop(false);
-      SendFail(lease, absl::StrCat("cannot start the job program: ", started.status().message()),
-               {}, /*give_back=*/false);
+      SendFail(lease, absl::StrCat("cannot start the worker: ", started.status().message()), {},
+               /*give_back=*/false);
       return false;
     }
     WorkerProcess& worker = **started;
@@ -397,7 +406,7 @@ class Agent {
       if (exit.has_value()) break;
       if (beats.lost() || stop_.load()) {
         stopped = stopped || stop_.load();
-        worker.Cancel(options_.cancel_grace_s);
+        worker.Cancel(stopped ? options_.stop_grace_s : options_.cancel_grace_s);
       }
       std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_period_s));
     }
@@ -424,7 +433,11 @@ class Agent {
       return true;
     }
     std::vector<std::string> logs = beats.Stop(false);
-    if (stopped) {
+    if (stopped && !options_.give_back_on_stop) {
+      log::Info("job_left", {{"job_id", lease.job().job_id()}},
+                absl::StrCat("job ", lease.job().job_id(), " stopped with the worker; it stays ",
+                             "running on the server, which queues it again when it starts"));
+    } else if (stopped) {
       SendFail(lease, "the worker was told to stop", std::move(logs), /*give_back=*/true);
     } else {
       SendFail(lease, worker.FailureText(*exit), std::move(logs), /*give_back=*/false);

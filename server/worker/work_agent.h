@@ -17,8 +17,13 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include <grpcpp/channel.h>
 
 #include "absl/status/statusor.h"
 #include "common/rpc/channel.h"
@@ -29,6 +34,12 @@ struct WorkAgentOptions {
   // The server: HOST:PORT, or unix:PATH.
   std::string server;
   rpc::ClientSecurity security;
+  // A channel to use instead (a server's own workers: its in-process
+  // channel); `server` then only names it in logs.
+  std::shared_ptr<grpc::Channel> channel;
+  // Where a leased job's take can be read without streaming it (a server's
+  // own workers: the take file itself); empty, or none: ReadTake.
+  std::function<std::optional<std::string>(const std::string& lease_id)> local_take;
   // The program that runs one job (reenact-worker; tests give a fake).
   std::string job_program;
   // Methods this worker runs; empty: all the server lists.
@@ -47,6 +58,14 @@ struct WorkAgentOptions {
   // How long one Lease call waits on the server, seconds.
   double lease_wait_s = 20;
   double cancel_grace_s = 5;
+  // The same when the worker is stopped.
+  double stop_grace_s = 5;
+  // On a stop, give the job under way back to the queue (a node that
+  // drains); false: just stop it (a server stopping its own workers leaves
+  // the job RUNNING, and queues it again when it starts).
+  bool give_back_on_stop = true;
+  // Longest time between heartbeats, seconds (0: the lease's period).
+  double heartbeat_period_s = 0;
   double poll_period_s = 0.1;
   // Longest pause between attempts to reach the server, seconds.
   double retry_max_s = 10;

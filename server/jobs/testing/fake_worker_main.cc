@@ -9,8 +9,9 @@
 //                  fail: {"error":"fake failure"}, exit 1;
 //                  garbage: writes a file that is no reenactment, exit 0;
 //                  segv: raises SIGSEGV mid-way
-//   fake_hang_first  "1": the first attempt (no file "attempted" in the
-//                  working folder yet) never ends on its own
+//   fake_hang_first  "1": the first attempt (no marker file for the job in
+//                  the temporary folder yet: each attempt runs in a scratch
+//                  folder of its own) never ends on its own
 //   fake_ignore_term "1": SIGTERM is ignored (only SIGKILL stops it)
 //   fake_trace     a file to append "start|end JOB_ID UNIX_NS" lines to
 // SIGTERM stops it at the next step with exit code 3.
@@ -70,8 +71,10 @@ int main(int argc, char** argv) {
   const int step_ms = std::stoi(option("fake_step_ms", "20"));
   const std::string end = option("fake_end", "succeed");
   bool hang = false;
-  if (option("fake_hang_first", "0") == "1" && !std::filesystem::exists("attempted")) {
-    std::ofstream("attempted") << "1\n";
+  const std::filesystem::path attempted = std::filesystem::temp_directory_path() /
+                                          ("fake_worker_attempted_" + flags->GetOr("job-id", ""));
+  if (option("fake_hang_first", "0") == "1" && !std::filesystem::exists(attempted)) {
+    std::ofstream(attempted) << "1\n";
     hang = true;
   }
   Line({{"log", "fake worker: method " + *flags->Get("method") + " take " + *flags->Get("take") +

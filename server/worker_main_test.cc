@@ -63,6 +63,28 @@ TEST(Worker, UsageErrorsExitTwo) {
   }
 }
 
+TEST(Worker, NetworkModeUsageErrorsExitTwo) {
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"--server", "127.0.0.1:1", "--take", "t.mcap"},
+        std::vector<std::string>{"--server", "127.0.0.1:1", "--once", "--loop"},
+        std::vector<std::string>{"--server", "127.0.0.1:1", "--once", "--wait", "-1"},
+        std::vector<std::string>{"--server", "127.0.0.1:1", "--token-file", "/no/such/token"}}) {
+    const WorkerRun run = RunWorker(args);
+    EXPECT_TRUE(run.exit.exited);
+    EXPECT_EQ(run.exit.exit_code, 2) << run.err;
+  }
+}
+
+TEST(Worker, OnceGivesUpOnAServerThatNeverAnswers) {
+  // Port 1 on loopback: refused at once, retried with a growing pause until
+  // --wait passes; no job, so exit 0.
+  const WorkerRun run = RunWorker({"--server", "127.0.0.1:1", "--once", "--wait", "1.5"});
+  EXPECT_TRUE(run.exit.exited);
+  EXPECT_EQ(run.exit.exit_code, 0) << run.err;
+  EXPECT_NE(run.err.find("server_unreachable"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("jobs=0"), std::string::npos) << run.err;
+}
+
 TEST(Worker, AMethodThatCannotRunExitsOneWithItsError) {
   const std::string dir = testing::MakeTempDir("worker_main_missing");
   const std::string out = dir + "/r.reen";

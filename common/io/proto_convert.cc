@@ -4,6 +4,18 @@
 
 namespace reenact {
 
+v1::TextureMode ToProto(methods::TextureMode mode) {
+  switch (mode) {
+    case methods::TextureMode::kPoseClosest:
+      return v1::TEXTURE_MODE_POSE_CLOSEST;
+    case methods::TextureMode::kRotationClosest:
+      return v1::TEXTURE_MODE_ROTATION_CLOSEST;
+    case methods::TextureMode::kBodyAtlas:
+      return v1::TEXTURE_MODE_BODY_ATLAS;
+  }
+  return v1::TEXTURE_MODE_UNSPECIFIED;
+}
+
 v1::CameraIntrinsics ToProto(const CameraIntrinsics& k) {
   v1::CameraIntrinsics m;
   m.set_width_px(k.width);

@@ -5,9 +5,14 @@
 #include "absl/status/statusor.h"
 #include "common/geometry/camera.h"
 #include "common/geometry/transforms.h"
+#include "common/methods/method_spec.h"
 #include "reenact/v1/geometry.pb.h"
+#include "reenact/v1/reenactment.pb.h"
 
 namespace reenact {
+
+// How a method's reenactments are textured, as the wire and the file say it.
+v1::TextureMode ToProto(methods::TextureMode mode);
 
 v1::CameraIntrinsics ToProto(const CameraIntrinsics& intrinsics);
 // InvalidArgument when the message does not describe a valid camera.

@@ -1,7 +1,5 @@
 #include "server/jobs/job_scheduler.h"
 
-#include <string.h>
-
 #include <algorithm>
 #include <chrono>
 #include <ctime>
@@ -16,7 +14,6 @@
 #include "common/body/model_spec.h"
 #include "common/log/log.h"
 #include "common/metrics/metrics.h"
-#include "server/jobs/worker_process.h"
 #include "server/jobs/worker_protocol.h"
 #include "server/server_metrics.h"
 #include "server/store/frame_set_validation.h"
@@ -274,7 +271,7 @@ absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
     std::string error;
     if (job.state() == v1::JOB_STATE_RUNNING) {
       auto it = running_.find(job_id);
-      if (it != running_.end() && it->second->remote()) {
+      if (it != running_.end()) {
         // Its worker hears it at its next heartbeat (Aborted) and stops; a
         // launcher's worker (a Slurm job) is also cancelled there.
         error = absl::StrCat("cancelled by a client (worker ", it->second->worker_name,

@@ -64,7 +64,6 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "common/base/subprocess.h"
 #include "common/base/thread_pool.h"
 #include "common/methods/method_spec.h"
 #include "reenact/v1/jobs_service.pb.h"
@@ -73,7 +72,6 @@
 #include "server/jobs/job_store.h"
 #include "server/jobs/live_jobs.h"
 #include "server/jobs/worker_launcher.h"
-#include "server/jobs/worker_process.h"
 #include "server/live/live_hub.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
@@ -246,8 +244,8 @@ class JobScheduler {
   const std::string& worker_path() const { return worker_path_; }
 
  private:
-  // A job with a worker: a local worker process once Launch started it, or a
-  // Work lease of a worker over the network.
+  // A leased job: one attempt, held by one worker (the server's own or one
+  // over the network).
   struct Running {
     std::string job_id;
     std::string reenactment_id;
@@ -264,7 +262,6 @@ class JobScheduler {
     // The upload claimed (BeginUpload), and where it is written.
     bool uploading = false;
     std::string upload_path;
-    bool remote() const { return !lease_id.empty(); }
   };
 
   JobScheduler(const JobSchedulerOptions& options, std::string jobs_dir, JobStore* jobs,

@@ -74,17 +74,6 @@ void WorkerProcess::Cancel(double grace_s) {
   }
 }
 
-void WorkerProcess::Terminate() { (void)process_->Signal(SIGTERM); }
-
-absl::StatusOr<ExitInfo> WorkerProcess::WaitOrKill(double timeout_s) {
-  absl::StatusOr<ExitInfo> exit = process_->Wait(timeout_s);
-  if (!exit.ok()) {
-    (void)process_->Signal(SIGKILL);
-    exit = process_->Wait();
-  }
-  return exit;
-}
-
 std::string WorkerProcess::LastLog() const {
   return LastWorkerLog(log_path_, log_offset_, output_.report().last_log);
 }

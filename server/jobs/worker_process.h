@@ -42,12 +42,6 @@ class WorkerProcess {
   // Cancel, called at every poll while it is under way: SIGTERM at the
   // first call, SIGKILL at the first one `grace_s` after it.
   void Cancel(double grace_s);
-  // Whether Cancel had to kill the worker.
-  bool killed() const { return kill_sent_; }
-  // Shutdown: SIGTERM now; WaitOrKill(left) then waits for the end,
-  // killing the worker (SIGKILL) when it is not over after `timeout_s`.
-  void Terminate();
-  absl::StatusOr<ExitInfo> WaitOrKill(double timeout_s);
 
   // The job's progress with the worker's lines and the ETA.
   const v1::JobProgress& progress() const { return output_.report().progress; }

@@ -90,7 +90,6 @@ bool ApplyWorkerLine(const std::string& line, WorkerReport& report,
   if (auto it = j.find("result"); it != j.end()) {
     logs->push_back(Truncate("result: " + it->dump(), kMaxWorkerLogLineChars));
     if (it->is_object()) {
-      report.has_result = true;
       const auto count = [&](const char* key) -> int64_t {
         const auto v = it->find(key);
         return v != it->end() && v->is_number_integer() ? v->get<int64_t>() : 0;

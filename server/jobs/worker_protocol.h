@@ -63,7 +63,6 @@ struct WorkerReport {
   // Its last log line: a {"log"} line, or a line that is no JSON object.
   std::string last_log;
   // Its {"result"}: frames, keyframes and figures (at most 64).
-  bool has_result = false;
   int64_t result_frames = 0;
   int64_t result_keyframes = 0;
   std::map<std::string, double> result_figures;

@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "common/base/status_macros.h"
+#include "common/io/proto_convert.h"
 #include "common/io/reenactment_file.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/registry.h"
@@ -28,18 +29,6 @@ void SplitLoadOptions(const OptionMap& options, OptionMap* load, OptionMap* meth
       method->erase(it);
     }
   }
-}
-
-v1::TextureMode TextureModeProto(methods::TextureMode mode) {
-  switch (mode) {
-    case methods::TextureMode::kPoseClosest:
-      return v1::TEXTURE_MODE_POSE_CLOSEST;
-    case methods::TextureMode::kRotationClosest:
-      return v1::TEXTURE_MODE_ROTATION_CLOSEST;
-    case methods::TextureMode::kBodyAtlas:
-      return v1::TEXTURE_MODE_BODY_ATLAS;
-  }
-  return v1::TEXTURE_MODE_UNSPECIFIED;
 }
 
 // Maps a method's own fractions (0..1, its stage names) into
@@ -120,7 +109,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   info.set_take_id(input.take_id);
   info.set_job_id(input.job_id);
   info.set_method(input.method);
-  info.set_texture_mode(TextureModeProto(method->spec().texture));
+  info.set_texture_mode(ToProto(method->spec().texture));
   info.mutable_options()->clear();
   for (const auto& [key, value] : input.options) (*info.mutable_options())[key] = value;
   info.set_created_unix_ns(NowUnixNs());

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/io/proto_convert.h"
 #include "proto/grpc_status.h"
 #include "proto/write_pump.h"
 #include "server/jobs/job_scheduler.h"
@@ -114,17 +115,7 @@ v1::ListMethodsResponse ListMethods(const std::vector<methods::MethodSpec>& spec
     method.set_summary(spec.summary);
     method.set_thesis(spec.thesis);
     method.set_live(spec.live);
-    switch (spec.texture) {
-      case methods::TextureMode::kPoseClosest:
-        method.set_texture_mode(v1::TEXTURE_MODE_POSE_CLOSEST);
-        break;
-      case methods::TextureMode::kRotationClosest:
-        method.set_texture_mode(v1::TEXTURE_MODE_ROTATION_CLOSEST);
-        break;
-      case methods::TextureMode::kBodyAtlas:
-        method.set_texture_mode(v1::TEXTURE_MODE_BODY_ATLAS);
-        break;
-    }
+    method.set_texture_mode(ToProto(spec.texture));
     for (const methods::OptionSpec& option : spec.options) {
       v1::MethodOption& out = *method.add_options();
       out.set_name(option.name);

@@ -37,6 +37,13 @@ absl::StatusOr<SensorList> OpenOne(const SourceSpec& spec, int source_number,
     options.first_index = 0;
     return OpenPlaybackSensors(spec.argument, options);
   }
+  if (spec.backend == "azure-mkv" || spec.backend == "tum" || spec.backend == "oni") {
+    // Recordings of other tools: Kinect ids for Azure Kinect and TUM (a
+    // Kinect v1), OpenNI2 ids for .oni files.
+    options.id_prefix = spec.backend == "oni" ? "o" : "k";
+    options.first_index = NextIndex(taken, options.id_prefix);
+    return OpenRecordingSensors(spec.backend, spec.argument, options);
+  }
   const std::string argument =
       spec.argument == "all" || spec.argument == "any" ? "" : spec.argument;
   if (spec.backend == "freenect" || spec.backend == "freenect2") {
@@ -66,6 +73,13 @@ absl::StatusOr<std::vector<SourceSpec>> ParseSourceSpecs(const std::vector<std::
           return absl::InvalidArgumentError(absl::StrCat(
               "source \"", std::string(item), "\": playback needs a file (playback:FILE)"));
         }
+      } else if (spec.backend == "azure-mkv" || spec.backend == "tum" || spec.backend == "oni") {
+        if (spec.argument.empty()) {
+          return absl::InvalidArgumentError(
+              absl::StrCat("source \"", std::string(item), "\": ", spec.backend, " needs a ",
+                           spec.backend == "tum" ? "folder (tum:DIR)"
+                                                 : absl::StrCat("file (", spec.backend, ":FILE)")));
+        }
       } else if (spec.backend == "freenect") {
         if (spec.argument.empty()) spec.argument = "all";
       } else if (spec.backend == "openni2" || spec.backend == "freenect2") {
@@ -73,8 +87,8 @@ absl::StatusOr<std::vector<SourceSpec>> ParseSourceSpecs(const std::vector<std::
       } else {
         return absl::InvalidArgumentError(absl::StrCat(
             "source \"", std::string(item),
-            "\": unknown backend (expected playback:FILE, freenect:0|SERIAL|all, openni2:any|URI "
-            "or freenect2:any|SERIAL)"));
+            "\": unknown backend (expected playback:FILE, freenect:0|SERIAL|all, openni2:any|URI, "
+            "freenect2:any|SERIAL, azure-mkv:FILE, tum:DIR or oni:FILE)"));
       }
       out.push_back(std::move(spec));
     }

@@ -16,6 +16,15 @@
 //                  [--options-json '{"key":"value"}'] [--reenactment-id RID]
 //                  [--take-id T] [--job-id J] [--assets DIR[,DIR...]]
 //                  [--log-format text|json] [--log-level debug|info|warn|error]
+//                  [--part prepare | --part segment-K --segments N --prepared F
+//                   | --part stitch --segments N --prepared F
+//                     --segment-files F1,...,FN]
+//
+// --part runs one phase of a segmented job (one take split across several
+// workers; server/recon/methods.h MethodPhase): prepare writes the method's
+// part file from the whole take, segment-K (1-based) that of segment K of N
+// from the prepared file, stitch the reenactment from the prepared file and
+// every segment's.
 //
 // stdout carries one JSON object per line: progress
 // {"stage":"register","fraction":0.42,"frames_done":120,"frames_total":300}
@@ -38,6 +47,7 @@
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -46,6 +56,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 #include "common/base/flags.h"
 #include "common/base/time.h"
@@ -74,7 +86,10 @@ constexpr char kUsage[] =
     "[--options-json '{\"key\":\"value\"}'] [--reenactment-id RID] [--take-id T] [--job-id J] "
     "[--assets DIR[,DIR...] (where model=makehuman:NAME is looked up)] "
     "[--log-format text|json (events on stderr; default text)] "
-    "[--log-level debug|info|warn|error (default info)]";
+    "[--log-level debug|info|warn|error (default info)] "
+    "[--part prepare | --part segment-K --segments N --prepared FILE | --part stitch "
+    "--segments N --prepared FILE --segment-files F1,...,FN (one phase of a job split across "
+    "workers)]";
 
 volatile sig_atomic_t g_stop_signal = 0;
 std::atomic<bool> g_stop{false};
@@ -150,11 +165,49 @@ int Usage(Output& out, const std::string& message) {
   return kExitUsage;
 }
 
+// --part and its companions into `input`; a usage error's message, or "".
+std::string ReadPhase(const reenact::Flags& flags, reenact::recon::MethodInput& input) {
+  using reenact::recon::MethodPhase;
+  const std::string part = flags.GetOr("part", "");
+  if (part.empty()) {
+    for (const char* name : {"segments", "prepared", "segment-files"}) {
+      if (flags.Has(name)) return std::string("--") + name + " needs --part";
+    }
+    return "";
+  }
+  if (part == "prepare") {
+    input.phase = MethodPhase::kPrepare;
+    return "";
+  }
+  const absl::StatusOr<int> count = flags.GetInt("segments", 0);
+  if (!count.ok() || *count < 2 || *count > 64) return "--segments takes 2 to 64";
+  input.segment_count = *count;
+  input.prepared_path = flags.GetOr("prepared", "");
+  if (input.prepared_path.empty()) return "--part " + part + " needs --prepared";
+  if (part == "stitch") {
+    input.phase = MethodPhase::kStitch;
+    input.segment_paths = absl::StrSplit(flags.GetOr("segment-files", ""), ',', absl::SkipEmpty());
+    if (static_cast<int>(input.segment_paths.size()) != *count) {
+      return "--segment-files must name one file per segment";
+    }
+    return "";
+  }
+  int number = 0;
+  if (!absl::StartsWith(part, "segment-") ||
+      !absl::SimpleAtoi(part.substr(std::strlen("segment-")), &number) || number < 1 ||
+      number > *count) {
+    return "--part takes prepare, segment-K (1 <= K <= --segments) or stitch";
+  }
+  input.phase = MethodPhase::kSegment;
+  input.segment_index = number - 1;
+  return "";
+}
+
 // reenact-worker --server: jobs from a server's Work service, each run by
 // this program in its one-job mode as a child.
 int RunNetworkWorker(const reenact::Flags& flags, const char* argv0) {
-  for (const char* name :
-       {"take", "method", "out", "options-json", "reenactment-id", "take-id", "job-id"}) {
+  for (const char* name : {"take", "method", "out", "options-json", "reenactment-id", "take-id",
+                           "job-id", "part", "segments", "prepared", "segment-files"}) {
     if (flags.Has(name)) {
       std::fprintf(stderr, "reenact-worker: --%s is for one job; --server leases jobs\n%s\n", name,
                    kUsage);
@@ -234,12 +287,13 @@ int main(int argc, char** argv) {
   ::umask(077);
   InstallSignals();
   Output out;
-  const absl::StatusOr<reenact::Flags> flags =
-      reenact::Flags::Parse(std::vector<std::string>(argv + 1, argv + argc),
-                            {"take", "method", "options-json", "out", "reenactment-id", "take-id",
-                             "job-id", "assets", "log-format", "log-level", "server", "token-file",
-                             "tls-ca", "methods", "scratch", "name", "wait"},
-                            {"help", "once", "loop"});
+  const absl::StatusOr<reenact::Flags> flags = reenact::Flags::Parse(
+      std::vector<std::string>(argv + 1, argv + argc),
+      {"take",     "method",   "options-json", "out",       "reenactment-id", "take-id",
+       "job-id",   "assets",   "log-format",   "log-level", "server",         "token-file",
+       "tls-ca",   "methods",  "scratch",      "name",      "wait",           "part",
+       "segments", "prepared", "segment-files"},
+      {"help", "once", "loop"});
   if (!flags.ok()) return Usage(out, std::string(flags.status().message()));
   if (flags->Has("help")) {
     std::printf("%s\n", kUsage);
@@ -268,6 +322,7 @@ int main(int argc, char** argv) {
   for (const auto& [key, value] : options.items()) {
     input.options[key] = value.is_string() ? value.get<std::string>() : value.dump();
   }
+  if (const std::string error = ReadPhase(*flags, input); !error.empty()) return Usage(out, error);
   const std::string out_path = *flags->Get("out");
   const absl::StatusOr<reenact::log::Options> log_options = reenact::log::ParseOptions(
       flags->GetOr("log-format", "text"), flags->GetOr("log-level", "info"));

@@ -25,6 +25,16 @@ absl::StatusOr<SensorList> OpenFreenectSensors(const std::string& device,
 // `uri`: a device URI, or empty/"any" for the first device.
 absl::StatusOr<SensorList> OpenOpenni2Sensors(const std::string& uri, const SourceOptions& options);
 
+// Recordings made by other tools played as live sensors
+// (common/io/recordings): `format` "azure-mkv" (an Azure Kinect .mkv), "tum"
+// (a TUM RGB-D folder) or "oni" (an OpenNI2 recording); one sensor, paced as
+// recorded unless options.fast, starting over with options.loop, ending with
+// OK at the end of the recording. Ids: options.id_prefix (default "k", "o"
+// for .oni) + first_index. NotFound for a missing path; the reader's errors
+// for a recording it cannot read.
+absl::StatusOr<SensorList> OpenRecordingSensors(const std::string& format, const std::string& path,
+                                                const SourceOptions& options);
+
 // Kinect v2 through libfreenect2, when it was found at build time.
 // `serial`: a serial, or empty/"any".
 bool Freenect2Built();

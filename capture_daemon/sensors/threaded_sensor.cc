@@ -54,7 +54,7 @@ void ThreadedSensor::Run() {
   FlushHeld();
   UpdateInfo([&why](v1::SensorInfo& info) {
     info.set_state(v1::SENSOR_STATE_GONE);
-    info.set_detail(std::string(why.message()));
+    info.set_detail(why.ok() ? "end of recording" : std::string(why.message()));
   });
   if (on_end_) on_end_(why);
 }
@@ -64,6 +64,7 @@ absl::Status ThreadedSensor::GrabUntilEnd() {
   while (!stop_requested_) {
     absl::StatusOr<GrabResult> grabbed = Grab();
     if (!grabbed.ok()) return grabbed.status();
+    if (*grabbed == GrabResult::kEnd) return absl::OkStatus();
     if (*grabbed == GrabResult::kFrame || stall_.timeout_s <= 0) continue;
     if (SteadyNowNs() - last_frame_steady_ns_ > SecondsToNs(stall_.timeout_s)) {
       return absl::UnavailableError(absl::StrCat(sensor_id_, ": no ", stall_.frame, " for ",

@@ -60,6 +60,10 @@ class ThreadedSensor : public Sensor {
     // The wait ended without a frame, or the backend cannot tell: the stall
     // check runs.
     kNoFrame,
+    // The source ended by itself without an error (the end of a recording):
+    // the stream ends as on an error, but the EndCallback gets OK and the
+    // state's detail says "end of recording".
+    kEnd,
   };
 
   // `info`: as opened (state DETECTED); its sensor_id names the sensor in

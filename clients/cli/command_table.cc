@@ -40,6 +40,19 @@ std::vector<Command> BuildCommandTable() {
        "FILE --out sheet.png [--frames N]",
        "contact sheet: colour with skeleton, depth and mask of a few frames per sensor",
        RunTakeSheet},
+      {{"take", "frame"},
+       "TAKE.mcap [--sensor ID] --index N [--depth-png F] [--color F] [--json]",
+       "one frame of a sensor: its depth as a 16-bit PNG in millimetres, its colour as stored "
+       "(JPEG bytes), with the frame's stamps and the sensor's calibration",
+       RunTakeFrame},
+      {{"import"},
+       "FILE|DIR --out take.mcap [--format azure-mkv|tum|oni] [--max-frames N] "
+       "[--intrinsics FILE] [--sensor-id ID] [--jpeg-quality Q] [--name NAME] [--quiet] [--json]",
+       "a recording made by another tool as a take: an Azure Kinect .mkv (k4arecorder; its "
+       "calibration.json), a TUM RGB-D folder (rgb.txt, depth.txt; default intrinsics fx=fy=525, "
+       "cx=319.5, cy=239.5 unless --intrinsics \"fx fy cx cy [d0..d4]\"), or an OpenNI2 .oni; the "
+       "format follows from the name unless --format",
+       RunImport},
       {{"take", "skeletons"},
        "TAKE.mcap --truth SYNTH.mcap [--track [--forest F] [--no-refine]] [--json]",
        "measure a take's skeletons against a synthetic take's ground truth (TAKE itself, or the "
@@ -109,9 +122,11 @@ std::vector<Command> BuildCommandTable() {
       {{"capture", "stop"}, "[--daemon HOST:PORT]", "stop the take being recorded", RunCaptureStop},
       {{"jobs", "submit"},
        "--take ID --method NAME [--model procedural|makehuman:NAME] "
-       "[--option KEY=VALUE ...] [--server HOST:PORT] [--wait [--logs] [--quiet]] [--json]",
+       "[--option KEY=VALUE ...] [--segments N] [--server HOST:PORT] [--wait [--logs] "
+       "[--quiet]] [--json]",
        "queue a reconstruction of a stored take by a method of `jobs methods` (rigid parts, "
-       "thesis ch. 3, or the body model, ch. 4; --model is --option model=); --wait follows it "
+       "thesis ch. 3, or the body model, ch. 4; --model is --option model=); --segments N "
+       "splits the take across N workers (methods marked segmentable); --wait follows it "
        "with a progress bar; a live method with --option live=true follows a take still "
        "recording (reenactments follow)",
        RunJobsSubmit},

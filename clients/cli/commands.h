@@ -25,6 +25,10 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
 // take_commands.cc
 int RunTakeInfo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTakeFrame(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// import_command.cc
+int RunImport(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 // skeleton_commands.cc
 int RunTakeSkeletons(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

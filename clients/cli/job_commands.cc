@@ -41,17 +41,33 @@ std::string Duration(double seconds) {
   return absl::StrFormat("%ds", s);
 }
 
-nlohmann::json JobJson(const v1::Job& job) {
-  nlohmann::json options = nlohmann::json::object();
-  for (const auto& [key, value] : job.options()) options[key] = value;
-  const v1::JobProgress& p = job.progress();
+nlohmann::json AttemptsJson(const google::protobuf::RepeatedPtrField<v1::JobAttempt>& attempts) {
   nlohmann::json history = nlohmann::json::array();
-  for (const v1::JobAttempt& a : job.attempt_history()) {
+  for (const v1::JobAttempt& a : attempts) {
     history.push_back({{"number", a.number()},
                        {"worker", a.worker()},
                        {"started_unix_ns", a.started_unix_ns()},
                        {"ended_unix_ns", a.ended_unix_ns()},
                        {"outcome", a.outcome()}});
+  }
+  return history;
+}
+
+nlohmann::json JobJson(const v1::Job& job) {
+  nlohmann::json options = nlohmann::json::object();
+  for (const auto& [key, value] : job.options()) options[key] = value;
+  const v1::JobProgress& p = job.progress();
+  const nlohmann::json history = AttemptsJson(job.attempt_history());
+  nlohmann::json parts = nlohmann::json::array();
+  for (const v1::JobPart& part : job.parts()) {
+    const nlohmann::json attempts = AttemptsJson(part.attempt_history());
+    parts.push_back({{"name", part.name()},
+                     {"state", part.state() == v1::JOB_STATE_UNSPECIFIED
+                                   ? std::string("waiting")
+                                   : std::string(client::JobStateName(part.state()))},
+                     {"attempts", part.attempts()},
+                     {"attempt_history", attempts},
+                     {"file_bytes", part.file_bytes()}});
   }
   return {{"job_id", job.job_id()},
           {"take_id", job.take_id()},
@@ -70,7 +86,9 @@ nlohmann::json JobJson(const v1::Job& job) {
           {"reenactment_id", job.reenactment_id()},
           {"error", job.error()},
           {"attempts", job.attempts()},
-          {"attempt_history", history}};
+          {"attempt_history", history},
+          {"segments", job.segments()},
+          {"parts", parts}};
 }
 
 // The job's id from --job or the one positional argument.
@@ -214,9 +232,9 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   std::vector<std::string> args = raw_args;
   auto options = TakeOptions(&args);
   if (!options.ok()) return ReportError(options.status(), err);
-  auto flags =
-      Flags::Parse(args, {"server", "timeout", "tls-ca", "token-file", "take", "method", "model"},
-                   {"wait", "json", "logs", "quiet"});
+  auto flags = Flags::Parse(
+      args, {"server", "timeout", "tls-ca", "token-file", "take", "method", "model", "segments"},
+      {"wait", "json", "logs", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError(
@@ -233,7 +251,11 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   auto connection = ConnectionFromFlags(*flags);
   if (!connection.ok()) return ReportError(connection.status(), err);
   const client::JobsClient jobs(*connection);
-  auto job = jobs.Submit(*take, *method, *options);
+  const absl::StatusOr<int> segments = flags->GetInt("segments", 0);
+  if (!segments.ok() || *segments < 0) {
+    return ReportError(absl::InvalidArgumentError("--segments takes a count of workers >= 0"), err);
+  }
+  auto job = jobs.Submit(*take, *method, *options, *segments);
   if (!job.ok()) return ReportRemoteError(job.status(), err);
   const bool json = flags->Has("json");
   if (!flags->Has("wait")) {
@@ -310,8 +332,10 @@ nlohmann::json MethodJson(const v1::MethodDescription& method) {
   std::string texture = absl::AsciiStrToLower(v1::TextureMode_Name(method.texture_mode()));
   if (absl::StartsWith(texture, "texture_mode_")) texture = texture.substr(13);
   absl::StrReplaceAll({{"_", "-"}}, &texture);
-  return {{"name", method.name()}, {"summary", method.summary()}, {"thesis", method.thesis()},
-          {"live", method.live()}, {"texture_mode", texture},     {"options", options}};
+  return {
+      {"name", method.name()}, {"summary", method.summary()},         {"thesis", method.thesis()},
+      {"live", method.live()}, {"segmentable", method.segmentable()}, {"texture_mode", texture},
+      {"options", options}};
 }
 
 // "[0, 100]" for bounded options; "" otherwise.
@@ -342,7 +366,8 @@ int RunJobsMethods(const std::vector<std::string>& args, std::ostream& out, std:
     const nlohmann::json j = MethodJson(method);
     out << method.name() << ": " << method.summary() << "\n"
         << "  thesis " << method.thesis() << "; textures " << j["texture_mode"].get<std::string>()
-        << "; " << (method.live() ? "can follow a take live (live=true)" : "offline only") << "\n";
+        << "; " << (method.live() ? "can follow a take live (live=true)" : "offline only")
+        << (method.segmentable() ? "; can split a take across workers (--segments N)" : "") << "\n";
     for (const v1::MethodOption& option : method.options()) {
       const char* scope = option.common() ? " (every method)" : option.live_only() ? " (live)" : "";
       out << absl::StrFormat("  %-24s %-6s %-10s %-16s %s%s\n", option.name(), option.type(),
@@ -390,6 +415,21 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
         << UtcTime(a.started_unix_ns()) << " .. "
         << (a.ended_unix_ns() == 0 ? "running" : UtcTime(a.ended_unix_ns()))
         << (a.outcome().empty() ? "" : ": " + a.outcome()) << "\n";
+  }
+  if (job->segments() > 0) out << "segments     " << job->segments() << "\n";
+  for (const v1::JobPart& part : job->parts()) {
+    out << "  part " << part.name() << "  "
+        << (part.state() == v1::JOB_STATE_UNSPECIFIED
+                ? std::string("waiting")
+                : std::string(client::JobStateName(part.state())));
+    if (part.file_bytes() > 0) out << ", " << part.file_bytes() << " bytes";
+    out << "\n";
+    for (const v1::JobAttempt& a : part.attempt_history()) {
+      out << "    attempt " << a.number() << "  on " << a.worker() << ", "
+          << UtcTime(a.started_unix_ns()) << " .. "
+          << (a.ended_unix_ns() == 0 ? "running" : UtcTime(a.ended_unix_ns()))
+          << (a.outcome().empty() ? "" : ": " + a.outcome()) << "\n";
+    }
   }
   if (!job->reenactment_id().empty()) out << "reenactment  " << job->reenactment_id() << "\n";
   if (!job->error().empty()) out << "error        " << job->error() << "\n";

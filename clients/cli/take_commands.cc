@@ -1,7 +1,8 @@
-// `reenact take info` and `reenact take sheet`: look at a take.
+// `reenact take info`, `reenact take sheet` and `reenact take frame`: look at a take.
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <ostream>
 #include <set>
 
@@ -12,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "clients/cli/commands.h"
+#include "common/base/files.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
@@ -19,6 +21,7 @@
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
+#include "common/io/recordings/recording.h"
 #include "common/io/take.h"
 
 namespace reenact::cli {
@@ -295,6 +298,192 @@ int RunTakeSheet(const std::vector<std::string>& args, std::ostream& out, std::o
   if (auto status = WriteSheet(**take, *frames, *out_path); !status.ok())
     return ReportError(status, err);
   out << "wrote " << *out_path << "\n";
+  return kExitOk;
+}
+
+}  // namespace reenact::cli
+
+namespace reenact::cli {
+namespace {
+
+nlohmann::json IntrinsicsJson(const v1::CameraIntrinsics& k) {
+  return {{"width", k.width_px()}, {"height", k.height_px()},
+          {"fx", k.fx_px()},       {"fy", k.fy_px()},
+          {"cx", k.cx_px()},       {"cy", k.cy_px()},
+          {"k1", k.k1()},          {"k2", k.k2()},
+          {"k3", k.k3()},          {"p1", k.p1()},
+          {"p2", k.p2()}};
+}
+
+// The message of `topic` with frame_index `index`; nullopt when none.
+template <typename Message>
+absl::StatusOr<std::optional<Message>> FindFrame(const TakeReader& take, const std::string& topic,
+                                                 int64_t index) {
+  std::optional<Message> found;
+  RETURN_IF_ERROR(take.ForEach<Message>(topic, [&](const Message& m) {
+    if (!found && m.frame_index() == index) found = m;
+    return absl::OkStatus();
+  }));
+  return found;
+}
+
+}  // namespace
+
+int RunTakeFrame(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(args, {"sensor", "index", "depth-png", "color"}, {"json"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  auto index = flags->GetInt("index", -1);
+  if (!index.ok()) return ReportError(index.status(), err);
+  if (flags->positional().size() != 1 || *index < 0) {
+    return ReportError(
+        absl::InvalidArgumentError("take frame needs one TAKE.mcap and --index N (N >= 0)"), err);
+  }
+  const std::string& path = flags->positional()[0];
+  auto take = TakeReader::Open(path);
+  if (!take.ok()) {
+    ReportError(take.status(), err);
+    return kExitFailure;
+  }
+  std::string sensor_id = flags->GetOr("sensor", "");
+  if (sensor_id.empty()) {
+    if ((*take)->sensors().size() != 1) {
+      return ReportError(
+          absl::InvalidArgumentError(absl::StrCat(path, " has ", (*take)->sensors().size(),
+                                                  " sensors; name one with --sensor ID")),
+          err);
+    }
+    sensor_id = (*take)->sensors().begin()->first;
+  }
+  const auto calibration = (*take)->sensors().find(sensor_id);
+  if (calibration == (*take)->sensors().end()) {
+    std::string ids;
+    for (const auto& [id, c] : (*take)->sensors())
+      absl::StrAppend(&ids, ids.empty() ? "" : ", ", id);
+    err << "reenact: " << path << " has no sensor \"" << sensor_id << "\" (it has: " << ids
+        << ")\n";
+    return kExitFailure;
+  }
+  auto depth = FindFrame<v1::DepthImage>(**take, SensorTopic(sensor_id, "depth"), *index);
+  auto color = FindFrame<v1::ColorImage>(**take, SensorTopic(sensor_id, "color"), *index);
+  for (const absl::Status& s : {depth.status(), color.status()}) {
+    if (!s.ok()) {
+      ReportError(s, err);
+      return kExitFailure;
+    }
+  }
+  if (!*depth && !*color) {
+    err << "reenact: sensor " << sensor_id << " of " << path << " has no frame " << *index << "\n";
+    return kExitFailure;
+  }
+  nlohmann::json j;
+  j["file"] = path;
+  j["sensor"] = sensor_id;
+  j["index"] = *index;
+  const v1::SensorCalibration& c = calibration->second;
+  j["calibration"] = {
+      {"model", c.model()},
+      {"serial", c.serial()},
+      {"depth_intrinsics", IntrinsicsJson(c.depth_intrinsics())},
+      {"color_intrinsics", IntrinsicsJson(c.color_intrinsics())},
+      {"color_from_depth",
+       {{"rotation_wxyz",
+         {c.color_from_depth().rotation().w(), c.color_from_depth().rotation().x(),
+          c.color_from_depth().rotation().y(), c.color_from_depth().rotation().z()}},
+        {"translation_m",
+         {c.color_from_depth().translation_m().x(), c.color_from_depth().translation_m().y(),
+          c.color_from_depth().translation_m().z()}}}},
+      {"depth_scale_m_per_unit", c.depth_scale_m_per_unit()},
+      {"clock_offset_ns", c.clock_offset_ns()},
+      {"nominal_fps", c.nominal_fps()}};
+  if (*depth) {
+    const v1::DepthImage& d = **depth;
+    absl::StatusOr<DepthImageMm> mm = DecodeDepth(d.data());
+    if (!mm.ok()) {
+      err << "reenact: depth frame " << *index << " of " << sensor_id << ": "
+          << mm.status().message() << "\n";
+      return kExitFailure;
+    }
+    uint16_t lo = 0, hi = 0;
+    int64_t valid = 0;
+    for (uint16_t v : mm->data) {
+      if (v == 0) continue;
+      lo = valid == 0 ? v : std::min(lo, v);
+      hi = std::max(hi, v);
+      ++valid;
+    }
+    j["depth"] = {{"device_stamp_ns", d.device_stamp_ns()},
+                  {"host_stamp_ns", d.host_stamp_ns()},
+                  {"width", d.width_px()},
+                  {"height", d.height_px()},
+                  {"encoding", d.encoding()},
+                  {"valid_pixels", valid},
+                  {"min_mm", lo},
+                  {"max_mm", hi}};
+    if (auto png_path = flags->Get("depth-png")) {
+      absl::StatusOr<std::string> png = recordings::EncodePng16(*mm);
+      absl::Status written = png.ok() ? WriteFileAtomically(*png_path, *png) : png.status();
+      if (!written.ok()) {
+        err << "reenact: " << *png_path << ": " << written.message() << "\n";
+        return kExitFailure;
+      }
+      j["depth"]["png"] = *png_path;
+    }
+  } else if (flags->Has("depth-png")) {
+    err << "reenact: frame " << *index << " of " << sensor_id << " has no depth\n";
+    return kExitFailure;
+  }
+  if (*color) {
+    const v1::ColorImage& col = **color;
+    j["color"] = {{"device_stamp_ns", col.device_stamp_ns()},
+                  {"host_stamp_ns", col.host_stamp_ns()},
+                  {"width", col.width_px()},
+                  {"height", col.height_px()},
+                  {"encoding", col.encoding()},
+                  {"quality", col.quality()},
+                  {"bytes", col.data().size()}};
+    if (auto color_path = flags->Get("color")) {
+      if (absl::Status written = WriteFileAtomically(*color_path, col.data()); !written.ok()) {
+        err << "reenact: " << *color_path << ": " << written.message() << "\n";
+        return kExitFailure;
+      }
+      j["color"]["file"] = *color_path;
+    }
+  } else if (flags->Has("color")) {
+    err << "reenact: frame " << *index << " of " << sensor_id << " has no colour\n";
+    return kExitFailure;
+  }
+  if (flags->Has("json")) {
+    out << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  out << path << " sensor " << sensor_id << " frame " << *index << "\n";
+  if (j.contains("depth")) {
+    out << "  depth      " << j["depth"]["width"] << "x" << j["depth"]["height"] << " "
+        << j["depth"]["encoding"].get<std::string>() << ", device stamp "
+        << j["depth"]["device_stamp_ns"] << " ns, host stamp " << j["depth"]["host_stamp_ns"]
+        << " ns, " << j["depth"]["valid_pixels"] << " valid pixels, " << j["depth"]["min_mm"]
+        << ".." << j["depth"]["max_mm"] << " mm\n";
+  }
+  if (j.contains("color")) {
+    out << "  colour     " << j["color"]["width"] << "x" << j["color"]["height"] << " "
+        << j["color"]["encoding"].get<std::string>() << ", " << j["color"]["bytes"]
+        << " bytes, device stamp " << j["color"]["device_stamp_ns"] << " ns\n";
+  }
+  const auto& dk = c.depth_intrinsics();
+  const auto& ck = c.color_intrinsics();
+  out << "  depth K    " << dk.width_px() << "x" << dk.height_px() << " fx " << dk.fx_px() << " fy "
+      << dk.fy_px() << " cx " << dk.cx_px() << " cy " << dk.cy_px() << " k " << dk.k1() << " "
+      << dk.k2() << " " << dk.k3() << " p " << dk.p1() << " " << dk.p2() << "\n"
+      << "  colour K   " << ck.width_px() << "x" << ck.height_px() << " fx " << ck.fx_px() << " fy "
+      << ck.fy_px() << " cx " << ck.cx_px() << " cy " << ck.cy_px() << " k " << ck.k1() << " "
+      << ck.k2() << " " << ck.k3() << " p " << ck.p1() << " " << ck.p2() << "\n"
+      << "  colour<-depth t " << j["calibration"]["color_from_depth"]["translation_m"].dump()
+      << " m, q " << j["calibration"]["color_from_depth"]["rotation_wxyz"].dump() << "\n";
+  if (j.contains("depth") && j["depth"].contains("png"))
+    out << "  wrote " << j["depth"]["png"].get<std::string>() << "\n";
+  if (j.contains("color") && j["color"].contains("file")) {
+    out << "  wrote " << j["color"]["file"].get<std::string>() << "\n";
+  }
   return kExitOk;
 }
 

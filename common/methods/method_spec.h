@@ -53,6 +53,9 @@ struct MethodSpec {
   bool live = false;    // Whether a job may follow its take (live=true).
   TextureMode texture = TextureMode::kRotationClosest;
   std::vector<OptionSpec> options;
+  // Whether one take may be split across several workers (a job's
+  // segments > 1): a prepare phase, segments, and a stitch.
+  bool segmentable = false;
 };
 
 // The spec named `name` among `specs`, or null.

@@ -115,22 +115,22 @@ void JobScheduler::StopLeasing() {
 
 std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std::string>& methods,
                                                              const std::string& worker_name) {
-  auto runs = [&](const std::string& job_id) {
+  auto runs = [&](const std::string& unit) {
     if (methods.empty()) return true;
-    const absl::StatusOr<v1::Job> job = jobs_->Get(job_id);
+    const absl::StatusOr<v1::Job> job = jobs_->Get(SplitUnit(unit).first);
     return job.ok() && methods.contains(job->method());
   };
   if (leasing_stopped_) return std::nullopt;
   // This server's own workers share its job slots with live follows.
   const bool local = IsLocalWorkerName(worker_name);
   if (local && BusyLocked() >= concurrency_) return std::nullopt;
-  std::string job_id;
+  std::string unit;
   bool started = false;
   // Live jobs whose take ended go first: they have run for a while.
   if (std::optional<std::string> next = live_jobs_.NextHandoffLocked()) {
     if (runs(*next)) {
-      job_id = *next;
-      started = StartHandoffLocked(job_id, worker_name);
+      unit = *next;
+      started = StartHandoffLocked(unit, worker_name);
     } else {
       live_jobs_.ReturnHandoffLocked(*next);
     }
@@ -140,12 +140,15 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
       ++it;
       continue;
     }
-    job_id = *it;
+    unit = *it;
     it = queue_.erase(it);
-    started = StartQueuedLocked(job_id, worker_name);
+    const auto [id, part] = SplitUnit(unit);
+    started =
+        part.empty() ? StartQueuedLocked(id, worker_name) : StartPartLocked(id, part, worker_name);
   }
   if (!started) return std::nullopt;
-  Running& run = *running_.at(job_id);
+  Running& run = *running_.at(unit);
+  const std::string job_id = run.job_id;
   const absl::StatusOr<v1::Job> job = jobs_->Get(job_id);
   const absl::StatusOr<std::string> take_path =
       job.ok() ? takes_->TakeFileForReading(job->take_id()) : job.status();
@@ -158,21 +161,35 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
     const std::string why =
         absl::StrCat("the take cannot be read: ",
                      !take_path.ok() ? std::string(take_path.status().message()) : error.message());
-    running_.erase(job_id);
+    running_.erase(unit);
     finisher_->Schedule([this, job_id, why] { EndJob(job_id, v1::JOB_STATE_FAILED, why); });
     return std::nullopt;
   }
-  run.lease_id = NewLeaseId(job_id, job->attempts());
+  v1::WorkLease lease;
+  int attempt = job->attempts();
+  if (!run.part.empty()) {
+    if (const absl::Status filled = FillPartLeaseLocked(*job, run, lease); !filled.ok()) {
+      const std::string why = absl::StrCat("part ", run.part, ": ", filled.message());
+      running_.erase(unit);
+      finisher_->Schedule([this, job_id, why] { EndJob(job_id, v1::JOB_STATE_FAILED, why); });
+      return std::nullopt;
+    }
+    for (const v1::JobPart& part : job->parts()) {
+      if (part.name() == run.part) attempt = part.attempts();
+    }
+  }
+  run.lease_id = NewLeaseId(unit, attempt);
   run.worker_name = worker_name;
   run.local = local;
   if (local) ++local_leases_;
-  run.reenactment_id = reenactments_->NewId();
-  run.out_path = reenactments_->PathFor(run.reenactment_id);
+  if (run.part.empty() || run.part == "stitch") {
+    run.reenactment_id = reenactments_->NewId();
+    run.out_path = reenactments_->PathFor(run.reenactment_id);
+  }
   run.expires_ns = SteadyNowNs() + SecondsToNs(options_.lease_ttl_s);
   run.eta.emplace(options_.eta_window_s);
-  leases_[run.lease_id] = job_id;
+  leases_[run.lease_id] = unit;
 
-  v1::WorkLease lease;
   lease.set_lease_id(run.lease_id);
   *lease.mutable_job() = *job;
   lease.mutable_job()->clear_options();
@@ -185,17 +202,20 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
   lease.set_ttl_s(options_.lease_ttl_s);
   // Often enough that a cancel reaches the worker within two seconds.
   lease.set_heartbeat_period_s(std::min(2.0, options_.lease_ttl_s / 6));
+  const std::string what = run.part.empty() ? "" : absl::StrCat(", part ", run.part);
   log::Info("job_started",
             {{"job_id", job_id},
              {"take_id", job->take_id()},
              {"method", job->method()},
-             {"attempt", job->attempts()},
+             {"part", run.part},
+             {"attempt", attempt},
              {"worker", worker_name},
              {"reenactment_id", run.reenactment_id}},
-            absl::StrCat("job ", job_id, " started: leased to worker ", worker_name));
+            absl::StrCat("job ", job_id, what, " started: leased to worker ", worker_name));
   AppendWorkerLog(job_id,
-                  {absl::StrCat("--- attempt ", job->attempts(), ", ", UtcNowText(), ", worker ",
-                                worker_name, ", reenactment ", run.reenactment_id, " ---")});
+                  {absl::StrCat("--- attempt ", attempt, what, ", ", UtcNowText(), ", worker ",
+                                worker_name, run.reenactment_id.empty() ? "" : ", reenactment ",
+                                run.reenactment_id, " ---")});
   finisher_->Schedule([this, job = *job] { Publish(job, {}, /*last=*/false); });
   return lease;
 }
@@ -245,9 +265,9 @@ absl::StatusOr<JobScheduler::Running*> JobScheduler::HeldLeaseLocked(
 std::unique_ptr<JobScheduler::Running> JobScheduler::ReleaseLocked(const std::string& lease_id) {
   const auto lease = leases_.find(lease_id);
   if (lease == leases_.end()) return nullptr;
-  const std::string job_id = lease->second;
+  const std::string unit = lease->second;
   leases_.erase(lease);
-  const auto run = running_.find(job_id);
+  const auto run = running_.find(unit);
   if (run == running_.end()) return nullptr;
   std::unique_ptr<Running> owned = std::move(run->second);
   running_.erase(run);
@@ -265,8 +285,8 @@ void JobScheduler::ExpireLeases() {
     std::lock_guard<std::mutex> lock(mu_);
     const int64_t now_ns = SteadyNowNs();
     std::vector<std::string> ids;
-    for (const auto& [lease_id, job_id] : leases_) {
-      const auto run = running_.find(job_id);
+    for (const auto& [lease_id, unit] : leases_) {
+      const auto run = running_.find(unit);
       if (run != running_.end() && now_ns > run->second->expires_ns) ids.push_back(lease_id);
     }
     for (const std::string& id : ids) expired.push_back(ReleaseLocked(id));
@@ -283,6 +303,10 @@ void JobScheduler::ExpireLeases() {
 }
 
 void JobScheduler::Requeue(const Running& run, const std::string& outcome, const std::string& why) {
+  if (!run.part.empty()) {
+    RequeuePart(run, outcome, why);
+    return;
+  }
   const absl::StatusOr<v1::Job> job = jobs_->Get(run.job_id);
   if (!job.ok()) return;
   if (job->attempts() >= options_.store.max_attempts) {
@@ -308,11 +332,19 @@ void JobScheduler::Requeue(const Running& run, const std::string& outcome, const
   }
 }
 
-absl::StatusOr<std::string> JobScheduler::LeasedTakePath(const std::string& lease_id) const {
+absl::StatusOr<std::string> JobScheduler::LeasedTakePath(const std::string& lease_id,
+                                                         const std::string& input) const {
   std::string take_id;
   {
     std::lock_guard<std::mutex> lock(mu_);
     ASSIGN_OR_RETURN(const Running* run, HeldLeaseLocked(lease_id));
+    if (!input.empty()) {
+      if (std::find(run->inputs.begin(), run->inputs.end(), input) == run->inputs.end()) {
+        return absl::NotFoundError(
+            absl::StrCat("the lease reads no input \"", input.substr(0, 64), "\""));
+      }
+      return PartPath(run->job_id, input);
+    }
     ASSIGN_OR_RETURN(const v1::Job job, jobs_->Get(run->job_id));
     take_id = job.take_id();
   }
@@ -332,8 +364,18 @@ absl::StatusOr<v1::HeartbeatResponse> JobScheduler::Heartbeat(const v1::Heartbea
     progress.set_frames_done(std::max<int64_t>(progress.frames_done(), 0));
     progress.set_frames_total(std::max<int64_t>(progress.frames_total(), 0));
     if (progress.stage().size() > 64) progress.mutable_stage()->resize(64);
-    progress.set_eta_s(run->eta->Update(now_ns, progress.fraction()));
     job_id = run->job_id;
+    if (!run->part.empty()) {
+      // A part: the job's progress sums its parts'.
+      run->fraction = progress.fraction();
+      ASSIGN_OR_RETURN(const v1::Job job, jobs_->Get(job_id));
+      const std::string stage = progress.stage();
+      progress = SegmentedProgressLocked(job);
+      if (run->part == "prepare" || run->part == "stitch") {
+        progress.set_stage(absl::StrCat(run->part, ": ", stage));
+      }
+    }
+    progress.set_eta_s(run->eta->Update(now_ns, progress.fraction()));
   }
   std::vector<std::string> logs;
   for (const std::string& line : request.log_lines()) {
@@ -390,19 +432,23 @@ absl::StatusOr<v1::Job> JobScheduler::CommitUpload(const std::string& lease_id) 
     }
     if (!(*held)->uploading) return absl::AbortedError("no upload was begun for this lease");
     // Ends the lease first: nothing can queue the job again from here.
+    const std::string unit = leases_.at(lease_id);
     leases_.erase(lease_id);
-    run = std::move(running_.at((*held)->job_id));
-    running_.erase(run->job_id);
+    run = std::move(running_.at(unit));
+    running_.erase(unit);
     if (run->local) --local_leases_;
   }
   std::error_code error;
+  const int64_t file_bytes = static_cast<int64_t>(fs::file_size(run->upload_path, error));
   fs::rename(run->upload_path, run->out_path, error);
   if (error) {
     fs::remove(run->upload_path, error);
     EndJob(run->job_id, v1::JOB_STATE_FAILED,
-           absl::StrCat("the uploaded reenactment could not be stored: ", error.message()));
+           absl::StrCat("the upload", run->part.empty() ? "" : " of part " + run->part,
+                        " could not be stored: ", error.message()));
     return absl::UnavailableError("the server could not store the upload (its log says why)");
   }
+  if (!run->part.empty() && run->part != "stitch") return CompletePart(*run, file_bytes);
   Succeed(run->job_id, run->reenactment_id);
   ASSIGN_OR_RETURN(v1::Job job, jobs_->Get(run->job_id));
   if (job.state() != v1::JOB_STATE_SUCCEEDED) {
@@ -431,6 +477,10 @@ absl::StatusOr<v1::Job> JobScheduler::FailLease(const v1::FailRequest& request) 
   AppendWorkerLog(run->job_id, logs);
   std::string error = request.error().substr(0, kMaxWorkerLogLineChars);
   if (error.empty()) error = "the worker failed without saying why";
+  if (!run->part.empty() && !request.give_back()) {
+    FailPart(*run, error, std::move(logs));
+    return jobs_->Get(run->job_id);
+  }
   if (request.give_back()) {
     if (auto job = jobs_->Get(run->job_id); job.ok() && !logs.empty()) {
       Publish(*job, std::move(logs), /*last=*/false);

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
@@ -174,7 +175,26 @@ absl::StatusOr<std::unique_ptr<JobScheduler>> JobScheduler::Start(
       options.concurrency > 0 ? options.concurrency
                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   RETURN_IF_ERROR(jobs->RequeueUnfinished().status());
-  for (const v1::Job& job : jobs->Queued()) scheduler->queue_.push_back(job.job_id());
+  for (const v1::Job& job : jobs->Queued()) {
+    if (job.segments() == 0) {
+      scheduler->queue_.push_back(job.job_id());
+      continue;
+    }
+    // A segmented job: its parts that wait, and those whose predecessors
+    // finished before the server stopped.
+    std::lock_guard<std::mutex> lock(scheduler->mu_);
+    scheduler->AdvancePartsLocked(job.job_id());
+    const absl::StatusOr<v1::Job> advanced = jobs->Get(job.job_id());
+    if (!advanced.ok()) continue;
+    for (const v1::JobPart& part : advanced->parts()) {
+      const std::string unit = UnitId(job.job_id(), part.name());
+      if (part.state() == v1::JOB_STATE_QUEUED &&
+          std::find(scheduler->queue_.begin(), scheduler->queue_.end(), unit) ==
+              scheduler->queue_.end()) {
+        scheduler->queue_.push_back(unit);
+      }
+    }
+  }
   scheduler->finisher_ = std::make_unique<ThreadPool>(1);
   scheduler->thread_ = std::thread([s = scheduler.get()] { s->Loop(); });
   return scheduler;
@@ -195,6 +215,23 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   if (spec == nullptr) return methods::UnknownMethodError(options_.methods, request.method());
   RETURN_IF_ERROR(ValidateOptions(request.options()));
   ASSIGN_OR_RETURN(const bool live, LiveOption(request, *spec));
+  if (request.segments() < 0 || request.segments() > kMaxSegments) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("segments must be 0 to ", kMaxSegments, ", got ", request.segments()));
+  }
+  const bool segmented = request.segments() > 1;
+  if (segmented && !spec->segmentable) {
+    std::vector<std::string> segmentable;
+    for (const methods::MethodSpec& m : options_.methods) {
+      if (m.segmentable) segmentable.push_back(m.name);
+    }
+    return absl::InvalidArgumentError(absl::StrCat(
+        "method ", spec->name, " cannot split a take across workers (segments); methods that can: ",
+        segmentable.empty() ? "none" : absl::StrJoin(segmentable, ", ")));
+  }
+  if (segmented && live) {
+    return absl::InvalidArgumentError("a live job follows its take whole; leave out segments");
+  }
   const std::map<std::string, std::string> all_options(request.options().begin(),
                                                        request.options().end());
   RETURN_IF_ERROR(methods::CheckOptions(*spec, all_options));
@@ -212,6 +249,10 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   job.set_take_id(request.take_id());
   job.set_method(request.method());
   *job.mutable_options() = request.options();
+  if (segmented) {
+    job.set_segments(request.segments());
+    for (v1::JobPart& part : NewParts(request.segments())) *job.add_parts() = std::move(part);
+  }
   std::lock_guard<std::mutex> lock(mu_);
   if (stopping_) return absl::UnavailableError("the server is shutting down; submit later");
   // A live job starts now or never: it takes one of the --jobs slots, like a
@@ -255,7 +296,7 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
     // FailedPrecondition: the take ended meanwhile; the job runs offline.
     if (following.ok() || !absl::IsFailedPrecondition(following.status())) return following;
   }
-  queue_.push_back(job.job_id());
+  queue_.push_back(segmented ? UnitId(job.job_id(), "prepare") : job.job_id());
   wake_pending_ = true;
   wake_.notify_all();
   return job;
@@ -264,19 +305,25 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
 absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
   RETURN_IF_ERROR(ValidateJobId(job_id));
   v1::Job job;
-  std::string leased_by;  // The network worker that held the job.
+  std::vector<std::string> leased_by;  // The network workers that held the job.
   {
     std::lock_guard<std::mutex> lock(mu_);
     ASSIGN_OR_RETURN(job, jobs_->Get(job_id));
     std::string error;
-    if (job.state() == v1::JOB_STATE_RUNNING) {
+    if (job.segments() > 0 && !IsFinished(job.state())) {
+      leased_by = DropUnitsLocked(job_id);
+      error = leased_by.empty()
+                  ? std::string("cancelled by a client")
+                  : absl::StrCat("cancelled by a client (workers ", absl::StrJoin(leased_by, ", "),
+                                 " were leasing its parts)");
+    } else if (job.state() == v1::JOB_STATE_RUNNING) {
       auto it = running_.find(job_id);
       if (it != running_.end()) {
         // Its worker hears it at its next heartbeat (Aborted) and stops; a
         // launcher's worker (a Slurm job) is also cancelled there.
         error = absl::StrCat("cancelled by a client (worker ", it->second->worker_name,
                              " was leasing it)");
-        leased_by = it->second->worker_name;
+        leased_by.push_back(it->second->worker_name);
         ReleaseLocked(it->second->lease_id);
       } else {
         error = live_jobs_.StopLocked(job_id);
@@ -290,13 +337,20 @@ absl::StatusOr<v1::Job> JobScheduler::Cancel(const std::string& job_id) {
     }
     ASSIGN_OR_RETURN(job, jobs_->Mutate(job_id, [&](v1::Job& j) {
       EndAttempt(j, "cancelled");
+      for (v1::JobPart& part : *j.mutable_parts()) {
+        if (IsFinished(part.state())) continue;
+        EndAttempt(part, "cancelled");
+        part.set_state(v1::JOB_STATE_CANCELLED);
+      }
       j.set_state(v1::JOB_STATE_CANCELLED);
       j.set_finished_unix_ns(WallNowNs());
       j.set_error(error);
       j.mutable_progress()->set_eta_s(-1);
     }));
   }
-  if (!leased_by.empty() && options_.launcher) options_.launcher->CancelWorker(leased_by);
+  if (options_.launcher) {
+    for (const std::string& worker : leased_by) options_.launcher->CancelWorker(worker);
+  }
   LogJobEnd(job);
   Publish(job, {}, /*last=*/true);
   return job;
@@ -525,10 +579,32 @@ void JobScheduler::Succeed(const std::string& job_id, const std::string& reenact
 
 void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const std::string& error,
                           const std::string& reenactment_id, std::vector<std::string> logs) {
+  // A segmented job's other parts stop with it.
+  if (const absl::StatusOr<v1::Job> current = jobs_->Get(job_id);
+      current.ok() && current->segments() > 0) {
+    std::vector<std::string> workers;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      workers = DropUnitsLocked(job_id);
+    }
+    if (options_.launcher) {
+      for (const std::string& worker : workers) options_.launcher->CancelWorker(worker);
+    }
+  }
+  const std::string outcome = state == v1::JOB_STATE_SUCCEEDED   ? "succeeded"
+                              : state == v1::JOB_STATE_CANCELLED ? "cancelled"
+                                                                 : "failed";
   auto change = [&](v1::Job& j) {
-    EndAttempt(j, state == v1::JOB_STATE_SUCCEEDED   ? "succeeded"
-                  : state == v1::JOB_STATE_CANCELLED ? "cancelled"
-                                                     : "failed");
+    EndAttempt(j, outcome);
+    for (v1::JobPart& part : *j.mutable_parts()) {
+      if (IsFinished(part.state())) continue;
+      const bool ran = part.state() == v1::JOB_STATE_RUNNING;
+      EndAttempt(part, ran ? outcome : "cancelled");
+      // The stitch succeeds with the job; what else was left stops.
+      part.set_state(ran && state == v1::JOB_STATE_SUCCEEDED ? v1::JOB_STATE_SUCCEEDED
+                                                             : v1::JOB_STATE_CANCELLED);
+      if (part.state() == v1::JOB_STATE_SUCCEEDED) part.set_fraction(1.0);
+    }
     j.set_state(state);
     j.set_finished_unix_ns(WallNowNs());
     j.set_error(error);

@@ -42,6 +42,19 @@
 // not recording simply runs offline. Cancel stops the follow at once. After
 // a restart a live job left RUNNING runs offline.
 //
+// Segmented jobs (SubmitJobRequest.segments = N > 1, a method whose spec is
+// segmentable; server/jobs/job_parts.cc): one take split across several
+// workers. The job's parts (Job.parts) are queued and leased like jobs, each
+// with its own attempts: "prepare" first (the method's state from the whole
+// take, e.g. the body's shape), then "segment-1" .. "segment-N" all at once,
+// then "stitch", whose upload is the job's reenactment. A part's upload is
+// kept in DATA/jobs/<job_id>/parts/<part>.part and streamed to the parts
+// after it as their inputs (ReadTake with `input`). A part that fails fails
+// the job (and ends its other parts' leases); one whose lease expires is
+// queued again, first in line, up to store.max_attempts attempts. Cancel
+// ends every lease of the job. After a restart the parts that ran are
+// queued again and the parts that finished are kept.
+//
 // Thread-safe. One scheduler thread serves waiting Lease calls, expires
 // leases, asks the launcher for workers and sweeps old jobs; a second one
 // indexes finished reenactments and publishes lease events.
@@ -60,6 +73,7 @@
 #include <string>
 #include <string_view>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -144,6 +158,16 @@ struct JobSchedulerOptions {
 using JobEventCallback =
     std::function<void(const v1::JobEvent& event, bool last, const absl::Status& end)>;
 
+// Most segments a job may be split into.
+inline constexpr int kMaxSegments = 64;
+// The unit of work of a job's part ("JOB/PART"), and the job's own (its id,
+// `part` empty); SplitUnit undoes it.
+std::string UnitId(const std::string& job_id, const std::string& part);
+std::pair<std::string, std::string> SplitUnit(const std::string& unit);
+// The parts of a job split into `segments`: prepare (QUEUED), segment-1 ..
+// segment-N and stitch (waiting).
+std::vector<v1::JobPart> NewParts(int segments);
+
 // Worker names this server gives its own workers ("local-1", ...): their
 // leases share the --jobs slots with live follows.
 inline constexpr char kLocalWorkerPrefix[] = "local-";
@@ -218,8 +242,11 @@ class JobScheduler {
   // No more leases from now on (the server stops its own workers before
   // the rest); the other Work calls still answer.
   void StopLeasing();
-  // The take file of a lease's job, to stream to its worker.
-  absl::StatusOr<std::string> LeasedTakePath(const std::string& lease_id) const;
+  // The take file of a lease's job (`input` empty) or one of the lease's
+  // inputs (WorkLease.inputs: parts of a segmented job), to stream to its
+  // worker. NotFound for an input the lease does not list.
+  absl::StatusOr<std::string> LeasedTakePath(const std::string& lease_id,
+                                             const std::string& input = "") const;
   // Renews the lease, sets the job's progress (with the ETA) and passes the
   // log lines to its watchers.
   absl::StatusOr<v1::HeartbeatResponse> Heartbeat(const v1::HeartbeatRequest& request);
@@ -248,6 +275,13 @@ class JobScheduler {
   // over the network).
   struct Running {
     std::string job_id;
+    // A part of a segmented job (JobPart.name); empty: the whole job. Its
+    // unit (the key of running_ and the queue): UnitId(job_id, part).
+    std::string part;
+    // The names of the parts the lease reads (WorkLease.inputs).
+    std::vector<std::string> inputs;
+    // Its last reported fraction (a segmented job's progress sums them).
+    double fraction = 0.0;
     std::string reenactment_id;
     std::string out_path;
     // The Work lease; all guarded by mu_.
@@ -302,6 +336,31 @@ class JobScheduler {
   bool StartQueuedLocked(const std::string& job_id, const std::string& worker = "local");
   // The same for a live job whose follow ended (it is RUNNING already).
   bool StartHandoffLocked(const std::string& job_id, const std::string& worker = "local");
+  // Segmented jobs (job_parts.cc). A part's lease: marks the QUEUED part
+  // RUNNING (the job too), with a Running under its unit; false when it is
+  // no longer queued. mu_ held.
+  bool StartPartLocked(const std::string& job_id, const std::string& part,
+                       const std::string& worker);
+  // The WorkLease fields of a part: its name and inputs (names and sizes);
+  // fills run.inputs and run.out_path. mu_ held.
+  absl::Status FillPartLeaseLocked(const v1::Job& job, Running& run, v1::WorkLease& lease);
+  // Where a part's upload is kept.
+  std::string PartPath(const std::string& job_id, const std::string& part) const;
+  // Queues the parts whose predecessors all succeeded (the segments after
+  // prepare, the stitch after every segment), first in line. mu_ held.
+  void AdvancePartsLocked(const std::string& job_id);
+  // A part's upload was stored at its path: the part SUCCEEDED, the next
+  // parts queued.
+  absl::StatusOr<v1::Job> CompletePart(const Running& run, int64_t file_bytes);
+  // Queues a released part again (or fails the job past max_attempts).
+  void RequeuePart(const Running& run, const std::string& outcome, const std::string& why);
+  // The part failed on its worker: it FAILED, and the job with it.
+  void FailPart(const Running& run, const std::string& error, std::vector<std::string> logs);
+  // The job's progress from its parts' states and running fractions.
+  v1::JobProgress SegmentedProgressLocked(const v1::Job& job) const;
+  // Takes every unit of the job out of the queue and ends the leases of
+  // its running ones; returns their workers. mu_ held.
+  std::vector<std::string> DropUnitsLocked(const std::string& job_id);
   // Indexes the reenactment of a worker that exited 0 and ends its job.
   void Succeed(const std::string& job_id, const std::string& reenactment_id);
   // Writes the job's end and tells its watchers (their last event).
@@ -324,12 +383,15 @@ class JobScheduler {
   // Steady time of the last retention sweep (0: none yet).
   int64_t last_sweep_ns_ = 0;
   bool stopping_ = false;
+  // Units waiting for a worker: job ids, and UnitId(job, part) for the
+  // parts of segmented jobs.
   std::deque<std::string> queue_;
   // Live jobs following their take, and those whose take ended, waiting
   // for a worker slot (guarded by mu_).
   LiveJobs live_jobs_;
+  // Leased units (see queue_) -> their attempt.
   std::map<std::string, std::unique_ptr<Running>> running_;
-  // Work leases: lease id -> job id (their Running is in running_).
+  // Work leases: lease id -> unit (their Running is in running_).
   std::map<std::string, std::string> leases_;
   // Leases held by this server's own workers (guarded by mu_).
   int local_leases_ = 0;

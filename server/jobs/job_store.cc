@@ -185,24 +185,6 @@ std::map<v1::JobState, int64_t> JobStore::CountByState() const {
   return counts;
 }
 
-void BeginAttempt(v1::Job& job, const std::string& worker) {
-  EndAttempt(job, "ended unseen");
-  auto* history = job.mutable_attempt_history();
-  if (history->size() >= kMaxAttemptHistory) history->erase(history->begin());
-  v1::JobAttempt* attempt = history->Add();
-  attempt->set_number(job.attempts());
-  attempt->set_worker(worker);
-  attempt->set_started_unix_ns(WallNowNs());
-}
-
-void EndAttempt(v1::Job& job, const std::string& outcome) {
-  if (job.attempt_history().empty()) return;
-  v1::JobAttempt* last = job.mutable_attempt_history()->Mutable(job.attempt_history_size() - 1);
-  if (last->ended_unix_ns() != 0) return;
-  last->set_ended_unix_ns(WallNowNs());
-  last->set_outcome(outcome);
-}
-
 absl::StatusOr<std::vector<std::string>> JobStore::RequeueUnfinished() {
   std::vector<v1::Job> running = List(v1::JOB_STATE_RUNNING);
   std::reverse(running.begin(), running.end());
@@ -213,7 +195,20 @@ absl::StatusOr<std::vector<std::string>> JobStore::RequeueUnfinished() {
         const v1::Job changed, Mutate(job.job_id(), [&](v1::Job& j) {
           j.mutable_progress()->set_eta_s(-1);
           EndAttempt(j, "server stopped");
-          if (give_up) {
+          std::string part_given_up;
+          for (v1::JobPart& part : *j.mutable_parts()) {
+            if (part.state() != v1::JOB_STATE_RUNNING) continue;
+            EndAttempt(part, "server stopped");
+            part.set_state(v1::JOB_STATE_QUEUED);
+            if (part.attempts() >= options_.max_attempts) part_given_up = part.name();
+          }
+          if (!part_given_up.empty()) {
+            j.set_state(v1::JOB_STATE_FAILED);
+            j.set_finished_unix_ns(WallNowNs());
+            j.set_error(absl::StrCat("the server stopped while its part ", part_given_up, " ran, ",
+                                     options_.max_attempts,
+                                     " times (the limit); not trying again"));
+          } else if (give_up) {
             j.set_state(v1::JOB_STATE_FAILED);
             j.set_finished_unix_ns(WallNowNs());
             j.set_error(absl::StrCat("the server stopped while the job ran, ", j.attempts(),

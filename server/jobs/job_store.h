@@ -27,6 +27,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "common/base/time.h"
 #include "reenact/v1/jobs_service.pb.h"
 #include "server/store/catalog.h"
 
@@ -50,11 +51,31 @@ bool IsFinished(v1::JobState state);
 
 // Most attempts a job's attempt_history keeps (the oldest go first).
 inline constexpr int kMaxAttemptHistory = 16;
-// Notes a new attempt (number job.attempts(), which the caller has just
+
+// Ends the attempt that runs, if one does, with `outcome` now. `Record` is
+// v1::Job or v1::JobPart (a part of a segmented job).
+template <typename Record>
+void EndAttempt(Record& record, const std::string& outcome) {
+  if (record.attempt_history().empty()) return;
+  v1::JobAttempt* last =
+      record.mutable_attempt_history()->Mutable(record.attempt_history_size() - 1);
+  if (last->ended_unix_ns() != 0) return;
+  last->set_ended_unix_ns(WallNowNs());
+  last->set_outcome(outcome);
+}
+
+// Notes a new attempt (number record.attempts(), which the caller has just
 // counted) by `worker`, started now.
-void BeginAttempt(v1::Job& job, const std::string& worker);
-// Ends the attempt that runs, if one does, with `outcome` now.
-void EndAttempt(v1::Job& job, const std::string& outcome);
+template <typename Record>
+void BeginAttempt(Record& record, const std::string& worker) {
+  EndAttempt(record, "ended unseen");
+  auto* history = record.mutable_attempt_history();
+  if (history->size() >= kMaxAttemptHistory) history->erase(history->begin());
+  v1::JobAttempt* attempt = history->Add();
+  attempt->set_number(record.attempts());
+  attempt->set_worker(worker);
+  attempt->set_started_unix_ns(WallNowNs());
+}
 
 class JobStore {
  public:

@@ -68,6 +68,20 @@ std::vector<std::string> WorkerArgs(const v1::Job& job, const methods::MethodSpe
   if (!invocation.asset_roots.empty()) {
     args.insert(args.end(), {"--assets", absl::StrJoin(invocation.asset_roots, ",")});
   }
+  if (!invocation.part.empty()) {
+    args.insert(args.end(), {"--part", invocation.part});
+    if (invocation.part != "prepare") {
+      args.insert(args.end(), {"--segments", std::to_string(job.segments())});
+    }
+    if (!invocation.input_paths.empty()) {
+      args.insert(args.end(), {"--prepared", invocation.input_paths.front()});
+    }
+    if (invocation.input_paths.size() > 1) {
+      args.insert(args.end(),
+                  {"--segment-files", absl::StrJoin(invocation.input_paths.begin() + 1,
+                                                    invocation.input_paths.end(), ",")});
+    }
+  }
   return args;
 }
 

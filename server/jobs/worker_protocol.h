@@ -43,12 +43,19 @@ struct WorkerInvocation {
   std::string reenactment_id;
   // The server's --assets folders; none: no --assets argument.
   std::vector<std::string> asset_roots;
+  // A part of a segmented job (v1::JobPart.name; empty: the whole job), and
+  // the files of its inputs (WorkLease.inputs), in order.
+  std::string part;
+  std::vector<std::string> input_paths;
 };
 
 // The worker's argv for `job` (the job's method, take and id; its options
 // through WorkerOptions(spec, ...) as --options-json):
 //   WORKER --take T --method M --options-json '{"k":"v"}' --out O
 //          --reenactment-id R --take-id ID --job-id J [--assets A,B]
+//          [--part prepare | --part segment-K --segments N --prepared P |
+//           --part stitch --segments N --prepared P --segment-files S1,...]
+// (a part: its inputs are the prepared file first, then the segments').
 std::vector<std::string> WorkerArgs(const v1::Job& job, const methods::MethodSpec* spec,
                                     const WorkerInvocation& invocation);
 

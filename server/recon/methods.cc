@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/io/proto_convert.h"
 #include "common/io/reenactment_file.h"
@@ -46,6 +47,41 @@ int64_t NowUnixNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// kPrepare and kSegment: the method's part file, written atomically.
+absl::StatusOr<MethodResult> RunPartPhase(const MethodInput& input,
+                                          const ReconstructionMethod& method,
+                                          const TakeFrames& take, const OptionMap& options,
+                                          const MethodContext& context, const std::string& out_path,
+                                          std::chrono::steady_clock::time_point start) {
+  std::string part;
+  if (input.phase == MethodPhase::kPrepare) {
+    ASSIGN_OR_RETURN(part, method.Prepare(take, options, context));
+  } else {
+    ASSIGN_OR_RETURN(const std::string prepared,
+                     ReadFileToString(input.prepared_path, kMaxPartFileBytes));
+    ASSIGN_OR_RETURN(part, method.Segment(take, options, context, prepared, input.segment_index,
+                                          input.segment_count));
+  }
+  RETURN_IF_ERROR(WriteFileAtomically(out_path, part));
+  MethodResult result;
+  result.file_bytes = static_cast<int64_t>(part.size());
+  result.figures["seconds"] = SecondsSince(start);
+  if (input.phase == MethodPhase::kSegment) {
+    const SegmentRange range =
+        SegmentOf(take.num_instants(), input.segment_index, input.segment_count, 0);
+    result.frames = range.end - range.first;
+  }
+  if (context.log) {
+    context.log(absl::StrCat("write: ", out_path, ", ", result.file_bytes, " bytes, ",
+                             result.figures["seconds"], " s"));
+  }
+  return result;
 }
 
 }  // namespace
@@ -99,7 +135,22 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
 
   // The method.
   const MethodContext context{input.asset_roots, SubRange(progress, 0.15, 0.95), log};
-  absl::StatusOr<ReenactmentData> made = method->Run(*take, method_options, context);
+  if (input.phase == MethodPhase::kPrepare || input.phase == MethodPhase::kSegment) {
+    return RunPartPhase(input, *method, *take, method_options, context, out_path, start);
+  }
+  absl::StatusOr<ReenactmentData> made = absl::InternalError("no phase ran");
+  if (input.phase == MethodPhase::kStitch) {
+    ASSIGN_OR_RETURN(const std::string prepared,
+                     ReadFileToString(input.prepared_path, kMaxPartFileBytes));
+    std::vector<std::string> segments;
+    for (const std::string& path : input.segment_paths) {
+      ASSIGN_OR_RETURN(std::string segment, ReadFileToString(path, kMaxPartFileBytes));
+      segments.push_back(std::move(segment));
+    }
+    made = method->Stitch(*take, method_options, context, prepared, segments);
+  } else {
+    made = method->Run(*take, method_options, context);
+  }
   if (!made.ok()) return made.status();
   ReenactmentData& data = *made;
 

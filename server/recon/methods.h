@@ -14,6 +14,7 @@
 //                    atlas (4.4); body/.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -39,6 +40,18 @@ struct LoadOptions {
 // reject (naming the key, or the known keys for an unknown one).
 absl::Status CheckJob(const std::string& method, const OptionMap& options);
 
+// Which part of a job a run makes (ReconstructionMethod::Prepare): the
+// whole reenactment, or one phase of a take split across several workers.
+enum class MethodPhase {
+  kWhole,    // The reenactment.
+  kPrepare,  // What every segment needs, from the whole take (a part file).
+  kSegment,  // One segment's part file, from the prepared one.
+  kStitch,   // The reenactment, from the prepared and every segment's part.
+};
+
+// Longest part file a run reads (an atlas of 8192 px has 1 GiB of sums).
+inline constexpr uint64_t kMaxPartFileBytes = uint64_t{2} << 30;
+
 struct MethodInput {
   std::string take_path;  // The take's MCAP file.
   std::string method;     // A registered method's name (registry.h).
@@ -51,6 +64,14 @@ struct MethodInput {
   // Folders whose subfolders the option model=makehuman:NAME names (the
   // server's --assets); never from a client.
   std::vector<std::string> asset_roots = {};
+  // A phase of a segmented job (kWhole: none): segment `segment_index` of
+  // `segment_count`; the prepared part file (kSegment, kStitch) and every
+  // segment's, in order (kStitch).
+  MethodPhase phase = MethodPhase::kWhole;
+  int segment_index = 0;
+  int segment_count = 1;
+  std::string prepared_path = {};
+  std::vector<std::string> segment_paths = {};
 };
 
 // What a finished method reports (also written into ReenactmentInfo.figures).
@@ -62,7 +83,8 @@ struct MethodResult {
 };
 
 // Runs `input.method` on the take and writes the reenactment to `out_path`
-// (through a temporary name: on failure nothing is left at `out_path`).
+// (through a temporary name: on failure nothing is left at `out_path`);
+// the phases kPrepare and kSegment write their part file there instead.
 // InvalidArgument for an unknown method, unknown or malformed options, or a
 // take the method cannot use (no skeleton, no depth); Cancelled when
 // `progress` returned false; DataLoss for a corrupt take.

@@ -50,6 +50,18 @@ struct MethodContext {
   LogCallback log;
 };
 
+// One segment of a take split across several workers: the instants
+// [first, end) that it delivers, fitted from `warmup_first` on.
+struct SegmentRange {
+  int first = 0;
+  int end = 0;
+  int warmup_first = 0;
+};
+
+// Segment `index` of `count` equal runs of `num_instants` instants, with
+// `warmup` instants before its first (none before the take's start).
+SegmentRange SegmentOf(int num_instants, int index, int count, int warmup);
+
 class ReconstructionMethod {
  public:
   virtual ~ReconstructionMethod() = default;
@@ -69,6 +81,39 @@ class ReconstructionMethod {
   // Cancelled when the context's progress returned false.
   virtual absl::StatusOr<ReenactmentData> Run(const TakeFrames& take, const OptionMap& options,
                                               const MethodContext& context) const = 0;
+
+  // One take split across several workers, for a method whose spec says
+  // `segmentable`: Prepare makes what every segment needs from the whole
+  // take (the body method: its shape), Segment the part of the result of
+  // instants SegmentOf(..., index, count, ...) from the prepared bytes,
+  // Stitch the reenactment (as Run makes it) from the prepared bytes and
+  // every segment's, in order. The bytes are the method's own. Others:
+  // Unimplemented.
+  virtual absl::StatusOr<std::string> Prepare(const TakeFrames& take, const OptionMap& options,
+                                              const MethodContext& context) const;
+  virtual absl::StatusOr<std::string> Segment(const TakeFrames& take, const OptionMap& options,
+                                              const MethodContext& context,
+                                              const std::string& prepared, int index,
+                                              int count) const;
+  virtual absl::StatusOr<ReenactmentData> Stitch(const TakeFrames& take, const OptionMap& options,
+                                                 const MethodContext& context,
+                                                 const std::string& prepared,
+                                                 const std::vector<std::string>& segments) const;
+};
+
+// The phases of a segmentable method with options `Options` (see
+// ReconstructionMethod::Prepare).
+template <typename Options>
+struct SegmentFunctions {
+  absl::StatusOr<std::string> (*prepare)(const TakeFrames& take, const Options& options,
+                                         const MethodContext& context) = nullptr;
+  absl::StatusOr<std::string> (*segment)(const TakeFrames& take, const Options& options,
+                                         const MethodContext& context, const std::string& prepared,
+                                         int index, int count) = nullptr;
+  absl::StatusOr<ReenactmentData> (*stitch)(const TakeFrames& take, const Options& options,
+                                            const MethodContext& context,
+                                            const std::string& prepared,
+                                            const std::vector<std::string>& segments) = nullptr;
 };
 
 // A method whose options are the struct `Options`: default-constructible,
@@ -84,9 +129,14 @@ class TypedMethod final : public ReconstructionMethod {
   // `spec`'s options are filled from Options' Read, followed by
   // `live_options`: those only a live follow of the take reads (marked
   // live_only; the worker never gets them).
+  // `segments`: the phases of a run split across workers (all three, or
+  // none: the method is not segmentable).
   TypedMethod(methods::MethodSpec spec, RunFunction run,
-              std::vector<methods::OptionSpec> live_options = {})
-      : spec_(std::move(spec)), run_(run) {
+              std::vector<methods::OptionSpec> live_options = {},
+              SegmentFunctions<Options> segments = {})
+      : spec_(std::move(spec)), run_(run), segments_(segments) {
+    spec_.segmentable =
+        segments_.prepare != nullptr && segments_.segment != nullptr && segments_.stitch != nullptr;
     spec_.options = methods::DescribeOptions<Options>();
     for (methods::OptionSpec& option : live_options) {
       option.live_only = true;
@@ -111,9 +161,46 @@ class TypedMethod final : public ReconstructionMethod {
     return run_(take, parsed, context);
   }
 
+  absl::StatusOr<std::string> Prepare(const TakeFrames& take, const OptionMap& options,
+                                      const MethodContext& context) const override {
+    if (!spec_.segmentable) return ReconstructionMethod::Prepare(take, options, context);
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    return segments_.prepare(take, parsed, context);
+  }
+
+  absl::StatusOr<std::string> Segment(const TakeFrames& take, const OptionMap& options,
+                                      const MethodContext& context, const std::string& prepared,
+                                      int index, int count) const override {
+    if (!spec_.segmentable) {
+      return ReconstructionMethod::Segment(take, options, context, prepared, index, count);
+    }
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    return segments_.segment(take, parsed, context, prepared, index, count);
+  }
+
+  absl::StatusOr<ReenactmentData> Stitch(const TakeFrames& take, const OptionMap& options,
+                                         const MethodContext& context, const std::string& prepared,
+                                         const std::vector<std::string>& segments) const override {
+    if (!spec_.segmentable) {
+      return ReconstructionMethod::Stitch(take, options, context, prepared, segments);
+    }
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    return segments_.stitch(take, parsed, context, prepared, segments);
+  }
+
  private:
   methods::MethodSpec spec_;
   RunFunction run_;
+  SegmentFunctions<Options> segments_;
 };
 
 }  // namespace reenact::recon

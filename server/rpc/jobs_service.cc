@@ -115,6 +115,7 @@ v1::ListMethodsResponse ListMethods(const std::vector<methods::MethodSpec>& spec
     method.set_summary(spec.summary);
     method.set_thesis(spec.thesis);
     method.set_live(spec.live);
+    method.set_segmentable(spec.segmentable);
     method.set_texture_mode(ToProto(spec.texture));
     for (const methods::OptionSpec& option : spec.options) {
       v1::MethodOption& out = *method.add_options();

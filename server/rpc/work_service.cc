@@ -19,11 +19,11 @@
 namespace reenact::server {
 namespace {
 
-// Sends the take of a lease chunk by chunk.
+// Sends the take of a lease (or one of its inputs) chunk by chunk.
 class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
  public:
   TakeStream(ServerContext& context, const v1::ReadTakeRequest& request) {
-    const absl::Status opened = Open(context, request.lease_id());
+    const absl::Status opened = Open(context, request.lease_id(), request.input());
     if (!opened.ok()) {
       Finish(ToGrpcStatus(opened));
       return;
@@ -44,13 +44,14 @@ class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
   void OnDone() override { delete this; }
 
  private:
-  absl::Status Open(ServerContext& context, const std::string& lease_id) {
-    ASSIGN_OR_RETURN(const std::string path, context.jobs->LeasedTakePath(lease_id));
+  absl::Status Open(ServerContext& context, const std::string& lease_id, const std::string& input) {
+    ASSIGN_OR_RETURN(const std::string path, context.jobs->LeasedTakePath(lease_id, input));
     fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     struct stat st {};
     if (fd_ < 0 || ::fstat(fd_, &st) != 0) {
-      return absl::DataLossError(
-          absl::StrCat("the take of lease ", lease_id, " cannot be read: ", std::strerror(errno)));
+      return absl::DataLossError(absl::StrCat(
+          "the ", input.empty() ? "take" : "input " + input.substr(0, 64), " of lease ",
+          lease_id.substr(0, 96), " cannot be read: ", std::strerror(errno)));
     }
     size_ = static_cast<int64_t>(st.st_size);
     return absl::OkStatus();

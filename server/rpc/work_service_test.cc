@@ -355,5 +355,205 @@ TEST_F(Work, AWorkerOutlivesAServerRestart) {
   server->reset();
 }
 
+// A segmented job's parts, each a lease of its own (raw calls play the
+// workers): prepare first, then both segments at once with prepare's upload
+// as their input, then the stitch with all three; a part given back runs
+// again; the stitch's upload is the job's reenactment.
+TEST_F(Work, ASegmentedJobLeasesItsPartsInOrderAndHandsOnTheirUploads) {
+  StartServer(NetworkOnly());
+  auto submit = [&](const std::string& method, int segments, v1::Job* job) {
+    grpc::ClientContext context;
+    v1::SubmitJobRequest request;
+    request.set_take_id("take");
+    request.set_method(method);
+    request.set_segments(segments);
+    return jobs_->Submit(&context, request, job);
+  };
+  v1::Job job;
+  // A method that cannot split a take, and a hostile count, are refused.
+  EXPECT_EQ(submit("rigid-carved", 2, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(submit("body", 65, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(submit("body", -1, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  ASSERT_TRUE(submit("body", 2, &job).ok());
+  ASSERT_EQ(job.parts_size(), 4);
+  EXPECT_EQ(job.parts(0).state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.parts(1).state(), v1::JOB_STATE_UNSPECIFIED);
+
+  auto read = [&](const std::string& lease_id, const std::string& input, std::string* data) {
+    grpc::ClientContext context;
+    v1::ReadTakeRequest request;
+    request.set_lease_id(lease_id);
+    request.set_input(input);
+    auto reader = work_->ReadTake(&context, request);
+    v1::TakeChunk chunk;
+    data->clear();
+    while (reader->Read(&chunk)) data->append(chunk.data());
+    return reader->Finish();
+  };
+  grpc::Status status;
+  v1::UploadResponse uploaded;
+  const v1::LeaseResponse prepare = Lease(5, &status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_TRUE(prepare.has_lease());
+  EXPECT_EQ(prepare.lease().part(), "prepare");
+  EXPECT_EQ(prepare.lease().inputs_size(), 0);
+  EXPECT_FALSE(Lease(0, &status).has_lease()) << "the segments wait for prepare";
+  ASSERT_TRUE(Upload(prepare.lease().lease_id(), 4, "PREP", &uploaded).ok());
+  EXPECT_EQ(uploaded.job().state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(uploaded.job().parts(0).file_bytes(), 4);
+
+  std::map<std::string, std::string> leases;  // part -> lease id
+  for (int k = 0; k < 2; ++k) {
+    const v1::LeaseResponse segment = Lease(5, &status);
+    ASSERT_TRUE(segment.has_lease()) << status.error_message();
+    ASSERT_EQ(segment.lease().inputs_size(), 1);
+    EXPECT_EQ(segment.lease().inputs(0).name(), "prepare");
+    EXPECT_EQ(segment.lease().inputs(0).bytes(), 4);
+    leases[segment.lease().part()] = segment.lease().lease_id();
+  }
+  ASSERT_TRUE(leases.count("segment-1") && leases.count("segment-2"));
+  EXPECT_EQ(Get(job.job_id()).state(), v1::JOB_STATE_RUNNING);
+  std::string data;
+  ASSERT_TRUE(read(leases["segment-1"], "prepare", &data).ok());
+  EXPECT_EQ(data, "PREP");
+  EXPECT_EQ(read(leases["segment-1"], "segment-2", &data).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  ASSERT_TRUE(Upload(leases["segment-1"], 2, "S1", &uploaded).ok());
+  {
+    // The second segment's worker drains: the part is queued again.
+    grpc::ClientContext context;
+    v1::FailRequest fail;
+    fail.set_lease_id(leases["segment-2"]);
+    fail.set_error("node drains");
+    fail.set_give_back(true);
+    v1::FailResponse answer;
+    ASSERT_TRUE(work_->Fail(&context, fail, &answer).ok());
+    EXPECT_EQ(answer.job().state(), v1::JOB_STATE_RUNNING);
+  }
+  const v1::LeaseResponse again = Lease(5, &status);
+  ASSERT_TRUE(again.has_lease());
+  EXPECT_EQ(again.lease().part(), "segment-2");
+  ASSERT_TRUE(Upload(again.lease().lease_id(), 3, "S2!", &uploaded).ok());
+
+  const v1::LeaseResponse stitch = Lease(5, &status);
+  ASSERT_TRUE(stitch.has_lease());
+  EXPECT_EQ(stitch.lease().part(), "stitch");
+  ASSERT_EQ(stitch.lease().inputs_size(), 3);
+  for (const auto& [input, expected] : std::map<std::string, std::string>{
+           {"prepare", "PREP"}, {"segment-1", "S1"}, {"segment-2", "S2!"}}) {
+    ASSERT_TRUE(read(stitch.lease().lease_id(), input, &data).ok()) << input;
+    EXPECT_EQ(data, expected) << input;
+  }
+  const std::string file = SmallReenactmentBytes(dir_, stitch.lease().reenactment_id());
+  ASSERT_TRUE(
+      Upload(stitch.lease().lease_id(), static_cast<int64_t>(file.size()), file, &uploaded).ok());
+  const v1::Job done = Get(job.job_id());
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.error();
+  EXPECT_EQ(done.reenactment_id(), stitch.lease().reenactment_id());
+  for (const v1::JobPart& part : done.parts()) {
+    EXPECT_EQ(part.state(), v1::JOB_STATE_SUCCEEDED) << part.name();
+    ASSERT_GE(part.attempt_history_size(), 1) << part.name();
+    EXPECT_EQ(part.attempt_history(part.attempt_history_size() - 1).worker(), "raw");
+  }
+  ASSERT_EQ(done.parts(2).attempt_history_size(), 2);
+  EXPECT_EQ(done.parts(2).attempt_history(0).outcome(), "given back");
+  EXPECT_EQ(StoredReenactments(), 1);
+}
+
+// A part that fails fails its job and ends the other parts' leases; a
+// cancel ends them all; a restart queues a running part again and keeps
+// the parts that finished.
+TEST_F(Work, ASegmentedJobFailsCancelsAndRestartsByItsParts) {
+  StartServer(NetworkOnly());
+  auto submit = [&]() {
+    grpc::ClientContext context;
+    v1::SubmitJobRequest request;
+    request.set_take_id("take");
+    request.set_method("body");
+    request.set_segments(2);
+    v1::Job job;
+    EXPECT_TRUE(jobs_->Submit(&context, request, &job).ok());
+    return job;
+  };
+  auto beat = [&](const std::string& lease_id) {
+    grpc::ClientContext context;
+    v1::HeartbeatRequest request;
+    request.set_lease_id(lease_id);
+    v1::HeartbeatResponse answer;
+    return work_->Heartbeat(&context, request, &answer).error_code();
+  };
+  grpc::Status status;
+  v1::UploadResponse uploaded;
+  // Prepared, then both segments leased.
+  auto start_segments = [&](std::vector<std::string>* segment_leases) {
+    const v1::LeaseResponse prepare = Lease(5, &status);
+    ASSERT_TRUE(prepare.has_lease());
+    ASSERT_TRUE(Upload(prepare.lease().lease_id(), 1, "P", &uploaded).ok());
+    for (int k = 0; k < 2; ++k) {
+      const v1::LeaseResponse segment = Lease(5, &status);
+      ASSERT_TRUE(segment.has_lease());
+      segment_leases->push_back(segment.lease().lease_id());
+    }
+  };
+
+  const v1::Job failing = submit();
+  std::vector<std::string> leases;
+  start_segments(&leases);
+  ASSERT_EQ(leases.size(), 2u);
+  {
+    grpc::ClientContext context;
+    v1::FailRequest fail;
+    fail.set_lease_id(leases[0]);
+    fail.set_error("out of memory");
+    v1::FailResponse answer;
+    ASSERT_TRUE(work_->Fail(&context, fail, &answer).ok());
+  }
+  v1::Job job = Get(failing.job_id());
+  EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(job.error().find("failed: out of memory"), std::string::npos) << job.error();
+  EXPECT_EQ(beat(leases[1]), grpc::StatusCode::ABORTED);
+  EXPECT_EQ(job.parts(3).state(), v1::JOB_STATE_CANCELLED);  // The stitch never ran.
+
+  const v1::Job cancelled = submit();
+  leases.clear();
+  start_segments(&leases);
+  {
+    grpc::ClientContext context;
+    v1::CancelJobRequest request;
+    request.set_job_id(cancelled.job_id());
+    v1::Job answer;
+    ASSERT_TRUE(jobs_->Cancel(&context, request, &answer).ok());
+    EXPECT_EQ(answer.state(), v1::JOB_STATE_CANCELLED);
+  }
+  for (const std::string& lease : leases) EXPECT_EQ(beat(lease), grpc::StatusCode::ABORTED);
+  EXPECT_FALSE(Lease(0, &status).has_lease()) << "nothing of the cancelled job stays queued";
+
+  // A restart with one segment done and one running.
+  const v1::Job restarted = submit();
+  leases.clear();
+  start_segments(&leases);
+  ASSERT_TRUE(Upload(leases[0], 1, "S", &uploaded).ok());
+  t_.reset();
+  ServerOptions options = NetworkOnly();
+  t_ = TestServer::Start(dir_ + "/data", std::move(options));
+  ASSERT_NE(t_, nullptr);
+  jobs_ = v1::Jobs::NewStub(t_->channel);
+  work_ = v1::Work::NewStub(t_->channel);
+  job = Get(restarted.job_id());
+  int succeeded = 0;
+  for (const v1::JobPart& part : job.parts()) {
+    succeeded += part.state() == v1::JOB_STATE_SUCCEEDED ? 1 : 0;
+  }
+  EXPECT_EQ(succeeded, 2) << "prepare and one segment are kept";
+  const v1::LeaseResponse requeued = Lease(5, &status);
+  ASSERT_TRUE(requeued.has_lease()) << status.error_message();
+  EXPECT_EQ(requeued.lease().job().job_id(), restarted.job_id());
+  EXPECT_TRUE(requeued.lease().part().starts_with("segment-")) << requeued.lease().part();
+  ASSERT_TRUE(Upload(requeued.lease().lease_id(), 1, "S", &uploaded).ok());
+  const v1::LeaseResponse stitch = Lease(5, &status);
+  ASSERT_TRUE(stitch.has_lease());
+  EXPECT_EQ(stitch.lease().part(), "stitch");
+}
+
 }  // namespace
 }  // namespace reenact::server

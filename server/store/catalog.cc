@@ -78,6 +78,12 @@ ALTER TABLE takes ADD COLUMN owner TEXT NOT NULL DEFAULT '';
     R"sql(
 ALTER TABLE jobs ADD COLUMN attempts_json TEXT NOT NULL DEFAULT '[]';
 )sql",
+    // Version 5: segmented jobs, one take split across several workers: the
+    // number of segments and the job's parts (a JSON list, PartsToJson).
+    R"sql(
+ALTER TABLE jobs ADD COLUMN segments INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN parts_json TEXT NOT NULL DEFAULT '[]';
+)sql",
 };
 static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 
@@ -123,6 +129,41 @@ void AttemptsFromJson(const std::string& text,
     attempt->set_started_unix_ns(a.value("started_unix_ns", int64_t{0}));
     attempt->set_ended_unix_ns(a.value("ended_unix_ns", int64_t{0}));
     attempt->set_outcome(a.value("outcome", ""));
+  }
+}
+
+std::string PartsToJson(const google::protobuf::RepeatedPtrField<v1::JobPart>& parts) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const v1::JobPart& p : parts) {
+    j.push_back(
+        {{"name", p.name()},
+         {"state", p.state() == v1::JOB_STATE_UNSPECIFIED ? std::string("waiting")
+                                                          : std::string(JobStateName(p.state()))},
+         {"attempts", p.attempts()},
+         {"attempt_history", nlohmann::json::parse(AttemptsToJson(p.attempt_history()))},
+         {"fraction", p.fraction()},
+         {"stage", p.stage()},
+         {"file_bytes", p.file_bytes()}});
+  }
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+// Leaves out what is not a list of objects (a row written by hand).
+void PartsFromJson(const std::string& text, google::protobuf::RepeatedPtrField<v1::JobPart>* out) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_array()) return;
+  for (const nlohmann::json& p : j) {
+    if (!p.is_object()) continue;
+    v1::JobPart* part = out->Add();
+    part->set_name(p.value("name", ""));
+    part->set_state(JobStateFromName(p.value("state", "")).value_or(v1::JOB_STATE_UNSPECIFIED));
+    part->set_attempts(p.value("attempts", 0));
+    if (const auto history = p.find("attempt_history"); history != p.end()) {
+      AttemptsFromJson(history->dump(), part->mutable_attempt_history());
+    }
+    part->set_fraction(p.value("fraction", 0.0));
+    part->set_stage(p.value("stage", ""));
+    part->set_file_bytes(p.value("file_bytes", int64_t{0}));
   }
 }
 
@@ -204,7 +245,7 @@ TakeRow RowFromStatement(const Statement& s) {
 constexpr const char* kJobColumns =
     "job_id, take_id, method, options_json, state, stage, fraction, frames_done, frames_total, "
     "eta_s, submitted_unix_ns, started_unix_ns, finished_unix_ns, reenactment_id, error, attempts, "
-    "attempts_json";
+    "attempts_json, segments, parts_json";
 
 v1::Job JobFromStatement(const Statement& s) {
   v1::Job job;
@@ -226,6 +267,8 @@ v1::Job JobFromStatement(const Statement& s) {
   job.set_error(s.Text(14));
   job.set_attempts(static_cast<int32_t>(s.Int(15)));
   AttemptsFromJson(s.Text(16), job.mutable_attempt_history());
+  job.set_segments(static_cast<int32_t>(s.Int(17)));
+  PartsFromJson(s.Text(18), job.mutable_parts());
   return job;
 }
 
@@ -440,7 +483,7 @@ absl::Status Catalog::PutJob(const v1::Job& job) {
   const v1::JobProgress& p = job.progress();
   Statement s(db_, absl::StrCat("INSERT OR REPLACE INTO jobs (", kJobColumns,
                                 ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
-                                "?13, ?14, ?15, ?16, ?17)"));
+                                "?13, ?14, ?15, ?16, ?17, ?18, ?19)"));
   s.Bind(1, job.job_id())
       .Bind(2, job.take_id())
       .Bind(3, job.method())
@@ -457,7 +500,9 @@ absl::Status Catalog::PutJob(const v1::Job& job) {
       .Bind(14, job.reenactment_id())
       .Bind(15, job.error())
       .Bind(16, int64_t{job.attempts()})
-      .Bind(17, AttemptsToJson(job.attempt_history()));
+      .Bind(17, AttemptsToJson(job.attempt_history()))
+      .Bind(18, int64_t{job.segments()})
+      .Bind(19, PartsToJson(job.parts()));
   s.Step();
   if (!s.ok()) return Error("storing job " + job.job_id());
   return absl::OkStatus();

@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -206,23 +207,27 @@ class Heartbeats {
   std::thread thread_;
 };
 
-// Writes the lease's take to `path`, checking offsets and the size.
-absl::Status FetchTake(v1::Work::Stub* stub, const v1::WorkLease& lease, const std::string& path) {
+// Writes the lease's take (`input` empty) or one of its inputs, of `bytes`
+// bytes, to `path`, checking offsets and the size.
+absl::Status FetchFile(v1::Work::Stub* stub, const v1::WorkLease& lease, const std::string& input,
+                       int64_t bytes, const std::string& path) {
+  const std::string what = input.empty() ? "take" : "input " + input;
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return absl::InternalError(absl::StrCat("cannot write ", path));
   grpc::ClientContext context;
   v1::ReadTakeRequest request;
   request.set_lease_id(lease.lease_id());
+  request.set_input(input);
   std::unique_ptr<grpc::ClientReader<v1::TakeChunk>> reader = stub->ReadTake(&context, request);
   v1::TakeChunk chunk;
   int64_t received = 0;
   while (reader->Read(&chunk)) {
     if (chunk.offset() != received ||
-        received + static_cast<int64_t>(chunk.data().size()) > lease.take_bytes()) {
+        received + static_cast<int64_t>(chunk.data().size()) > bytes) {
       context.TryCancel();
       (void)reader->Finish();
       return absl::DataLossError(
-          absl::StrCat("the take stream is out of order at byte ", received));
+          absl::StrCat("the ", what, " stream is out of order at byte ", received));
     }
     out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
     received += static_cast<int64_t>(chunk.data().size());
@@ -230,11 +235,36 @@ absl::Status FetchTake(v1::Work::Stub* stub, const v1::WorkLease& lease, const s
   RETURN_IF_ERROR(FromGrpcStatus(reader->Finish()));
   out.close();
   if (!out) return absl::InternalError(absl::StrCat("writing ", path, " failed (disk full?)"));
-  if (received != lease.take_bytes()) {
+  if (received != bytes) {
     return absl::DataLossError(
-        absl::StrCat("the take ended after ", received, " of ", lease.take_bytes(), " bytes"));
+        absl::StrCat("the ", what, " ended after ", received, " of ", bytes, " bytes"));
   }
   return absl::OkStatus();
+}
+
+// The lease's take, then each of its inputs, into `dir`; their paths
+// (the take first).
+absl::StatusOr<std::vector<std::string>> FetchInputs(v1::Work::Stub* stub,
+                                                     const v1::WorkLease& lease,
+                                                     const std::string& dir,
+                                                     const std::optional<std::string>& local_take) {
+  std::vector<std::string> paths;
+  if (local_take.has_value()) {
+    paths.push_back(*local_take);
+  } else {
+    paths.push_back((fs::path(dir) / "take.mcap").string());
+    RETURN_IF_ERROR(FetchFile(stub, lease, "", lease.take_bytes(), paths.back()));
+  }
+  for (const v1::WorkInput& input : lease.inputs()) {
+    // Names are the server's ("prepare", "segment-2"); kept to a safe set.
+    std::string file = input.name();
+    for (char& c : file) {
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+    }
+    paths.push_back((fs::path(dir) / (file + ".part")).string());
+    RETURN_IF_ERROR(FetchFile(stub, lease, input.name(), input.bytes(), paths.back()));
+  }
+  return paths;
 }
 
 // Streams the reenactment at `path` under the lease.
@@ -364,26 +394,31 @@ class Agent {
     double period_s = lease.heartbeat_period_s() > 0 ? lease.heartbeat_period_s() : 5.0;
     if (options_.heartbeat_period_s > 0) period_s = std::min(period_s, options_.heartbeat_period_s);
     Heartbeats beats(stub_.get(), lease.lease_id(), period_s);
-    std::string take_path = (fs::path(dir) / "take.mcap").string();
-    const std::string out_path = (fs::path(dir) / "reenactment.rnr").string();
-    std::optional<std::string> local =
+    const std::string out_path =
+        (fs::path(dir) /
+         (lease.part().empty() || lease.part() == "stitch" ? "reenactment.rnr" : "result.part"))
+            .string();
+    const std::optional<std::string> local =
         options_.local_take ? options_.local_take(lease.lease_id()) : std::nullopt;
-    if (local.has_value()) {
-      take_path = *local;
-    } else if (const absl::Status fetched = FetchTake(stub_.get(), lease, take_path);
-               !fetched.ok()) {
+    absl::StatusOr<std::vector<std::string>> inputs = FetchInputs(stub_.get(), lease, dir, local);
+    if (!inputs.ok()) {
       beats.Stop(false);
-      if (absl::IsAborted(fetched)) return Lost(lease, std::string(fetched.message()));
-      SendFail(lease, absl::StrCat("the worker could not fetch the take: ", fetched.message()), {},
-               /*give_back=*/true);
+      if (absl::IsAborted(inputs.status())) {
+        return Lost(lease, std::string(inputs.status().message()));
+      }
+      SendFail(lease,
+               absl::StrCat("the worker could not fetch its inputs: ", inputs.status().message()),
+               {}, /*give_back=*/true);
       return false;
     }
     WorkerInvocation invocation;
     invocation.worker_path = options_.job_program;
-    invocation.take_path = take_path;
+    invocation.take_path = inputs->front();
     invocation.out_path = out_path;
     invocation.reenactment_id = lease.reenactment_id();
     invocation.asset_roots = options_.asset_roots;
+    invocation.part = lease.part();
+    invocation.input_paths.assign(inputs->begin() + 1, inputs->end());
     // The lease's options are the worker's already (no live-only ones).
     absl::StatusOr<std::unique_ptr<WorkerProcess>> started = WorkerProcess::Start(
         WorkerArgs(lease.job(), nullptr, invocation), dir,

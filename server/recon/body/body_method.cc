@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <zstd.h>
+
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
@@ -17,6 +19,7 @@
 #include "common/bodyfit/body_fit.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
+#include "reenact/v1/segments.pb.h"
 #include "server/recon/body/body_cloud.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/body/live_body.h"
@@ -88,9 +91,11 @@ absl::StatusOr<LoadedModel> LoadModel(const BodyMethodOptions& o, const MethodCo
   return loaded;
 }
 
-// Merged clouds of every instant (thesis 4.3, Fig. 4.3a).
+// Merged clouds (thesis 4.3, Fig. 4.3a) of the instants in [first, end);
+// the others stay empty.
 absl::StatusOr<std::vector<bodyfit::PointCloud>> BuildClouds(const TakeFrames& take,
-                                                             const StageProgress& stages) {
+                                                             const StageProgress& stages, int first,
+                                                             int end) {
   ASSIGN_OR_RETURN(const std::unique_ptr<CloudBuilder> builder, CloudBuilder::Create(take));
   const int n = take.num_instants();
   std::vector<bodyfit::PointCloud> clouds(n);
@@ -98,7 +103,8 @@ absl::StatusOr<std::vector<bodyfit::PointCloud>> BuildClouds(const TakeFrames& t
   absl::Status first_error;
   std::atomic<int> done{0};
   std::atomic<bool> stop{false};
-  take.pool().ParallelFor(0, n, [&](int i) {
+  const int total = end - first;
+  take.pool().ParallelFor(first, end, [&](int i) {
     if (stop) return;
     absl::StatusOr<bodyfit::PointCloud> cloud = builder->Build(i);
     std::lock_guard<std::mutex> lock(mutex);
@@ -108,37 +114,77 @@ absl::StatusOr<std::vector<bodyfit::PointCloud>> BuildClouds(const TakeFrames& t
       return;
     }
     clouds[i] = std::move(*cloud);
-    if (!stages.Report("clouds", ++done, n).ok()) stop = true;
+    if (!stages.Report("clouds", ++done, total).ok()) stop = true;
   });
   RETURN_IF_ERROR(first_error);
-  RETURN_IF_ERROR(stages.Report("clouds", n, n));
+  RETURN_IF_ERROR(stages.Report("clouds", total, total));
   return clouds;
 }
 
-// One shape for the take, fitted on instants spread over it; returns them.
-absl::StatusOr<std::vector<int>> FitShape(const TakeFrames& take,
-                                          const std::vector<bodyfit::PointCloud>& clouds,
-                                          int shape_frames, bodyfit::BodyFitter& fitter,
-                                          const StageProgress& stages) {
-  std::vector<int> usable;
-  for (int i = 0; i < take.num_instants(); ++i) {
-    if (clouds[i].size() >= kMinPoints && bodyfit::HasTorso(take.instant(i).joints_in_world_m)) {
-      usable.push_back(i);
+// An instant's merged cloud: built already, or built when first asked for.
+using CloudSource = std::function<absl::StatusOr<const bodyfit::PointCloud*>(int instant)>;
+
+// The instants the shape is fitted on: for each of min(shape_frames, n)
+// targets spread evenly over the take, the usable instant (a skeleton with
+// a torso and enough points) nearest to it, later ones first on a tie. Only
+// the clouds of instants looked at are asked for, so that a segmented run
+// need not build them all; when every instant is usable the targets
+// themselves are chosen.
+absl::StatusOr<std::vector<int>> ChooseShapeInstants(const TakeFrames& take, int shape_frames,
+                                                     const CloudSource& cloud_of) {
+  const int n = take.num_instants();
+  std::vector<int8_t> usable(n, -1);  // -1: not looked at yet.
+  auto is_usable = [&](int i) -> absl::StatusOr<bool> {
+    if (usable[i] < 0) {
+      bool ok = bodyfit::HasTorso(take.instant(i).joints_in_world_m);
+      if (ok) {
+        ASSIGN_OR_RETURN(const bodyfit::PointCloud* cloud, cloud_of(i));
+        ok = cloud->size() >= kMinPoints;
+      }
+      usable[i] = ok ? 1 : 0;
+    }
+    return usable[i] == 1;
+  };
+  const int count = std::min(shape_frames, n);
+  std::vector<int> chosen;
+  std::vector<bool> taken(n, false);
+  for (int k = 0; k < count; ++k) {
+    const int target = static_cast<int>(int64_t{2 * k + 1} * n / (2 * count));
+    for (int d = 0; d < n; ++d) {
+      int found = -1;
+      for (const int i : {target + d, target - d}) {
+        if (i < 0 || i >= n || taken[i]) continue;
+        ASSIGN_OR_RETURN(const bool ok, is_usable(i));
+        if (ok) {
+          found = i;
+          break;
+        }
+      }
+      if (found >= 0) {
+        taken[found] = true;
+        chosen.push_back(found);
+        break;
+      }
     }
   }
-  if (usable.empty()) {
+  if (chosen.empty()) {
     return absl::InvalidArgumentError(
         "no instant of the take has both a skeleton with a torso and depth points of the actor");
   }
-  std::vector<int> shape_instants;
-  const int shape_count = std::min<int>(shape_frames, static_cast<int>(usable.size()));
-  for (int k = 0; k < shape_count; ++k) {
-    shape_instants.push_back(usable[(2 * k + 1) * usable.size() / (2 * shape_count)]);
-  }
+  std::sort(chosen.begin(), chosen.end());
+  return chosen;
+}
+
+// One shape for the take, fitted on instants spread over it; returns them.
+absl::StatusOr<std::vector<int>> FitShape(const TakeFrames& take, const CloudSource& cloud_of,
+                                          int shape_frames, bodyfit::BodyFitter& fitter,
+                                          const StageProgress& stages) {
+  ASSIGN_OR_RETURN(const std::vector<int> shape_instants,
+                   ChooseShapeInstants(take, shape_frames, cloud_of));
   std::vector<bodyfit::FitInput> inputs;
   for (int i : shape_instants) {
     bodyfit::FitInput input;
-    input.cloud = &clouds[i];
+    ASSIGN_OR_RETURN(input.cloud, cloud_of(i));
     input.skeleton_m = take.instant(i).joints_in_world_m;
     inputs.push_back(input);
   }
@@ -148,17 +194,20 @@ absl::StatusOr<std::vector<int>> FitShape(const TakeFrames& take,
   return shape_instants;
 }
 
-// Every instant in order, each from the previous fit (Eq. 4.6 against it).
-// InvalidArgument when no instant could be fitted.
+// The instants of `range` in order, each from the previous fit (Eq. 4.6
+// against it), beginning at range.warmup_first; the fits before range.first
+// only carry the motion into the range and are neither kept nor counted.
 absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
                                     const std::vector<bodyfit::PointCloud>& clouds,
-                                    bodyfit::BodyFitter& fitter, const StageProgress& stages) {
+                                    bodyfit::BodyFitter& fitter, const StageProgress& stages,
+                                    const SegmentRange& range) {
   const int n = take.num_instants();
   FrameFits out;
   out.fits.resize(n);
   std::optional<body::BodyPose> previous;
-  for (int i = 0; i < n; ++i) {
-    RETURN_IF_ERROR(stages.Report("fit", i, n));
+  const int total = range.end - range.warmup_first;
+  for (int i = range.warmup_first; i < range.end; ++i) {
+    RETURN_IF_ERROR(stages.Report("fit", i - range.warmup_first, total));
     if (clouds[i].size() < kMinPoints) continue;
     bodyfit::FitInput input;
     input.cloud = &clouds[i];
@@ -171,16 +220,50 @@ absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
                      fitter.FitNext(input, previous ? &*previous : nullptr));
     if (!next.has_value()) continue;
     bodyfit::FrameFit fit = std::move(next->fit);
+    previous = fit.pose;
+    if (i < range.first) continue;
     out.reinitialised += next->restarted ? 1 : 0;
     out.fit_seconds += SecondsSince(frame_start);
     out.rms_sum += fit.point_rms_mm;
     ++out.fitted;
-    previous = fit.pose;
     out.fits[i] = std::move(fit);
   }
-  RETURN_IF_ERROR(stages.Report("fit", n, n));
-  if (out.fitted == 0) return absl::InvalidArgumentError("no instant of the take could be fitted");
+  RETURN_IF_ERROR(stages.Report("fit", total, total));
   return out;
+}
+
+// The whole take's fits: InvalidArgument when no instant could be fitted.
+absl::StatusOr<FrameFits> FitAllFrames(const TakeFrames& take,
+                                       const std::vector<bodyfit::PointCloud>& clouds,
+                                       bodyfit::BodyFitter& fitter, const StageProgress& stages) {
+  ASSIGN_OR_RETURN(FrameFits fits,
+                   FitFrames(take, clouds, fitter, stages, {0, take.num_instants(), 0}));
+  if (fits.fitted == 0) return absl::InvalidArgumentError("no instant of the take could be fitted");
+  return fits;
+}
+
+// The posed vertices of every fitted instant (offsets of step 2 added);
+// empty for the others.
+std::vector<Eigen::Matrix3Xd> PosedVertices(const FrameFits& fits) {
+  std::vector<Eigen::Matrix3Xd> posed(fits.fits.size());
+  for (size_t i = 0; i < fits.fits.size(); ++i) {
+    if (!fits.fits[i]) continue;
+    posed[i] = fits.fits[i]->vertices_m;
+    if (fits.fits[i]->offsets_m.cols() > 0) posed[i] += fits.fits[i]->offsets_m;
+  }
+  return posed;
+}
+
+// The PartFrame of every fitted instant; none for the others.
+std::vector<std::optional<v1::PartFrame>> FittedFrames(const TakeFrames& take,
+                                                       const FrameFits& fits) {
+  std::vector<std::optional<v1::PartFrame>> frames(fits.fits.size());
+  for (size_t i = 0; i < fits.fits.size(); ++i) {
+    if (!fits.fits[i]) continue;
+    const int index = static_cast<int>(i);
+    frames[i] = BodyFrameToProto(index, take.instant(index).stamp_ns, *fits.fits[i], true);
+  }
+  return frames;
 }
 
 // Texturing (thesis 4.4): the mesh of the fitted shape with the atlas baked
@@ -191,15 +274,9 @@ absl::StatusOr<TexturedMesh> BakeAtlas(const TakeFrames& take, const LoadedModel
   TexturedMesh out;
   ASSIGN_OR_RETURN(out.mesh, MakeBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
   ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(out.mesh));
-  std::vector<Eigen::Matrix3Xd> posed(fits.fits.size());
-  for (size_t i = 0; i < fits.fits.size(); ++i) {
-    if (!fits.fits[i]) continue;
-    posed[i] = fits.fits[i]->vertices_m;
-    if (fits.fits[i]->offsets_m.cols() > 0) posed[i] += fits.fits[i]->offsets_m;
-  }
   const auto texture_start = std::chrono::steady_clock::now();
-  ASSIGN_OR_RETURN(const AtlasResult atlas,
-                   BakeBodyAtlas(take, decoded, posed, options, stages.ForStage("texture")));
+  ASSIGN_OR_RETURN(const AtlasResult atlas, BakeBodyAtlas(take, decoded, PosedVertices(fits),
+                                                          options, stages.ForStage("texture")));
   ASSIGN_OR_RETURN(std::string atlas_jpeg, EncodeJpeg(atlas.atlas, 90));
   out.mesh.set_atlas_jpeg(std::move(atlas_jpeg));
   out.atlas.seconds = SecondsSince(texture_start);
@@ -208,13 +285,26 @@ absl::StatusOr<TexturedMesh> BakeAtlas(const TakeFrames& take, const LoadedModel
   return out;
 }
 
-// The reenactment: the mesh and a frame for every instant, with the run's
-// figures.
+// What the reenactment's figures sum over the fits.
+struct FitFigures {
+  int fitted = 0;
+  int reinitialised = 0;
+  double fit_seconds = 0.0;
+  double rms_sum = 0.0;
+};
+
+FitFigures FiguresOf(const FrameFits& fits) {
+  return {fits.fitted, fits.reinitialised, fits.fit_seconds, fits.rms_sum};
+}
+
+// The reenactment: the mesh and a frame for every instant (`frames`: those
+// of the fitted instants), with the run's figures.
 ReenactmentData AssembleReenactment(const TakeFrames& take, const body::BodyModel& model,
-                                    v1::BodyMesh mesh, const FrameFits& fits,
-                                    const StageSeconds& seconds, const AtlasFigures& atlas) {
+                                    v1::BodyMesh mesh,
+                                    const std::vector<std::optional<v1::PartFrame>>& f,
+                                    const FitFigures& fits, const StageSeconds& seconds,
+                                    const AtlasFigures& atlas) {
   const int n = take.num_instants();
-  const auto& f = fits.fits;
   ReenactmentData data;
   data.body.push_back(std::move(mesh));
   int nearest_fit = -1;
@@ -222,19 +312,23 @@ ReenactmentData AssembleReenactment(const TakeFrames& take, const body::BodyMode
     if (f[i]) nearest_fit = i;
   }
   for (int i = 0; i < n; ++i) {
-    // Instants without a fit take the nearest fitted one's pose, marked invalid.
-    int source = i;
-    if (!f[i]) {
-      int best = -1;
-      for (int d = 1; d < n && best < 0; ++d) {
-        if (i - d >= 0 && f[i - d])
-          best = i - d;
-        else if (i + d < n && f[i + d])
-          best = i + d;
-      }
-      source = best >= 0 ? best : nearest_fit;
+    if (f[i]) {
+      data.frames.push_back(*f[i]);
+      continue;
     }
-    data.frames.push_back(BodyFrameToProto(i, take.instant(i).stamp_ns, *f[source], source == i));
+    // Instants without a fit take the nearest fitted one's pose, marked invalid.
+    int best = -1;
+    for (int d = 1; d < n && best < 0; ++d) {
+      if (i - d >= 0 && f[i - d])
+        best = i - d;
+      else if (i + d < n && f[i + d])
+        best = i + d;
+    }
+    v1::PartFrame frame = *f[best >= 0 ? best : nearest_fit];
+    frame.set_frame_index(i);
+    frame.set_stamp_ns(take.instant(i).stamp_ns);
+    frame.mutable_body()->set_valid(false);
+    data.frames.push_back(std::move(frame));
   }
   v1::ReenactmentInfo& info = data.info;
   info.set_fps(take.fps());
@@ -267,7 +361,7 @@ std::string ShapeLine(const std::string& model_name, const LoadedModel& loaded,
 }
 
 // The log line of the whole run.
-std::string SummaryLine(int instants, const FrameFits& fits, int atlas_px,
+std::string SummaryLine(int instants, const FitFigures& fits, int atlas_px,
                         const AtlasFigures& atlas) {
   return absl::StrFormat(
       "body: %d of %d instants fitted (%d started again from the skeleton), %.1f ms per frame, "
@@ -305,8 +399,12 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
                              "decode colour at 1/k for the atlas"));
   RETURN_IF_ERROR(reader.Double("texture_sharpness", &atlas.frontality_power, 0, 64,
                                 "p of the cos^p frontality weight of observations"));
-  return reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10,
-                       "texels must lie this near the sensor's own depth, metres (0: off)");
+  RETURN_IF_ERROR(
+      reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10,
+                    "texels must lie this near the sensor's own depth, metres (0: off)"));
+  return reader.Double("segment_warmup_s", &segment_warmup_s, 0, 60,
+                       "a take split across workers: each segment's fit starts this long "
+                       "before its first instant, seconds (those fits are not kept)");
 }
 
 absl::Status BodyMethodOptions::Validate() const {
@@ -344,24 +442,259 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take, const BodyMethod
   StageSeconds seconds;
   ASSIGN_OR_RETURN(const LoadedModel loaded, LoadModel(o, context, stages));
   seconds.model = SecondsSince(start);
-  ASSIGN_OR_RETURN(const std::vector<bodyfit::PointCloud> clouds, BuildClouds(take, stages));
+  ASSIGN_OR_RETURN(const std::vector<bodyfit::PointCloud> clouds,
+                   BuildClouds(take, stages, 0, take.num_instants()));
   seconds.clouds = SecondsSince(start) - seconds.model;
+  const CloudSource cloud_of = [&clouds](int i) -> absl::StatusOr<const bodyfit::PointCloud*> {
+    return &clouds[i];
+  };
   ASSIGN_OR_RETURN(const std::vector<int> shape_instants,
-                   FitShape(take, clouds, o.fit.shape_frames, *loaded.fitter, stages));
+                   FitShape(take, cloud_of, o.fit.shape_frames, *loaded.fitter, stages));
   seconds.shape = SecondsSince(start) - seconds.model - seconds.clouds;
   if (context.log) {
     context.log(ShapeLine(o.model, loaded, shape_instants.size(), seconds.shape));
   }
-  ASSIGN_OR_RETURN(const FrameFits fits, FitFrames(take, clouds, *loaded.fitter, stages));
+  ASSIGN_OR_RETURN(const FrameFits fits, FitAllFrames(take, clouds, *loaded.fitter, stages));
   ASSIGN_OR_RETURN(TexturedMesh textured, BakeAtlas(take, loaded, fits, o.atlas, stages));
-  ReenactmentData data = AssembleReenactment(take, *loaded.model, std::move(textured.mesh), fits,
-                                             seconds, textured.atlas);
+  ReenactmentData data =
+      AssembleReenactment(take, *loaded.model, std::move(textured.mesh), FittedFrames(take, fits),
+                          FiguresOf(fits), seconds, textured.atlas);
   if (context.log) {
-    context.log(SummaryLine(take.num_instants(), fits, o.atlas.size_px, textured.atlas));
+    context.log(SummaryLine(take.num_instants(), FiguresOf(fits), o.atlas.size_px, textured.atlas));
   }
   return data;
 }
 
+absl::StatusOr<std::string> PrepareBody(const TakeFrames& take, const BodyMethodOptions& o,
+                                        const MethodContext& context) {
+  RETURN_IF_ERROR(o.Validate());
+  const StageProgress stages(context.progress, {{"model", 0.2}, {"clouds", 0.4}, {"shape", 0.4}});
+  const auto start = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(const LoadedModel loaded, LoadModel(o, context, stages));
+  const double model_s = SecondsSince(start);
+  ASSIGN_OR_RETURN(const std::unique_ptr<CloudBuilder> builder, CloudBuilder::Create(take));
+  // Only the clouds of the instants looked at for the shape.
+  std::map<int, bodyfit::PointCloud> clouds;
+  const CloudSource cloud_of = [&](int i) -> absl::StatusOr<const bodyfit::PointCloud*> {
+    auto it = clouds.find(i);
+    if (it == clouds.end()) {
+      ASSIGN_OR_RETURN(bodyfit::PointCloud cloud, builder->Build(i));
+      it = clouds.emplace(i, std::move(cloud)).first;
+      RETURN_IF_ERROR(stages.Report("clouds", static_cast<int64_t>(clouds.size()),
+                                    std::min(take.num_instants(), o.fit.shape_frames)));
+    }
+    return &it->second;
+  };
+  ASSIGN_OR_RETURN(const std::vector<int> shape_instants,
+                   FitShape(take, cloud_of, o.fit.shape_frames, *loaded.fitter, stages));
+  v1::BodyShapePart part;
+  part.set_model(o.model);
+  for (int k = 0; k < loaded.fitter->shape().size(); ++k) part.add_shape(loaded.fitter->shape()[k]);
+  for (int i : shape_instants) part.add_shape_instants(i);
+  part.set_num_instants(take.num_instants());
+  part.set_model_seconds(model_s);
+  part.set_shape_seconds(SecondsSince(start) - model_s);
+  if (context.log) {
+    context.log(ShapeLine(o.model, loaded, shape_instants.size(), part.shape_seconds()));
+  }
+  return part.SerializeAsString();
+}
+
+namespace {
+
+// Little-endian float32 r, g, b, w per texel, compressed with zstd.
+std::string PackAtlasSums(const AtlasSums& sums) {
+  const size_t raw_bytes = sums.sums.size() * sizeof(Eigen::Vector4f);
+  std::string packed(ZSTD_compressBound(raw_bytes), '\0');
+  const size_t n =
+      ZSTD_compress(packed.data(), packed.size(), sums.sums.data(), raw_bytes, /*level=*/1);
+  packed.resize(ZSTD_isError(n) ? 0 : n);
+  return packed;
+}
+
+// The sums of a segment part; DataLoss for sums that do not unpack to the
+// side the part states (checked before anything is allocated).
+absl::StatusOr<AtlasSums> UnpackAtlasSums(const v1::BodySegmentPart& part) {
+  if (part.atlas_px() < 16 || part.atlas_px() > 8192) {
+    return absl::DataLossError(absl::StrCat("segment ", part.index(), ": atlas side ",
+                                            part.atlas_px(), " outside [16, 8192]"));
+  }
+  AtlasSums sums;
+  sums.size_px = part.atlas_px();
+  sums.views = part.atlas_views();
+  const size_t texels = static_cast<size_t>(sums.size_px) * sums.size_px;
+  const size_t raw_bytes = texels * sizeof(Eigen::Vector4f);
+  const std::string& packed = part.atlas_sums_zstd();
+  if (ZSTD_getFrameContentSize(packed.data(), packed.size()) != raw_bytes) {
+    return absl::DataLossError(absl::StrCat("segment ", part.index(), ": atlas sums are not of a ",
+                                            sums.size_px, " px atlas"));
+  }
+  sums.sums.resize(texels);
+  const size_t n = ZSTD_decompress(sums.sums.data(), raw_bytes, packed.data(), packed.size());
+  if (ZSTD_isError(n) || n != raw_bytes) {
+    return absl::DataLossError(absl::StrCat("segment ", part.index(), ": atlas sums are corrupt"));
+  }
+  return sums;
+}
+
+absl::StatusOr<v1::BodyShapePart> ParseShapePart(const std::string& prepared,
+                                                 const TakeFrames& take,
+                                                 const BodyMethodOptions& o) {
+  v1::BodyShapePart shape;
+  if (!shape.ParseFromString(prepared)) {
+    return absl::DataLossError("the prepared shape of the body method does not parse");
+  }
+  if (shape.num_instants() != take.num_instants()) {
+    return absl::InvalidArgumentError(absl::StrCat("the shape was fitted on a take of ",
+                                                   shape.num_instants(), " instants; this one has ",
+                                                   take.num_instants()));
+  }
+  if (shape.model() != o.model) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the shape is of model ", shape.model(), "; the options name ", o.model));
+  }
+  return shape;
+}
+
+// The loaded model with the prepared shape set.
+absl::StatusOr<LoadedModel> ShapedModel(const v1::BodyShapePart& shape, const BodyMethodOptions& o,
+                                        const MethodContext& context, const StageProgress& stages) {
+  ASSIGN_OR_RETURN(LoadedModel loaded, LoadModel(o, context, stages));
+  Eigen::VectorXd betas(shape.shape_size());
+  for (int k = 0; k < shape.shape_size(); ++k) betas[k] = shape.shape(k);
+  RETURN_IF_ERROR(loaded.fitter->set_shape(betas));
+  return loaded;
+}
+
+}  // namespace
+
+absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMethodOptions& o,
+                                           const MethodContext& context,
+                                           const std::string& prepared, int index, int count) {
+  RETURN_IF_ERROR(o.Validate());
+  if (count < 1 || index < 0 || index >= count) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("segment ", index, " of ", count, " does not exist"));
+  }
+  ASSIGN_OR_RETURN(const v1::BodyShapePart shape, ParseShapePart(prepared, take, o));
+  const StageProgress stages(context.progress,
+                             {{"model", 0.05}, {"clouds", 0.2}, {"fit", 0.5}, {"texture", 0.25}});
+  const int warmup = static_cast<int>(std::lround(o.segment_warmup_s * take.fps()));
+  const SegmentRange range = SegmentOf(take.num_instants(), index, count, warmup);
+  ASSIGN_OR_RETURN(const LoadedModel loaded, ShapedModel(shape, o, context, stages));
+  const auto clouds_start = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(const std::vector<bodyfit::PointCloud> clouds,
+                   BuildClouds(take, stages, range.warmup_first, range.end));
+  const double clouds_s = SecondsSince(clouds_start);
+  ASSIGN_OR_RETURN(const FrameFits fits, FitFrames(take, clouds, *loaded.fitter, stages, range));
+  // The segment's share of the atlas.
+  const auto texture_start = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(const v1::BodyMesh mesh,
+                   MakeBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
+  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(mesh));
+  ASSIGN_OR_RETURN(const AtlasSums sums,
+                   AccumulateBodyAtlas(take, decoded, PosedVertices(fits), o.atlas,
+                                       stages.ForStage("texture"), range.first, range.end));
+  v1::BodySegmentPart part;
+  part.set_index(index);
+  part.set_count(count);
+  part.set_first(range.first);
+  part.set_end(range.end);
+  part.set_warmup_first(range.warmup_first);
+  for (std::optional<v1::PartFrame>& frame : FittedFrames(take, fits)) {
+    if (frame) *part.add_frames() = std::move(*frame);
+  }
+  part.set_reinitialised(fits.reinitialised);
+  part.set_fit_seconds(fits.fit_seconds);
+  part.set_rms_sum_mm(fits.rms_sum);
+  part.set_clouds_seconds(clouds_s);
+  part.set_atlas_px(sums.size_px);
+  part.set_atlas_views(sums.views);
+  part.set_atlas_sums_zstd(PackAtlasSums(sums));
+  if (part.atlas_sums_zstd().empty()) return absl::InternalError("the atlas sums did not compress");
+  part.set_texture_seconds(SecondsSince(texture_start));
+  if (context.log) {
+    context.log(absl::StrFormat(
+        "body: segment %d of %d: instants [%d, %d) from %d, %d fitted, %.1f ms per frame; "
+        "atlas sums of %d images",
+        index + 1, count, range.first, range.end, range.warmup_first, fits.fitted,
+        fits.fitted > 0 ? 1000.0 * fits.fit_seconds / fits.fitted : 0.0, sums.views));
+  }
+  return part.SerializeAsString();
+}
+
+absl::StatusOr<ReenactmentData> StitchBody(const TakeFrames& take, const BodyMethodOptions& o,
+                                           const MethodContext& context,
+                                           const std::string& prepared,
+                                           const std::vector<std::string>& segments) {
+  RETURN_IF_ERROR(o.Validate());
+  ASSIGN_OR_RETURN(const v1::BodyShapePart shape, ParseShapePart(prepared, take, o));
+  const StageProgress stages(context.progress, {{"model", 0.3}, {"stitch", 0.7}});
+  ASSIGN_OR_RETURN(const LoadedModel loaded, ShapedModel(shape, o, context, stages));
+  const int n = take.num_instants();
+  const int count = static_cast<int>(segments.size());
+  std::vector<std::optional<v1::PartFrame>> frames(n);
+  FitFigures fits;
+  StageSeconds seconds{shape.model_seconds(), 0.0, shape.shape_seconds()};
+  AtlasFigures atlas;
+  AtlasSums sums;
+  int next_first = 0;
+  for (int k = 0; k < count; ++k) {
+    RETURN_IF_ERROR(stages.Report("stitch", k, count + 1));
+    v1::BodySegmentPart part;
+    if (!part.ParseFromString(segments[k])) {
+      return absl::DataLossError(absl::StrCat("segment ", k, " does not parse"));
+    }
+    const SegmentRange range = SegmentOf(n, k, count, 0);
+    if (part.index() != k || part.count() != count || part.first() != range.first ||
+        part.end() != range.end || part.first() != next_first) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("segment ", k, " of ", count, " holds instants [", part.first(), ", ",
+                       part.end(), ") as segment ", part.index(), " of ", part.count(),
+                       "; expected [", range.first, ", ", range.end, ")"));
+    }
+    next_first = part.end();
+    for (v1::PartFrame& frame : *part.mutable_frames()) {
+      const int i = frame.frame_index();
+      if (i < part.first() || i >= part.end() || frames[i]) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("segment ", k, " holds a frame of instant ", i, " twice or outside it"));
+      }
+      frames[i] = std::move(frame);
+      ++fits.fitted;
+    }
+    fits.reinitialised += part.reinitialised();
+    fits.fit_seconds += part.fit_seconds();
+    fits.rms_sum += part.rms_sum_mm();
+    seconds.clouds += part.clouds_seconds();
+    atlas.seconds += part.texture_seconds();
+    ASSIGN_OR_RETURN(const AtlasSums part_sums, UnpackAtlasSums(part));
+    RETURN_IF_ERROR(AddAtlasSums(part_sums, sums));
+  }
+  if (next_first != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the segments end at instant ", next_first, " of ", n));
+  }
+  if (fits.fitted == 0) return absl::InvalidArgumentError("no instant of the take could be fitted");
+  const auto finish_start = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(v1::BodyMesh mesh, MakeBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
+  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(mesh));
+  ASSIGN_OR_RETURN(const AtlasResult finished, FinishBodyAtlas(decoded, std::move(sums)));
+  ASSIGN_OR_RETURN(std::string atlas_jpeg, EncodeJpeg(finished.atlas, 90));
+  mesh.set_atlas_jpeg(std::move(atlas_jpeg));
+  atlas.seconds += SecondsSince(finish_start);
+  atlas.observed_fraction = finished.observed_fraction;
+  atlas.views = finished.views;
+  ReenactmentData data =
+      AssembleReenactment(take, *loaded.model, std::move(mesh), frames, fits, seconds, atlas);
+  (*data.info.mutable_figures())["segments"] = count;
+  RETURN_IF_ERROR(stages.Report("stitch", count + 1, count + 1));
+  if (context.log) {
+    context.log(absl::StrCat("body: stitched ", count, " segments; ",
+                             SummaryLine(n, fits, finished.atlas.width, atlas)));
+  }
+  return data;
+}
 const ReconstructionMethod& BodyMethod() {
   static const TypedMethod<BodyMethodOptions> method(
       {"body",
@@ -370,7 +703,8 @@ const ReconstructionMethod& BodyMethod() {
        /*live=*/true,
        methods::TextureMode::kBodyAtlas,
        {}},
-      &RunBody, methods::DescribeOptions<LiveBodyOptions>());
+      &RunBody, methods::DescribeOptions<LiveBodyOptions>(),
+      SegmentFunctions<BodyMethodOptions>{&PrepareBody, &FitBodySegment, &StitchBody});
   return method;
 }
 

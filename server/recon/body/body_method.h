@@ -20,6 +20,21 @@
 //   texture_sharpness  p of the cos^p frontality weight of observations (2)
 //   measured_m         texels must lie this near the sensor's own depth (0.02;
 //                      0: the thesis's test alone)
+//   segment_warmup_s   a take split across workers: how long before its first
+//                      instant each segment's fit starts (1 s)
+//
+// One take across several workers (a job's segments > 1; the scheduler's
+// segmented jobs): PrepareBody fits the shape once from instants spread over
+// the whole take, exactly as RunBody chooses and fits them; FitBodySegment
+// fits the instants of one segment with that shape, each from the previous
+// fit as RunBody does, starting segment_warmup_s earlier so that the motion
+// is carried into the segment (thesis Eq. 4.6 needs the previous frame's
+// pose; a segment that started cold from the skeleton would differ from the
+// whole run in its first frames), and sums its instants' share of the
+// atlas; StitchBody adds the atlas sums (the atlas is a weighted average,
+// so sums made apart add up to the whole take's), fills and encodes the
+// atlas, and assembles the frames. The result equals RunBody's within the
+// tolerances body_segments_test checks.
 #pragma once
 
 #include <map>
@@ -45,6 +60,7 @@ struct BodyMethodOptions {
   std::string model = "procedural";
   bodyfit::BodyFitOptions fit;
   AtlasOptions atlas;
+  double segment_warmup_s = 1.0;
   // InvalidArgument naming the key for a value that does not parse or lies
   // outside its bounds.
   absl::Status Read(OptionReader& reader);
@@ -65,6 +81,21 @@ v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit:
 absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
                                         const BodyMethodOptions& options = {},
                                         const MethodContext& context = {});
+
+// The phases of a run split across workers (see above); the bytes are
+// serialised v1::BodyShapePart and v1::BodySegmentPart
+// (proto/reenact/v1/segments.proto). Errors as RunBody; InvalidArgument for
+// a segment that does not exist, parts of another take or model, or
+// segments that do not tile the take; DataLoss for parts that do not parse.
+absl::StatusOr<std::string> PrepareBody(const TakeFrames& take, const BodyMethodOptions& options,
+                                        const MethodContext& context = {});
+absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMethodOptions& options,
+                                           const MethodContext& context,
+                                           const std::string& prepared, int index, int count);
+absl::StatusOr<ReenactmentData> StitchBody(const TakeFrames& take, const BodyMethodOptions& options,
+                                           const MethodContext& context,
+                                           const std::string& prepared,
+                                           const std::vector<std::string>& segments);
 
 // The method "body" for the registry (registry.cc); it can follow a take
 // live (live_body.h, LiveBodyOptions).

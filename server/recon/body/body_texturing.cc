@@ -154,18 +154,27 @@ absl::Status AtlasOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
-                                          const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
-                                          const AtlasOptions& options,
-                                          const ProgressCallback& progress) {
+absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+                                              const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                              const AtlasOptions& options,
+                                              const ProgressCallback& progress, int first,
+                                              int end) {
   RETURN_IF_ERROR(options.Validate());
   if (posed_vertices_m.size() != static_cast<size_t>(take.num_instants())) {
     return absl::InvalidArgumentError("one posed mesh per instant expected");
   }
+  if (end < 0) end = take.num_instants();
+  if (first < 0 || first > end || end > take.num_instants()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("instants [", first, ", ", end, ") outside the take's ", take.num_instants()));
+  }
   const int size = options.size_px;
   const std::vector<Texel> texels = RasteriseAtlas(mesh, size);
   std::vector<std::pair<int, int>> views;
-  for (int i = 0; i < take.num_instants(); i += options.every) {
+  // Every k-th instant of the whole take, whichever range is baked, so that
+  // ranges baked apart sum to the whole.
+  for (int i = first + (options.every - first % options.every) % options.every; i < end;
+       i += options.every) {
     if (posed_vertices_m[i].cols() != mesh.num_vertices()) continue;
     for (int s = 0; s < take.num_sensors(); ++s) {
       const SensorView& view = take.instant(i).views[s];
@@ -277,22 +286,61 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedB
   });
   RETURN_IF_ERROR(first_error);
   if (cancelled) return absl::CancelledError("cancelled while texturing");
+  AtlasSums out;
+  out.size_px = size;
+  out.views = static_cast<int>(views.size());
+  out.sums = std::move(sums);
+  return out;
+}
 
+absl::Status AddAtlasSums(const AtlasSums& part, AtlasSums& total) {
+  if (part.sums.size() != static_cast<size_t>(part.size_px) * part.size_px) {
+    return absl::InvalidArgumentError("atlas sums of the wrong size");
+  }
+  if (total.sums.empty()) {
+    total = part;
+    return absl::OkStatus();
+  }
+  if (part.size_px != total.size_px) {
+    return absl::InvalidArgumentError(absl::StrCat("atlas sums of ", part.size_px, " and ",
+                                                   total.size_px, " px cannot be added"));
+  }
+  for (size_t i = 0; i < part.sums.size(); ++i) total.sums[i] += part.sums[i];
+  total.views += part.views;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<AtlasResult> FinishBodyAtlas(const DecodedBodyMesh& mesh, AtlasSums sums) {
+  const int size = sums.size_px;
+  if (size < 16 || size > 8192 || sums.sums.size() != static_cast<size_t>(size) * size) {
+    return absl::InvalidArgumentError("atlas sums of the wrong size");
+  }
+  const std::vector<Texel> texels = RasteriseAtlas(mesh, size);
+  std::vector<Eigen::Vector4f>& sum = sums.sums;
   AtlasResult result;
-  result.views = static_cast<int>(views.size());
+  result.views = sums.views;
   int observed = 0;
-  for (const Texel& texel : texels) observed += sums[texel.index].w() > 0 ? 1 : 0;
+  for (const Texel& texel : texels) observed += sum[texel.index].w() > 0 ? 1 : 0;
   result.observed_fraction = texels.empty() ? 0.0 : static_cast<double>(observed) / texels.size();
-  PushPull(&sums, size);
+  PushPull(&sum, size);
   result.atlas = RgbImage(size, size);
   for (int i = 0; i < size * size; ++i) {
-    const Eigen::Vector4f& s = sums[i];
+    const Eigen::Vector4f& s = sum[i];
     for (int c = 0; c < 3; ++c) {
       const float value = s.w() > 0 ? s[c] / s.w() : 128.0f;
       result.atlas.data[3 * i + c] = static_cast<uint8_t>(std::clamp(value + 0.5f, 0.0f, 255.0f));
     }
   }
   return result;
+}
+
+absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+                                          const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                          const AtlasOptions& options,
+                                          const ProgressCallback& progress) {
+  ASSIGN_OR_RETURN(AtlasSums sums,
+                   AccumulateBodyAtlas(take, mesh, posed_vertices_m, options, progress));
+  return FinishBodyAtlas(mesh, std::move(sums));
 }
 
 }  // namespace reenact::recon

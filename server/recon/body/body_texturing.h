@@ -59,6 +59,33 @@ struct AtlasResult {
   int views = 0;                   // (instant, sensor) images used.
 };
 
+// The weighted colour sums of an atlas before it is finished: per texel
+// (row-major, size_px x size_px) r, g, b times the observations' weights,
+// and the sum of the weights. Sums of instants baked apart (segments of a
+// take on different workers) add up to those of the whole take.
+struct AtlasSums {
+  int size_px = 0;
+  int views = 0;  // (instant, sensor) images summed.
+  std::vector<Eigen::Vector4f> sums;
+};
+
+// The sums of the instants in [first, end) (end < 0: the take's end) that
+// are multiples of options.every; errors as BakeBodyAtlas.
+absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+                                              const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                              const AtlasOptions& options = {},
+                                              const ProgressCallback& progress = {}, int first = 0,
+                                              int end = -1);
+
+// Adds `part` to `total` (empty `total`: becomes `part`). InvalidArgument
+// for sums of different sizes.
+absl::Status AddAtlasSums(const AtlasSums& part, AtlasSums& total);
+
+// The atlas of the sums: each texel the weighted average of its
+// observations, unobserved texels filled from the nearest observed ones
+// (push-pull). InvalidArgument for sums of a bad size.
+absl::StatusOr<AtlasResult> FinishBodyAtlas(const DecodedBodyMesh& mesh, AtlasSums sums);
+
 // Bakes the atlas of `mesh` (its texture vertices, UVs and triangles) posed
 // per instant as `posed_vertices_m[i]` (3 x V; an empty matrix skips the
 // instant). InvalidArgument for bad options or sizes; errors of the take's

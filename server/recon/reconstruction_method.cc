@@ -1,0 +1,43 @@
+#include "server/recon/reconstruction_method.h"
+
+#include <algorithm>
+
+#include "absl/strings/str_cat.h"
+
+namespace reenact::recon {
+namespace {
+
+absl::Status NotSegmentable(const ReconstructionMethod& method) {
+  return absl::UnimplementedError(absl::StrCat("method ", method.spec().name,
+                                               " cannot split a take across workers (segments)"));
+}
+
+}  // namespace
+
+SegmentRange SegmentOf(int num_instants, int index, int count, int warmup) {
+  SegmentRange range;
+  if (num_instants <= 0 || count <= 0 || index < 0 || index >= count) return range;
+  range.first = static_cast<int>(int64_t{index} * num_instants / count);
+  range.end = static_cast<int>(int64_t{index + 1} * num_instants / count);
+  range.warmup_first = std::max(0, range.first - std::max(0, warmup));
+  return range;
+}
+
+absl::StatusOr<std::string> ReconstructionMethod::Prepare(const TakeFrames&, const OptionMap&,
+                                                          const MethodContext&) const {
+  return NotSegmentable(*this);
+}
+
+absl::StatusOr<std::string> ReconstructionMethod::Segment(const TakeFrames&, const OptionMap&,
+                                                          const MethodContext&, const std::string&,
+                                                          int, int) const {
+  return NotSegmentable(*this);
+}
+
+absl::StatusOr<ReenactmentData> ReconstructionMethod::Stitch(
+    const TakeFrames&, const OptionMap&, const MethodContext&, const std::string&,
+    const std::vector<std::string>&) const {
+  return NotSegmentable(*this);
+}
+
+}  // namespace reenact::recon

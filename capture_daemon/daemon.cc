@@ -275,13 +275,13 @@ struct SensorSet {
 struct TakeBook {
   // Guards every field below.
   mutable std::mutex mutex;
-  std::shared_ptr<TakeRecorder> current;  // Being recorded.
+  std::shared_ptr<ingest::TakeRecorder> current;  // Being recorded.
   int64_t current_started_steady_ns = 0;
   double current_max_seconds = 0.0;
-  std::shared_ptr<TakeRecorder> once;                   // The --once take.
-  std::vector<std::shared_ptr<TakeRecorder>> draining;  // Stopped or resumed, not done.
-  std::set<const TakeRecorder*> resumed;                // Found in the spool at start.
-  std::shared_ptr<TakeRecorder> last;
+  std::shared_ptr<ingest::TakeRecorder> once;                   // The --once take.
+  std::vector<std::shared_ptr<ingest::TakeRecorder>> draining;  // Stopped or resumed, not done.
+  std::set<const ingest::TakeRecorder*> resumed;                // Found in the spool at start.
+  std::shared_ptr<ingest::TakeRecorder> last;
   // Uplink reconnects of the takes that are done.
   int64_t reconnects_finished = 0;
 
@@ -300,8 +300,8 @@ struct FramePath {
   // spool space (SyncSnapshot keeps Status() from waiting with it).
   std::mutex mutex;
   std::unique_ptr<SyncGroup> sync;
-  std::shared_ptr<TakeRecorder> recording;  // The take the sets go to; null between takes.
-  std::vector<PendingEnd> pending_ends;     // Ends of recordings not yet told to the take.
+  std::shared_ptr<ingest::TakeRecorder> recording;  // The take the sets go to; null between takes.
+  std::vector<PendingEnd> pending_ends;             // Ends of recordings not yet told to the take.
   int64_t refused_logged_steady_ns = 0;
   int64_t snapshot_steady_ns = 0;
 };
@@ -316,7 +316,7 @@ struct SyncSnapshot {
 
 // The board anchoring of one take (DaemonOptions.anchor).
 struct TakeAnchoring {
-  std::shared_ptr<TakeRecorder> take;
+  std::shared_ptr<ingest::TakeRecorder> take;
   std::vector<v1::SensorCalibration> calibrations;               // As the sensors gave them.
   std::map<std::string, std::shared_ptr<SensorAnchor>> anchors;  // By sensor id.
   int64_t started_steady_ns = 0;
@@ -330,7 +330,7 @@ class BoardAnchoring {
   BoardAnchoring(const AnchorOptions* options, log::Logger* logger)
       : options_(options), logger_(logger) {}
 
-  void Start(const std::shared_ptr<TakeRecorder>& recorder,
+  void Start(const std::shared_ptr<ingest::TakeRecorder>& recorder,
              const std::vector<v1::SensorCalibration>& calibrations);
   // From the sensor threads.
   void Offer(const v1::Frame& frame);
@@ -351,7 +351,7 @@ class BoardAnchoring {
   std::mutex finish_mutex_;
 };
 
-void BoardAnchoring::Start(const std::shared_ptr<TakeRecorder>& recorder,
+void BoardAnchoring::Start(const std::shared_ptr<ingest::TakeRecorder>& recorder,
                            const std::vector<v1::SensorCalibration>& calibrations) {
   auto state = std::make_unique<TakeAnchoring>();
   state->take = recorder;
@@ -457,7 +457,7 @@ struct Daemon::Impl {
   DaemonOptions options;
   std::string daemon_id;
   std::shared_ptr<grpc::Channel> channel;
-  TakeRecorderOptions recorder_options;
+  ingest::TakeRecorderOptions recorder_options;
   int64_t start_steady_ns = 0;
   // The daemon's events (options.log in options.log_options).
   log::Logger logger{nullptr, log::Options{}};
@@ -508,9 +508,9 @@ struct Daemon::Impl {
   void RescanHardware();
 
   // --- drain and shutdown ---
-  std::vector<std::shared_ptr<TakeRecorder>> TakesOfThisRun();
-  void WaitUntilDurable(const std::vector<std::shared_ptr<TakeRecorder>>& ours);
-  absl::Status ReportDrained(const std::vector<std::shared_ptr<TakeRecorder>>& ours);
+  std::vector<std::shared_ptr<ingest::TakeRecorder>> TakesOfThisRun();
+  void WaitUntilDurable(const std::vector<std::shared_ptr<ingest::TakeRecorder>>& ours);
+  absl::Status ReportDrained(const std::vector<std::shared_ptr<ingest::TakeRecorder>>& ours);
   void AbandonUnfinished();
   void WriteStats(const absl::Status& result);
 
@@ -531,8 +531,8 @@ struct Daemon::Impl {
   void ArmTimer();
   void Tick();
   void ExpireStalledSets();
-  std::vector<std::shared_ptr<TakeRecorder>> CheckTakes();
-  void ReportFinished(const std::shared_ptr<TakeRecorder>& recorder);
+  std::vector<std::shared_ptr<ingest::TakeRecorder>> CheckTakes();
+  void ReportFinished(const std::shared_ptr<ingest::TakeRecorder>& recorder);
   void LogProgress();
 };
 
@@ -576,7 +576,7 @@ void Daemon::Impl::ReportPendingEndsLocked(const SensorEntry& entry, int64_t hos
 
 void Daemon::Impl::RecordLocked(std::vector<v1::FrameSet> sets) {
   for (const v1::FrameSet& set : sets) live.Publish(set);
-  TakeRecorder* const recording = frames.recording.get();
+  ingest::TakeRecorder* const recording = frames.recording.get();
   if (recording == nullptr) return;
   for (v1::FrameSet& set : sets) {
     const absl::Status added = recording->Add(std::move(set));
@@ -643,7 +643,7 @@ void Daemon::Impl::OnSensorEnd(SensorEntry* entry, const absl::Status& why) {
   }
   boost::asio::post(io, [this] {
     if (!options.once || !sensors.AllGone()) return;
-    std::shared_ptr<TakeRecorder> current;
+    std::shared_ptr<ingest::TakeRecorder> current;
     {
       std::lock_guard<std::mutex> lock(takes.mutex);
       current = takes.current;
@@ -681,11 +681,11 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
   info.set_created_unix_ns(WallNowNs());
   info.set_generator(kGenerator);
   info.set_fps(fps);
-  const std::string take_id = MakeTakeId(info.name());
-  ASSIGN_OR_RETURN(
-      std::unique_ptr<TakeRecorder> recorder,
-      TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info, calibrations));
-  std::shared_ptr<TakeRecorder>& take = takes.current;
+  const std::string take_id = ingest::MakeTakeId(info.name());
+  ASSIGN_OR_RETURN(std::unique_ptr<ingest::TakeRecorder> recorder,
+                   ingest::TakeRecorder::Start(channel, recorder_options, take_id, daemon_id, info,
+                                               calibrations));
+  std::shared_ptr<ingest::TakeRecorder>& take = takes.current;
   take = std::move(recorder);
   if (options.anchor.enabled()) {
     take->HoldOpen();  // Before the first set: `frames.recording` is set below.
@@ -708,7 +708,7 @@ absl::StatusOr<std::string> Daemon::Impl::StartTake(const v1::StartTakeRequest& 
 absl::StatusOr<v1::StopTakeResponse> Daemon::Impl::StopTake(const std::string& reason, bool flush) {
   std::lock_guard<std::mutex> lock(takes.mutex);
   if (!takes.current) return absl::FailedPreconditionError("no take is being recorded");
-  std::shared_ptr<TakeRecorder> stopping = std::move(takes.current);
+  std::shared_ptr<ingest::TakeRecorder> stopping = std::move(takes.current);
   takes.current = nullptr;
   anchoring.Finish();
   stopping->StopWaiting();  // Frees the frame path if it waits for spool space.
@@ -737,9 +737,9 @@ v1::DaemonStatus Daemon::Impl::Status() {
   v1::DaemonStatus status;
   status.set_daemon_id(daemon_id);
   status.set_server_address(options.server_address);
-  std::vector<std::shared_ptr<TakeRecorder>> all_takes;
-  std::shared_ptr<TakeRecorder> current;
-  std::shared_ptr<TakeRecorder> latest;
+  std::vector<std::shared_ptr<ingest::TakeRecorder>> all_takes;
+  std::shared_ptr<ingest::TakeRecorder> current;
+  std::shared_ptr<ingest::TakeRecorder> latest;
   {
     std::lock_guard<std::mutex> lock(takes.mutex);
     current = takes.current;
@@ -749,7 +749,7 @@ v1::DaemonStatus Daemon::Impl::Status() {
     status.set_reconnects(takes.reconnects_finished);
   }
   for (const auto& recorder : all_takes) {
-    const TakeStats stats = recorder->Stats();
+    const ingest::TakeStats stats = recorder->Stats();
     status.set_spool_frame_sets(status.spool_frame_sets() + stats.spool_frame_sets);
     status.set_spool_bytes(status.spool_bytes() + stats.spool_bytes);
     status.set_spool_refused_frame_sets(status.spool_refused_frame_sets() +
@@ -764,7 +764,7 @@ v1::DaemonStatus Daemon::Impl::Status() {
     }
   }
   if (!current && latest) {
-    const TakeStats stats = latest->Stats();
+    const ingest::TakeStats stats = latest->Stats();
     status.set_server_connected(stats.uplink.connected);
     if (!stats.uplink.connected) status.set_uplink_error(stats.uplink.last_error);
     status.set_last_sequence(static_cast<uint64_t>(stats.frame_sets));
@@ -855,15 +855,15 @@ absl::Status Daemon::Impl::StartControl(CaptureController* controller) {
 }
 
 void Daemon::Impl::ResumeUnfinished() {
-  for (const std::string& dir : ListUnfinishedTakes(options.spool_dir)) {
-    absl::StatusOr<std::unique_ptr<TakeRecorder>> opened =
-        TakeRecorder::ResumeUnfinished(channel, recorder_options, dir);
+  for (const std::string& dir : ingest::ListUnfinishedTakes(options.spool_dir)) {
+    absl::StatusOr<std::unique_ptr<ingest::TakeRecorder>> opened =
+        ingest::TakeRecorder::ResumeUnfinished(channel, recorder_options, dir);
     if (!opened.ok()) {
       logger.Error("take_resume_failed", {{"spool", dir}, {"error", opened.status().message()}},
                    absl::StrCat("cannot resume the spooled take in ", dir));
       continue;
     }
-    std::shared_ptr<TakeRecorder> resumed_take = std::move(*opened);
+    std::shared_ptr<ingest::TakeRecorder> resumed_take = std::move(*opened);
     logger.Info("take_resumed", {{"take_id", resumed_take->take_id()}},
                 absl::StrCat("resuming the upload of spooled take ", resumed_take->take_id()));
     std::lock_guard<std::mutex> lock(takes.mutex);
@@ -1038,11 +1038,11 @@ void Daemon::Impl::ExpireStalledSets() {
 
 // Stops the current take when its uplink failed or its max_seconds passed;
 // returns the takes that are done (and no longer draining).
-std::vector<std::shared_ptr<TakeRecorder>> Daemon::Impl::CheckTakes() {
-  std::shared_ptr<TakeRecorder> current;
+std::vector<std::shared_ptr<ingest::TakeRecorder>> Daemon::Impl::CheckTakes() {
+  std::shared_ptr<ingest::TakeRecorder> current;
   double max_seconds = 0;
   int64_t started_ns = 0;
-  std::vector<std::shared_ptr<TakeRecorder>> finished;
+  std::vector<std::shared_ptr<ingest::TakeRecorder>> finished;
   {
     std::lock_guard<std::mutex> lock(takes.mutex);
     current = takes.current;
@@ -1073,7 +1073,7 @@ std::vector<std::shared_ptr<TakeRecorder>> Daemon::Impl::CheckTakes() {
 }
 
 // Logs how a finished take ended; the end of the --once take ends Run.
-void Daemon::Impl::ReportFinished(const std::shared_ptr<TakeRecorder>& recorder) {
+void Daemon::Impl::ReportFinished(const std::shared_ptr<ingest::TakeRecorder>& recorder) {
   recorder->WaitDone(0);  // Removes the spool folder of a closed take.
   const absl::Status result = recorder->result();
   bool once = false;
@@ -1149,14 +1149,14 @@ absl::Status Daemon::Impl::Drain() {
   }
   StopSensors();
   (void)StopTake("stopped", /*flush=*/true);
-  const std::vector<std::shared_ptr<TakeRecorder>> ours = TakesOfThisRun();
+  const std::vector<std::shared_ptr<ingest::TakeRecorder>> ours = TakesOfThisRun();
   WaitUntilDurable(ours);
   return ReportDrained(ours);
 }
 
 // The takes still uploading that this run recorded (not resumed ones).
-std::vector<std::shared_ptr<TakeRecorder>> Daemon::Impl::TakesOfThisRun() {
-  std::vector<std::shared_ptr<TakeRecorder>> ours;
+std::vector<std::shared_ptr<ingest::TakeRecorder>> Daemon::Impl::TakesOfThisRun() {
+  std::vector<std::shared_ptr<ingest::TakeRecorder>> ours;
   std::lock_guard<std::mutex> lock(takes.mutex);
   for (const auto& r : takes.draining) {
     if (!takes.resumed.count(r.get())) ours.push_back(r);
@@ -1166,7 +1166,8 @@ std::vector<std::shared_ptr<TakeRecorder>> Daemon::Impl::TakesOfThisRun() {
 
 // Runs the io_context until `ours` are done, a second signal, or
 // drain_timeout_s.
-void Daemon::Impl::WaitUntilDurable(const std::vector<std::shared_ptr<TakeRecorder>>& ours) {
+void Daemon::Impl::WaitUntilDurable(
+    const std::vector<std::shared_ptr<ingest::TakeRecorder>>& ours) {
   auto all_done = [&ours] {
     return std::all_of(ours.begin(), ours.end(), [](const auto& r) { return r->done(); });
   };
@@ -1180,7 +1181,8 @@ void Daemon::Impl::WaitUntilDurable(const std::vector<std::shared_ptr<TakeRecord
 
 // Logs how each of `ours` ended; the first error (a failed take, or
 // DeadlineExceeded for one that is not durable yet) is the result.
-absl::Status Daemon::Impl::ReportDrained(const std::vector<std::shared_ptr<TakeRecorder>>& ours) {
+absl::Status Daemon::Impl::ReportDrained(
+    const std::vector<std::shared_ptr<ingest::TakeRecorder>>& ours) {
   absl::Status result = absl::OkStatus();
   for (const auto& r : ours) {
     if (r->done()) {
@@ -1195,7 +1197,7 @@ absl::Status Daemon::Impl::ReportDrained(const std::vector<std::shared_ptr<TakeR
       }
       continue;
     }
-    const TakeStats stats = r->Stats();
+    const ingest::TakeStats stats = r->Stats();
     const absl::Status timed_out = absl::DeadlineExceededError(
         absl::StrCat("the server did not make take ", r->take_id(), " durable within ",
                      options.drain_timeout_s, " s; ", stats.spool_frame_sets, " frame sets (",
@@ -1272,7 +1274,7 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
   j["frames_duplicate"] = duplicates;
   j["skew_p50_ms"] = Ms(sync_summary.skew_p50_ns);
   j["skew_p99_ms"] = Ms(sync_summary.skew_p99_ns);
-  std::shared_ptr<TakeRecorder> recorder;
+  std::shared_ptr<ingest::TakeRecorder> recorder;
   int64_t reconnects = 0;
   {
     std::lock_guard<std::mutex> lock(takes.mutex);
@@ -1280,7 +1282,7 @@ void Daemon::Impl::WriteStats(const absl::Status& result) {
     reconnects = takes.ReconnectsLocked();
   }
   if (recorder) {
-    const TakeStats stats = recorder->Stats();
+    const ingest::TakeStats stats = recorder->Stats();
     j["take_id"] = stats.take_id;
     j["frame_sets"] = stats.frame_sets;
     j["frame_sets_durable"] = stats.durable_sequence;
@@ -1336,7 +1338,7 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
   }
   impl->daemon_id =
       options.daemon_id.empty() ? DefaultDaemonId(options.spool_dir) : options.daemon_id;
-  impl->channel = MakeIngestChannel(options.server_address, options.uplink);
+  impl->channel = ingest::MakeIngestChannel(options.server_address, options.uplink);
   impl->recorder_options.spool_root = options.spool_dir;
   impl->recorder_options.spool_max_bytes = options.spool_max_mb << 20;
   impl->recorder_options.uplink = options.uplink;

@@ -29,8 +29,8 @@
 #include "capture_daemon/sensor_factory.h"
 #include "capture_daemon/sensors/sensor.h"
 #include "capture_daemon/sync_group.h"
-#include "capture_daemon/take_recorder.h"
-#include "capture_daemon/uplink.h"
+#include "common/ingest/take_recorder.h"
+#include "common/ingest/uplink.h"
 #include "common/log/log.h"
 #include "common/metrics/metrics.h"
 
@@ -68,7 +68,7 @@ struct DaemonOptions {
   std::string daemon_id;
   SyncOptions sync;
   ProcessingOptions processing;
-  UplinkOptions uplink;
+  ingest::UplinkOptions uplink;
   // Board anchoring (--anchor board[:SPEC]): at the start of each take every
   // sensor looks for the board in its colour frames; the take's OpenTake
   // waits (up to anchor.timeout_s) and carries each anchored sensor's

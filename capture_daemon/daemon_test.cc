@@ -78,7 +78,7 @@ TEST(Daemon, OnceDeliversTheWholeTakeBitIdentical) {
   EXPECT_EQ(per_sensor["k0"], frames);
   EXPECT_EQ(per_sensor["k1"], frames);
   // The take's spool folder is gone once the server closed the take.
-  EXPECT_TRUE(ListUnfinishedTakes(options.spool_dir).empty());
+  EXPECT_TRUE(ingest::ListUnfinishedTakes(options.spool_dir).empty());
 
   auto stats_text = ReadFileToString(options.stats_json);
   ASSERT_TRUE(stats_text.ok()) << stats_text.status();
@@ -315,7 +315,7 @@ TEST(Daemon, DrainTimeoutLeavesSpoolThenRestartDeliversIt) {
   runner.join();
   EXPECT_TRUE(absl::IsDeadlineExceeded(result)) << result;
   EXPECT_NE(result.message().find("stay in the spool"), std::string::npos) << result;
-  const auto unfinished = ListUnfinishedTakes(options.spool_dir);
+  const auto unfinished = ingest::ListUnfinishedTakes(options.spool_dir);
   ASSERT_EQ(unfinished.size(), 1u);
   daemon->reset();
 
@@ -330,7 +330,7 @@ TEST(Daemon, DrainTimeoutLeavesSpoolThenRestartDeliversIt) {
   for (int i = 0; i < 200; ++i) {
     const auto takes = server.service().takes();
     if (!takes.empty() && takes.begin()->second.closed &&
-        ListUnfinishedTakes(options.spool_dir).empty()) {
+        ingest::ListUnfinishedTakes(options.spool_dir).empty()) {
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
@@ -342,7 +342,7 @@ TEST(Daemon, DrainTimeoutLeavesSpoolThenRestartDeliversIt) {
   EXPECT_TRUE(takes.begin()->second.closed);
   EXPECT_EQ(takes.begin()->second.sets.size(),
             testing::ReadDepth(testing::SyntheticTakePath()).at("k0").size());
-  EXPECT_TRUE(ListUnfinishedTakes(options.spool_dir).empty());
+  EXPECT_TRUE(ingest::ListUnfinishedTakes(options.spool_dir).empty());
 }
 
 TEST(ReenactdFlags, ConfigFileAndFlagsMerge) {

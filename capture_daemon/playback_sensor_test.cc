@@ -8,8 +8,8 @@
 
 #include <gtest/gtest.h>
 
-#include "capture_daemon/stats_util.h"
 #include "capture_daemon/testing/synthetic_take.h"
+#include "common/base/sample_stats.h"
 #include "common/base/time.h"
 #include "common/io/take.h"
 #include "common/testing/test_data.h"

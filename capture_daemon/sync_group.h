@@ -31,7 +31,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "capture_daemon/stats_util.h"
+#include "common/base/sample_stats.h"
 #include "reenact/v1/capture_control_service.pb.h"
 #include "reenact/v1/frame.pb.h"
 

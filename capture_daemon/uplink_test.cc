@@ -1,4 +1,4 @@
-#include "capture_daemon/uplink.h"
+#include "common/ingest/uplink.h"
 
 #include <thread>
 
@@ -28,10 +28,10 @@ v1::OpenTake MakeOpen(const std::string& take_id) {
   return open;
 }
 
-std::unique_ptr<Spool> MakeSpool(const std::string& name) {
-  SpoolOptions options;
+std::unique_ptr<ingest::Spool> MakeSpool(const std::string& name) {
+  ingest::SpoolOptions options;
   options.dir = reenact::testing::MakeTempDir(name);
-  auto spool = Spool::Open(options);
+  auto spool = ingest::Spool::Open(options);
   EXPECT_TRUE(spool.ok()) << spool.status();
   return spool.ok() ? std::move(*spool) : nullptr;
 }
@@ -43,10 +43,10 @@ TEST(TakeUplink, ResumesAfterStreamKilledAndDeliversEachSetOnceInOrder) {
   server.service().set_ack_every(5);
   auto spool = MakeSpool("uplink_resume");
   ASSERT_NE(spool, nullptr);
-  UplinkOptions options;
+  ingest::UplinkOptions options;
   std::atomic<uint64_t> acked{0};
-  TakeUplink uplink(MakeIngestChannel(server.address(), options), options, spool.get(),
-                    [&acked](uint64_t durable, int64_t) { acked = durable; });
+  ingest::TakeUplink uplink(ingest::MakeIngestChannel(server.address(), options), options,
+                            spool.get(), [&acked](uint64_t durable, int64_t) { acked = durable; });
   uplink.SetOpen(MakeOpen("take-resume"));
   // Sets arrive while the uplink streams.
   for (uint64_t s = 1; s <= 100; ++s) {
@@ -74,7 +74,7 @@ TEST(TakeUplink, ResumesAfterStreamKilledAndDeliversEachSetOnceInOrder) {
     EXPECT_EQ(take.sets[i].SerializeAsString(), MakeSet(i + 1).SerializeAsString());
   }
   EXPECT_EQ(take.lost.size(), 1u);
-  const UplinkStats stats = uplink.stats();
+  const ingest::UplinkStats stats = uplink.stats();
   EXPECT_EQ(stats.reconnects, 1);
   EXPECT_EQ(stats.durable_sequence, 100u);
   // The sets after the last Ack before the kill (35) went out again: the
@@ -95,8 +95,9 @@ TEST(TakeUplink, NonRetryableStatusStopsTheTake) {
   server.service().set_refuse_open(grpc::Status(grpc::StatusCode::PERMISSION_DENIED, "not yours"));
   auto spool = MakeSpool("uplink_refused");
   ASSERT_TRUE(spool->Append(MakeSet(1)).ok());
-  UplinkOptions options;
-  TakeUplink uplink(MakeIngestChannel(server.address(), options), options, spool.get());
+  ingest::UplinkOptions options;
+  ingest::TakeUplink uplink(ingest::MakeIngestChannel(server.address(), options), options,
+                            spool.get());
   uplink.SetOpen(MakeOpen("take-refused"));
   ASSERT_TRUE(uplink.WaitDone(10.0));
   EXPECT_TRUE(absl::IsPermissionDenied(uplink.result())) << uplink.result();
@@ -115,10 +116,10 @@ TEST(TakeUplink, RetriesWhileServerIsAwayThenDelivers) {
   }
   auto spool = MakeSpool("uplink_away");
   for (uint64_t s = 1; s <= 5; ++s) ASSERT_TRUE(spool->Append(MakeSet(s)).ok());
-  UplinkOptions options;
+  ingest::UplinkOptions options;
   options.max_backoff_ms = 200;
-  TakeUplink uplink(MakeIngestChannel("127.0.0.1:" + std::to_string(port), options), options,
-                    spool.get());
+  ingest::TakeUplink uplink(ingest::MakeIngestChannel("127.0.0.1:" + std::to_string(port), options),
+                            options, spool.get());
   uplink.SetOpen(MakeOpen("take-away"));
   v1::CloseTake close;
   close.set_last_sequence(5);
@@ -137,8 +138,9 @@ TEST(TakeUplink, RetriesWhileServerIsAwayThenDelivers) {
 TEST(TakeUplink, AbortLeavesTheSpool) {
   auto spool = MakeSpool("uplink_abort");
   ASSERT_TRUE(spool->Append(MakeSet(1)).ok());
-  UplinkOptions options;
-  TakeUplink uplink(MakeIngestChannel("127.0.0.1:1", options), options, spool.get());
+  ingest::UplinkOptions options;
+  ingest::TakeUplink uplink(ingest::MakeIngestChannel("127.0.0.1:1", options), options,
+                            spool.get());
   uplink.SetOpen(MakeOpen("take-abort"));
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   uplink.Abort();

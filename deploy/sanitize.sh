@@ -52,7 +52,7 @@ done
 # the renderers and the end-to-end tests (README.md, "Sanitizers and
 # fuzzing").
 asan_tests=(
-  base_test geometry_test body_test io_test rpc_security_test server_store_test
+  base_test geometry_test body_test io_test rpc_security_test ingest_client_test server_store_test
   server_rpc_test server_jobs_test server_http_test)
 asan_full_tests=(
   "${asan_tests[@]}"
@@ -81,7 +81,7 @@ asan_render_tests=(
 # tests that run gRPC in process are left out below, and TSan checks the
 # threaded pieces that the other tests reach without gRPC.
 tsan_tests=(
-  base_test server_store_test server_jobs_test)
+  base_test ingest_client_test server_store_test server_jobs_test)
 tsan_full_tests=(
   "${tsan_tests[@]}"
   server_live_test server_reenactments_test capture_test capture_pipeline_test

@@ -414,8 +414,19 @@ TEST_F(CaptureIngestTest, ServerKilledMidTakeAndRestartedStoresEveryFrameOnce) {
   EXPECT_EQ(*sequences.begin(), 1u);
   EXPECT_EQ(*sequences.rbegin(), sequences.size());
   EXPECT_EQ(static_cast<int64_t>(sequences.size()), take.frame_set_count());
-  // About 4 s at 30 fps.
-  EXPECT_NEAR(static_cast<double>(sequences.size()), 120.0, 8.0);
+  // Exactly the sets the daemon numbered (its take_stopped event); about 4 s
+  // at 30 fps, fewer when a loaded machine makes the real-time playback drop
+  // sets before they are numbered (not a loss: they never entered the take).
+  const std::string log = DaemonLog();
+  const size_t stopped = log.find("take_stopped");
+  const size_t field = log.find("frame_sets=", stopped);
+  ASSERT_NE(field, std::string::npos) << log;
+  const long numbered = std::strtol(log.c_str() + field + 11, nullptr, 10);
+  EXPECT_EQ(static_cast<long>(sequences.size()), numbered);
+  std::printf("stored %zu frame sets of the %ld the daemon numbered (4 s at 30 fps: 120)\n",
+              sequences.size(), numbered);
+  EXPECT_GE(static_cast<double>(sequences.size()), 60.0);
+  EXPECT_LE(static_cast<double>(sequences.size()), 128.0);
   // Every frame once per sensor, frame indices contiguous, depth identical to
   // the source frame it loops over.
   auto source = TakeReader::Open(*source_);

@@ -14,7 +14,8 @@ std::vector<Command> BuildCommandTable() {
        RunMotionJoints},
       {{"synth"},
        "--motion FILE.bvh|FILE.amc|builtin:NAME [--asf FILE] --body procedural|makehuman:DIR "
-       "[--shape mean|random[:SEED]] --sensors 1|2 --seconds S --out take.mcap [--fps F] "
+       "[--shape mean|random[:SEED]] [--wardrobe default|solid|print|stripes] --sensors 1|2 "
+       "--seconds S --out take.mcap [--fps F] "
        "[--yaw-deg D] [--lead-in-s S] [--distance M] [--color-width W --color-height H] "
        "[--jpeg-quality Q] "
        "[--seed N] [--no-depth-noise] [--no-mesh] [--board [SPEC]] "
@@ -102,6 +103,15 @@ std::vector<Command> BuildCommandTable() {
        "TAKE_ID --out FILE.mcap [--server HOST:PORT] [--quiet]",
        "download a stored take as an MCAP file",
        RunTakesDownload},
+      {{"takes", "upload"},
+       "TAKE.mcap [--server HOST:PORT] [--take-id ID] [--name NAME] [--spool DIR] "
+       "[--spool-max-mb N] [--stall-timeout S] [--json] [--quiet]",
+       "send a take file (imported, synthesised, downloaded) to a reenact-server through the "
+       "capture daemon's durable ingest: a bounded disk spool, reconnects with backoff, resent "
+       "from what the server holds; the take id comes from the file, so the same command "
+       "resumes an interrupted upload and repeats a finished one harmlessly; ground truth is "
+       "not sent",
+       RunTakesUpload},
       {{"takes", "delete"},
        "TAKE_ID [--server HOST:PORT]",
        "delete a stored take with the reenactments and job folders made from it (unless the "

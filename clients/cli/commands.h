@@ -40,6 +40,7 @@ int RunAuthAdd(const std::vector<std::string>& args, std::ostream& out, std::ost
 int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakesDownload(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTakesUpload(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTakesDelete(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunCaptureSensors(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunCaptureStatus(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

@@ -1,4 +1,4 @@
-#include "capture_daemon/spool.h"
+#include "common/ingest/spool.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -16,7 +16,7 @@
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
 
-namespace reenact::capture {
+namespace reenact::ingest {
 
 namespace {
 
@@ -429,4 +429,4 @@ absl::Status Spool::RemoveAll() {
   return absl::OkStatus();
 }
 
-}  // namespace reenact::capture
+}  // namespace reenact::ingest

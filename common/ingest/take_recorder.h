@@ -1,6 +1,6 @@
 // One take being recorded by reenactd: numbers the sync group's FrameSets
 // 1, 2, 3, ... within the take, appends each to the take's disk spool, and
-// drives the take's uplink (capture_daemon/uplink.h) until the server holds
+// drives the take's uplink (common/ingest/uplink.h) until the server holds
 // the whole take. Also measures what the end-to-end figures need: frames per
 // sensor, bytes per set, and the latency from a set's capture (its newest
 // frame's host stamp) to the Ack that made it durable.
@@ -26,12 +26,12 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "capture_daemon/spool.h"
-#include "capture_daemon/stats_util.h"
-#include "capture_daemon/uplink.h"
+#include "common/base/sample_stats.h"
+#include "common/ingest/spool.h"
+#include "common/ingest/uplink.h"
 #include "reenact/v1/ingest_service.pb.h"
 
-namespace reenact::capture {
+namespace reenact::ingest {
 
 struct TakeRecorderOptions {
   // Folder holding one spool folder per take.
@@ -91,9 +91,11 @@ class TakeRecorder {
   void ReleaseOpen(const std::vector<v1::SensorCalibration>& sensors);
 
   // Appends one set (its sequence is replaced by the take's next one; frames
-  // of sensors not in the take are removed). ResourceExhausted when the spool
+  // of sensors not in the take are removed). A set whose sequence the server
+  // already holds (it resumed the take at a later durable sequence) is
+  // numbered and skipped. ResourceExhausted when the spool
   // is full (the set is refused and counted; with wait_when_full only after
-  // Stop or Abort); FailedPrecondition after Stop.
+  // Stop or Abort); FailedPrecondition after Stop or Abort.
   absl::Status Add(v1::FrameSet set);
   // A sensor of the take ended.
   void SensorLost(const std::string& sensor_id, int64_t stamp_ns, const std::string& reason);
@@ -155,4 +157,4 @@ std::vector<std::string> ListUnfinishedTakes(const std::string& spool_root);
 // A take id: "<UTC yyyymmddThhmmss>-<name, sanitized, up to 24>-<4 hex>".
 std::string MakeTakeId(const std::string& name);
 
-}  // namespace reenact::capture
+}  // namespace reenact::ingest

@@ -33,11 +33,11 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "capture_daemon/spool.h"
+#include "common/ingest/spool.h"
 #include "common/rpc/channel.h"
 #include "reenact/v1/ingest_service.grpc.pb.h"
 
-namespace reenact::capture {
+namespace reenact::ingest {
 
 struct UplinkOptions {
   // Largest gRPC message either way; matches the server (64 MiB).
@@ -71,6 +71,11 @@ struct UplinkStats {
   int64_t reconnects = 0;         // Streams begun after the first.
   int64_t frame_sets_sent = 0;    // Writes of FrameSets, resends included.
   std::string last_error;         // Why the last stream ended, when it failed.
+  // The server's answer to the first OpenTake that it accepted: how much of
+  // the take it already held, and whether the take existed.
+  bool opened_once = false;
+  uint64_t first_open_durable_sequence = 0;
+  bool first_open_resumed = false;
 };
 
 class TakeUplink {
@@ -146,4 +151,4 @@ class TakeUplink {
   std::thread thread_;
 };
 
-}  // namespace reenact::capture
+}  // namespace reenact::ingest

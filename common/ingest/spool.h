@@ -31,7 +31,7 @@
 #include "absl/status/statusor.h"
 #include "reenact/v1/frame.pb.h"
 
-namespace reenact::capture {
+namespace reenact::ingest {
 
 struct SpoolOptions {
   // Folder of this take's spool; created when missing.
@@ -142,4 +142,4 @@ class Spool {
   SpoolRecovery recovery_;
 };
 
-}  // namespace reenact::capture
+}  // namespace reenact::ingest

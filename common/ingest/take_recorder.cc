@@ -1,4 +1,4 @@
-#include "capture_daemon/take_recorder.h"
+#include "common/ingest/take_recorder.h"
 
 #include <time.h>
 
@@ -12,7 +12,7 @@
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 
-namespace reenact::capture {
+namespace reenact::ingest {
 
 namespace {
 
@@ -178,8 +178,9 @@ void TakeRecorder::SendOpenLocked(int64_t start_stamp_ns) {
 absl::Status TakeRecorder::Add(v1::FrameSet set) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (stopped_) {
-      return absl::FailedPreconditionError(absl::StrCat("take ", take_id_, " is stopped"));
+    if (stopped_ || aborted_) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("take ", take_id_, stopped_ ? " is stopped" : " was aborted"));
     }
   }
   // Keep only the take's sensors.
@@ -202,10 +203,20 @@ absl::Status TakeRecorder::Add(v1::FrameSet set) {
   for (const v1::Frame& frame : set.frames()) sensors.push_back(frame.sensor_id());
   int64_t record_bytes = 0;
   while (true) {
+    // A resumed take (the same take id sent again, as `reenact takes upload`
+    // does) may already be durable past this set: the server said so when
+    // it opened the take, and the spool has released everything up to there.
+    if (sequence <= spool_->acked_sequence()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_sequence_ = sequence;
+      return absl::OkStatus();
+    }
     // Append moves from `set` only on success, so a retry sends it whole.
     // NOLINTNEXTLINE(bugprone-use-after-move)
     absl::Status appended = spool_->Append(std::move(set), &record_bytes);
     if (appended.ok()) break;
+    // The server's durable sequence arrived between the check and the append.
+    if (absl::IsInvalidArgument(appended) && sequence <= spool_->acked_sequence()) continue;
     std::unique_lock<std::mutex> lock(mutex_);
     if (!absl::IsResourceExhausted(appended) || !options_.wait_when_full || stopped_ || no_wait_ ||
         aborted_) {
@@ -325,4 +336,4 @@ TakeStats TakeRecorder::Stats() const {
   return stats;
 }
 
-}  // namespace reenact::capture
+}  // namespace reenact::ingest

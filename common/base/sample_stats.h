@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-namespace reenact::capture {
+namespace reenact {
 
 // The `q`-quantile (0..1) of `samples` by the nearest-rank method; 0 when
 // there are none. Takes a copy because it reorders.
@@ -53,4 +53,4 @@ class SampleReservoir {
   std::mt19937_64 rng_{12345};
 };
 
-}  // namespace reenact::capture
+}  // namespace reenact

@@ -1,4 +1,4 @@
-#include "capture_daemon/uplink.h"
+#include "common/ingest/uplink.h"
 
 #include <algorithm>
 #include <chrono>
@@ -14,7 +14,7 @@
 #include "common/log/log.h"
 #include "proto/grpc_status.h"
 
-namespace reenact::capture {
+namespace reenact::ingest {
 
 using IngestStream = grpc::ClientReaderWriter<v1::IngestRequest, v1::IngestResponse>;
 
@@ -238,6 +238,11 @@ TakeUplink::Attempt TakeUplink::RunAttempt() {
       const uint64_t durable = opened_->durable_sequence();
       const int64_t reconnects = stats_.reconnects;
       const bool resumed = opened_->resumed();
+      if (!stats_.opened_once) {
+        stats_.opened_once = true;
+        stats_.first_open_durable_sequence = durable;
+        stats_.first_open_resumed = resumed;
+      }
       lock.unlock();
       log::Info("uplink_connected",
                 {{"take_id", take_id_},
@@ -385,4 +390,4 @@ absl::Status TakeUplink::Pump(IngestStream* stream, uint64_t next) {
   }
 }
 
-}  // namespace reenact::capture
+}  // namespace reenact::ingest

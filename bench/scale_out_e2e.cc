@@ -170,6 +170,9 @@ int Run(int argc, char** argv) {
   // The server, and the take played into it once.
   const std::string data = work + "/data";
   fs::remove_all(data);
+  // A port file left by an earlier run would name a server that is gone.
+  fs::remove(work + "/server.port");
+  fs::remove_all(work + "/spool");
   std::unique_ptr<Subprocess> server =
       Background(work, "server",
                  {bin + "/reenact-server", "--data", data, "--listen", "127.0.0.1:0", "--port-file",

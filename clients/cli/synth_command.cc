@@ -37,7 +37,8 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
                                                         "distance",      "yaw-deg",
                                                         "lead-in-s",     "board",
                                                         "board-x-m",     "board-z-m",
-                                                        "board-yaw-deg", "sensor-skeleton"},
+                                                        "board-yaw-deg", "sensor-skeleton",
+                                                        "wardrobe"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -73,6 +74,7 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   options.metres_per_unit = *metres_per_unit;
   options.body = flags->GetOr("body", options.body);
   options.shape = flags->GetOr("shape", options.shape);
+  options.wardrobe = flags->GetOr("wardrobe", options.wardrobe);
   options.num_sensors = *sensors;
   options.seconds = *seconds;
   options.fps = *fps;

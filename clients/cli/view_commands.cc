@@ -135,6 +135,7 @@ void PrintFigures(const view::EvaluationResult& result, const ReenactmentData& d
                          result.surface_completeness_mm)
       << absl::StrFormat("  psnr_db_90          %8.2f  (%d pixels)\n", result.psnr_db_90,
                          result.psnr_pixels)
+      << absl::StrFormat("  ssim_90             %8.3f\n", result.ssim_90)
       << absl::StrFormat("  iou_90              %8.3f\n", result.iou_90)
       << absl::StrFormat("  mpjpe_mm            %8.2f  (%d joints)\n", result.mpjpe_mm,
                          result.mpjpe_joints);

@@ -195,18 +195,25 @@ class NovelViewScorer {
     truth.requested = render::kRenderColour | render::kRenderLabel;
     RETURN_IF_ERROR(renderer_->Render(camera_, {truth_item_}, &truth));
     int64_t both = 0, either = 0;
+    std::vector<uint8_t> overlap(recon.label.data.size(), 0);
     for (size_t i = 0; i < recon.label.data.size(); ++i) {
       const bool a = recon.label.data[i] > 0, b = truth.label.data[i] > 0;
       either += a || b;
       if (!(a && b)) continue;
       ++both;
+      overlap[i] = 1;
       for (int c = 0; c < 3; ++c) {
         const double d =
             static_cast<double>(recon.colour.data[3 * i + c]) - truth.colour.data[3 * i + c];
         squared_error_ += d * d;
       }
     }
-    if (has_albedo_) samples_ += 3 * both;
+    if (has_albedo_) {
+      samples_ += 3 * both;
+      const SsimSums ssim = MaskedSsim(recon.colour, truth.colour, overlap);
+      ssim_sum_ += ssim.sum;
+      ssim_pixels_ += ssim.pixels;
+    }
     if (either > 0) {
       iou_sum_ += static_cast<double>(both) / either;
       ++frames_;
@@ -220,6 +227,7 @@ class NovelViewScorer {
     if (frames_ > 0) result->iou_90 = iou_sum_ / frames_;
     result->psnr_pixels = samples_ / 3;
     if (has_albedo_) result->psnr_db_90 = PsnrDb(squared_error_, samples_);
+    if (has_albedo_ && ssim_pixels_ > 0) result->ssim_90 = ssim_sum_ / ssim_pixels_;
   }
 
  private:
@@ -296,6 +304,8 @@ class NovelViewScorer {
   double squared_error_ = 0.0;
   int64_t samples_ = 0;
   double iou_sum_ = 0.0;
+  double ssim_sum_ = 0.0;
+  int64_t ssim_pixels_ = 0;
   int frames_ = 0;
 };
 
@@ -329,10 +339,56 @@ std::map<std::string, double> EvaluationResult::Figures() const {
           {"surface_frames", surface_frames},
           {"psnr_db_90", psnr_db_90},
           {"iou_90", iou_90},
+          {"ssim_90", ssim_90},
           {"psnr_pixels", static_cast<double>(psnr_pixels)},
           {"novel_view_frames", novel_view_frames},
           {"mpjpe_mm", mpjpe_mm},
           {"mpjpe_joints", static_cast<double>(mpjpe_joints)}};
+}
+
+SsimSums MaskedSsim(const RgbImage& a, const RgbImage& b, const std::vector<uint8_t>& mask) {
+  SsimSums out;
+  const int w = a.width, h = a.height;
+  if (b.width != w || b.height != h || mask.size() != static_cast<size_t>(w) * h || w == 0 ||
+      h == 0) {
+    return out;
+  }
+  cv::Mat m(h, w, CV_64F);
+  for (int i = 0; i < w * h; ++i) m.at<double>(i) = mask[i] ? 1.0 : 0.0;
+  // Gaussian sums restricted to the mask (zero outside the image).
+  const auto blur = [](const cv::Mat& in) {
+    cv::Mat result;
+    cv::GaussianBlur(in, result, cv::Size(11, 11), 1.5, 1.5, cv::BORDER_CONSTANT);
+    return result;
+  };
+  const cv::Mat weight = blur(m);
+  constexpr double kC1 = (0.01 * 255) * (0.01 * 255), kC2 = (0.03 * 255) * (0.03 * 255);
+  std::vector<double> ssim(static_cast<size_t>(w) * h, 0.0);
+  for (int c = 0; c < 3; ++c) {
+    cv::Mat x(h, w, CV_64F), y(h, w, CV_64F);
+    for (int i = 0; i < w * h; ++i) {
+      x.at<double>(i) = mask[i] ? a.data[3 * i + c] : 0.0;
+      y.at<double>(i) = mask[i] ? b.data[3 * i + c] : 0.0;
+    }
+    const cv::Mat sx = blur(x), sy = blur(y), sxx = blur(x.mul(x)), syy = blur(y.mul(y)),
+                  sxy = blur(x.mul(y));
+    for (int i = 0; i < w * h; ++i) {
+      if (!mask[i]) continue;
+      const double wt = weight.at<double>(i);  // > 0: the centre is in the mask.
+      const double mx = sx.at<double>(i) / wt, my = sy.at<double>(i) / wt;
+      const double vx = std::max(0.0, sxx.at<double>(i) / wt - mx * mx);
+      const double vy = std::max(0.0, syy.at<double>(i) / wt - my * my);
+      const double cxy = sxy.at<double>(i) / wt - mx * my;
+      ssim[i] += ((2 * mx * my + kC1) * (2 * cxy + kC2)) /
+                 ((mx * mx + my * my + kC1) * (vx + vy + kC2)) / 3.0;
+    }
+  }
+  for (int i = 0; i < w * h; ++i) {
+    if (!mask[i]) continue;
+    out.sum += ssim[i];
+    ++out.pixels;
+  }
+  return out;
 }
 
 double PsnrDb(double sum_squared_error, int64_t count) {

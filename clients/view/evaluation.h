@@ -26,7 +26,21 @@
 //    lit).
 //      psnr_db_90  PSNR (8-bit, peak 255) over the pixels where both show
 //                  the person, MSE pooled over RGB and all evaluated instants;
-//      iou_90      mean over instants of the silhouette IoU.
+//      iou_90      mean over instants of the silhouette IoU;
+//      ssim_90     structural similarity (Wang, Bovik, Sheikh, Simoncelli
+//                  2004) on the same pixels as psnr_db_90: with M the mask
+//                  of pixels where both images show the person, and per
+//                  channel (R, G, B; 8-bit levels) the local means,
+//                  variances and covariance taken over an 11 x 11 Gaussian
+//                  window (sigma 1.5 px) restricted to M (the window's
+//                  weights renormalised over its pixels in M), SSIM(p) =
+//                  (2 mu_x mu_y + C1)(2 sigma_xy + C2) /
+//                  ((mu_x^2 + mu_y^2 + C1)(sigma_x^2 + sigma_y^2 + C2)),
+//                  C1 = (0.01 * 255)^2, C2 = (0.03 * 255)^2; ssim_90 is
+//                  the mean of SSIM(p) over the channels and over every
+//                  pixel of M of every evaluated instant (1: identical).
+//                  Background pixels never enter a window, so a silhouette
+//                  error shows in iou_90 only, as for PSNR.
 //  * mpjpe_mm: mean distance of PartFrame.joints_in_world_m to the true
 //    joints, over the 25 Kinect v2 joints and the evaluated instants
 //    (joints the reenactment lacks are left out).
@@ -39,6 +53,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "clients/view/reenactment_renderer.h"
@@ -83,6 +98,7 @@ struct EvaluationResult {
   // or the take has no albedo).
   double psnr_db_90 = kNaN;
   double iou_90 = kNaN;
+  double ssim_90 = kNaN;  // NaN as psnr_db_90.
   int64_t psnr_pixels = 0;
   int novel_view_frames = 0;
   // Joints.
@@ -102,6 +118,16 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data
                                                      const TakeReader& take,
                                                      const EvaluationOptions& options = {},
                                                      const ProgressCallback& progress = {});
+
+// Sums of the masked SSIM (the definition of ssim_90 above) of two 8-bit
+// RGB images of the same size over the pixels where `mask` (row-major,
+// width x height) is non-zero: `sum` of SSIM(p) averaged over the channels,
+// `pixels` counted. Empty sums for images of different sizes.
+struct SsimSums {
+  double sum = 0.0;
+  int64_t pixels = 0;
+};
+SsimSums MaskedSsim(const RgbImage& a, const RgbImage& b, const std::vector<uint8_t>& mask);
 
 // The pooled PSNR of 8-bit images from a sum of squared differences over
 // `count` samples, dB (infinity for zero error, NaN for no samples).

@@ -151,6 +151,12 @@ TEST(EvaluateReenactment, TruthBodyReenactmentIsTheTruthAndAMovedOneIsNot) {
   EXPECT_GT(worse->surface_mm, truth->surface_mm + 10.0);
   EXPECT_LT(worse->iou_90, truth->iou_90 - 0.05);
   EXPECT_LT(worse->mpjpe_mm, 1e-3);  // The frames' joints were left alone.
+  // SSIM on the same pixels as PSNR: high for the truth, lower when moved.
+  std::printf("SSIM90: truth body %.4f, moved %.4f\n", truth->ssim_90, worse->ssim_90);
+  EXPECT_GT(truth->ssim_90, 0.8);
+  EXPECT_LE(truth->ssim_90, 1.0);
+  EXPECT_LT(worse->ssim_90, truth->ssim_90);
+  EXPECT_EQ(truth->Figures().count("ssim_90"), 1u);
 }
 
 TEST(EvaluateReenactment, FromSensor0sOwnViewTheTruthReenactmentMatchesTheTruth) {
@@ -216,6 +222,47 @@ TEST(EvaluateReenactment, TakeWithoutGroundTruthIsFailedPrecondition) {
   ASSERT_TRUE(plain.ok()) << plain.status();
   EXPECT_EQ(EvaluateReenactment(take.truth, **plain).status().code(),
             absl::StatusCode::kFailedPrecondition);
+}
+
+// A w x h image of a horizontal ramp with a vertical stripe pattern.
+RgbImage Pattern(int w, int h) {
+  RgbImage image(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      image.at(x, y, 0) = static_cast<uint8_t>(4 * x);
+      image.at(x, y, 1) = (x / 3) % 2 ? 200 : 40;
+      image.at(x, y, 2) = static_cast<uint8_t>(3 * y);
+    }
+  }
+  return image;
+}
+
+TEST(MaskedSsim, IsOneForEqualImagesAndIgnoresPixelsOutsideTheMask) {
+  const int w = 48, h = 40;
+  const RgbImage a = Pattern(w, h);
+  std::vector<uint8_t> mask(w * h, 0);
+  for (int y = 8; y < 32; ++y) {
+    for (int x = 10; x < 40; ++x) mask[y * w + x] = 1;
+  }
+  RgbImage b = a;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      if (!mask[y * w + x]) b.at(x, y, 1) = 255 - b.at(x, y, 1);  // Outside: no effect.
+    }
+  }
+  const SsimSums same = MaskedSsim(a, b, mask);
+  EXPECT_EQ(same.pixels, 24 * 30);
+  EXPECT_NEAR(same.sum / same.pixels, 1.0, 1e-9);
+  // Shifting the stripes by one pixel inside the mask lowers it.
+  RgbImage shifted = a;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 1; x < w; ++x) shifted.at(x, y, 1) = a.at(x - 1, y, 1);
+  }
+  const SsimSums worse = MaskedSsim(a, shifted, mask);
+  EXPECT_LT(worse.sum / worse.pixels, 0.9);
+  EXPECT_GT(worse.sum / worse.pixels, 0.0);
+  // Sizes that differ give nothing.
+  EXPECT_EQ(MaskedSsim(a, Pattern(w, h + 1), mask).pixels, 0);
 }
 
 TEST(PsnrDb, OfKnownErrors) {

@@ -107,6 +107,105 @@ std::array<uint8_t, 3> RegionColor(ClothingRegion region, const Eigen::Vector3d&
   return {255, 0, 255};
 }
 
+using Rgb = std::array<uint8_t, 3>;
+
+// A hash of an integer cell to [0, 1), for patterns placed in 3D.
+double CellHash(int x, int y, int z, int salt) {
+  uint32_t h = static_cast<uint32_t>(x) * 73856093u ^ static_cast<uint32_t>(y) * 19349663u ^
+               static_cast<uint32_t>(z) * 83492791u ^ static_cast<uint32_t>(salt) * 2654435761u;
+  h ^= h >> 13;
+  h *= 0x5bd1e995u;
+  h ^= h >> 15;
+  return (h & 0xffffff) / static_cast<double>(0x1000000);
+}
+
+// Scattered dots on `base`: one dot per `cell_m` cube of the rest space, at a
+// random place in it, 0.25..0.65 of the cell across, in one of `inks`.
+Rgb Dots(const Eigen::Vector3d& p, double cell_m, const Rgb& base, const std::vector<Rgb>& inks) {
+  const Eigen::Vector3d q = p / cell_m;
+  const int cx = static_cast<int>(std::floor(q.x()));
+  const int cy = static_cast<int>(std::floor(q.y()));
+  const int cz = static_cast<int>(std::floor(q.z()));
+  for (int dz = -1; dz <= 1; ++dz) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int x = cx + dx, y = cy + dy, z = cz + dz;
+        const Eigen::Vector3d centre(x + CellHash(x, y, z, 1), y + CellHash(x, y, z, 2),
+                                     z + CellHash(x, y, z, 3));
+        const double radius = 0.5 * (0.25 + 0.4 * CellHash(x, y, z, 4));
+        if ((q - centre).norm() < radius) {
+          return inks[static_cast<size_t>(CellHash(x, y, z, 5) * inks.size()) % inks.size()];
+        }
+      }
+    }
+  }
+  return base;
+}
+
+// Blotches: the colour of the nearest of jittered cell centres (`cell_m`
+// apart), one of `colours` per cell.
+Rgb Blotches(const Eigen::Vector3d& p, double cell_m, const std::vector<Rgb>& colours) {
+  const Eigen::Vector3d q = p / cell_m;
+  const int cx = static_cast<int>(std::floor(q.x()));
+  const int cy = static_cast<int>(std::floor(q.y()));
+  const int cz = static_cast<int>(std::floor(q.z()));
+  double best = 1e9;
+  Rgb out = colours.front();
+  for (int dz = -1; dz <= 1; ++dz) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int x = cx + dx, y = cy + dy, z = cz + dz;
+        const Eigen::Vector3d centre(x + CellHash(x, y, z, 6), y + CellHash(x, y, z, 7),
+                                     z + CellHash(x, y, z, 8));
+        const double d = (q - centre).squaredNorm();
+        if (d < best) {
+          best = d;
+          out =
+              colours[static_cast<size_t>(CellHash(x, y, z, 9) * colours.size()) % colours.size()];
+        }
+      }
+    }
+  }
+  return out;
+}
+
+// Two colours in bands `period_m` apart along `coordinate` (the first half
+// of each period `a`).
+Rgb Bands(double coordinate, double period_m, const Rgb& a, const Rgb& b) {
+  const double phase = std::fmod(coordinate / period_m + 1000.0, 1.0);
+  return phase < 0.5 ? a : b;
+}
+
+// Colour of a point of the rest surface in `wardrobe`.
+Rgb WardrobeColor(Wardrobe wardrobe, ClothingRegion region, const Eigen::Vector3d& p) {
+  const bool garment = region == ClothingRegion::kShirt || region == ClothingRegion::kSleeve ||
+                       region == ClothingRegion::kTrousers;
+  if (wardrobe == Wardrobe::kDefault || !garment) return RegionColor(region, p);
+  switch (wardrobe) {
+    case Wardrobe::kSolid:
+      if (region == ClothingRegion::kShirt) return {214, 168, 48};
+      if (region == ClothingRegion::kSleeve) return {46, 120, 70};
+      return {62, 62, 70};
+    case Wardrobe::kPrint: {
+      static const std::vector<Rgb> inks = {
+          {200, 40, 70}, {30, 90, 170}, {240, 170, 30}, {40, 140, 90}};
+      static const std::vector<Rgb> camo = {
+          {96, 104, 60}, {132, 116, 78}, {58, 66, 44}, {160, 150, 110}};
+      if (region == ClothingRegion::kTrousers) return Blotches(p, 0.06, camo);
+      return Dots(p, 0.05, {236, 228, 210}, inks);
+    }
+    case Wardrobe::kStripes:
+      if (region == ClothingRegion::kShirt)
+        return Bands(p.y(), 0.04, {25, 35, 90}, {240, 240, 235});
+      if (region == ClothingRegion::kSleeve)
+        return Bands(p.x(), 0.03, {200, 40, 40}, {245, 220, 60});
+      return Bands(p.x() + p.z(), 0.02, {30, 30, 40}, {190, 190, 200});
+    case Wardrobe::kDefault:
+      break;
+  }
+  return RegionColor(region, p);
+}
+
 // Grows painted texels into unpainted ones, `passes` pixels deep.
 void Dilate(RgbImage* image, std::vector<uint8_t>* painted, int passes) {
   const int w = image->width, h = image->height;
@@ -156,7 +255,29 @@ std::vector<ClothingRegion> ClassifyClothingRegions(const body::BodyModel& model
   return regions;
 }
 
-RgbImage PaintClothingTexture(const body::BodyModel& model, int size) {
+absl::StatusOr<Wardrobe> ParseWardrobe(const std::string& name) {
+  for (Wardrobe w : {Wardrobe::kDefault, Wardrobe::kSolid, Wardrobe::kPrint, Wardrobe::kStripes}) {
+    if (name == WardrobeName(w)) return w;
+  }
+  return absl::InvalidArgumentError(
+      "wardrobe must be one of default, solid, print, stripes, not \"" + name + "\"");
+}
+
+std::string WardrobeName(Wardrobe wardrobe) {
+  switch (wardrobe) {
+    case Wardrobe::kDefault:
+      return "default";
+    case Wardrobe::kSolid:
+      return "solid";
+    case Wardrobe::kPrint:
+      return "print";
+    case Wardrobe::kStripes:
+      return "stripes";
+  }
+  return "default";
+}
+
+RgbImage PaintClothingTexture(const body::BodyModel& model, int size, Wardrobe wardrobe) {
   RgbImage image(size, size, 128);
   std::vector<uint8_t> painted(static_cast<size_t>(size) * size, 0);
   const std::vector<ClothingRegion> regions = ClassifyClothingRegions(model);
@@ -192,7 +313,7 @@ RgbImage PaintClothingTexture(const body::BodyModel& model, int size) {
         const Eigen::Vector3d pos = w0 * model.template_vertices_m.col(tri[0]) +
                                     w1 * model.template_vertices_m.col(tri[1]) +
                                     w2 * model.template_vertices_m.col(tri[2]);
-        const auto rgb = RegionColor(regions[t], pos);
+        const auto rgb = WardrobeColor(wardrobe, regions[t], pos);
         for (int c = 0; c < 3; ++c) image.at(x, y, c) = rgb[c];
         painted[static_cast<size_t>(y) * size + x] = 1;
       }

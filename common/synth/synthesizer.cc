@@ -328,6 +328,9 @@ absl::Status SynthOptions::Validate() const {
     return absl::InvalidArgumentError("--seconds must be in (0, 3600]");
   }
   if (!(fps > 0 && fps <= 120)) return absl::InvalidArgumentError("fps must be in (0, 120]");
+  if (absl::StatusOr<Wardrobe> parsed = ParseWardrobe(wardrobe); !parsed.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("--wardrobe: ", parsed.status().message()));
+  }
   if (num_sensors < 1 || num_sensors > 8) {
     return absl::InvalidArgumentError("--sensors must be 1..8");
   }
@@ -467,7 +470,8 @@ absl::StatusOr<Scene> BuildScene(const body::BodyModel& model, const SynthOption
                                              model.triangles, model.uvs, model.uv_triangles));
   render::DrawItem actor;
   ASSIGN_OR_RETURN(actor.mesh, scene.renderer->UploadMesh(body_mesh));
-  scene.body_texture = PaintClothingTexture(model);
+  ASSIGN_OR_RETURN(const Wardrobe wardrobe, ParseWardrobe(options.wardrobe));
+  scene.body_texture = PaintClothingTexture(model, 1024, wardrobe);
   ASSIGN_OR_RETURN(actor.texture, scene.renderer->UploadTexture(scene.body_texture));
   actor.label = kActorLabel;
   scene.body_mesh = actor.mesh;

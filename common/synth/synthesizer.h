@@ -33,6 +33,10 @@ struct SynthOptions {
   // "mean", or "random" / "random:SEED": shape coefficients drawn from the
   // model's shape space (standard normal, clamped to +-2 sigma).
   std::string shape = "mean";
+  // What the actor wears (synth::Wardrobe, clothing.h): "default" (striped
+  // shirt, teal sleeves, checked denim), "solid", "print" or "stripes". It
+  // is the albedo of the ground truth (/ground_truth/topology).
+  std::string wardrobe = "default";
   int num_sensors = 2;             // 1..8, evenly spaced round the actor.
   double sensor_distance_m = 2.5;  // From the actor's starting position.
   double seconds = 10.0;           // Length of the take (clipped to a file motion's length).

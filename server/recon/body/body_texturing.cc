@@ -114,6 +114,19 @@ float NearDepth(const std::vector<float>& depth, int width, int height, int x, i
   return out;
 }
 
+// Whether the four pixels a bilinear lookup at (x..x+1, y..y+1) reads all
+// show the posed mesh no farther than `max_depth_m`: at the silhouette a
+// lookup would blend in the background, at an occlusion edge the surface
+// behind.
+bool TapsOnSurface(const std::vector<float>& depth, int width, int x, int y, float max_depth_m) {
+  for (int dy = 0; dy <= 1; ++dy) {
+    for (int dx = 0; dx <= 1; ++dx) {
+      if (!(depth[static_cast<size_t>(y + dy) * width + x + dx] <= max_depth_m)) return false;
+    }
+  }
+  return true;
+}
+
 // Fills unobserved atlas texels (weight 0) from observed ones: a push-pull
 // pyramid (average down, fill holes on the way up).
 void PushPull(std::vector<Eigen::Vector4f>* sums, int size) {
@@ -260,6 +273,7 @@ absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const Deco
             continue;
           }
         }
+        if (!TapsOnSurface(depth, colour.width, x, y, p.z() + threshold)) continue;
         const float fx = q.x() - x, fy = q.y() - y;
         Eigen::Vector3f rgb;
         for (int c = 0; c < 3; ++c) {

@@ -21,6 +21,16 @@
 // triangle so that a triangle (about 1.5 cm) does not flatten the clothing's
 // pattern; texels no sensor ever saw take the colour of the nearest
 // observed texels (push-pull fill) instead of staying black.
+// Beyond the thesis's visibility test, an observation is used only where all
+// four pixels of its bilinear lookup show the posed mesh no farther than T
+// behind the texel: at the mesh's silhouette the lookup would blend in the
+// background, at an occlusion edge the surface behind. Those are the
+// observations of surfaces seen edge-on, the ones a view from the side
+// shows. Measured with bench/novel_view_e2e (3 held-out motions x 4
+// wardrobes): mean PSNR90 22.15 -> 22.34 dB fitting the body's own model
+// (+0.55 dB at best on a take, -0.03 at worst), 18.48 -> 18.53 dB with the
+// procedural model, 24.19 -> 24.63 dB on the true geometry; on the take of
+// tests/body_fidelity_test.cc 25.37 -> 25.29 dB.
 #pragma once
 
 #include <vector>

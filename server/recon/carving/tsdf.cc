@@ -94,9 +94,14 @@ absl::Status TsdfVolume::Integrate(const PosedCamera& camera, const DepthImageMm
       for (int i = 0; i < box_.nx; ++i, ++index, in_camera += step_x) {
         Eigen::Vector2f pixel;
         if (!camera.ProjectCameraPoint(in_camera, &pixel)) continue;
+        // Range-checked before the conversion: a voxel just in front of the
+        // camera projects far beyond what an int holds.
+        if (!(pixel.x() >= -0.5f && pixel.y() >= -0.5f && pixel.x() < width - 0.5f &&
+              pixel.y() < height - 0.5f)) {
+          continue;
+        }
         const int x = static_cast<int>(pixel.x() + 0.5f);
         const int y = static_cast<int>(pixel.y() + 0.5f);
-        if (pixel.x() < -0.5f || pixel.y() < -0.5f || x >= width || y >= height) continue;
         const uint16_t observed_mm = depth_mm.at(x, y);
         if (observed_mm == 0) continue;
         const float eta = observed_mm * 0.001f - in_camera.z();  // Projective distance.

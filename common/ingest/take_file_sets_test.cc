@@ -58,9 +58,13 @@ std::string WriteTake(const std::string& path, const TakeSpec& spec) {
     color.set_frame_index(i);
     color.set_data(Payload(sensor, i, "color"));
     // Colour first for k1: the order within a frame does not matter.
-    if (sensor == "k1") EXPECT_TRUE((*writer)->WriteColor(color).ok());
+    if (sensor == "k1") {
+      EXPECT_TRUE((*writer)->WriteColor(color).ok());
+    }
     EXPECT_TRUE((*writer)->WriteDepth(depth).ok());
-    if (sensor == "k0") EXPECT_TRUE((*writer)->WriteColor(color).ok());
+    if (sensor == "k0") {
+      EXPECT_TRUE((*writer)->WriteColor(color).ok());
+    }
     if (sensor == "k0" && i % 2 == 0) {
       v1::ActorMask mask;
       mask.set_sensor_id(sensor);

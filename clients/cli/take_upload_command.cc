@@ -70,7 +70,8 @@ bool ValidTakeId(const std::string& id) {
 }
 
 // An exclusive lock on "<spool root>/<take id>.lock" for the life of the
-// upload: one upload of a take at a time from this spool.
+// upload: one upload of a take at a time from this spool. The empty lock
+// file is left in place.
 class UploadLock {
  public:
   static absl::StatusOr<UploadLock> Take(const std::string& spool_root,
@@ -89,20 +90,20 @@ class UploadLock {
       return absl::FailedPreconditionError(
           absl::StrCat("another upload of take ", take_id, " is running (", path, ")"));
     }
-    return UploadLock(fd, path);
+    return UploadLock(fd);
   }
-  UploadLock(UploadLock&& o) noexcept : fd_(o.fd_), path_(std::move(o.path_)) { o.fd_ = -1; }
+  UploadLock(UploadLock&& o) noexcept : fd_(o.fd_) { o.fd_ = -1; }
   UploadLock& operator=(UploadLock&&) = delete;
+  // The file stays: unlinking it would let an upload that opened it just
+  // before hold a lock on a file no longer in the folder, beside one that
+  // creates it anew.
   ~UploadLock() {
-    if (fd_ < 0) return;
-    ::unlink(path_.c_str());
-    ::close(fd_);
+    if (fd_ >= 0) ::close(fd_);
   }
 
  private:
-  UploadLock(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
+  explicit UploadLock(int fd) : fd_(fd) {}
   int fd_ = -1;
-  std::string path_;
 };
 
 }  // namespace

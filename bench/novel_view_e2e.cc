@@ -65,7 +65,7 @@
 #include "common/body/model_spec.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "server/recon/body/body_texturing.h"
@@ -193,8 +193,8 @@ absl::StatusOr<std::string> EnsureTake(const Settings& s, const std::string& mot
 }
 
 // `images`: a name under --images for the novel views (none without it).
-absl::StatusOr<Score> Evaluate(const ReenactmentData& data, const TakeReader& take,
-                               const Settings& s, const std::string& images) {
+absl::StatusOr<Score> Evaluate(const Reenactment& data, const TakeReader& take, const Settings& s,
+                               const std::string& images) {
   view::EvaluationOptions options;
   options.every = s.every;
   options.surface = false;
@@ -223,7 +223,7 @@ absl::StatusOr<Score> RunConfiguration(const Settings& s, const std::string& tak
   RETURN_IF_ERROR(recon::RunMethod(input, out).status());
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  ASSIGN_OR_RETURN(const ReenactmentData data, ReadReenactmentFile(out));
+  ASSIGN_OR_RETURN(const Reenactment data, ReadReenactment(out));
   ASSIGN_OR_RETURN(const auto take, TakeReader::Open(take_path));
   ASSIGN_OR_RETURN(Score score, Evaluate(data, *take, s, ImagesName(take_path, configuration)));
   score.seconds = seconds;
@@ -235,13 +235,12 @@ absl::StatusOr<Score> Ceiling(const Settings& s, const std::string& take_path,
                               const body::BodyModel& model, const std::string& configuration) {
   ASSIGN_OR_RETURN(const auto take, TakeReader::Open(take_path));
   if (configuration.rfind("body", 0) == 0) {
-    ASSIGN_OR_RETURN(const ReenactmentData data,
-                     view::testing::MakeTruthBodyReenactment(*take, model));
+    ASSIGN_OR_RETURN(const Reenactment data, view::testing::MakeTruthBodyReenactment(*take, model));
     return Evaluate(data, *take, s, ImagesName(take_path, "ceiling-body"));
   }
   view::testing::TruthReenactmentOptions options;
   options.method = configuration;
-  ASSIGN_OR_RETURN(const ReenactmentData data,
+  ASSIGN_OR_RETURN(const Reenactment data,
                    view::testing::MakeTruthReenactment(*take, model, options));
   return Evaluate(data, *take, s, ImagesName(take_path, "ceiling-" + configuration));
 }
@@ -251,17 +250,17 @@ absl::StatusOr<Score> Ceiling(const Settings& s, const std::string& take_path,
 absl::StatusOr<Score> TruthGeometry(const Settings& s, const std::string& take_path,
                                     const body::BodyModel& model) {
   ASSIGN_OR_RETURN(const auto take, TakeReader::Open(take_path));
-  ASSIGN_OR_RETURN(ReenactmentData data, view::testing::MakeTruthBodyReenactment(*take, model));
+  ASSIGN_OR_RETURN(Reenactment data, view::testing::MakeTruthBodyReenactment(*take, model));
   ASSIGN_OR_RETURN(const auto frames, recon::TakeFrames::Load(take_path));
-  ASSIGN_OR_RETURN(const DecodedBodyMesh mesh, DecodeBodyMesh(data.body.front()));
+  const BodyMesh& mesh = *data.body;
   std::vector<Eigen::Matrix3Xd> posed(frames->num_instants());
   for (size_t f = 0; f < data.frames.size() && f < posed.size(); ++f) {
-    ASSIGN_OR_RETURN(body::PosedBody p, PoseBodyMesh(mesh, data.frames[f].body()));
+    ASSIGN_OR_RETURN(body::PosedBody p, PoseBodyMesh(mesh, *data.frames[f].body));
     posed[f] = std::move(p.vertices_m);
   }
   ASSIGN_OR_RETURN(const recon::AtlasResult atlas, recon::BakeBodyAtlas(*frames, mesh, posed));
   ASSIGN_OR_RETURN(std::string jpeg, EncodeJpeg(atlas.atlas, 90));
-  data.body.front().set_atlas_jpeg(std::move(jpeg));
+  data.body->atlas_jpeg = std::move(jpeg);
   return Evaluate(data, *take, s, ImagesName(take_path, "truth-geometry"));
 }
 

@@ -32,23 +32,22 @@
 #include "common/body/retarget.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
-#include "common/io/proto_convert.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact {
 namespace {
 
 // A body reenactment of 120 instants of a CMU dance, or empty on failure.
-const ReenactmentData* BodyReenactment() {
-  static const ReenactmentData* data = []() -> const ReenactmentData* {
+const Reenactment* BodyReenactment() {
+  static const Reenactment* data = []() -> const Reenactment* {
     if (const char* file = std::getenv("REENACT_BENCH_REENACTMENT"); file != nullptr) {
-      auto read = ReadReenactmentFile(file);
+      auto read = ReadReenactment(file);
       if (!read.ok()) {
         std::fprintf(stderr, "%s\n", std::string(read.status().message()).c_str());
         return nullptr;
       }
-      return new ReenactmentData(std::move(*read));
+      return new Reenactment(std::move(*read));
     }
     auto model = body::BuildProceduralBody();
     auto motion = body::ReadMotion(std::string(REENACT_TEST_DATA_DIR) + "/mocap/cmu/131_01.bvh");
@@ -65,13 +64,14 @@ const ReenactmentData* BodyReenactment() {
       }
     }
     auto jpeg = EncodeJpeg(atlas, 90);
-    auto mesh = jpeg.ok() ? MakeBodyMesh(*model, shape, *jpeg) : jpeg.status();
+    auto message = jpeg.ok() ? MakeBodyMesh(*model, shape, *jpeg) : jpeg.status();
+    auto mesh = message.ok() ? BodyMeshFromProto(*message) : message.status();
     if (!mesh.ok()) return nullptr;
-    auto* d = new ReenactmentData;
-    d->info.set_reenactment_id("r-bench-body");
-    d->info.set_method("body");
-    d->info.set_fps(30.0);
-    d->body.push_back(std::move(*mesh));
+    auto* d = new Reenactment;
+    d->info.reenactment_id = "r-bench-body";
+    d->info.method = "body";
+    d->info.fps = 30.0;
+    d->body = std::move(*mesh);
     const int frames = std::min<int>(120, static_cast<int>(poses->poses.size()));
     // The dance moves about the room: centred on the origin, where the
     // camera looks, so that every frame draws the whole body.
@@ -80,12 +80,12 @@ const ReenactmentData* BodyReenactment() {
     mean_root /= std::max(frames, 1);
     mean_root.y() = 0.0;
     for (int f = 0; f < frames; ++f) poses->poses[f].root_translation_m -= mean_root;
-    d->info.set_frame_count(frames);
+    d->info.frame_count = frames;
     for (int f = 0; f < frames; ++f) {
-      v1::PartFrame frame;
-      frame.set_frame_index(f);
-      *frame.mutable_body() = BodyPoseToProto(poses->poses[f]);
-      d->frames.push_back(std::move(frame));
+      ReenactmentFrame& frame = d->frames.emplace_back();
+      frame.frame_index = f;
+      frame.body.emplace().pose = poses->poses[f];
+      frame.body->valid = true;
     }
     return d;
   }();
@@ -94,7 +94,7 @@ const ReenactmentData* BodyReenactment() {
 
 void RenderBody(benchmark::State& state, int width, int height, int msaa,
                 bool switch_context = false) {
-  const ReenactmentData* data = BodyReenactment();
+  const Reenactment* data = BodyReenactment();
   if (data == nullptr) {
     state.SkipWithError("no body reenactment (test data missing?)");
     return;
@@ -124,7 +124,7 @@ void RenderBody(benchmark::State& state, int width, int height, int msaa,
     auto camera = viewer::LookAtCamera(eye, target, 50.0, width, height);
     render::RenderOutputs out;
     out.requested = render::kRenderColour;
-    const int instant = data->frames[n % frames].frame_index();
+    const int instant = data->frames[n % frames].frame_index;
     if (!camera.ok() || !(*view)->Render(instant, *camera, &out).ok()) {
       state.SkipWithError("render failed");
       return;

@@ -15,7 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "clients/view/evaluation.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
@@ -61,7 +61,7 @@ class BodyFidelity : public ::testing::Test {
     auto result = recon::RunMethod(input, out);
     EXPECT_TRUE(result.ok()) << result.status();
     if (!result.ok()) return {};
-    auto data = ReadReenactmentFile(out);
+    auto data = ReadReenactment(out);
     EXPECT_TRUE(data.ok()) << data.status();
     auto take = TakeReader::Open(*take_);
     EXPECT_TRUE(take.ok()) << take.status();

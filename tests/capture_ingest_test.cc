@@ -654,18 +654,18 @@ TEST_F(CaptureIngestTest, FakenectRecordingOfAPersonGetsTrackedSkeletons) {
   std::vector<double> seen_errors_m;
   double arm_sum_m = 0.0;
   int arm_n = 0, fitted = 0;
-  for (const v1::PartFrame& frame : body->frames) {
-    if (frame.joints_in_world_m_size() != body::kNumKinectV2Joints) continue;
+  for (const ReenactmentFrame& frame : body->frames) {
+    if (frame.joints_in_world_m.size() != body::kNumKinectV2Joints) continue;
     // Instants follow the stored frames one to one (one sensor).
-    ASSERT_LT(frame.frame_index(), static_cast<int>(skeletons->size()));
-    const int64_t i = (*skeletons)[frame.frame_index()].frame_index();
+    ASSERT_LT(frame.frame_index, static_cast<int>(skeletons->size()));
+    const int64_t i = (*skeletons)[frame.frame_index].frame_index();
     ++fitted;
     for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
       using body::KinectV2Joint;
       const auto joint = static_cast<KinectV2Joint>(j);
       // The take's world is the raw depth camera's frame (see above).
       const double error_m =
-          (FromProto(frame.joints_in_world_m(j)) - (*images)[i].joints_in_camera_m[j]).norm();
+          (frame.joints_in_world_m[j] - (*images)[i].joints_in_camera_m[j]).norm();
       switch (joint) {
         case KinectV2Joint::kHandTipLeft:
         case KinectV2Joint::kHandTipRight:

@@ -33,7 +33,7 @@
 #include "common/body/joint_set.h"
 #include "common/body/motion.h"
 #include "common/body/procedural_body.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "tests/e2e_commands.h"
@@ -198,7 +198,7 @@ class ReenactmentEndToEnd : public ::testing::Test {
     auto truth = view::testing::MakeTruthBodyReenactment(**take, *model);
     ASSERT_TRUE(truth.ok()) << truth.status();
     const std::string truth_path = *dir_ + "/truth.reen";
-    ASSERT_TRUE(WriteReenactmentFile(*truth, truth_path).ok());
+    ASSERT_TRUE(WriteReenactment(*truth, truth_path).ok());
     auto actor = view::MeanActorPosition(*truth);
     ASSERT_TRUE(actor.ok()) << actor.status();
     const int frames = static_cast<int>(truth->frames.size());

@@ -63,7 +63,7 @@ nlohmann::json RunNode(const std::string& script, const std::string& path, int* 
 // Exports `data` to `path` and validates it; returns the validator's report.
 nlohmann::json ExportAndValidate(const ReenactmentData& data, const std::string& path,
                                  const GltfExportOptions& options = {}) {
-  const absl::Status written = WriteReenactmentGlb(data, path, options);
+  const absl::Status written = WriteReenactmentGlb(testing::ToPlain(data), path, options);
   EXPECT_TRUE(written.ok()) << written;
   int exit_code = -1;
   nlohmann::json report = RunNode("check_gltf.mjs", path, &exit_code);
@@ -147,7 +147,7 @@ TEST(GltfValidator, ReportsErrorsInADamagedFile) {
   REQUIRE_NODE_PACKAGE("gltf-validator");
   const std::string dir = testing::MakeTempDir("gltf_validator_bad");
   const std::string path = dir + "/bad.glb";
-  ASSERT_TRUE(WriteReenactmentGlb(MakeTestReenactment(), path).ok());
+  ASSERT_TRUE(WriteReenactmentGlb(testing::ToPlain(MakeTestReenactment()), path).ok());
   auto bytes = ReadFileToString(path);
   ASSERT_TRUE(bytes.ok());
   // Same length, so the GLB container stays intact: an unknown

@@ -23,7 +23,11 @@ using testing::MakeTestBodyReenactment;
 using testing::MakeTestReenactment;
 using testing::TestReenactmentOptions;
 
-void ExpectSame(const ReenactmentData& a, const ReenactmentData& b) {
+// `loaded` holds what `stored` holds (both written as messages the way a
+// reader converts them).
+void ExpectSame(const Reenactment& loaded, const ReenactmentData& stored) {
+  const ReenactmentData a = ReenactmentToProto(loaded);
+  const ReenactmentData b = ReenactmentToProto(testing::ToPlain(stored));
   EXPECT_EQ(a.info.SerializeAsString(), b.info.SerializeAsString());
   ASSERT_EQ(a.parts.size(), b.parts.size());
   ASSERT_EQ(a.frames.size(), b.frames.size());
@@ -109,20 +113,20 @@ TEST(RemoteReenactmentSource, FetchesOnceAndServesTheCacheAfter) {
   ASSERT_TRUE(fs::exists(cache + "/r-body.reen")) << "a fetched reenactment is cached";
 
   // The cached copy serves the next load: mark it, and the mark comes back.
-  ReenactmentData marked = *first;
-  (*marked.info.mutable_figures())["cached"] = 1.0;
-  ASSERT_TRUE(WriteReenactmentFile(marked, cache + "/r-body.reen").ok());
+  Reenactment marked = *first;
+  marked.info.figures["cached"] = 1.0;
+  ASSERT_TRUE(WriteReenactment(marked, cache + "/r-body.reen").ok());
   auto second = (*source)->Load("r-body");
   ASSERT_TRUE(second.ok());
-  EXPECT_EQ(second->info.figures().count("cached"), 1u);
+  EXPECT_EQ(second->info.figures.count("cached"), 1u);
 
   // A cached copy of another version (other creation time) is fetched again.
-  (*marked.info.mutable_figures())["cached"] = 2.0;
-  marked.info.set_created_unix_ns(1);
-  ASSERT_TRUE(WriteReenactmentFile(marked, cache + "/r-body.reen").ok());
+  marked.info.figures["cached"] = 2.0;
+  marked.info.created_unix_ns = 1;
+  ASSERT_TRUE(WriteReenactment(marked, cache + "/r-body.reen").ok());
   auto third = (*source)->Load("r-body");
   ASSERT_TRUE(third.ok());
-  EXPECT_EQ(third->info.figures().count("cached"), 0u);
+  EXPECT_EQ(third->info.figures.count("cached"), 0u);
   ExpectSame(*third, body);
 
   // Rigid, with and without keyframes; unknown ids.

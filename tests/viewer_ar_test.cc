@@ -152,7 +152,8 @@ TEST(ViewerAr, TracksTheBoardAndDrawsTheTeacherWhereTheyStood) {
   options.max_height = intrinsics.height;
   auto renderer = render::OffscreenRenderer::Create(options);
   ASSERT_TRUE(renderer.ok()) << renderer.status();
-  auto view = view::ReenactmentRenderer::Create(teacher, renderer->get());
+  const Reenactment plain_teacher = testing::ToPlain(teacher);
+  auto view = view::ReenactmentRenderer::Create(plain_teacher, renderer->get());
   ASSERT_TRUE(view.ok()) << view.status();
   cv::VideoCapture capture(video);
   ASSERT_TRUE(capture.isOpened());

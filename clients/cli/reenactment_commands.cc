@@ -26,6 +26,7 @@
 #include "common/io/body_reenactment_motion.h"
 #include "common/io/gltf_export.h"
 #include "common/io/jpeg.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/reenactment_file.h"
 
 namespace reenact::cli {
@@ -144,7 +145,7 @@ void PrintSummary(const v1::ReenactmentSummary& s, const BodyFacts* body, std::o
 }
 
 // `reenact export --format glb`: the .glb of `data` at `path`.
-int ExportGlb(const ReenactmentData& data, const Flags& flags, const std::string& path,
+int ExportGlb(const Reenactment& data, const Flags& flags, const std::string& path,
               std::ostream& out, std::ostream& err) {
   GltfExportOptions options;
   options.textures = !flags.Has("no-textures");
@@ -154,7 +155,7 @@ int ExportGlb(const ReenactmentData& data, const Flags& flags, const std::string
   if (flags.Has("json")) {
     out << nlohmann::json{{"out", path},
                           {"format", "glb"},
-                          {"reenactment_id", data.info.reenactment_id()},
+                          {"reenactment_id", data.info.reenactment_id},
                           {"nodes", summary.nodes},
                           {"meshes", summary.meshes},
                           {"textures", summary.textures},
@@ -176,13 +177,13 @@ int ExportGlb(const ReenactmentData& data, const Flags& flags, const std::string
 
 // `reenact export --format bvh`: the fitted skeleton of a body-model
 // reenactment (BodyReenactmentMotion) as BVH, centimetres.
-int ExportBvh(const ReenactmentData& data, const Flags& flags, const std::string& path,
+int ExportBvh(const Reenactment& data, const Flags& flags, const std::string& path,
               std::ostream& out, std::ostream& err) {
   if (!data.is_body()) {
     return ReportError(
         absl::InvalidArgumentError(absl::StrCat(
-            "--format bvh needs a body-model reenactment; ", data.info.reenactment_id(),
-            " (method \"", data.info.method(), "\") is made of rigid parts: use --format glb")),
+            "--format bvh needs a body-model reenactment; ", data.info.reenactment_id,
+            " (method \"", data.info.method, "\") is made of rigid parts: use --format glb")),
         err);
   }
   auto motion = BodyReenactmentMotion(data);
@@ -194,7 +195,7 @@ int ExportBvh(const ReenactmentData& data, const Flags& flags, const std::string
   if (flags.Has("json")) {
     out << nlohmann::json{{"out", path},
                           {"format", "bvh"},
-                          {"reenactment_id", data.info.reenactment_id()},
+                          {"reenactment_id", data.info.reenactment_id},
                           {"joints", motion->joints().size()},
                           {"frames", motion->num_frames()},
                           {"fps", motion->fps()},
@@ -434,9 +435,9 @@ int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostr
                            "FILE.reen"),
                        err);
   }
-  absl::StatusOr<ReenactmentData> data;
+  absl::StatusOr<Reenactment> data;
   if (flags->Has("in")) {
-    data = ReadReenactmentFile(*flags->Get("in"), /*skip_keyframes=*/true);
+    data = ReadReenactment(*flags->Get("in"), /*skip_keyframes=*/true);
     if (!data.ok()) return ReportRemoteError(data.status(), err);
   } else {
     auto connection = ConnectionFromFlags(*flags);

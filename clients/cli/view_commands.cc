@@ -29,7 +29,7 @@
 #include "clients/viewer/viewer_cli.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/render/offscreen_renderer.h"
 
@@ -38,13 +38,13 @@ namespace {
 
 // Where the reenactment comes from: --in FILE, or --reenactment ID on
 // --server.
-absl::StatusOr<ReenactmentData> LoadReenactment(const Flags& flags, bool skip_keyframes,
-                                                ProgressBar* bar) {
+absl::StatusOr<Reenactment> LoadReenactment(const Flags& flags, bool skip_keyframes,
+                                            ProgressBar* bar) {
   if (flags.Has("in")) {
     if (flags.Has("reenactment")) {
       return absl::InvalidArgumentError("give either --in FILE or --reenactment ID, not both");
     }
-    return ReadReenactmentFile(*flags.Get("in"), skip_keyframes);
+    return ReadReenactment(*flags.Get("in"), skip_keyframes);
   }
   if (!flags.Has("reenactment")) {
     return absl::InvalidArgumentError("--reenactment ID (with --server) or --in FILE is required");
@@ -64,7 +64,7 @@ int ReportLoadError(const absl::Status& status, std::ostream& err) {
 
 // `reenact render`: reenact-viewer's headless renderer (PNGs only, numbered
 // by instant, over black).
-absl::StatusOr<int> RenderFrames(const ReenactmentData& data, const Flags& flags,
+absl::StatusOr<int> RenderFrames(const Reenactment& data, const Flags& flags,
                                  view::TextureMode mode, ProgressBar* bar) {
   viewer::HeadlessOptions options;
   ASSIGN_OR_RETURN(options.width, flags.GetInt("width", 960));
@@ -90,28 +90,28 @@ absl::StatusOr<int> RenderFrames(const ReenactmentData& data, const Flags& flags
 
 // The take to evaluate against: --take FILE, else downloaded from the server
 // by the reenactment's take id into a temporary file (removed by the caller).
-absl::StatusOr<std::string> TakePath(const Flags& flags, const ReenactmentData& data,
-                                     bool* temporary, ProgressBar* bar) {
+absl::StatusOr<std::string> TakePath(const Flags& flags, const Reenactment& data, bool* temporary,
+                                     ProgressBar* bar) {
   *temporary = false;
   if (flags.Has("take")) return *flags.Get("take");
-  if (data.info.take_id().empty()) {
+  if (data.info.take_id.empty()) {
     return absl::InvalidArgumentError("the reenactment names no take; pass --take FILE");
   }
   ASSIGN_OR_RETURN(client::ConnectionOptions connection,
                    ConnectionFromFlags(flags, "server", kDefaultServer, 60.0));
   const std::string path =
       (std::filesystem::temp_directory_path() /
-       absl::StrCat("reenact_eval_", data.info.take_id(), "_", ::getpid(), ".mcap"))
+       absl::StrCat("reenact_eval_", data.info.take_id, "_", ::getpid(), ".mcap"))
           .string();
   *temporary = true;
   RETURN_IF_ERROR(
       client::TakesClient(connection)
-          .Download(data.info.take_id(), path, [bar](const Progress& p) { return bar->Update(p); })
+          .Download(data.info.take_id, path, [bar](const Progress& p) { return bar->Update(p); })
           .status());
   return path;
 }
 
-void PrintFigures(const view::EvaluationResult& result, const ReenactmentData& data, bool json,
+void PrintFigures(const view::EvaluationResult& result, const Reenactment& data, bool json,
                   std::ostream& out) {
   if (json) {
     nlohmann::json j;
@@ -122,14 +122,14 @@ void PrintFigures(const view::EvaluationResult& result, const ReenactmentData& d
         j[name] = nullptr;
       }
     }
-    j["reenactment_id"] = data.info.reenactment_id();
-    j["take_id"] = data.info.take_id();
-    j["method"] = data.info.method();
+    j["reenactment_id"] = data.info.reenactment_id;
+    j["take_id"] = data.info.take_id;
+    j["method"] = data.info.method;
     out << j.dump(2) << "\n";
     return;
   }
-  out << "reenactment " << data.info.reenactment_id() << " (" << data.info.method() << ") vs take "
-      << data.info.take_id() << ", " << result.frames_evaluated << " frames\n";
+  out << "reenactment " << data.info.reenactment_id << " (" << data.info.method << ") vs take "
+      << data.info.take_id << ", " << result.frames_evaluated << " frames\n";
   out << absl::StrFormat("  surface_mm          %8.2f  (accuracy %.2f, completeness %.2f)\n",
                          result.surface_mm, result.surface_accuracy_mm,
                          result.surface_completeness_mm)

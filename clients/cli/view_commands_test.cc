@@ -11,7 +11,7 @@
 #include "clients/cli/commands.h"
 #include "clients/view/truth_reenactment.h"
 #include "common/body/procedural_body.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/testing/test_data.h"
 
@@ -49,7 +49,7 @@ const Files& SharedFiles() {
       ADD_FAILURE() << truth.status();
       return f;
     }
-    const absl::Status written = WriteReenactmentFile(*truth, f->reenactment);
+    const absl::Status written = WriteReenactment(*truth, f->reenactment);
     if (!written.ok()) ADD_FAILURE() << written;
     auto body_truth = view::testing::MakeTruthBodyReenactment(**take, *model);
     if (!body_truth.ok()) {
@@ -57,7 +57,7 @@ const Files& SharedFiles() {
       return f;
     }
     f->body_reenactment = f->dir + "/truth_body.reen";
-    const absl::Status body_written = WriteReenactmentFile(*body_truth, f->body_reenactment);
+    const absl::Status body_written = WriteReenactment(*body_truth, f->body_reenactment);
     if (!body_written.ok()) ADD_FAILURE() << body_written;
     return f;
   }();

@@ -212,7 +212,7 @@ Eigen::Vector3d TeacherAnchor(const std::vector<body::SkeletonPose>& teacher,
 
 class MirrorLoop {
  public:
-  MirrorLoop(const ReenactmentData& data, LearnerSource& learner, const MirrorAppOptions& options,
+  MirrorLoop(const Reenactment& data, LearnerSource& learner, const MirrorAppOptions& options,
              const MirrorFrameObserver& observer)
       : data_(data), learner_(learner), options_(options), observer_(observer) {}
 
@@ -230,7 +230,7 @@ class MirrorLoop {
   void Pace(int64_t stamp_ns) const;
   absl::Status Finish();
 
-  const ReenactmentData& data_;
+  const Reenactment& data_;
   LearnerSource& learner_;
   MirrorAppOptions options_;
   MirrorFrameObserver observer_;
@@ -253,14 +253,14 @@ class MirrorLoop {
 
 absl::Status MirrorLoop::Init() {
   RETURN_IF_ERROR(options_.Validate());
-  if (!(data_.info.fps() > 0.0)) {
-    return absl::FailedPreconditionError(absl::StrCat("reenactment ", data_.info.reenactment_id(),
+  if (!(data_.info.fps > 0.0)) {
+    return absl::FailedPreconditionError(absl::StrCat("reenactment ", data_.info.reenactment_id,
                                                       " has no frame rate (ReenactmentInfo.fps)"));
   }
   ASSIGN_OR_RETURN(std::vector<body::SkeletonPose> teacher, TeacherSkeletons(data_));
   options_.session.up_in_sensor = learner_.sensor().up_in_color;
   ASSIGN_OR_RETURN(MirrorSession session,
-                   MirrorSession::Create(teacher, data_.info.fps(), options_.session));
+                   MirrorSession::Create(teacher, data_.info.fps, options_.session));
   session_.emplace(std::move(session));
   teacher_anchor_in_world_ = TeacherAnchor(teacher, session_->teacher_facing());
   const PanelRect panel = TeacherPanel(options_.composition);
@@ -455,8 +455,7 @@ absl::Status MirrorAppOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<MirrorAppSummary> RunMirrorApp(const ReenactmentData& teacher,
-                                              LearnerSource& learner,
+absl::StatusOr<MirrorAppSummary> RunMirrorApp(const Reenactment& teacher, LearnerSource& learner,
                                               const MirrorAppOptions& options,
                                               const MirrorFrameObserver& observer) {
   MirrorLoop loop(teacher, learner, options, observer);

@@ -23,7 +23,7 @@
 #include "clients/mirror/mirror_compose.h"
 #include "clients/mirror/mirror_session.h"
 #include "clients/mirror/teacher_view.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::mirror {
 
@@ -110,8 +110,7 @@ using MirrorFrameObserver = std::function<void(const ObservedFrame&)>;
 // error; PermissionDenied for an unwritable folder. A failed MP4 does not
 // fail the run (mp4_problem says why); neither do failed report files
 // (report_problems).
-absl::StatusOr<MirrorAppSummary> RunMirrorApp(const ReenactmentData& teacher,
-                                              LearnerSource& learner,
+absl::StatusOr<MirrorAppSummary> RunMirrorApp(const Reenactment& teacher, LearnerSource& learner,
                                               const MirrorAppOptions& options,
                                               const MirrorFrameObserver& observer = {});
 

@@ -308,7 +308,7 @@ void ExpectTeacherOnLearner(const std::string& learner_take, MirrorLayout layout
                             const std::string& name) {
   const std::string teacher_path = TeacherReen();
   ASSERT_FALSE(teacher_path.empty() || learner_take.empty());
-  auto teacher = ReadReenactmentFile(teacher_path);
+  auto teacher = ReadReenactment(teacher_path);
   ASSERT_TRUE(teacher.ok()) << teacher.status();
   auto learner = OpenTakeLearner(learner_take);
   ASSERT_TRUE(learner.ok()) << learner.status();
@@ -389,11 +389,11 @@ TEST(ReenactMirror, TeacherWithoutSkeletonFails) {
   const std::string teacher = TeacherReen();
   const std::string learner = LearnerTake(1.0, 0.0);
   ASSERT_FALSE(teacher.empty() || learner.empty());
-  auto data = ReadReenactmentFile(teacher);
+  auto data = ReadReenactment(teacher);
   ASSERT_TRUE(data.ok());
-  for (v1::PartFrame& frame : data->frames) frame.clear_joints_in_world_m();
+  for (ReenactmentFrame& frame : data->frames) frame.joints_in_world_m.clear();
   const std::string path = TestDir() + "/no_skeleton.reen";
-  ASSERT_TRUE(WriteReenactmentFile(*data, path).ok());
+  ASSERT_TRUE(WriteReenactment(*data, path).ok());
   CliResult run = RunCli({"--teacher-file", path, "--learner-take", learner, "--render-to",
                           TestDir() + "/no_skeleton"});
   EXPECT_EQ(run.code, 1);

@@ -144,7 +144,7 @@ absl::StatusOr<MirrorAppOptions> OptionsFromFlags(const Flags& flags) {
   return options;
 }
 
-absl::StatusOr<ReenactmentData> LoadTeacher(const Flags& flags, std::ostream& err) {
+absl::StatusOr<Reenactment> LoadTeacher(const Flags& flags, std::ostream& err) {
   std::unique_ptr<client::ReenactmentSource> source;
   if (flags.Has("teacher-file")) {
     ASSIGN_OR_RETURN(source, client::OpenReenactmentSource(*flags.Get("teacher-file")));
@@ -308,7 +308,7 @@ int RunMirror(const std::vector<std::string>& args, std::ostream& out, std::ostr
   if (absl::Status sources = CheckSources(*flags); !sources.ok()) return UsageError(sources, err);
   absl::StatusOr<MirrorAppOptions> options = OptionsFromFlags(*flags);
   if (!options.ok()) return UsageError(options.status(), err);
-  absl::StatusOr<ReenactmentData> teacher = LoadTeacher(*flags, err);
+  absl::StatusOr<Reenactment> teacher = LoadTeacher(*flags, err);
   if (!teacher.ok()) return Failure(teacher.status(), err);
   absl::StatusOr<std::unique_ptr<LearnerSource>> learner = OpenLearner(*flags);
   if (!learner.ok()) return Failure(learner.status(), err);
@@ -317,7 +317,7 @@ int RunMirror(const std::vector<std::string>& args, std::ostream& out, std::ostr
   if (!summary.ok()) return Failure(summary.status(), err);
   PrintSummary(*summary, err);
   if (flags->Has("json")) {
-    out << SummaryJson(*summary, teacher->info.reenactment_id(), (*learner)->Describe()).dump()
+    out << SummaryJson(*summary, teacher->info.reenactment_id, (*learner)->Describe()).dump()
         << "\n";
   }
   return kExitOk;

@@ -2,20 +2,19 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
-#include "common/io/proto_convert.h"
 
 namespace reenact::mirror {
 
-absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletons(const ReenactmentData& data) {
+absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletons(const Reenactment& data) {
   std::vector<body::SkeletonPose> poses;
   poses.reserve(data.frames.size());
   int joints = 0;
-  for (const v1::PartFrame& frame : data.frames) {
+  for (const ReenactmentFrame& frame : data.frames) {
     body::SkeletonPose pose;
     for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
       pose.position_m[j] = Eigen::Vector3d::Zero();
-      if (j >= frame.joints_in_world_m_size()) continue;
-      const Eigen::Vector3d p = FromProto(frame.joints_in_world_m(j));
+      if (j >= static_cast<int>(frame.joints_in_world_m.size())) continue;
+      const Eigen::Vector3d& p = frame.joints_in_world_m[j];
       if (!p.allFinite()) continue;
       pose.position_m[j] = p;
       pose.valid[j] = true;
@@ -25,11 +24,11 @@ absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletons(const Reenactme
   }
   if (poses.empty()) {
     return absl::FailedPreconditionError(
-        absl::StrCat("reenactment ", data.info.reenactment_id(), " has no instant"));
+        absl::StrCat("reenactment ", data.info.reenactment_id, " has no instant"));
   }
   if (joints == 0) {
     return absl::FailedPreconditionError(
-        absl::StrCat("reenactment ", data.info.reenactment_id(),
+        absl::StrCat("reenactment ", data.info.reenactment_id,
                      " carries no skeleton (joints_in_world_m) to compare the learner with"));
   }
   return poses;
@@ -52,8 +51,7 @@ Eigen::Isometry3d AnchoredVirtualCamera(const Eigen::Isometry3d& world_from_virt
 }
 
 absl::StatusOr<std::unique_ptr<TeacherRenderer>> TeacherRenderer::Create(
-    const ReenactmentData& data, int max_width, int max_height,
-    const TeacherRendererOptions& options) {
+    const Reenactment& data, int max_width, int max_height, const TeacherRendererOptions& options) {
   std::unique_ptr<TeacherRenderer> teacher(new TeacherRenderer(data));
   render::RendererOptions renderer_options;
   renderer_options.max_width = max_width;
@@ -78,7 +76,7 @@ absl::Status TeacherRenderer::Render(int index, const render::RenderCamera& came
   }
   render::RenderOutputs out;
   out.requested = render::kRenderColour | render::kRenderLabel;
-  RETURN_IF_ERROR(view_->Render(data_.frames[index].frame_index(), camera, &out));
+  RETURN_IF_ERROR(view_->Render(data_.frames[index].frame_index, camera, &out));
   *colour = std::move(out.colour);
   *label = std::move(out.label);
   return absl::OkStatus();

@@ -24,7 +24,7 @@
 #include "clients/view/reenactment_renderer.h"
 #include "common/base/image.h"
 #include "common/body/joint_set.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact::mirror {
@@ -33,7 +33,7 @@ namespace reenact::mirror {
 // PartFrame.joints_in_world_m in Kinect v2 order; a missing or non-finite
 // joint is invalid. FailedPrecondition when the reenactment has no instant
 // or no instant has a joint (it carries no skeleton to compare with).
-absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletons(const ReenactmentData& data);
+absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletons(const Reenactment& data);
 
 // world_from_camera of the render camera: T^-1 V (see the top).
 Eigen::Isometry3d TeacherRenderPose(const Eigen::Isometry3d& world_from_virtual_camera,
@@ -63,7 +63,7 @@ class TeacherRenderer {
   // `data` must outlive the renderer. Unavailable without an EGL/GL 3.3
   // context; InvalidArgument for a reenactment the renderer cannot draw.
   static absl::StatusOr<std::unique_ptr<TeacherRenderer>> Create(
-      const ReenactmentData& data, int max_width, int max_height,
+      const Reenactment& data, int max_width, int max_height,
       const TeacherRendererOptions& options = {});
 
   // Draws teacher instant `index` (into data.frames) seen by `camera`:
@@ -75,8 +75,8 @@ class TeacherRenderer {
   std::string Description() const { return renderer_->Description(); }
 
  private:
-  explicit TeacherRenderer(const ReenactmentData& data) : data_(data) {}
-  const ReenactmentData& data_;
+  explicit TeacherRenderer(const Reenactment& data) : data_(data) {}
+  const Reenactment& data_;
   std::unique_ptr<render::OffscreenRenderer> renderer_;
   std::unique_ptr<view::ReenactmentRenderer> view_;
 };

@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "clients/sdk/reenactments_client.h"
 #include "common/base/status_macros.h"
+#include "common/io/reenactment_convert.h"
 
 namespace reenact::client {
 namespace {
@@ -49,19 +50,17 @@ class LocalSource final : public ReenactmentSource {
     return out;
   }
 
-  absl::StatusOr<ReenactmentData> Load(const std::string& reenactment_id, bool skip_keyframes,
-                                       const ProgressCallback& progress) const override {
+  absl::StatusOr<Reenactment> Load(const std::string& reenactment_id, bool skip_keyframes,
+                                   const ProgressCallback& progress) const override {
     ASSIGN_OR_RETURN(const std::vector<std::string> files, Files());
     // The file named after the id first, then any file holding it.
     for (const std::string& file : files) {
-      if (fs::path(file).stem() == reenactment_id) {
-        return ReadReenactmentFile(file, skip_keyframes);
-      }
+      if (fs::path(file).stem() == reenactment_id) return ReadReenactment(file, skip_keyframes);
     }
     for (const std::string& file : files) {
       absl::StatusOr<ReenactmentData> data = ReadReenactmentFile(file, /*skip_keyframes=*/true);
       if (data.ok() && data->info.reenactment_id() == reenactment_id) {
-        return ReadReenactmentFile(file, skip_keyframes);
+        return ReadReenactment(file, skip_keyframes);
       }
     }
     return absl::NotFoundError(absl::StrCat("no reenactment ", reenactment_id, " in ", Describe()));
@@ -102,27 +101,27 @@ class RemoteSource final : public ReenactmentSource {
     return client_.List();
   }
 
-  absl::StatusOr<ReenactmentData> Load(const std::string& reenactment_id, bool skip_keyframes,
-                                       const ProgressCallback& progress) const override {
+  absl::StatusOr<Reenactment> Load(const std::string& reenactment_id, bool skip_keyframes,
+                                   const ProgressCallback& progress) const override {
     ASSIGN_OR_RETURN(const v1::ReenactmentSummary summary, client_.Get(reenactment_id));
     const std::string cached = CachePath(reenactment_id);
     if (!cached.empty()) {
       // A cached copy serves when it is the same reenactment and has what
       // was asked for (keyframes, unless skipped).
-      absl::StatusOr<ReenactmentData> data = ReadReenactmentFile(cached, skip_keyframes);
-      if (data.ok() && data->info.created_unix_ns() == summary.info().created_unix_ns() &&
+      absl::StatusOr<Reenactment> data = ReadReenactment(cached, skip_keyframes);
+      if (data.ok() && data->info.created_unix_ns == summary.info().created_unix_ns() &&
           (skip_keyframes ||
            static_cast<int>(data->keyframes.size()) == summary.keyframe_count())) {
         return data;
       }
     }
-    ASSIGN_OR_RETURN(ReenactmentData data, client_.Fetch(reenactment_id, skip_keyframes, progress));
+    ASSIGN_OR_RETURN(Reenactment data, client_.Fetch(reenactment_id, skip_keyframes, progress));
     if (!cached.empty() && (!skip_keyframes || summary.keyframe_count() == 0)) {
       // Only whole reenactments are cached; a failed write costs the cache
-      // only (WriteReenactmentFile leaves no partial file).
+      // only (WriteReenactment leaves no partial file).
       std::error_code ec;
       fs::create_directories(options_.cache_dir, ec);
-      (void)WriteReenactmentFile(data, cached);
+      (void)WriteReenactment(data, cached);
     }
     return data;
   }

@@ -19,7 +19,7 @@
 #include "absl/status/statusor.h"
 #include "clients/sdk/takes_client.h"
 #include "common/base/progress.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "reenact/v1/reenactments_service.pb.h"
 
 namespace reenact::client {
@@ -33,9 +33,9 @@ class ReenactmentSource {
   // One reenactment, whole and validated. `skip_keyframes` may leave the
   // texture keyframes out (rigid reenactments drawn with baked textures).
   // NotFound for an unknown id.
-  virtual absl::StatusOr<ReenactmentData> Load(const std::string& reenactment_id,
-                                               bool skip_keyframes = false,
-                                               const ProgressCallback& progress = {}) const = 0;
+  virtual absl::StatusOr<Reenactment> Load(const std::string& reenactment_id,
+                                           bool skip_keyframes = false,
+                                           const ProgressCallback& progress = {}) const = 0;
   // E.g. "server 127.0.0.1:50051 (cache /home/u/.cache/reenact)" or
   // "folder /data/reenactments", for messages.
   virtual std::string Describe() const = 0;

@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "clients/sdk/call_util.h"
 #include "common/base/status_macros.h"
+#include "common/io/reenactment_convert.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
@@ -112,9 +113,9 @@ absl::StatusOr<v1::ReenactmentSummary> ReenactmentsClient::Get(
   return response;
 }
 
-absl::StatusOr<ReenactmentData> ReenactmentsClient::Fetch(const std::string& reenactment_id,
-                                                          bool skip_keyframes,
-                                                          const ProgressCallback& progress) const {
+absl::StatusOr<Reenactment> ReenactmentsClient::Fetch(const std::string& reenactment_id,
+                                                      bool skip_keyframes,
+                                                      const ProgressCallback& progress) const {
   int64_t total = 0;
   if (progress) {
     // The counts make the progress exact.
@@ -150,12 +151,13 @@ absl::StatusOr<ReenactmentData> ReenactmentsClient::Fetch(const std::string& ree
   const grpc::Status status = reader->Finish();
   if (!failure.ok()) return WithAddress(failure, options_.address);
   if (!status.ok()) return WithAddress(status, options_.address);
-  if (const absl::Status valid = ValidateReenactment(data); !valid.ok()) {
+  absl::StatusOr<Reenactment> converted = ReenactmentFromProto(data);
+  if (!converted.ok()) {
     return absl::DataLossError(
         absl::StrCat(options_.address, ": reenactment ", reenactment_id,
-                     " arrived incomplete or inconsistent: ", std::string(valid.message())));
+                     " arrived incomplete or inconsistent: ", converted.status().message()));
   }
-  return data;
+  return converted;
 }
 
 absl::StatusOr<v1::BodyMesh> ReenactmentsClient::FetchBodyMesh(

@@ -17,6 +17,7 @@
 #include "clients/sdk/takes_client.h"
 #include "common/base/progress.h"
 #include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 
 namespace reenact::client {
@@ -36,15 +37,14 @@ class ReenactmentsClient {
                                                            int page_size = 0) const;
   // NotFound for an unknown id.
   absl::StatusOr<v1::ReenactmentSummary> Get(const std::string& reenactment_id) const;
-  // The whole reenactment, reassembled from the stream and checked with
-  // ValidateReenactment; `skip_keyframes` leaves the texture keyframes on
+  // The whole reenactment, reassembled from the stream, checked and
+  // converted (ReenactmentFromProto); `skip_keyframes` leaves the texture keyframes on
   // the server (most of the bytes). `progress` sees the parts, frames and
   // keyframes arrive (items: messages' parts + frames + keyframes); returning
   // false cancels (Cancelled). DataLoss when the stream is out of order or
   // what arrived is not a valid reenactment.
-  absl::StatusOr<ReenactmentData> Fetch(const std::string& reenactment_id,
-                                        bool skip_keyframes = false,
-                                        const ProgressCallback& progress = {}) const;
+  absl::StatusOr<Reenactment> Fetch(const std::string& reenactment_id, bool skip_keyframes = false,
+                                    const ProgressCallback& progress = {}) const;
   // The BodyMesh of a body-model reenactment: the start of Fetch's stream
   // (info, then the body mesh), cancelled once the mesh has arrived, so the
   // frames stay on the server. NotFound for an unknown id;

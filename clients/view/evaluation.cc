@@ -16,8 +16,8 @@
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
 #include "common/geometry/surface_distance.h"
-#include "common/io/body_reenactment.h"
 #include "common/io/proto_convert.h"
+#include "common/io/reenactment_convert.h"
 #include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
 
@@ -101,7 +101,7 @@ void PosedParts(const VdtmModel& model, int frame, Eigen::Matrix3Xd* vertices,
   int offset = 0;
   for (int b = 0; b < model.num_parts(); ++b) {
     if (!model.pose(frame, b).valid) continue;
-    const PartGeometry& part = model.part(b);
+    const PartMesh& part = model.part(b);
     const Eigen::Affine3d world_from_part = model.pose(frame, b).WorldFromPartScaled();
     const int n = static_cast<int>(part.positions_in_part_m.cols());
     vertices->middleCols(offset, n) = world_from_part * part.positions_in_part_m.cast<double>();
@@ -115,11 +115,11 @@ void PosedParts(const VdtmModel& model, int frame, Eigen::Matrix3Xd* vertices,
 // The reconstructed surface at `frame` of a body-model reenactment: the
 // posed body mesh (skinning plus the frame's offsets), triangles over the
 // model vertices; nothing when the pose is not valid.
-absl::Status PosedBody(const DecodedBodyMesh& body, const v1::BodyPose& pose,
+absl::Status PosedBody(const BodyMesh& body, const std::optional<BodyFramePose>& pose,
                        Eigen::Matrix3Xd* vertices, std::vector<Eigen::Vector3i>* triangles) {
   triangles->clear();
-  if (!pose.valid()) return absl::OkStatus();
-  ASSIGN_OR_RETURN(body::PosedBody posed, PoseBodyMesh(body, pose));
+  if (!pose || !pose->valid) return absl::OkStatus();
+  ASSIGN_OR_RETURN(body::PosedBody posed, PoseBodyMesh(body, *pose));
   *vertices = std::move(posed.vertices_m);
   *triangles = body.triangles;
   return absl::OkStatus();
@@ -166,9 +166,11 @@ absl::StatusOr<RgbImage> DecodePng(const std::string& bytes) {
 // the colour error and silhouette overlap.
 class NovelViewScorer {
  public:
-  static absl::StatusOr<std::unique_ptr<NovelViewScorer>> Create(
-      const ReenactmentData& data, const GroundTruth& truth, const v1::SensorCalibration& sensor,
-      const Eigen::Vector3d& pivot, const EvaluationOptions& options) {
+  static absl::StatusOr<std::unique_ptr<NovelViewScorer>> Create(const Reenactment& data,
+                                                                 const GroundTruth& truth,
+                                                                 const SensorCalibration& sensor,
+                                                                 const Eigen::Vector3d& pivot,
+                                                                 const EvaluationOptions& options) {
     auto scorer = std::unique_ptr<NovelViewScorer>(new NovelViewScorer(options));
     render::RendererOptions renderer_options;
     renderer_options.max_width = options.novel_width;
@@ -310,10 +312,9 @@ class NovelViewScorer {
 };
 
 // Sensor 0 of the reenactment (else the take's first sensor).
-absl::StatusOr<v1::SensorCalibration> FirstSensor(const ReenactmentData& data,
-                                                  const TakeReader& take) {
-  if (data.info.sensors_size() > 0) return data.info.sensors(0);
-  if (!take.sensors().empty()) return take.sensors().begin()->second;
+absl::StatusOr<SensorCalibration> FirstSensor(const Reenactment& data, const TakeReader& take) {
+  if (!data.info.sensors.empty()) return data.info.sensors.front();
+  if (!take.sensors().empty()) return SensorCalibrationFromProto(take.sensors().begin()->second);
   return absl::FailedPreconditionError("neither the reenactment nor the take has a sensor");
 }
 
@@ -398,16 +399,12 @@ double PsnrDb(double sum_squared_error, int64_t count) {
   return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
-absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data,
+absl::StatusOr<EvaluationResult> EvaluateReenactment(const Reenactment& data,
                                                      const TakeReader& take,
                                                      const EvaluationOptions& options,
                                                      const ProgressCallback& progress) {
   RETURN_IF_ERROR(options.Validate());
   ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
-  std::optional<DecodedBodyMesh> body;
-  if (data.is_body()) {
-    ASSIGN_OR_RETURN(body, DecodeBodyMesh(data.body.front()));
-  }
   std::set<int64_t> wanted;
   for (int f = 0; f < model.num_frames(); f += options.every) wanted.insert(f);
   const bool need_mesh = options.surface || options.novel_view;
@@ -428,7 +425,7 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data
     Eigen::Vector3d pivot = Eigen::Vector3d::Zero();  // Mean true root (SpineBase).
     for (int f : frames) pivot += truth.joints[f][0];
     pivot /= static_cast<double>(frames.size());
-    ASSIGN_OR_RETURN(v1::SensorCalibration sensor, FirstSensor(data, take));
+    ASSIGN_OR_RETURN(SensorCalibration sensor, FirstSensor(data, take));
     ASSIGN_OR_RETURN(scorer, NovelViewScorer::Create(data, truth, sensor, pivot, options));
   }
   SurfaceSums surface;
@@ -438,8 +435,8 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data
     if (options.surface) {
       Eigen::Matrix3Xd recon;
       std::vector<Eigen::Vector3i> recon_triangles;
-      if (body.has_value()) {
-        RETURN_IF_ERROR(PosedBody(*body, data.frames[f].body(), &recon, &recon_triangles));
+      if (data.is_body()) {
+        RETURN_IF_ERROR(PosedBody(*data.body, data.frames[f].body, &recon, &recon_triangles));
       } else {
         PosedParts(model, f, &recon, &recon_triangles);
       }

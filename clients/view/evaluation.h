@@ -114,7 +114,7 @@ struct EvaluationResult {
 // instant is shared; InvalidArgument for bad options or a reenactment that
 // does not validate; Unavailable when no GL context can be had for the
 // novel view; Cancelled when `progress` returns false.
-absl::StatusOr<EvaluationResult> EvaluateReenactment(const ReenactmentData& data,
+absl::StatusOr<EvaluationResult> EvaluateReenactment(const Reenactment& data,
                                                      const TakeReader& take,
                                                      const EvaluationOptions& options = {},
                                                      const ProgressCallback& progress = {});

@@ -18,8 +18,8 @@ namespace {
 struct SharedTake {
   std::unique_ptr<TakeReader> reader;
   body::BodyModel model;
-  ReenactmentData truth;       // The hand-made reenactment from the ground truth.
-  ReenactmentData body_truth;  // The same as a body-model reenactment.
+  Reenactment truth;       // The hand-made reenactment from the ground truth.
+  Reenactment body_truth;  // The same as a body-model reenactment.
 };
 
 // A short two-sensor synthetic take (an arm raise, 0.5 s at 30 fps, colour
@@ -99,10 +99,10 @@ TEST(EvaluateReenactment, TruthReenactmentScoresWellAndAPerturbedOneWorse) {
   EXPECT_GT(truth->iou_90, 0.97);
   EXPECT_LT(truth->mpjpe_mm, 1e-3);
 
-  ReenactmentData perturbed = take.truth;
+  Reenactment perturbed = take.truth;
   testing::PerturbPoses(&perturbed, Eigen::Vector3d(0.03, 0.0, 0.02), 8.0);
-  for (v1::PartFrame& frame : perturbed.frames) {
-    for (v1::Vector3& joint : *frame.mutable_joints_in_world_m()) joint.set_x(joint.x() + 0.03);
+  for (ReenactmentFrame& frame : perturbed.frames) {
+    for (Eigen::Vector3d& joint : frame.joints_in_world_m) joint.x() += 0.03;
   }
   auto worse = EvaluateReenactment(perturbed, *take.reader, options);
   ASSERT_TRUE(worse.ok()) << worse.status();
@@ -139,11 +139,11 @@ TEST(EvaluateReenactment, TruthBodyReenactmentIsTheTruthAndAMovedOneIsNot) {
   // The atlas is the truth's albedo drawn unlit; the truth is lit.
   EXPECT_GT(truth->psnr_pixels, 1000);
 
-  ReenactmentData moved = take.body_truth;
-  for (v1::PartFrame& frame : moved.frames) {
-    v1::Vector3* t = frame.mutable_body()->mutable_root_translation_m();
-    t->set_x(t->x() + 0.03);
-    t->set_z(t->z() + 0.02);
+  Reenactment moved = take.body_truth;
+  for (ReenactmentFrame& frame : moved.frames) {
+    Eigen::Vector3d& t = frame.body->pose.root_translation_m;
+    t.x() += 0.03;
+    t.z() += 0.02;
   }
   auto worse = EvaluateReenactment(moved, *take.reader, options);
   ASSERT_TRUE(worse.ok()) << worse.status();
@@ -181,8 +181,8 @@ TEST(EvaluateReenactment, FromSensor0sOwnViewTheTruthReenactmentMatchesTheTruth)
   }
   // The same by Eq. 3.6 (rigid-cylinders): the pose-closest keyframe from
   // sensor 0's place is the instant's own image.
-  ReenactmentData cylinders = take.truth;
-  cylinders.info.set_method("rigid-cylinders");
+  Reenactment cylinders = take.truth;
+  cylinders.info.method = "rigid-cylinders";
   options.image_dir.clear();
   auto by_pose = EvaluateReenactment(cylinders, *take.reader, options);
   ASSERT_TRUE(by_pose.ok()) << by_pose.status();

@@ -8,10 +8,8 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/geometry/camera.h"
-#include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
-#include "common/io/proto_convert.h"
 #include "common/render/intrinsics_camera.h"
 #include "common/render/mesh_data.h"
 
@@ -53,19 +51,19 @@ void BleedColours(render::RgbaImage* image, int rings) {
 
 // The keyframe's crop with its actor mask as alpha (the mask resampled to the
 // crop image's size when they differ; no mask: all opaque).
-absl::StatusOr<render::RgbaImage> DecodeKeyframe(const v1::TextureKeyframe& keyframe) {
-  auto colour = DecodeJpeg(keyframe.color_jpeg());
+absl::StatusOr<render::RgbaImage> DecodeKeyframe(const TextureKeyframe& keyframe) {
+  auto colour = DecodeJpeg(keyframe.color_jpeg);
   if (!colour.ok()) {
-    return absl::DataLossError(absl::StrCat("keyframe of frame ", keyframe.frame_index(),
-                                            ", sensor ", keyframe.sensor_id(),
+    return absl::DataLossError(absl::StrCat("keyframe of frame ", keyframe.frame_index, ", sensor ",
+                                            keyframe.sensor_id,
                                             ": colour: ", colour.status().message()));
   }
   MaskImage mask;
-  if (!keyframe.mask_rle().empty()) {
-    auto decoded = DecodeMaskRle(keyframe.mask_rle());
+  if (!keyframe.mask_rle.empty()) {
+    auto decoded = DecodeMaskRle(keyframe.mask_rle);
     if (!decoded.ok()) {
-      return absl::DataLossError(absl::StrCat("keyframe of frame ", keyframe.frame_index(),
-                                              ", sensor ", keyframe.sensor_id(),
+      return absl::DataLossError(absl::StrCat("keyframe of frame ", keyframe.frame_index,
+                                              ", sensor ", keyframe.sensor_id,
                                               ": mask: ", decoded.status().message()));
     }
     mask = std::move(*decoded);
@@ -101,7 +99,6 @@ struct ReenactmentRenderer::Group {
 };
 
 struct ReenactmentRenderer::Body {
-  DecodedBodyMesh mesh;
   bool uploaded = false;    // Upload tried (mesh and atlas).
   render::MeshId gpu_mesh;  // Over the texture vertices; positions per frame.
   render::TextureId atlas;  // Invalid: no atlas (lit flat colour).
@@ -125,21 +122,18 @@ absl::Status ReenactmentRendererOptions::Validate() const {
 }
 
 absl::StatusOr<std::unique_ptr<ReenactmentRenderer>> ReenactmentRenderer::Create(
-    const ReenactmentData& data, render::OffscreenRenderer* renderer,
+    const Reenactment& data, render::OffscreenRenderer* renderer,
     const ReenactmentRendererOptions& options) {
   if (renderer == nullptr) return absl::InvalidArgumentError("ReenactmentRenderer: no renderer");
   RETURN_IF_ERROR(options.Validate());
   ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
   std::unique_ptr<Body> body;
-  if (data.is_body()) {
-    body = std::make_unique<Body>();
-    ASSIGN_OR_RETURN(body->mesh, DecodeBodyMesh(data.body.front()));
-  }
+  if (data.is_body()) body = std::make_unique<Body>();
   return std::unique_ptr<ReenactmentRenderer>(
       new ReenactmentRenderer(data, renderer, options, std::move(model), std::move(body)));
 }
 
-ReenactmentRenderer::ReenactmentRenderer(const ReenactmentData& data,
+ReenactmentRenderer::ReenactmentRenderer(const Reenactment& data,
                                          render::OffscreenRenderer* renderer,
                                          const ReenactmentRendererOptions& options, VdtmModel model,
                                          std::unique_ptr<Body> body)
@@ -190,11 +184,9 @@ absl::StatusOr<const ReenactmentRenderer::CachedTexture*> ReenactmentRenderer::K
 absl::StatusOr<render::TextureId> ReenactmentRenderer::BakedTexture(int part) {
   if (baked_tried_[part]) return baked_[part];
   baked_tried_[part] = true;
-  const v1::PartMesh& mesh = data_.parts[part];
-  if (mesh.baked_texture_jpeg().empty() || model_.part(part).uvs.cols() == 0) {
-    return render::TextureId();
-  }
-  auto image = DecodeJpeg(mesh.baked_texture_jpeg());
+  const PartMesh& mesh = data_.parts[part];
+  if (mesh.baked_texture_jpeg.empty() || mesh.uvs.cols() == 0) return render::TextureId();
+  auto image = DecodeJpeg(mesh.baked_texture_jpeg);
   if (!image.ok()) {
     return absl::DataLossError(
         absl::StrCat("baked texture of part ", part, ": ", image.status().message()));
@@ -282,7 +274,7 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
 absl::Status ReenactmentRenderer::BuildBakedGroups(int frame, std::vector<Group>* groups,
                                                    FrameStats* stats) {
   for (int b = 0; b < model_.num_parts(); ++b) {
-    const PartGeometry& part = model_.part(b);
+    const PartMesh& part = model_.part(b);
     if (!model_.pose(frame, b).valid || part.triangles.empty()) continue;
     ++stats->parts_drawn;
     Group group;
@@ -298,7 +290,7 @@ absl::Status ReenactmentRenderer::BuildBakedGroups(int frame, std::vector<Group>
 
 absl::StatusOr<render::MeshData> ReenactmentRenderer::GroupMesh(int frame,
                                                                 const Group& group) const {
-  const PartGeometry& part = model_.part(group.part);
+  const PartMesh& part = model_.part(group.part);
   const double scale = model_.pose(frame, group.part).scale;
   std::vector<int> new_index(part.positions_in_part_m.cols(), -1);
   std::vector<int> used;
@@ -339,8 +331,8 @@ absl::StatusOr<render::MeshData> ReenactmentRenderer::GroupMesh(int frame,
 absl::Status ReenactmentRenderer::UploadBody(FrameStats* stats) {
   if (body_->uploaded) return absl::OkStatus();
   body_->uploaded = true;  // Once, whether or not the atlas decodes.
-  const DecodedBodyMesh& body = body_->mesh;
-  const std::string& jpeg = data_.body.front().atlas_jpeg();
+  const BodyMesh& body = *data_.body;
+  const std::string& jpeg = body.atlas_jpeg;
   absl::Status atlas_status;
   if (!jpeg.empty()) {
     auto image = DecodeJpeg(jpeg);
@@ -348,7 +340,7 @@ absl::Status ReenactmentRenderer::UploadBody(FrameStats* stats) {
       ASSIGN_OR_RETURN(body_->atlas, renderer_->UploadTexture(*image));
       ++stats->textures_uploaded;
     } else {
-      atlas_status = absl::DataLossError(absl::StrCat("body atlas of ", data_.info.reenactment_id(),
+      atlas_status = absl::DataLossError(absl::StrCat("body atlas of ", data_.info.reenactment_id,
                                                       ": ", image.status().message()));
     }
   }
@@ -376,10 +368,10 @@ absl::Status ReenactmentRenderer::UploadBody(FrameStats* stats) {
 absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCamera& camera,
                                              render::RenderOutputs* out, FrameStats* stats) {
   RETURN_IF_ERROR(UploadBody(stats));
-  const v1::BodyPose& pose = data_.frames[frame].body();
+  const std::optional<BodyFramePose>& pose = data_.frames[frame].body;
   std::vector<render::DrawItem> items;
-  if (pose.valid()) {
-    ASSIGN_OR_RETURN(const body::PosedBody posed, PoseBodyMesh(body_->mesh, pose));
+  if (pose && pose->valid) {
+    ASSIGN_OR_RETURN(const body::PosedBody posed, PoseBodyMesh(*data_.body, *pose));
     // Normals recomputed over the model's triangles, so seams do not show.
     RETURN_IF_ERROR(
         renderer_->UpdateMeshPositions(body_->gpu_mesh, posed.vertices_m.cast<float>()));
@@ -392,7 +384,7 @@ absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCame
     item.label = 1;
     items.push_back(item);
     stats->parts_drawn = 1;
-    stats->triangles = static_cast<int>(body_->mesh.texture_triangles.size());
+    stats->triangles = static_cast<int>(data_.body->texture_triangles.size());
   }
   stats->draw_items = static_cast<int>(items.size());
   return renderer_->Render(camera, items, out);
@@ -448,13 +440,12 @@ absl::Status ReenactmentRenderer::Render(int frame_index, const render::RenderCa
   return status;
 }
 
-absl::StatusOr<render::RenderCamera> SensorRenderCamera(const v1::SensorCalibration& calibration,
+absl::StatusOr<render::RenderCamera> SensorRenderCamera(const SensorCalibration& calibration,
                                                         int width, int height) {
-  ASSIGN_OR_RETURN(CameraIntrinsics full, FromProto(calibration.color_intrinsics()));
-  ASSIGN_OR_RETURN(CameraIntrinsics k, ScaledIntrinsics(full, width, height));
-  ASSIGN_OR_RETURN(Rigid3d color_from_depth, FromProto(calibration.color_from_depth()));
-  ASSIGN_OR_RETURN(Rigid3d world_from_depth, FromProto(calibration.world_from_depth()));
-  const Rigid3d world_from_color = world_from_depth * color_from_depth.Inverse();
+  RETURN_IF_ERROR(calibration.color_intrinsics.Validate());
+  ASSIGN_OR_RETURN(CameraIntrinsics k,
+                   ScaledIntrinsics(calibration.color_intrinsics, width, height));
+  const Rigid3d world_from_color = calibration.WorldFromColor();
   const render::RenderCamera camera = render::RenderCameraFromIntrinsics(
       k, Eigen::Isometry3d(world_from_color.ToMatrix4()), /*near_m=*/0.1, /*far_m=*/30.0);
   RETURN_IF_ERROR(camera.Validate());
@@ -472,21 +463,21 @@ render::RenderCamera OrbitCamera(const render::RenderCamera& camera,
   return turned;
 }
 
-absl::StatusOr<Eigen::Vector3d> MeanActorPosition(const ReenactmentData& data) {
+absl::StatusOr<Eigen::Vector3d> MeanActorPosition(const Reenactment& data) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   int count = 0;
-  for (const v1::PartFrame& frame : data.frames) {
-    if (frame.joints_in_world_m_size() != kNumSkeletonJoints) continue;
-    const Eigen::Vector3d root = FromProto(frame.joints_in_world_m(0));  // SpineBase.
+  for (const ReenactmentFrame& frame : data.frames) {
+    if (frame.joints_in_world_m.size() != kNumSkeletonJoints) continue;
+    const Eigen::Vector3d& root = frame.joints_in_world_m[0];  // SpineBase.
     if (!root.allFinite()) continue;
     sum += root;
     ++count;
   }
   if (count > 0) return Eigen::Vector3d(sum / count);
-  for (const v1::PartFrame& frame : data.frames) {
-    for (const v1::PartPose& pose : frame.parts()) {
-      if (!pose.valid()) continue;
-      sum += FromProto(pose.world_from_part().translation_m());
+  for (const ReenactmentFrame& frame : data.frames) {
+    for (const PartPose& pose : frame.parts) {
+      if (!pose.valid) continue;
+      sum += pose.world_from_part.translation();
       ++count;
     }
   }

@@ -23,7 +23,7 @@
 // once. Meshes are built per frame (only the triangles of each group) and
 // released after the draw.
 //
-// Body-model reenactments (ReenactmentData::is_body()) are one textured
+// Body-model reenactments (Reenactment::is_body()) are one textured
 // mesh in both texture modes: the frame's BodyPose is applied on the CPU
 // (PoseBodyMesh: skinning plus the frame's vertex offsets), the posed model
 // vertices are spread over the texture vertices (BodyMesh seams), normals
@@ -44,7 +44,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "clients/view/texture_selection.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "common/render/offscreen_renderer.h"
 #include "common/render/render_types.h"
 
@@ -91,7 +91,7 @@ struct FrameStats {
   int triangles_next_best = 0;
   int triangles_unseen = 0;
   // Per part: the best-ranked usable keyframe (index into
-  // ReenactmentData::keyframes), -1 where the part is hidden or has none.
+  // Reenactment::keyframes), -1 where the part is hidden or has none.
   std::vector<int> best_keyframe;
   // Keyframe textures decoded and uploaded during this call.
   int textures_uploaded = 0;
@@ -104,7 +104,7 @@ class ReenactmentRenderer {
   // reenactment that does not validate (a body mesh that does not decode
   // included) or bad options.
   static absl::StatusOr<std::unique_ptr<ReenactmentRenderer>> Create(
-      const ReenactmentData& data, render::OffscreenRenderer* renderer,
+      const Reenactment& data, render::OffscreenRenderer* renderer,
       const ReenactmentRendererOptions& options = {});
   ~ReenactmentRenderer();
   ReenactmentRenderer(const ReenactmentRenderer&) = delete;
@@ -135,7 +135,7 @@ class ReenactmentRenderer {
   // The decoded body mesh and its GPU mesh and atlas (body reenactments).
   struct Body;
 
-  ReenactmentRenderer(const ReenactmentData& data, render::OffscreenRenderer* renderer,
+  ReenactmentRenderer(const Reenactment& data, render::OffscreenRenderer* renderer,
                       const ReenactmentRendererOptions& options, VdtmModel model,
                       std::unique_ptr<Body> body);
   absl::StatusOr<const CachedTexture*> KeyframeTexture(int keyframe, int* uploaded);
@@ -149,7 +149,7 @@ class ReenactmentRenderer {
   absl::Status RenderBody(int frame, const render::RenderCamera& camera, render::RenderOutputs* out,
                           FrameStats* stats);
 
-  const ReenactmentData& data_;
+  const Reenactment& data_;
   render::OffscreenRenderer* renderer_;
   ReenactmentRendererOptions options_;
   TextureSelection selection_;
@@ -166,7 +166,7 @@ class ReenactmentRenderer {
 // The colour camera of `calibration` as a render camera of width x height
 // pixels (the intrinsics scaled to that size; distortion is not rendered).
 // InvalidArgument for an invalid calibration or size.
-absl::StatusOr<render::RenderCamera> SensorRenderCamera(const v1::SensorCalibration& calibration,
+absl::StatusOr<render::RenderCamera> SensorRenderCamera(const SensorCalibration& calibration,
                                                         int width, int height);
 
 // `camera` turned by `angle_deg` about the vertical (+Y) axis through
@@ -177,6 +177,6 @@ render::RenderCamera OrbitCamera(const render::RenderCamera& camera,
 // The actor's mean position over the reenactment: the mean SpineBase joint
 // of the frames that have one, else the mean origin of the valid parts.
 // NotFound when there is neither.
-absl::StatusOr<Eigen::Vector3d> MeanActorPosition(const ReenactmentData& data);
+absl::StatusOr<Eigen::Vector3d> MeanActorPosition(const Reenactment& data);
 
 }  // namespace reenact::view

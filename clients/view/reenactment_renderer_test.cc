@@ -7,8 +7,8 @@
 #include <gtest/gtest.h>
 
 #include "clients/view/testing/vdtm_scenes.h"
-#include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/testing/small_reenactment.h"
 
 namespace reenact::view {
@@ -31,8 +31,8 @@ std::unique_ptr<render::OffscreenRenderer> MakeRenderer() {
 }
 
 // Sensors at -40, 0 and +40 degrees with red, green and blue keyframes.
-ReenactmentData ThreeSensorScene() {
-  ReenactmentData data =
+Reenactment ThreeSensorScene() {
+  Reenactment data =
       MakeSquareReenactment({MakeFrame(0, 0.0), MakeFrame(1, 0.0, 2.0)}, {-40.0, 0.0, 40.0});
   data.keyframes = {SolidKeyframe(0, "s0", kRed), SolidKeyframe(0, "s1", kGreen),
                     SolidKeyframe(0, "s2", kBlue)};
@@ -57,7 +57,7 @@ void ExpectColour(const render::RenderOutputs& out, const Eigen::Vector2i& pixel
 TEST(ReenactmentRenderer, VdtmDrawsTheRotationClosestKeyframe) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
-  const ReenactmentData data = ThreeSensorScene();
+  const Reenactment data = ThreeSensorScene();
   auto view = ReenactmentRenderer::Create(data, renderer.get());
   ASSERT_TRUE(view.ok()) << view.status();
   for (auto [yaw, expected, colour] :
@@ -78,7 +78,7 @@ TEST(ReenactmentRenderer, VdtmDrawsTheRotationClosestKeyframe) {
 TEST(ReenactmentRenderer, OccludedTrianglesShowTheNextBestKeyframe) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
-  ReenactmentData data = ThreeSensorScene();
+  Reenactment data = ThreeSensorScene();
   testing::HideVertices(&data.keyframes[2], -1e-6);  // Left half hidden in s2.
   auto view = ReenactmentRenderer::Create(data, renderer.get());
   ASSERT_TRUE(view.ok()) << view.status();
@@ -95,13 +95,13 @@ TEST(ReenactmentRenderer, OccludedTrianglesShowTheNextBestKeyframe) {
 TEST(ReenactmentRenderer, LookupsOnMaskBackgroundAreDiscarded) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
-  ReenactmentData data = ThreeSensorScene();
+  Reenactment data = ThreeSensorScene();
   // s2's mask: the left half of its image is background.
   MaskImage mask(testing::kImageWidth, testing::kImageHeight, 1);
   for (int y = 0; y < mask.height; ++y) {
     for (int x = 0; x < mask.width / 2; ++x) mask.at(x, y) = 0;
   }
-  data.keyframes[2].set_mask_rle(EncodeMaskRle(mask));
+  data.keyframes[2].mask_rle = EncodeMaskRle(mask);
   auto view = ReenactmentRenderer::Create(data, renderer.get());
   ASSERT_TRUE(view.ok()) << view.status();
   const render::RenderCamera camera = ViewerCamera(30.0);
@@ -118,14 +118,14 @@ TEST(ReenactmentRenderer, LookupsOnMaskBackgroundAreDiscarded) {
 TEST(ReenactmentRenderer, BakedModeUsesTheBakedTextureAndScaleGrowsThePart) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
-  ReenactmentData data = ThreeSensorScene();
+  Reenactment data = ThreeSensorScene();
   RgbImage yellow(8, 8);
   for (size_t i = 0; i < yellow.data.size(); i += 3) {
     yellow.data[i] = 240;
     yellow.data[i + 1] = 220;
     yellow.data[i + 2] = 10;
   }
-  data.parts[0].set_baked_texture_jpeg(EncodeJpeg(yellow, 95).value());
+  data.parts[0].baked_texture_jpeg = EncodeJpeg(yellow, 95).value();
   ReenactmentRendererOptions options;
   options.mode = TextureMode::kBaked;
   auto view = ReenactmentRenderer::Create(data, renderer.get(), options);
@@ -150,7 +150,7 @@ TEST(ReenactmentRenderer, BakedModeUsesTheBakedTextureAndScaleGrowsThePart) {
 TEST(ReenactmentRenderer, TextureCacheStaysWithinItsBudget) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
-  const ReenactmentData data = ThreeSensorScene();
+  const Reenactment data = ThreeSensorScene();
   ReenactmentRendererOptions options;
   auto view = ReenactmentRenderer::Create(data, renderer.get(), options);
   ASSERT_TRUE(view.ok());
@@ -177,7 +177,7 @@ TEST(ReenactmentRenderer, TextureCacheStaysWithinItsBudget) {
 TEST(ReenactmentRenderer, BadFrameAndCameraAreErrors) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
-  const ReenactmentData data = ThreeSensorScene();
+  const Reenactment data = ThreeSensorScene();
   auto view = ReenactmentRenderer::Create(data, renderer.get());
   ASSERT_TRUE(view.ok());
   render::RenderOutputs out;
@@ -185,8 +185,8 @@ TEST(ReenactmentRenderer, BadFrameAndCameraAreErrors) {
   render::RenderCamera bad = ViewerCamera(0.0);
   bad.fx = 0;
   EXPECT_EQ((*view)->Render(0, bad, &out).code(), absl::StatusCode::kInvalidArgument);
-  ReenactmentData corrupt = ThreeSensorScene();
-  corrupt.keyframes[2].set_color_jpeg("not a jpeg");
+  Reenactment corrupt = ThreeSensorScene();
+  corrupt.keyframes[2].color_jpeg = "not a jpeg";
   auto broken = ReenactmentRenderer::Create(corrupt, renderer.get());
   ASSERT_TRUE(broken.ok());
   EXPECT_EQ((*broken)->Render(0, ViewerCamera(30.0), &out).code(), absl::StatusCode::kDataLoss);
@@ -268,10 +268,10 @@ double Iou(const MaskImage& a, const MaskImage& b) {
 TEST(ReenactmentRenderer, DrawsABodyReenactmentWithItsAtlas) {
   auto renderer = MakeBodyRenderer();
   ASSERT_NE(renderer, nullptr);
-  const ReenactmentData data = reenact::testing::MakeTestBodyReenactment(5);
-  auto decoded = DecodeBodyMesh(data.body[0]);
-  ASSERT_TRUE(decoded.ok()) << decoded.status();
-  auto atlas = DecodeJpeg(data.body[0].atlas_jpeg());
+  const Reenactment data =
+      ReenactmentFromProto(reenact::testing::MakeTestBodyReenactment(5)).value();
+  const BodyMesh* decoded = &*data.body;
+  auto atlas = DecodeJpeg(decoded->atlas_jpeg);
   ASSERT_TRUE(atlas.ok());
   std::vector<int> uv_of_vertex(decoded->num_vertices(), -1);
   for (size_t i = 0; i < decoded->texture_vertex_source.size(); ++i) {
@@ -295,7 +295,7 @@ TEST(ReenactmentRenderer, DrawsABodyReenactmentWithItsAtlas) {
       EXPECT_EQ(stats.draw_items, 1);
       EXPECT_EQ(stats.triangles, static_cast<int>(decoded->triangles.size()));
       EXPECT_EQ(stats.textures_uploaded, frame == 0 ? 1 : 0) << "atlas decoded more than once";
-      auto posed = PoseBodyMesh(*decoded, data.frames[frame].body());
+      auto posed = PoseBodyMesh(*decoded, *data.frames[frame].body);
       ASSERT_TRUE(posed.ok()) << posed.status();
       const double iou =
           Iou(out.label, ProjectedSilhouette(camera, posed->vertices_m, decoded->triangles));
@@ -332,8 +332,8 @@ TEST(ReenactmentRenderer, DrawsABodyReenactmentWithItsAtlas) {
 TEST(ReenactmentRenderer, BodyReenactmentHidesInvalidPosesAndReportsABadAtlas) {
   auto renderer = MakeBodyRenderer();
   ASSERT_NE(renderer, nullptr);
-  ReenactmentData data = reenact::testing::MakeTestBodyReenactment(3);
-  data.frames[2].mutable_body()->set_valid(false);
+  Reenactment data = ReenactmentFromProto(reenact::testing::MakeTestBodyReenactment(3)).value();
+  data.frames[2].body->valid = false;
   auto view = ReenactmentRenderer::Create(data, renderer.get());
   ASSERT_TRUE(view.ok()) << view.status();
   render::RenderOutputs out;
@@ -344,7 +344,7 @@ TEST(ReenactmentRenderer, BodyReenactmentHidesInvalidPosesAndReportsABadAtlas) {
             static_cast<long>(out.label.data.size()));
   EXPECT_EQ((*view)->Render(3, BodyCamera(), &out).code(), absl::StatusCode::kNotFound);
 
-  data.body[0].set_atlas_jpeg("not a jpeg");
+  data.body->atlas_jpeg = "not a jpeg";
   auto broken = ReenactmentRenderer::Create(data, renderer.get());
   ASSERT_TRUE(broken.ok());
   EXPECT_EQ((*broken)->Render(0, BodyCamera(), &out).code(), absl::StatusCode::kDataLoss);
@@ -352,7 +352,7 @@ TEST(ReenactmentRenderer, BodyReenactmentHidesInvalidPosesAndReportsABadAtlas) {
   ASSERT_TRUE((*broken)->Render(0, BodyCamera(), &out, &stats).ok());
   EXPECT_EQ(stats.parts_drawn, 1);
 
-  data.body[0].clear_rest_joints_m();
+  data.body->skin_joints.pop_back();
   EXPECT_EQ(ReenactmentRenderer::Create(data, renderer.get()).status().code(),
             absl::StatusCode::kInvalidArgument);
 }

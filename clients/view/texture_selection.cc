@@ -8,7 +8,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
-#include "common/io/proto_convert.h"
 
 namespace reenact::view {
 namespace {
@@ -32,39 +31,31 @@ std::vector<int> SortByScore(std::vector<int> ids, const std::vector<double>& sc
   return ids;
 }
 
-absl::StatusOr<KeyframeCamera> MakeKeyframeCamera(const v1::TextureKeyframe& keyframe,
+absl::StatusOr<KeyframeCamera> MakeKeyframeCamera(const TextureKeyframe& keyframe,
                                                   const std::map<std::string, int>& sensor_ids,
                                                   const std::vector<KeyframeCamera>& sensors) {
-  auto it = sensor_ids.find(keyframe.sensor_id());
+  auto it = sensor_ids.find(keyframe.sensor_id);
   if (it == sensor_ids.end()) {
     return absl::InvalidArgumentError(
-        absl::StrCat("keyframe names unknown sensor \"", keyframe.sensor_id(), "\""));
+        absl::StrCat("keyframe names unknown sensor \"", keyframe.sensor_id, "\""));
   }
   KeyframeCamera camera = sensors[it->second];
-  camera.frame = keyframe.frame_index();
-  camera.crop_x_px = keyframe.crop_x_px();
-  camera.crop_y_px = keyframe.crop_y_px();
-  camera.crop_scale = keyframe.crop_scale() > 0 ? keyframe.crop_scale() : 1.0;
-  camera.has_visibility = keyframe.vertex_visible_bits_size() > 0;
+  camera.frame = keyframe.frame_index;
+  camera.crop_x_px = keyframe.crop_x_px;
+  camera.crop_y_px = keyframe.crop_y_px;
+  camera.crop_scale = keyframe.crop_scale > 0 ? keyframe.crop_scale : 1.0;
+  camera.has_visibility = !keyframe.vertex_visible_bits.empty();
   return camera;
 }
 
 }  // namespace
 
-TextureSelection SelectionForReenactment(const v1::ReenactmentInfo& info) {
-  if (info.texture_mode() == v1::TEXTURE_MODE_UNSPECIFIED) {
-    return info.method() == "rigid-cylinders" ? TextureSelection::kPose
-                                              : TextureSelection::kRotation;
+TextureSelection SelectionForReenactment(const ReenactmentInfo& info) {
+  if (!info.texture_mode) {
+    return info.method == "rigid-cylinders" ? TextureSelection::kPose : TextureSelection::kRotation;
   }
-  return info.texture_mode() == v1::TEXTURE_MODE_POSE_CLOSEST ? TextureSelection::kPose
-                                                              : TextureSelection::kRotation;
-}
-
-Eigen::Affine3d PartPose::WorldFromPartScaled() const {
-  Eigen::Affine3d out = Eigen::Affine3d::Identity();
-  out.linear() = world_from_part.linear() * scale;
-  out.translation() = world_from_part.translation();
-  return out;
+  return *info.texture_mode == methods::TextureMode::kPoseClosest ? TextureSelection::kPose
+                                                                  : TextureSelection::kRotation;
 }
 
 double RotationAngle(const Eigen::Matrix3d& r) {
@@ -73,70 +64,23 @@ double RotationAngle(const Eigen::Matrix3d& r) {
   return std::atan2(0.5 * axis_sin.norm(), 0.5 * (r.trace() - 1.0));
 }
 
-absl::StatusOr<PartGeometry> UnpackPartMesh(const v1::PartMesh& mesh) {
-  PartGeometry part;
-  ASSIGN_OR_RETURN(std::vector<float> positions, UnpackFloats(mesh.positions_in_part_m_f32()));
-  ASSIGN_OR_RETURN(std::vector<float> normals, UnpackFloats(mesh.normals_in_part_f32()));
-  ASSIGN_OR_RETURN(std::vector<float> uvs, UnpackFloats(mesh.uvs_f32()));
-  const size_t n = positions.size() / 3;
-  if (positions.size() % 3 != 0 || (!normals.empty() && normals.size() != 3 * n) ||
-      (!uvs.empty() && uvs.size() != 2 * n) || mesh.triangle_indices_size() % 3 != 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("part mesh ", mesh.part(), ": positions, normals, uvs or triangles disagree"));
-  }
-  part.positions_in_part_m = Eigen::Map<const Eigen::Matrix3Xf>(positions.data(), 3, n);
-  if (!normals.empty())
-    part.normals_in_part = Eigen::Map<const Eigen::Matrix3Xf>(normals.data(), 3, n);
-  if (!uvs.empty()) part.uvs = Eigen::Map<const Eigen::Matrix2Xf>(uvs.data(), 2, n);
-  for (int i = 0; i + 2 < mesh.triangle_indices_size(); i += 3) {
-    const Eigen::Vector3i t(mesh.triangle_indices(i), mesh.triangle_indices(i + 1),
-                            mesh.triangle_indices(i + 2));
-    if ((t.array() < 0).any() || (t.array() >= static_cast<int>(n)).any()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("part mesh ", mesh.part(), ": triangle index out of range"));
-    }
-    part.triangles.push_back(t);
-  }
-  return part;
-}
-
-PartPose UnpackPartPose(const v1::PartPose& proto) {
-  PartPose pose;
-  pose.valid = proto.valid();
-  if (!pose.valid) return pose;
-  Eigen::Quaterniond q = FromProto(proto.world_from_part().rotation());
-  if (!(q.norm() > 1e-9) || !std::isfinite(q.norm())) {
-    pose.valid = false;
-    return pose;
-  }
-  pose.world_from_part.linear() = q.normalized().toRotationMatrix();
-  pose.world_from_part.translation() = FromProto(proto.world_from_part().translation_m());
-  pose.scale = proto.scale() > 0 ? proto.scale() : 1.0;
-  return pose;
-}
-
-absl::StatusOr<VdtmModel> VdtmModel::Create(const ReenactmentData& data) {
+absl::StatusOr<VdtmModel> VdtmModel::Create(const Reenactment& data) {
   RETURN_IF_ERROR(ValidateReenactment(data));
   VdtmModel model;
   model.data_ = &data;
-  for (const v1::PartMesh& mesh : data.parts) {
-    ASSIGN_OR_RETURN(PartGeometry part, UnpackPartMesh(mesh));
-    model.parts_.push_back(std::move(part));
-  }
+  model.num_parts_ = static_cast<int>(data.parts.size());
   const int num_parts = model.num_parts();
-  for (const v1::PartFrame& frame : data.frames) {
-    std::vector<PartPose> poses;
-    for (int b = 0; b < num_parts && b < frame.parts_size(); ++b) {
-      poses.push_back(UnpackPartPose(frame.parts(b)));
-    }
+  for (const ReenactmentFrame& frame : data.frames) {
+    std::vector<PartPose> poses(
+        frame.parts.begin(), frame.parts.begin() + std::min<size_t>(num_parts, frame.parts.size()));
     poses.resize(num_parts);  // Missing poses stay invalid.
     model.poses_.push_back(std::move(poses));
     std::array<Eigen::Vector3d, kNumSkeletonJoints> joints;
     std::array<bool, kNumSkeletonJoints> valid{};
     for (int j = 0; j < kNumSkeletonJoints; ++j) {
       joints[j] = Eigen::Vector3d::Zero();
-      if (frame.joints_in_world_m_size() != kNumSkeletonJoints) continue;
-      joints[j] = FromProto(frame.joints_in_world_m(j));
+      if (frame.joints_in_world_m.size() != kNumSkeletonJoints) continue;
+      joints[j] = frame.joints_in_world_m[j];
       valid[j] = joints[j].allFinite();
     }
     model.joints_.push_back(joints);
@@ -144,18 +88,18 @@ absl::StatusOr<VdtmModel> VdtmModel::Create(const ReenactmentData& data) {
   }
   std::map<std::string, int> sensor_ids;
   std::vector<KeyframeCamera> sensors;
-  for (int s = 0; s < data.info.sensors_size(); ++s) {
-    const v1::SensorCalibration& calibration = data.info.sensors(s);
+  for (int s = 0; s < static_cast<int>(data.info.sensors.size()); ++s) {
+    const SensorCalibration& calibration = data.info.sensors[s];
     KeyframeCamera camera;
     camera.sensor = s;
-    ASSIGN_OR_RETURN(camera.color_intrinsics, FromProto(calibration.color_intrinsics()));
-    ASSIGN_OR_RETURN(Rigid3d color_from_depth, FromProto(calibration.color_from_depth()));
-    ASSIGN_OR_RETURN(Rigid3d world_from_depth, FromProto(calibration.world_from_depth()));
-    camera.color_from_world = ToIsometry(color_from_depth * world_from_depth.Inverse());
-    sensor_ids[calibration.sensor_id()] = s;
+    RETURN_IF_ERROR(calibration.color_intrinsics.Validate());
+    camera.color_intrinsics = calibration.color_intrinsics;
+    camera.color_from_world =
+        ToIsometry(calibration.color_from_depth * calibration.world_from_depth.Inverse());
+    sensor_ids[calibration.sensor_id] = s;
     sensors.push_back(camera);
   }
-  for (const v1::TextureKeyframe& keyframe : data.keyframes) {
+  for (const TextureKeyframe& keyframe : data.keyframes) {
     ASSIGN_OR_RETURN(KeyframeCamera camera, MakeKeyframeCamera(keyframe, sensor_ids, sensors));
     if (camera.frame < 0 || camera.frame >= model.num_frames()) {
       return absl::InvalidArgumentError(
@@ -233,9 +177,9 @@ std::vector<int> VdtmModel::RankByPose(int frame, const Eigen::Isometry3d& camer
 
 bool VdtmModel::VertexVisible(int keyframe, int part, int vertex) const {
   if (!keyframes_[keyframe].has_visibility) return true;
-  const v1::TextureKeyframe& k = data_->keyframes[keyframe];
-  if (part >= k.vertex_visible_bits_size()) return false;
-  const std::string& bits = k.vertex_visible_bits(part);
+  const TextureKeyframe& k = data_->keyframes[keyframe];
+  if (part < 0 || part >= static_cast<int>(k.vertex_visible_bits.size())) return false;
+  const std::string& bits = k.vertex_visible_bits[part];
   const size_t byte = static_cast<size_t>(vertex) / 8;
   if (vertex < 0 || byte >= bits.size()) return false;
   return (static_cast<uint8_t>(bits[byte]) >> (vertex % 8)) & 1u;
@@ -247,7 +191,7 @@ std::vector<int> VdtmModel::AssignTriangles(int part, const std::vector<int>& ra
   for (int k : ranking) {
     if (poses_[keyframes_[k].frame][part].valid) usable.push_back(k);
   }
-  const std::vector<Eigen::Vector3i>& triangles = parts_[part].triangles;
+  const std::vector<Eigen::Vector3i>& triangles = data_->parts[part].triangles;
   std::vector<int> chosen(triangles.size(), -1);
   int fallbacks = 0;
   for (size_t t = 0; t < triangles.size(); ++t) {

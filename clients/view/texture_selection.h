@@ -47,7 +47,7 @@
 
 #include "absl/status/statusor.h"
 #include "common/geometry/camera.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::view {
 
@@ -64,30 +64,11 @@ enum class TextureSelection {
 // for TEXTURE_MODE_POSE_CLOSEST, kRotation otherwise). Files written before
 // the field existed go by their method: kPose for rigid-cylinders, the one
 // method that ranked by pose then.
-TextureSelection SelectionForReenactment(const v1::ReenactmentInfo& info);
-
-// The pose of one part at one instant: point_in_world = scale *
-// (world_from_part.linear() * point_in_part) + world_from_part.translation().
-struct PartPose {
-  Eigen::Isometry3d world_from_part = Eigen::Isometry3d::Identity();
-  double scale = 1.0;
-  bool valid = false;
-
-  // world_from_part with the scale folded into its linear part.
-  Eigen::Affine3d WorldFromPartScaled() const;
-};
-
-// One part's mesh (PartMesh unpacked), part frame, metres.
-struct PartGeometry {
-  Eigen::Matrix3Xf positions_in_part_m;
-  Eigen::Matrix3Xf normals_in_part;  // 3 x N or empty.
-  Eigen::Matrix2Xf uvs;              // Of the baked texture; 2 x N or empty.
-  std::vector<Eigen::Vector3i> triangles;
-};
+TextureSelection SelectionForReenactment(const ReenactmentInfo& info);
 
 // The camera of one texture keyframe.
 struct KeyframeCamera {
-  int frame = 0;                       // Index into ReenactmentData::frames.
+  int frame = 0;                       // Index into Reenactment::frames.
   int sensor = 0;                      // Index into ReenactmentInfo.sensors.
   CameraIntrinsics color_intrinsics;   // Full resolution.
   Eigen::Isometry3d color_from_world;  // = color_from_depth * world_from_depth^-1.
@@ -97,20 +78,21 @@ struct KeyframeCamera {
   bool has_visibility = false;  // False: no vertex_visible_bits; every vertex counts as seen.
 };
 
-// A reenactment unpacked for VDTM: meshes, poses, joints and keyframe
-// cameras. Keeps a pointer to the ReenactmentData it was made from (the
-// visibility bits), which must outlive it.
+// A reenactment prepared for VDTM: joints and keyframe cameras. Keeps a
+// pointer to the Reenactment it was made from (meshes, poses, visibility
+// bits), which must outlive it.
 class VdtmModel {
  public:
-  // Validates `data` (ValidateReenactment) and unpacks it; InvalidArgument
-  // naming the first problem (including sensor calibrations that are not
-  // valid cameras).
-  static absl::StatusOr<VdtmModel> Create(const ReenactmentData& data);
+  // Prepares `data` (a rigid-part reenactment, as ReenactmentFromProto
+  // checked it); InvalidArgument naming the first problem (sensor
+  // calibrations that are not valid cameras, keyframes naming unknown
+  // sensors or frames).
+  static absl::StatusOr<VdtmModel> Create(const Reenactment& data);
 
-  int num_parts() const { return static_cast<int>(parts_.size()); }
-  int num_frames() const { return static_cast<int>(poses_.size()); }
+  int num_parts() const { return num_parts_; }
+  int num_frames() const { return static_cast<int>(data_->frames.size()); }
   int num_keyframes() const { return static_cast<int>(keyframes_.size()); }
-  const PartGeometry& part(int part) const { return parts_[part]; }
+  const PartMesh& part(int part) const { return data_->parts[part]; }
   const PartPose& pose(int frame, int part) const { return poses_[frame][part]; }
   const KeyframeCamera& keyframe(int keyframe) const { return keyframes_[keyframe]; }
   // Joints of a frame in the world (metres) and which are known.
@@ -120,7 +102,7 @@ class VdtmModel {
   const std::array<bool, kNumSkeletonJoints>& joints_valid(int frame) const {
     return joints_valid_[frame];
   }
-  const ReenactmentData& data() const { return *data_; }
+  const Reenactment& data() const { return *data_; }
 
   // Eq. 3.13: the keyframes whose instant has `part` posed, best first
   // (smallest angle of R_b* R_{b,n}^T; ties by keyframe index), for the part
@@ -160,9 +142,9 @@ class VdtmModel {
                           std::array<bool, kNumSkeletonJoints>* valid) const;
 
  private:
-  const ReenactmentData* data_ = nullptr;
-  std::vector<PartGeometry> parts_;
-  std::vector<std::vector<PartPose>> poses_;  // [frame][part].
+  const Reenactment* data_ = nullptr;
+  int num_parts_ = 0;
+  std::vector<std::vector<PartPose>> poses_;  // [frame][part], every part.
   std::vector<std::array<Eigen::Vector3d, kNumSkeletonJoints>> joints_;
   std::vector<std::array<bool, kNumSkeletonJoints>> joints_valid_;
   std::vector<KeyframeCamera> keyframes_;
@@ -177,11 +159,5 @@ class VdtmModel {
 // Phi of Eq. 3.13: the angle of the rotation `r` (axis-angle magnitude),
 // radians in [0, pi]; `r` must be orthonormal.
 double RotationAngle(const Eigen::Matrix3d& r);
-
-// Unpacks one PartMesh. InvalidArgument on sizes that do not agree.
-absl::StatusOr<PartGeometry> UnpackPartMesh(const v1::PartMesh& mesh);
-
-// Unpacks a PartPose (the quaternion normalised).
-PartPose UnpackPartPose(const v1::PartPose& pose);
 
 }  // namespace reenact::view

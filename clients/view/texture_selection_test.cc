@@ -19,8 +19,8 @@ constexpr double kDeg = 1e-6;  // Tolerance of angles, degrees.
 double Deg(double rad) { return rad * 180.0 / std::numbers::pi; }
 
 // Sensors at -40, 0 and +40 degrees, one keyframe each at frame 0.
-ReenactmentData ThreeSensorScene() {
-  ReenactmentData data =
+Reenactment ThreeSensorScene() {
+  Reenactment data =
       MakeSquareReenactment({MakeFrame(0, 0.0), MakeFrame(1, 40.0)}, {-40.0, 0.0, 40.0});
   data.keyframes = {SolidKeyframe(0, "s0", {255, 0, 0}), SolidKeyframe(0, "s1", {0, 255, 0}),
                     SolidKeyframe(0, "s2", {0, 0, 255})};
@@ -40,7 +40,7 @@ TEST(RotationAngle, IsTheAxisAngleMagnitude) {
 }
 
 TEST(RankByRotation, PicksTheKeyframeWithTheSmallestEq313Angle) {
-  const ReenactmentData data = ThreeSensorScene();
+  const Reenactment data = ThreeSensorScene();
   auto model = VdtmModel::Create(data);
   ASSERT_TRUE(model.ok()) << model.status();
   // Viewer at +30 degrees: 10 degrees from s2, 30 from s1, 70 from s0.
@@ -61,8 +61,8 @@ TEST(RankByRotation, PicksTheKeyframeWithTheSmallestEq313Angle) {
 }
 
 TEST(RankByRotation, SkipsKeyframesWhoseInstantHasThePartUnposed) {
-  ReenactmentData data = ThreeSensorScene();
-  data.frames[1].mutable_parts(0)->set_valid(false);
+  Reenactment data = ThreeSensorScene();
+  data.frames[1].parts[0].valid = false;
   data.keyframes.push_back(SolidKeyframe(1, "s2", {9, 9, 9}));
   auto model = VdtmModel::Create(data);
   ASSERT_TRUE(model.ok()) << model.status();
@@ -70,7 +70,7 @@ TEST(RankByRotation, SkipsKeyframesWhoseInstantHasThePartUnposed) {
 }
 
 TEST(AssignTriangles, OccludedTrianglesGoToTheNextBestKeyframe) {
-  ReenactmentData data = ThreeSensorScene();
+  Reenactment data = ThreeSensorScene();
   // In the best keyframe (s2) the left half of the square is hidden.
   testing::HideVertices(&data.keyframes[2], -1e-6);
   auto model = VdtmModel::Create(data);
@@ -78,7 +78,7 @@ TEST(AssignTriangles, OccludedTrianglesGoToTheNextBestKeyframe) {
   const std::vector<int> ranking = model->RankByRotation(0, 0, CameraFromWorld(30.0));
   int not_best = -1;
   const std::vector<int> chosen = model->AssignTriangles(0, ranking, &not_best);
-  const PartGeometry& part = model->part(0);
+  const PartMesh& part = model->part(0);
   int to_best = 0, to_next = 0;
   for (size_t t = 0; t < chosen.size(); ++t) {
     const Eigen::Vector3i& tri = part.triangles[t];
@@ -115,7 +115,7 @@ TEST(RankByPose, PicksThePoseClosestKeyframeInTheViewersFrame) {
   // Frame 0: arm down; frame 1: arm raised and the actor 1 m away (Eq. 3.6
   // is neck-relative, so the move does not count).
   const Eigen::Vector3d neck(0, 1.5, 0);
-  ReenactmentData data = MakeSquareReenactment(
+  Reenactment data = MakeSquareReenactment(
       {MakeFrame(0, 0.0, 1.0, Skeleton(neck, 0.0)),
        MakeFrame(1, 0.0, 1.0, Skeleton(neck + Eigen::Vector3d(1.0, 0, 0.5), 0.6)),
        MakeFrame(2, 0.0, 1.0, Skeleton(neck + Eigen::Vector3d(-0.3, 0, 0), 0.55))},
@@ -126,11 +126,11 @@ TEST(RankByPose, PicksThePoseClosestKeyframeInTheViewersFrame) {
   ASSERT_TRUE(model.ok()) << model.status();
   // A file from before texture_mode goes by its method; a recorded mode wins.
   EXPECT_EQ(SelectionForReenactment(data.info), TextureSelection::kPose);
-  v1::ReenactmentInfo recorded = data.info;
-  recorded.set_texture_mode(v1::TEXTURE_MODE_ROTATION_CLOSEST);
+  ReenactmentInfo recorded = data.info;
+  recorded.texture_mode = methods::TextureMode::kRotationClosest;
   EXPECT_EQ(SelectionForReenactment(recorded), TextureSelection::kRotation);
-  recorded.set_method("a-new-method");
-  recorded.set_texture_mode(v1::TEXTURE_MODE_POSE_CLOSEST);
+  recorded.method = "a-new-method";
+  recorded.texture_mode = methods::TextureMode::kPoseClosest;
   EXPECT_EQ(SelectionForReenactment(recorded), TextureSelection::kPose);
   std::vector<double> distances;
   // Frame 2 (arm nearly as raised as frame 1) seen from s0's place.
@@ -144,7 +144,7 @@ TEST(RankByPose, PicksThePoseClosestKeyframeInTheViewersFrame) {
 }
 
 TEST(RankByPose, KeyframesWithoutJointsRankLast) {
-  ReenactmentData data = MakeSquareReenactment(
+  Reenactment data = MakeSquareReenactment(
       {MakeFrame(0, 0.0), MakeFrame(1, 0.0, 1.0, Skeleton({0, 1.5, 0}, 0.0))}, {0.0});
   data.keyframes = {SolidKeyframe(0, "s0", {1, 1, 1}), SolidKeyframe(1, "s0", {2, 2, 2})};
   auto model = VdtmModel::Create(data);
@@ -155,11 +155,11 @@ TEST(RankByPose, KeyframesWithoutJointsRankLast) {
 }
 
 TEST(KeyframeUv, ProjectsThroughTheKeyframesPoseCropAndScale) {
-  ReenactmentData data = MakeSquareReenactment({MakeFrame(0, 25.0, 1.5)}, {10.0});
+  Reenactment data = MakeSquareReenactment({MakeFrame(0, 25.0, 1.5)}, {10.0});
   data.keyframes = {SolidKeyframe(0, "s0", {1, 1, 1})};
-  data.keyframes[0].set_crop_x_px(10);
-  data.keyframes[0].set_crop_y_px(20);
-  data.keyframes[0].set_crop_scale(0.5f);
+  data.keyframes[0].crop_x_px = 10;
+  data.keyframes[0].crop_y_px = 20;
+  data.keyframes[0].crop_scale = 0.5f;
   auto model = VdtmModel::Create(data);
   ASSERT_TRUE(model.ok()) << model.status();
   const Eigen::Vector3f x(0.1f, -0.05f, 0.0f);
@@ -177,11 +177,11 @@ TEST(KeyframeUv, ProjectsThroughTheKeyframesPoseCropAndScale) {
 }
 
 TEST(VdtmModel, InvalidReenactmentIsInvalidArgument) {
-  ReenactmentData data = ThreeSensorScene();
-  data.keyframes[0].set_sensor_id("nobody");
+  Reenactment data = ThreeSensorScene();
+  data.keyframes[0].sensor_id = "nobody";
   EXPECT_EQ(VdtmModel::Create(data).status().code(), absl::StatusCode::kInvalidArgument);
   data = ThreeSensorScene();
-  data.parts[0].add_triangle_indices(100000);
+  data.parts[0].triangles.emplace_back(0, 1, 100000);
   EXPECT_EQ(VdtmModel::Create(data).status().code(), absl::StatusCode::kInvalidArgument);
 }
 

@@ -15,6 +15,7 @@
 #include "common/io/body_reenactment.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
+#include "common/io/reenactment_convert.h"
 #include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
 
@@ -181,7 +182,8 @@ absl::StatusOr<v1::TextureKeyframe> MakeKeyframe(
     const body::PosedBody& posed, const std::vector<Eigen::Vector3i>& truth_triangles,
     const v1::SensorCalibration& sensor, const v1::ColorImage& colour, double tolerance_m) {
   const int w = sensor.color_intrinsics().width_px(), h = sensor.color_intrinsics().height_px();
-  ASSIGN_OR_RETURN(render::RenderCamera camera, SensorRenderCamera(sensor, w, h));
+  ASSIGN_OR_RETURN(const SensorCalibration calibration, SensorCalibrationFromProto(sensor));
+  ASSIGN_OR_RETURN(render::RenderCamera camera, SensorRenderCamera(calibration, w, h));
   ASSIGN_OR_RETURN(CameraIntrinsics intrinsics, FromProto(sensor.color_intrinsics()));
   // Truth silhouette -> mask.
   render::MeshData truth_mesh;
@@ -278,8 +280,8 @@ absl::StatusOr<std::map<int64_t, Eigen::Matrix3Xd>> TruthMeshes(const TakeReader
 
 }  // namespace
 
-absl::StatusOr<ReenactmentData> MakeTruthBodyReenactment(const TakeReader& take,
-                                                         const body::BodyModel& model) {
+absl::StatusOr<Reenactment> MakeTruthBodyReenactment(const TakeReader& take,
+                                                     const body::BodyModel& model) {
   ASSIGN_OR_RETURN(auto bodies, take.ReadAll<v1::GroundTruthBody>(kGroundTruthBodyTopic));
   ASSIGN_OR_RETURN(auto topologies,
                    take.ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic));
@@ -290,41 +292,41 @@ absl::StatusOr<ReenactmentData> MakeTruthBodyReenactment(const TakeReader& take,
   Eigen::VectorXd shape(bodies[0].shape_coefficients_size());
   for (int k = 0; k < shape.size(); ++k) shape[k] = bodies[0].shape_coefficients(k);
   ASSIGN_OR_RETURN(std::string atlas, AlbedoJpeg(topologies[0].albedo_png()));
-  ReenactmentData data;
-  v1::ReenactmentInfo& info = data.info;
-  info.set_reenactment_id("r-truth-body");
-  info.set_take_id(take.info().name());
-  info.set_method("body");
-  info.set_frame_count(static_cast<int>(bodies.size()));
-  info.set_fps(take.info().fps());
-  info.set_generator("truth_reenactment (test)");
-  for (const auto& [id, calibration] : take.sensors()) *info.add_sensors() = calibration;
-  ASSIGN_OR_RETURN(v1::BodyMesh mesh, MakeBodyMesh(model, shape, std::move(atlas)));
-  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(mesh));
-  data.body.push_back(std::move(mesh));
+  Reenactment data;
+  ReenactmentInfo& info = data.info;
+  info.reenactment_id = "r-truth-body";
+  info.take_id = take.info().name();
+  info.method = "body";
+  info.frame_count = static_cast<int>(bodies.size());
+  info.fps = take.info().fps();
+  info.generator = "truth_reenactment (test)";
+  for (const auto& [id, calibration] : take.sensors()) {
+    ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
+    info.sensors.push_back(std::move(sensor));
+  }
+  ASSIGN_OR_RETURN(const v1::BodyMesh mesh, MakeBodyMesh(model, shape, std::move(atlas)));
+  ASSIGN_OR_RETURN(data.body, BodyMeshFromProto(mesh));
   for (size_t f = 0; f < bodies.size(); ++f) {
     const auto truth = meshes.find(static_cast<int64_t>(f));
     if (truth == meshes.end()) {
       return absl::FailedPreconditionError(absl::StrCat("no ground truth mesh for frame ", f));
     }
-    v1::PartFrame frame;
-    frame.set_frame_index(static_cast<int>(f));
-    frame.set_stamp_ns(bodies[f].stamp_ns());
-    *frame.mutable_body() = BodyPoseToProto(PoseFromProto(bodies[f]));
-    ASSIGN_OR_RETURN(const body::PosedBody skinned, PoseBodyMesh(decoded, frame.body()));
-    SetBodyPoseOffsets(truth->second - skinned.vertices_m, frame.mutable_body());
-    for (const Eigen::Vector3d& joint : skinned.joints_m) {
-      *frame.add_joints_in_world_m() = ToProto(joint);
-    }
-    data.frames.push_back(std::move(frame));
+    ReenactmentFrame& frame = data.frames.emplace_back();
+    frame.frame_index = static_cast<int>(f);
+    frame.stamp_ns = bodies[f].stamp_ns();
+    BodyFramePose& pose = frame.body.emplace();
+    pose.pose = PoseFromProto(bodies[f]);
+    pose.valid = true;
+    ASSIGN_OR_RETURN(const body::PosedBody skinned, PoseBodyMesh(*data.body, pose));
+    pose.SetOffsetsMetres(truth->second - skinned.vertices_m);
+    frame.joints_in_world_m.assign(skinned.joints_m.begin(), skinned.joints_m.end());
   }
-  RETURN_IF_ERROR(ValidateReenactment(data));
   return data;
 }
 
-absl::StatusOr<ReenactmentData> MakeTruthReenactment(const TakeReader& take,
-                                                     const body::BodyModel& model,
-                                                     const TruthReenactmentOptions& options) {
+absl::StatusOr<Reenactment> MakeTruthReenactment(const TakeReader& take,
+                                                 const body::BodyModel& model,
+                                                 const TruthReenactmentOptions& options) {
   ASSIGN_OR_RETURN(auto bodies, take.ReadAll<v1::GroundTruthBody>(kGroundTruthBodyTopic));
   if (bodies.empty()) return absl::FailedPreconditionError("take has no /ground_truth/body");
   std::vector<body::PosedBody> posed;
@@ -374,20 +376,17 @@ absl::StatusOr<ReenactmentData> MakeTruthReenactment(const TakeReader& take,
           return absl::OkStatus();
         }));
   }
-  RETURN_IF_ERROR(ValidateReenactment(data));
-  return data;
+  return ReenactmentFromProto(data);
 }
 
-void PerturbPoses(ReenactmentData* data, const Eigen::Vector3d& offset_m, double angle_deg) {
+void PerturbPoses(Reenactment* data, const Eigen::Vector3d& offset_m, double angle_deg) {
   const Eigen::Matrix3d turn =
       Eigen::AngleAxisd(angle_deg * std::numbers::pi / 180.0, Eigen::Vector3d::UnitX())
           .toRotationMatrix();
-  for (v1::PartFrame& frame : data->frames) {
-    for (v1::PartPose& pose : *frame.mutable_parts()) {
-      auto rigid = FromProto(pose.world_from_part());
-      if (!rigid.ok()) continue;
-      const Eigen::Quaterniond rotation(rigid->rotation.toRotationMatrix() * turn);
-      *pose.mutable_world_from_part() = ToProto(Rigid3d(rotation, rigid->translation + offset_m));
+  for (ReenactmentFrame& frame : data->frames) {
+    for (PartPose& pose : frame.parts) {
+      pose.world_from_part.linear() = pose.world_from_part.linear() * turn;
+      pose.world_from_part.translation() += offset_m;
     }
   }
 }

@@ -12,8 +12,8 @@
 
 #include "absl/status/statusor.h"
 #include "common/body/body_model.h"
-#include "common/io/reenactment_file.h"
 #include "common/io/take.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::view::testing {
 
@@ -25,9 +25,9 @@ struct TruthReenactmentOptions {
   std::string method = "rigid-carved";
 };
 
-absl::StatusOr<ReenactmentData> MakeTruthReenactment(const TakeReader& take,
-                                                     const body::BodyModel& model,
-                                                     const TruthReenactmentOptions& options = {});
+absl::StatusOr<Reenactment> MakeTruthReenactment(const TakeReader& take,
+                                                 const body::BodyModel& model,
+                                                 const TruthReenactmentOptions& options = {});
 
 // A body-model reenactment (method "body") of the take's ground truth: the
 // BodyMesh of `model` (the synthesizer's model) with the true shape
@@ -37,11 +37,11 @@ absl::StatusOr<ReenactmentData> MakeTruthReenactment(const TakeReader& take,
 // pose correctives, plus float rounding), so the posed mesh is the truth;
 // the frames' joints are the posed joints. FailedPrecondition when the take
 // lacks that ground truth or its mesh is not `model`'s.
-absl::StatusOr<ReenactmentData> MakeTruthBodyReenactment(const TakeReader& take,
-                                                         const body::BodyModel& model);
+absl::StatusOr<Reenactment> MakeTruthBodyReenactment(const TakeReader& take,
+                                                     const body::BodyModel& model);
 
 // Moves every part of every frame by `offset_m` (world frame) and turns it by
 // `angle_deg` about its own part-frame X axis.
-void PerturbPoses(ReenactmentData* data, const Eigen::Vector3d& offset_m, double angle_deg);
+void PerturbPoses(Reenactment* data, const Eigen::Vector3d& offset_m, double angle_deg);
 
 }  // namespace reenact::view::testing

@@ -64,7 +64,7 @@ RgbImage FromBgr(const cv::Mat& bgr) {
 }
 
 // Where the board lies in the reenactment's world (see the file comment).
-Eigen::Isometry3d WorldFromBoard(const ReenactmentData& data, bool anchored) {
+Eigen::Isometry3d WorldFromBoard(const Reenactment& data, bool anchored) {
   Eigen::Isometry3d world_from_board = Eigen::Isometry3d::Identity();
   if (anchored) return world_from_board;
   if (absl::StatusOr<Eigen::Vector3d> actor = view::MeanActorPosition(data); actor.ok()) {
@@ -99,14 +99,14 @@ absl::StatusOr<CameraIntrinsics> VideoIntrinsics(const ArOptions& options, int w
   return intrinsics;
 }
 
-absl::Status OpenOutputs(const ArOptions& options, const ReenactmentData& data, double fps,
-                         ArRun* run, ArSummary* summary) {
+absl::Status OpenOutputs(const ArOptions& options, const Reenactment& data, double fps, ArRun* run,
+                         ArSummary* summary) {
   const int width = run->intrinsics.width, height = run->intrinsics.height;
   if (options.render_to.empty()) {
     RETURN_IF_ERROR(run->renderer->ReleaseCurrent());
-    ASSIGN_OR_RETURN(run->window,
-                     render::ImageWindow::Open("reenact-viewer AR " + data.info.reenactment_id(),
-                                               width, height));
+    ASSIGN_OR_RETURN(
+        run->window,
+        render::ImageWindow::Open("reenact-viewer AR " + data.info.reenactment_id, width, height));
     return absl::OkStatus();
   }
   std::error_code ec;
@@ -130,13 +130,13 @@ absl::Status OpenOutputs(const ArOptions& options, const ReenactmentData& data, 
 }
 
 // Draws the teacher over `frame` where the board puts them.
-absl::Status Composite(const ReenactmentData& data, int instant,
+absl::Status Composite(const Reenactment& data, int instant,
                        const Eigen::Isometry3d& camera_from_board, ArRun* run, RgbImage* frame) {
   const Eigen::Isometry3d world_from_camera = run->world_from_board * camera_from_board.inverse();
   render::RenderOutputs out;
   out.requested = render::kRenderColour | render::kRenderLabel;
   RETURN_IF_ERROR(run->view->Render(
-      data.frames[instant].frame_index(),
+      data.frames[instant].frame_index,
       render::RenderCameraFromIntrinsics(run->intrinsics, world_from_camera, 0.05, 50.0), &out));
   for (size_t i = 0; i < out.label.data.size(); ++i) {
     if (out.label.data[i] == 0) continue;
@@ -172,18 +172,18 @@ absl::Status ArOptions::Validate() const {
   return absl::OkStatus();
 }
 
-std::string AnchoredBoard(const ReenactmentData& data) {
+std::string AnchoredBoard(const Reenactment& data) {
   std::string spec;
-  for (const v1::SensorCalibration& sensor : data.info.sensors()) {
-    if (!absl::StartsWith(sensor.world_anchor(), "board:")) return "";
-    const std::string this_spec = sensor.world_anchor().substr(6);
+  for (const SensorCalibration& sensor : data.info.sensors) {
+    if (!absl::StartsWith(sensor.world_anchor, "board:")) return "";
+    const std::string this_spec = sensor.world_anchor.substr(6);
     if (!spec.empty() && this_spec != spec) return "";
     spec = this_spec;
   }
   return spec;
 }
 
-absl::StatusOr<ArSummary> RunAr(const ReenactmentData& data, const ArOptions& options) {
+absl::StatusOr<ArSummary> RunAr(const Reenactment& data, const ArOptions& options) {
   const Clock::time_point start = Clock::now();
   RETURN_IF_ERROR(options.Validate());
   if (data.frames.empty()) return absl::InvalidArgumentError("the reenactment has no instant");
@@ -217,7 +217,7 @@ absl::StatusOr<ArSummary> RunAr(const ReenactmentData& data, const ArOptions& op
   run.world_from_board = WorldFromBoard(data, summary.anchored);
   RETURN_IF_ERROR(OpenOutputs(options, data, video_fps, &run, &summary));
 
-  const double reenactment_fps = data.info.fps() > 0 ? data.info.fps() : 30.0;
+  const double reenactment_fps = data.info.fps > 0 ? data.info.fps : 30.0;
   const int instants = static_cast<int>(data.frames.size());
   double rms_sum = 0.0;
   for (int k = 0; !bgr.empty(); ++k) {

@@ -24,7 +24,7 @@
 #include "absl/status/statusor.h"
 #include "clients/view/reenactment_renderer.h"
 #include "common/board/board_spec.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::viewer {
 
@@ -69,10 +69,10 @@ struct ArSummary {
 // Runs AR mode. InvalidArgument for bad options, a bad board spec or
 // intrinsics; NotFound when the video cannot be opened; Unavailable without
 // GL (or a display, in window mode).
-absl::StatusOr<ArSummary> RunAr(const ReenactmentData& data, const ArOptions& options);
+absl::StatusOr<ArSummary> RunAr(const Reenactment& data, const ArOptions& options);
 
 // The board anchoring of a reenactment: the spec of "board:SPEC" when every
 // sensor names the same board, else empty.
-std::string AnchoredBoard(const ReenactmentData& data);
+std::string AnchoredBoard(const Reenactment& data);
 
 }  // namespace reenact::viewer

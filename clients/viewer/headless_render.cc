@@ -40,7 +40,7 @@ absl::Status HeadlessOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<HeadlessSummary> RenderToDir(const ReenactmentData& data, const std::string& dir,
+absl::StatusOr<HeadlessSummary> RenderToDir(const Reenactment& data, const std::string& dir,
                                             const HeadlessOptions& options,
                                             const ProgressCallback& progress) {
   const Clock::time_point start = Clock::now();
@@ -70,7 +70,7 @@ absl::StatusOr<HeadlessSummary> RenderToDir(const ReenactmentData& data, const s
   std::unique_ptr<VideoWriter> video;
   if (options.mp4) {
     const double fps =
-        options.video_fps > 0 ? options.video_fps : (data.info.fps() > 0 ? data.info.fps() : 30.0);
+        options.video_fps > 0 ? options.video_fps : (data.info.fps > 0 ? data.info.fps : 30.0);
     summary.mp4_path = (std::filesystem::path(dir) / "video.mp4").string();
     VideoWriterOptions video_options;
     video_options.preset = "veryfast";
@@ -87,7 +87,7 @@ absl::StatusOr<HeadlessSummary> RenderToDir(const ReenactmentData& data, const s
     render::RenderOutputs out;
     out.requested = render::kRenderColour | (options.alpha ? render::kRenderLabel : 0u);
     const Clock::time_point drawn = Clock::now();
-    RETURN_IF_ERROR(view->Render(data.frames[shots[i].frame].frame_index(), shots[i].camera, &out));
+    RETURN_IF_ERROR(view->Render(data.frames[shots[i].frame].frame_index, shots[i].camera, &out));
     summary.render_seconds += SecondsSince(drawn);
     const std::string path =
         (std::filesystem::path(dir) / absl::StrFormat("frame_%05d.png", options.name_by_instant

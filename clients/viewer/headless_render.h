@@ -11,7 +11,7 @@
 #include "absl/status/statusor.h"
 #include "clients/view/reenactment_renderer.h"
 #include "common/base/progress.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::viewer {
 
@@ -62,7 +62,7 @@ struct HeadlessSummary {
 // Unavailable when no GL context can be had; Cancelled when `progress`
 // returns false. A failed MP4 (e.g. no H.264 or MPEG-4 encoder) does not fail
 // the call: mp4_problem says why.
-absl::StatusOr<HeadlessSummary> RenderToDir(const ReenactmentData& data, const std::string& dir,
+absl::StatusOr<HeadlessSummary> RenderToDir(const Reenactment& data, const std::string& dir,
                                             const HeadlessOptions& options,
                                             const ProgressCallback& progress = {});
 

@@ -19,11 +19,11 @@ double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).coun
 
 // Where the orbit starts: sensor 0's colour camera about the actor's mean
 // position, else 3 m in front of the actor (or of the origin).
-OrbitController StartingOrbit(const ReenactmentData& data, int width, int height) {
+OrbitController StartingOrbit(const Reenactment& data, int width, int height) {
   const absl::StatusOr<Eigen::Vector3d> actor = view::MeanActorPosition(data);
   const Eigen::Vector3d target = actor.ok() ? *actor : Eigen::Vector3d(0, 1, 0);
-  if (data.info.sensors_size() > 0) {
-    if (auto camera = view::SensorRenderCamera(data.info.sensors(0), width, height); camera.ok()) {
+  if (static_cast<int>(data.info.sensors.size()) > 0) {
+    if (auto camera = view::SensorRenderCamera(data.info.sensors[0], width, height); camera.ok()) {
       return OrbitController::FromCamera(*camera, target);
     }
   }
@@ -92,7 +92,7 @@ bool HandleInput(const render::WindowInput& input, int width, int height, OrbitC
 
 }  // namespace
 
-absl::StatusOr<WindowSummary> RunOrbitWindow(const ReenactmentData& data,
+absl::StatusOr<WindowSummary> RunOrbitWindow(const Reenactment& data,
                                              const WindowOptions& options) {
   if (data.frames.empty()) return absl::InvalidArgumentError("the reenactment has no instant");
   if (!(options.run_seconds >= 0)) return absl::InvalidArgumentError("run_seconds must be >= 0");
@@ -110,9 +110,9 @@ absl::StatusOr<WindowSummary> RunOrbitWindow(const ReenactmentData& data,
                    view::ReenactmentRenderer::Create(data, renderer.get(), view_options));
   RETURN_IF_ERROR(renderer->ReleaseCurrent());
   ASSIGN_OR_RETURN(auto window,
-                   render::ImageWindow::Open("reenact-viewer " + data.info.reenactment_id(),
+                   render::ImageWindow::Open("reenact-viewer " + data.info.reenactment_id,
                                              options.width, options.height));
-  Playback playback(static_cast<int>(data.frames.size()), data.info.fps());
+  Playback playback(static_cast<int>(data.frames.size()), data.info.fps);
   playback.SetSpeed(options.speed);
   playback.SetLoop(options.loop);
   OrbitController orbit = StartingOrbit(data, options.width, options.height);
@@ -132,13 +132,13 @@ absl::StatusOr<WindowSummary> RunOrbitWindow(const ReenactmentData& data,
     render::RenderOutputs out;
     out.requested = render::kRenderColour;
     const int frame = playback.frame();
-    RETURN_IF_ERROR(view->Render(data.frames[frame].frame_index(), camera, &out));
+    RETURN_IF_ERROR(view->Render(data.frames[frame].frame_index, camera, &out));
     RETURN_IF_ERROR(renderer->ReleaseCurrent());
     render_seconds += Seconds(Clock::now() - now);
     if (options.hud) {
       DrawTimeline(playback.fraction(), &out.colour);
       DrawStatusLine(
-          absl::StrFormat("%s  instant %d/%d  %.2gx%s%s  %.0f fps", data.info.method(), frame + 1,
+          absl::StrFormat("%s  instant %d/%d  %.2gx%s%s  %.0f fps", data.info.method, frame + 1,
                           playback.frame_count(), playback.speed(), playback.loop() ? "  loop" : "",
                           playback.playing() ? "" : "  paused", fps_shown),
           0, &out.colour);

@@ -12,7 +12,7 @@
 
 #include "absl/status/statusor.h"
 #include "clients/view/reenactment_renderer.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::viewer {
 
@@ -44,7 +44,6 @@ struct WindowSummary {
 
 // Runs orbit mode until the user quits (or options.run_seconds pass).
 // Unavailable without a display or GL; InvalidArgument for bad options.
-absl::StatusOr<WindowSummary> RunOrbitWindow(const ReenactmentData& data,
-                                             const WindowOptions& options);
+absl::StatusOr<WindowSummary> RunOrbitWindow(const Reenactment& data, const WindowOptions& options);
 
 }  // namespace reenact::viewer

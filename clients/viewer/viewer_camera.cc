@@ -102,18 +102,19 @@ absl::StatusOr<std::string> ReadText(const std::string& path) {
 }
 
 absl::StatusOr<std::vector<Shot>> SensorShots(const std::string& kind, const std::string& arg,
-                                              const ReenactmentData& data, int width, int height,
+                                              const Reenactment& data, int width, int height,
                                               int first_frame, int end_frame) {
-  if (data.info.sensors_size() == 0) {
+  if (static_cast<int>(data.info.sensors.size()) == 0) {
     return absl::FailedPreconditionError("the reenactment names no sensor to place a camera by");
   }
   int sensor = 0;
   double angle_deg = 0.0;
   bool full_turn = false;
   if (kind == "sensor") {
-    if (!absl::SimpleAtoi(arg, &sensor) || sensor < 0 || sensor >= data.info.sensors_size()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--camera sensor:N: N must be 0..", data.info.sensors_size() - 1));
+    if (!absl::SimpleAtoi(arg, &sensor) || sensor < 0 ||
+        sensor >= static_cast<int>(data.info.sensors.size())) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--camera sensor:N: N must be 0..", static_cast<int>(data.info.sensors.size()) - 1));
     }
   } else if (arg.empty()) {
     full_turn = true;
@@ -121,7 +122,7 @@ absl::StatusOr<std::vector<Shot>> SensorShots(const std::string& kind, const std
     return absl::InvalidArgumentError(absl::StrCat("--camera orbit:DEG: bad angle '", arg, "'"));
   }
   ASSIGN_OR_RETURN(render::RenderCamera base,
-                   view::SensorRenderCamera(data.info.sensors(sensor), width, height));
+                   view::SensorRenderCamera(data.info.sensors[sensor], width, height));
   Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
   if (kind == "orbit") {
     absl::StatusOr<Eigen::Vector3d> actor = view::MeanActorPosition(data);
@@ -215,7 +216,7 @@ absl::StatusOr<std::vector<Shot>> ParseCameraPath(const std::string& json_text, 
   return shots;
 }
 
-absl::StatusOr<std::vector<Shot>> CameraShots(const std::string& spec, const ReenactmentData& data,
+absl::StatusOr<std::vector<Shot>> CameraShots(const std::string& spec, const Reenactment& data,
                                               int width, int height, int first_frame,
                                               int end_frame) {
   RETURN_IF_ERROR(CheckSize(width, height));

@@ -32,7 +32,7 @@
 #include <Eigen/Core>
 
 #include "absl/status/statusor.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "common/render/render_types.h"
 
 namespace reenact::viewer {
@@ -48,7 +48,7 @@ absl::StatusOr<render::RenderCamera> LookAtCamera(
     const Eigen::Vector3d& up_in_world = Eigen::Vector3d::UnitY());
 
 // One output image of a headless render: the instant to draw (index into
-// ReenactmentData::frames) and the camera.
+// Reenactment::frames) and the camera.
 struct Shot {
   int frame = 0;
   render::RenderCamera camera;
@@ -64,7 +64,7 @@ struct Shot {
 // InvalidArgument for a bad spec, an unreadable or malformed path file, or an
 // empty range; FailedPrecondition when the reenactment names no sensor (orbit,
 // sensor) or has no actor position (orbit, "origin": "actor").
-absl::StatusOr<std::vector<Shot>> CameraShots(const std::string& spec, const ReenactmentData& data,
+absl::StatusOr<std::vector<Shot>> CameraShots(const std::string& spec, const Reenactment& data,
                                               int width, int height, int first_frame,
                                               int end_frame);
 

@@ -68,9 +68,8 @@ absl::StatusOr<std::unique_ptr<client::ReenactmentSource>> OpenSource(const Flag
 }
 
 // The reenactment to show: --reenactment ID, or the source's only one.
-absl::StatusOr<ReenactmentData> LoadChosen(const client::ReenactmentSource& source,
-                                           const Flags& flags, bool skip_keyframes,
-                                           std::ostream& err) {
+absl::StatusOr<Reenactment> LoadChosen(const client::ReenactmentSource& source, const Flags& flags,
+                                       bool skip_keyframes, std::ostream& err) {
   std::string id = flags.GetOr("reenactment", "");
   if (id.empty()) {
     ASSIGN_OR_RETURN(std::vector<v1::ReenactmentSummary> list, source.List());
@@ -111,7 +110,7 @@ int List(const client::ReenactmentSource& source, bool json, std::ostream& out, 
   return kExitOk;
 }
 
-absl::StatusOr<HeadlessOptions> HeadlessFromFlags(const Flags& flags, const ReenactmentData& data,
+absl::StatusOr<HeadlessOptions> HeadlessFromFlags(const Flags& flags, const Reenactment& data,
                                                   view::TextureMode mode) {
   HeadlessOptions options;
   ASSIGN_OR_RETURN(options.width, flags.GetInt("width", 1280));
@@ -131,7 +130,7 @@ absl::StatusOr<HeadlessOptions> HeadlessFromFlags(const Flags& flags, const Reen
   return options;
 }
 
-int RenderHeadless(const Flags& flags, const ReenactmentData& data, view::TextureMode mode,
+int RenderHeadless(const Flags& flags, const Reenactment& data, view::TextureMode mode,
                    std::ostream& out, std::ostream& err) {
   absl::StatusOr<HeadlessOptions> options = HeadlessFromFlags(flags, data, mode);
   if (!options.ok()) return Fail(options.status(), err);
@@ -155,7 +154,7 @@ int RenderHeadless(const Flags& flags, const ReenactmentData& data, view::Textur
   return kExitOk;
 }
 
-int RunWindow(const Flags& flags, const ReenactmentData& data, view::TextureMode mode,
+int RunWindow(const Flags& flags, const Reenactment& data, view::TextureMode mode,
               std::ostream& out, std::ostream& err) {
   WindowOptions options;
   options.mode = mode;
@@ -184,7 +183,7 @@ int RunWindow(const Flags& flags, const ReenactmentData& data, view::TextureMode
   return kExitOk;
 }
 
-int RunArMode(const Flags& flags, const ReenactmentData& data, view::TextureMode mode,
+int RunArMode(const Flags& flags, const Reenactment& data, view::TextureMode mode,
               std::ostream& out, std::ostream& err) {
   ArOptions options;
   options.video = *flags.Get("ar");
@@ -277,7 +276,7 @@ int RunViewer(const std::vector<std::string>& args, std::ostream& out, std::ostr
   if (!source.ok()) return Fail(source.status(), err);
   if (flags->Has("list")) return List(**source, flags->Has("json"), out, err);
   const bool skip_keyframes = *mode == view::TextureMode::kBaked;
-  absl::StatusOr<ReenactmentData> data = LoadChosen(**source, *flags, skip_keyframes, err);
+  absl::StatusOr<Reenactment> data = LoadChosen(**source, *flags, skip_keyframes, err);
   if (!data.ok()) return Fail(data.status(), err);
   if (flags->Has("ar")) return RunArMode(*flags, *data, *mode, out, err);
   if (flags->Has("render-to")) return RenderHeadless(*flags, *data, *mode, out, err);

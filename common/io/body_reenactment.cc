@@ -195,6 +195,11 @@ absl::StatusOr<DecodedBodyMesh> DecodeBodyMesh(const v1::BodyMesh& mesh) {
   for (double s : mesh.shape()) {
     if (!std::isfinite(s)) return Invalid("a shape coefficient is not finite");
   }
+  out.model_name = mesh.model_name();
+  out.shape.assign(mesh.shape().begin(), mesh.shape().end());
+  out.shape_names.assign(mesh.shape_names().begin(), mesh.shape_names().end());
+  out.joint_names.assign(mesh.joint_names().begin(), mesh.joint_names().end());
+  out.atlas_jpeg = mesh.atlas_jpeg();
   return out;
 }
 

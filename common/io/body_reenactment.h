@@ -15,24 +15,13 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/body/body_model.h"
+#include "common/model/reenactment.h"
 #include "reenact/v1/reenactment.pb.h"
 
 namespace reenact {
 
-// A BodyMesh unpacked into arrays.
-struct DecodedBodyMesh {
-  Eigen::Matrix3Xd rest_vertices_m;  // 3 x V, shape applied.
-  std::array<Eigen::Vector3d, body::kNumKinectV2Joints> rest_joints_m;
-  std::vector<Eigen::Vector3i> triangles;  // Over model vertices.
-  std::vector<std::array<int, body::kMaxInfluences>> skin_joints;
-  std::vector<std::array<float, body::kMaxInfluences>> skin_weights;
-  // Texture vertices: their model vertex and uv; triangles over them.
-  std::vector<uint32_t> texture_vertex_source;
-  std::vector<Eigen::Vector2f> texture_uvs;
-  std::vector<Eigen::Vector3i> texture_triangles;
-
-  int num_vertices() const { return static_cast<int>(rest_vertices_m.cols()); }
-};
+// A BodyMesh unpacked: the plain type of common/model.
+using DecodedBodyMesh = BodyMesh;
 
 // The BodyMesh of `model` with shape coefficients `shape` (rest pose, shape
 // applied; pose correctives are not carried) and the atlas `atlas_jpeg`

@@ -6,18 +6,17 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/body/body_model.h"
-#include "common/io/body_reenactment.h"
 
 namespace reenact {
 
-absl::StatusOr<body::Motion> BodyReenactmentMotion(const ReenactmentData& data) {
+absl::StatusOr<body::Motion> BodyReenactmentMotion(const Reenactment& data) {
   if (!data.is_body()) {
-    return absl::InvalidArgumentError(absl::StrCat("reenactment ", data.info.reenactment_id(),
-                                                   " (method \"", data.info.method(),
+    return absl::InvalidArgumentError(absl::StrCat("reenactment ", data.info.reenactment_id,
+                                                   " (method \"", data.info.method,
                                                    "\") is not a body-model reenactment"));
   }
   RETURN_IF_ERROR(ValidateReenactment(data));
-  ASSIGN_OR_RETURN(const DecodedBodyMesh mesh, DecodeBodyMesh(data.body.front()));
+  const BodyMesh& mesh = *data.body;
   const std::array<int, body::kNumKinectV2Joints>& order = body::KinectV2JointsParentsFirst();
   std::array<int, body::kNumKinectV2Joints> position{};  // Kinect v2 id -> Motion joint.
   std::vector<body::MotionJoint> joints;
@@ -34,18 +33,18 @@ absl::StatusOr<body::Motion> BodyReenactmentMotion(const ReenactmentData& data) 
   }
   std::vector<std::vector<Eigen::Quaterniond>> rotations;
   std::vector<Eigen::Vector3d> root_translations_m;
-  for (const v1::PartFrame& frame : data.frames) {
-    ASSIGN_OR_RETURN(const body::BodyPose pose, BodyPoseFromProto(frame.body()));
+  for (const ReenactmentFrame& frame : data.frames) {
+    const body::BodyPose& pose = frame.body->pose;  // Every frame has one (validated).
     std::vector<Eigen::Quaterniond>& local = rotations.emplace_back(joints.size());
     for (int j = 0; j < body::kNumKinectV2Joints; ++j) local[position[j]] = pose.local_rotation[j];
     root_translations_m.push_back(mesh.rest_joints_m[Index(body::KinectV2Joint::kSpineBase)] +
                                   pose.root_translation_m);
   }
   body::MotionInfo info;
-  info.path = data.info.reenactment_id();
+  info.path = data.info.reenactment_id;
   info.format = "reenactment";
   info.num_frames = static_cast<int>(data.frames.size());
-  info.fps = data.info.fps() > 0 ? data.info.fps() : 30.0;
+  info.fps = data.info.fps > 0 ? data.info.fps : 30.0;
   info.joint_set = body::JointSetId::kKinectV2;
   return body::Motion(std::move(info), std::move(joints), std::move(rotations),
                       std::move(root_translations_m));

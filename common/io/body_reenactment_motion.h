@@ -5,7 +5,7 @@
 
 #include "absl/status/statusor.h"
 #include "common/body/motion.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 
 namespace reenact {
 
@@ -24,6 +24,6 @@ namespace reenact {
 // Per-frame vertex offsets move no joint and have no place here. Poses that
 // are not valid are kept as stored (the nearest fitted one).
 // InvalidArgument when `data` is not a valid body-model reenactment.
-absl::StatusOr<body::Motion> BodyReenactmentMotion(const ReenactmentData& data);
+absl::StatusOr<body::Motion> BodyReenactmentMotion(const Reenactment& data);
 
 }  // namespace reenact

@@ -14,7 +14,7 @@ namespace reenact {
 namespace {
 
 // The test body reenactment; frame 5 turns every joint.
-ReenactmentData Reenactment() {
+ReenactmentData TurnedBody() {
   ReenactmentData data = testing::MakeTestBodyReenactment(6);
   testing::TurnEveryJoint(&data, 5);
   return data;
@@ -53,8 +53,8 @@ double WorstJointError(const ReenactmentData& data, const body::Motion& motion) 
 }
 
 TEST(BodyReenactmentMotion, ForwardKinematicsGivesThePosedJoints) {
-  const ReenactmentData data = Reenactment();
-  auto motion = BodyReenactmentMotion(data);
+  const ReenactmentData data = TurnedBody();
+  auto motion = BodyReenactmentMotion(testing::ToPlain(data));
   ASSERT_TRUE(motion.ok()) << motion.status();
   ASSERT_EQ(motion->joints().size(), 25u);
   EXPECT_EQ(motion->joints()[0].name, "SpineBase");
@@ -70,8 +70,8 @@ TEST(BodyReenactmentMotion, ForwardKinematicsGivesThePosedJoints) {
 // joints of every frame (the BVH convention of rotations in the parent's
 // frame meets the BodyPose's world-aligned rest frames).
 TEST(BodyReenactmentMotion, WrittenAsBvhReadsBackToThePosedJoints) {
-  const ReenactmentData data = Reenactment();
-  auto motion = BodyReenactmentMotion(data);
+  const ReenactmentData data = TurnedBody();
+  auto motion = BodyReenactmentMotion(testing::ToPlain(data));
   ASSERT_TRUE(motion.ok()) << motion.status();
   const std::string path = testing::MakeTempDir("body_bvh") + "/body.bvh";
   ASSERT_TRUE(body::WriteBvh(*motion, path).ok());
@@ -88,10 +88,10 @@ TEST(BodyReenactmentMotion, WrittenAsBvhReadsBackToThePosedJoints) {
 }
 
 TEST(BodyReenactmentMotion, RigidReenactmentsAreInvalidArgument) {
-  EXPECT_EQ(BodyReenactmentMotion(testing::MakeTestReenactment()).status().code(),
+  EXPECT_EQ(BodyReenactmentMotion(testing::ToPlain(testing::MakeTestReenactment())).status().code(),
             absl::StatusCode::kInvalidArgument);
-  ReenactmentData broken = Reenactment();
-  broken.frames[2].mutable_body()->clear_local_rotations();
+  Reenactment broken = testing::ToPlain(TurnedBody());
+  broken.frames[2].body.reset();
   EXPECT_EQ(BodyReenactmentMotion(broken).status().code(), absl::StatusCode::kInvalidArgument);
 }
 

@@ -180,13 +180,15 @@ int AddMaterial(GlbBuilder& b, const std::string& name, const std::string& jpeg,
 }
 
 // The mesh of one part, or -1 when it has no triangles.
-absl::StatusOr<int> AddMesh(GlbBuilder& b, const v1::PartMesh& part,
-                            const GltfExportOptions& options, GltfExportSummary* summary) {
-  if (part.triangle_indices_size() == 0) return -1;
-  ASSIGN_OR_RETURN(const std::vector<float> positions,
-                   UnpackFloats(part.positions_in_part_m_f32()));
-  ASSIGN_OR_RETURN(std::vector<float> normals, UnpackFloats(part.normals_in_part_f32()));
-  ASSIGN_OR_RETURN(std::vector<float> uvs, UnpackFloats(part.uvs_f32()));
+int AddMesh(GlbBuilder& b, const PartMesh& part, const GltfExportOptions& options,
+            GltfExportSummary* summary) {
+  if (part.triangles.empty()) return -1;
+  const std::vector<float> positions(
+      part.positions_in_part_m.data(),
+      part.positions_in_part_m.data() + part.positions_in_part_m.size());
+  std::vector<float> normals(part.normals_in_part.data(),
+                             part.normals_in_part.data() + part.normals_in_part.size());
+  std::vector<float> uvs(part.uvs.data(), part.uvs.data() + part.uvs.size());
   // glTF's texture origin is the top-left corner, the reenactment's the
   // bottom-left.
   for (size_t i = 1; i < uvs.size(); i += 2) uvs[i] = 1.0f - uvs[i];
@@ -196,16 +198,20 @@ absl::StatusOr<int> AddMesh(GlbBuilder& b, const v1::PartMesh& part,
       b.AddFloats(positions, 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
   primitive.attributes["NORMAL"] = b.AddFloats(
       UnitNormals(std::move(normals)), 3, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
-  primitive.material = AddMaterial(b, part.name(), part.baked_texture_jpeg(), options, summary);
+  primitive.material = AddMaterial(b, part.name, part.baked_texture_jpeg, options, summary);
   // Texture coordinates only where a texture uses them.
   if (b.model().materials[primitive.material].pbrMetallicRoughness.baseColorTexture.index >= 0) {
     primitive.attributes["TEXCOORD_0"] =
         b.AddFloats(uvs, 2, TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
   }
-  primitive.indices = b.AddIndices(
-      std::vector<uint32_t>(part.triangle_indices().begin(), part.triangle_indices().end()));
+  std::vector<uint32_t> indices;
+  indices.reserve(3 * part.triangles.size());
+  for (const Eigen::Vector3i& t : part.triangles) {
+    for (int c = 0; c < 3; ++c) indices.push_back(static_cast<uint32_t>(t[c]));
+  }
+  primitive.indices = b.AddIndices(indices);
   tinygltf::Mesh mesh;
-  mesh.name = part.name();
+  mesh.name = part.name;
   mesh.primitives.push_back(std::move(primitive));
   b.model().meshes.push_back(std::move(mesh));
   ++summary->meshes;
@@ -214,18 +220,18 @@ absl::StatusOr<int> AddMesh(GlbBuilder& b, const v1::PartMesh& part,
 
 // Seconds of every frame from the first one's stamp; frame_index / fps when
 // the stamps (as float32, what the file stores) do not strictly increase.
-std::vector<double> KeyTimes(const ReenactmentData& data, const GltfExportOptions& options,
+std::vector<double> KeyTimes(const Reenactment& data, const GltfExportOptions& options,
                              bool* fell_back) {
   std::vector<double> times(data.frames.size());
   *fell_back = false;
   for (size_t i = 0; i < data.frames.size(); ++i) {
-    times[i] = static_cast<double>(data.frames[i].stamp_ns() - data.frames[0].stamp_ns()) * 1e-9;
+    times[i] = static_cast<double>(data.frames[i].stamp_ns - data.frames[0].stamp_ns) * 1e-9;
     if (i > 0 && !(static_cast<float>(times[i]) > static_cast<float>(times[i - 1]))) {
       *fell_back = true;
     }
   }
   if (!*fell_back) return times;
-  double fps = options.fallback_fps > 0 ? options.fallback_fps : data.info.fps();
+  double fps = options.fallback_fps > 0 ? options.fallback_fps : data.info.fps;
   if (!(fps > 0)) fps = 30.0;
   for (size_t i = 0; i < times.size(); ++i) times[i] = static_cast<double>(i) / fps;
   return times;
@@ -241,48 +247,44 @@ void KeepHemisphere(const std::array<float, 4>& previous, std::array<float, 4>* 
   }
 }
 
-Key KeyOf(const v1::PartPose& pose, double time_s, bool visible) {
+Key KeyOf(const PartPose& pose, double time_s, bool visible) {
   Key key;
   key.time_s = time_s;
-  const v1::Vector3& t = pose.world_from_part().translation_m();
+  const Eigen::Vector3d t = pose.world_from_part.translation();
   key.translation = {static_cast<float>(t.x()), static_cast<float>(t.y()),
                      static_cast<float>(t.z())};
-  const v1::Quaternion& q = pose.world_from_part().rotation();
-  const double n = std::sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
-  if (n > 1e-12) {
-    key.rotation = {static_cast<float>(q.x() / n), static_cast<float>(q.y() / n),
-                    static_cast<float>(q.z() / n), static_cast<float>(q.w() / n)};
-  }
-  key.scale = visible ? pose.scale() : 0.0f;
+  const Eigen::Quaterniond q(pose.world_from_part.linear());
+  key.rotation = {static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()),
+                  static_cast<float>(q.w())};
+  key.scale = visible ? static_cast<float>(pose.scale) : 0.0f;
   return key;
 }
 
 // The keys of part `p`: one per frame, plus a step key where it appears or
 // disappears. Invalid poses hold the last (or else the next) valid pose,
 // hidden by scale 0.
-std::vector<Key> PartKeys(const ReenactmentData& data, int p, const std::vector<double>& times) {
+std::vector<Key> PartKeys(const Reenactment& data, int p, const std::vector<double>& times) {
   const size_t n = data.frames.size();
-  std::vector<const v1::PartPose*> held(n, nullptr);
-  const v1::PartPose* last = nullptr;
+  std::vector<const PartPose*> held(n, nullptr);
+  const PartPose* last = nullptr;
   for (size_t i = 0; i < n; ++i) {
-    const v1::PartPose& pose = data.frames[i].parts(p);
-    if (pose.valid()) last = &pose;
+    const PartPose& pose = data.frames[i].parts[p];
+    if (pose.valid) last = &pose;
     held[i] = last;
   }
-  const v1::PartPose* next = nullptr;
+  const PartPose* next = nullptr;
   for (size_t i = n; i-- > 0;) {
-    const v1::PartPose& pose = data.frames[i].parts(p);
-    if (pose.valid()) next = &pose;
+    const PartPose& pose = data.frames[i].parts[p];
+    if (pose.valid) next = &pose;
     if (held[i] == nullptr) held[i] = next;
   }
-  v1::PartPose identity;
-  identity.mutable_world_from_part()->mutable_rotation()->set_w(1.0);
+  const PartPose identity;
   std::vector<Key> keys;
   keys.reserve(n + 8);
   for (size_t i = 0; i < n; ++i) {
-    const bool valid = data.frames[i].parts(p).valid();
-    const v1::PartPose& pose = held[i] != nullptr ? *held[i] : identity;
-    if (i > 0 && valid != data.frames[i - 1].parts(p).valid()) {
+    const bool valid = data.frames[i].parts[p].valid;
+    const PartPose& pose = held[i] != nullptr ? *held[i] : identity;
+    if (i > 0 && valid != data.frames[i - 1].parts[p].valid) {
       const double lead = std::min(kStepLeadS, (times[i] - times[i - 1]) / 4);
       const double t = times[i] - lead;
       if (static_cast<float>(t) > static_cast<float>(times[i - 1]) &&
@@ -347,7 +349,7 @@ void SetRestTransform(tinygltf::Node& node, const Key& key) {
 // ------------------------------------------------- body-model reenactments
 
 // Area-weighted unit normals of the rest mesh, 3 floats per model vertex.
-std::vector<float> RestNormals(const DecodedBodyMesh& body) {
+std::vector<float> RestNormals(const BodyMesh& body) {
   std::vector<float> normals(3 * body.num_vertices(), 0.0f);
   for (const Eigen::Vector3i& t : body.triangles) {
     const Eigen::Vector3d a = body.rest_vertices_m.col(t[0]);
@@ -363,8 +365,8 @@ std::vector<float> RestNormals(const DecodedBodyMesh& body) {
 // The skinned mesh over the texture vertices: rest positions, normals, uvs
 // (v flipped), JOINTS_0 (joint ids are the skin's joint indices) and
 // WEIGHTS_0 (renormalised in float32), with the atlas as material.
-int AddBodyMesh(GlbBuilder& b, const v1::BodyMesh& message, const DecodedBodyMesh& body,
-                const GltfExportOptions& options, GltfExportSummary* summary) {
+int AddBodyMesh(GlbBuilder& b, const BodyMesh& body, const GltfExportOptions& options,
+                GltfExportSummary* summary) {
   const std::vector<float> model_normals = RestNormals(body);
   std::vector<float> positions, normals, uvs, weights;
   std::vector<uint8_t> joints;
@@ -392,7 +394,7 @@ int AddBodyMesh(GlbBuilder& b, const v1::BodyMesh& message, const DecodedBodyMes
   primitive.attributes["JOINTS_0"] = b.AddByteVec4s(joints);
   primitive.attributes["WEIGHTS_0"] =
       b.AddFloats(weights, 4, TINYGLTF_TYPE_VEC4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
-  primitive.material = AddMaterial(b, "body", message.atlas_jpeg(), options, summary);
+  primitive.material = AddMaterial(b, "body", body.atlas_jpeg, options, summary);
   if (b.model().materials[primitive.material].pbrMetallicRoughness.baseColorTexture.index >= 0) {
     primitive.attributes["TEXCOORD_0"] =
         b.AddFloats(uvs, 2, TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
@@ -403,7 +405,7 @@ int AddBodyMesh(GlbBuilder& b, const v1::BodyMesh& message, const DecodedBodyMes
   }
   primitive.indices = b.AddIndices(indices);
   tinygltf::Mesh mesh;
-  mesh.name = message.model_name().empty() ? "body" : message.model_name();
+  mesh.name = body.model_name.empty() ? "body" : body.model_name;
   mesh.primitives.push_back(std::move(primitive));
   b.model().meshes.push_back(std::move(mesh));
   ++summary->meshes;
@@ -413,7 +415,7 @@ int AddBodyMesh(GlbBuilder& b, const v1::BodyMesh& message, const DecodedBodyMes
 // The 25 joint nodes (Kinect v2 order, from node index `first`) in the
 // Kinect v2 tree under node 0, at their rest translations with no rotation,
 // and the skin over them: inverse bind matrices translate by -J_j.
-int AddSkeleton(GlbBuilder& b, const DecodedBodyMesh& body) {
+int AddSkeleton(GlbBuilder& b, const BodyMesh& body) {
   tinygltf::Model& model = b.model();
   const int first = static_cast<int>(model.nodes.size());
   std::vector<float> inverse_binds;
@@ -449,14 +451,14 @@ int AddSkeleton(GlbBuilder& b, const DecodedBodyMesh& body) {
 // joint's world-aligned rest frame, which is the node's rotation since the
 // rest nodes carry none), and a translation channel on the root (its rest
 // joint plus root_translation_m), keyed at every frame.
-absl::Status AddBodyChannels(GlbBuilder& b, const ReenactmentData& data,
-                             const DecodedBodyMesh& body, int first_joint, int input,
-                             tinygltf::Animation& animation) {
+void AddBodyChannels(GlbBuilder& b, const Reenactment& data, int first_joint, int input,
+                     tinygltf::Animation& animation) {
+  const BodyMesh& body = *data.body;
   std::vector<std::vector<float>> rotations(body::kNumKinectV2Joints);
   std::vector<float> root_translations;
   std::vector<std::array<float, 4>> previous(body::kNumKinectV2Joints);
   for (size_t f = 0; f < data.frames.size(); ++f) {
-    ASSIGN_OR_RETURN(const body::BodyPose pose, BodyPoseFromProto(data.frames[f].body()));
+    const body::BodyPose pose = data.frames[f].body ? data.frames[f].body->pose : body::BodyPose();
     for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
       const Eigen::Quaterniond& q = pose.local_rotation[j];
       std::array<float, 4> key = {static_cast<float>(q.x()), static_cast<float>(q.y()),
@@ -475,41 +477,38 @@ absl::Status AddBodyChannels(GlbBuilder& b, const ReenactmentData& data,
   }
   AddChannel(animation, first_joint + Index(body::KinectV2Joint::kSpineBase), "translation", input,
              b.AddFloats(root_translations, 3, TINYGLTF_TYPE_VEC3, 0, false));
-  return absl::OkStatus();
 }
 
 // The body of a body-model reenactment: skeleton and skin, the skinned mesh
 // on its own scene node (returned; glTF ignores a skinned mesh node's own
 // transform and its parents'), and the animation channels when there are
 // frames (`input`: the frame times).
-absl::StatusOr<int> AddBody(GlbBuilder& b, const ReenactmentData& data,
-                            const GltfExportOptions& options, int input,
-                            tinygltf::Animation& animation, GltfExportSummary* summary) {
-  ASSIGN_OR_RETURN(const DecodedBodyMesh body, DecodeBodyMesh(data.body.front()));
-  const int first_joint = AddSkeleton(b, body);
+int AddBody(GlbBuilder& b, const Reenactment& data, const GltfExportOptions& options, int input,
+            tinygltf::Animation& animation, GltfExportSummary* summary) {
+  const int first_joint = AddSkeleton(b, *data.body);
   tinygltf::Node node;
   node.name = "body";
-  node.mesh = AddBodyMesh(b, data.body.front(), body, options, summary);
+  node.mesh = AddBodyMesh(b, *data.body, options, summary);
   node.skin = 0;
   b.model().nodes.push_back(std::move(node));
   summary->joints = body::kNumKinectV2Joints;
-  for (const v1::PartFrame& frame : data.frames) {
-    summary->frames_offsets_left_out += !frame.body().vertex_offsets_50um_i16().empty();
+  for (const ReenactmentFrame& frame : data.frames) {
+    summary->frames_offsets_left_out += frame.body && frame.body->vertex_offsets_50um.cols() > 0;
   }
   if (input >= 0) {
-    RETURN_IF_ERROR(AddBodyChannels(b, data, body, first_joint, input, animation));
+    AddBodyChannels(b, data, first_joint, input, animation);
     summary->keys = body::kNumKinectV2Joints * static_cast<int>(data.frames.size());
   }
   return static_cast<int>(b.model().nodes.size()) - 1;
 }
 
-tinygltf::Value InfoExtras(const v1::ReenactmentInfo& info) {
+tinygltf::Value InfoExtras(const ReenactmentInfo& info) {
   tinygltf::Value::Object extras;
-  extras["reenactment_id"] = tinygltf::Value(info.reenactment_id());
-  extras["take_id"] = tinygltf::Value(info.take_id());
-  extras["method"] = tinygltf::Value(info.method());
-  extras["fps"] = tinygltf::Value(info.fps());
-  extras["frame_count"] = tinygltf::Value(info.frame_count());
+  extras["reenactment_id"] = tinygltf::Value(info.reenactment_id);
+  extras["take_id"] = tinygltf::Value(info.take_id);
+  extras["method"] = tinygltf::Value(info.method);
+  extras["fps"] = tinygltf::Value(info.fps);
+  extras["frame_count"] = tinygltf::Value(info.frame_count);
   return tinygltf::Value(std::move(extras));
 }
 
@@ -555,7 +554,7 @@ std::string GltfExportSummary::BriefReport() const {
       stamps_fell_back ? " (times from frame index / fps)" : "", bytes);
 }
 
-absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
+absl::StatusOr<std::string> ExportReenactmentGlb(const Reenactment& data,
                                                  const GltfExportOptions& options,
                                                  GltfExportSummary* summary) {
   RETURN_IF_ERROR(options.Validate());
@@ -567,7 +566,7 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
   tinygltf::Model& model = b.model();
 
   tinygltf::Node root;
-  root.name = data.info.reenactment_id().empty() ? "reenactment" : data.info.reenactment_id();
+  root.name = data.info.reenactment_id.empty() ? "reenactment" : data.info.reenactment_id;
   root.extras = InfoExtras(data.info);
   model.nodes.push_back(std::move(root));
 
@@ -584,13 +583,12 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
   scene.name = model.nodes[0].name;
   scene.nodes.push_back(0);
   if (data.is_body()) {
-    ASSIGN_OR_RETURN(const int body_node, AddBody(b, data, options, shared_input, animation, &s));
-    scene.nodes.push_back(body_node);
+    scene.nodes.push_back(AddBody(b, data, options, shared_input, animation, &s));
   }
   for (int p = 0; p < static_cast<int>(data.parts.size()); ++p) {
     tinygltf::Node node;
-    node.name = data.parts[p].name();
-    ASSIGN_OR_RETURN(node.mesh, AddMesh(b, data.parts[p], options, &s));
+    node.name = data.parts[p].name;
+    node.mesh = AddMesh(b, data.parts[p], options, &s);
     if (!times.empty()) {
       const std::vector<Key> keys = PartKeys(data, p, times);
       SetRestTransform(node, keys.front());
@@ -615,20 +613,26 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
 absl::StatusOr<std::string> ExportBodyMeshGlb(const v1::BodyMesh& mesh,
                                               const GltfExportOptions& options,
                                               GltfExportSummary* summary) {
+  ASSIGN_OR_RETURN(const BodyMesh body, DecodeBodyMesh(mesh));
+  return ExportBodyMeshGlb(body, options, summary);
+}
+
+absl::StatusOr<std::string> ExportBodyMeshGlb(const BodyMesh& body,
+                                              const GltfExportOptions& options,
+                                              GltfExportSummary* summary) {
   RETURN_IF_ERROR(options.Validate());
-  ASSIGN_OR_RETURN(const DecodedBodyMesh body, DecodeBodyMesh(mesh));
   GltfExportSummary local;
   GltfExportSummary& s = summary != nullptr ? *summary : local;
   s = GltfExportSummary();
   GlbBuilder b;
   tinygltf::Model& model = b.model();
   tinygltf::Node root;
-  root.name = mesh.model_name().empty() ? "body" : mesh.model_name();
+  root.name = body.model_name.empty() ? "body" : body.model_name;
   model.nodes.push_back(std::move(root));
   AddSkeleton(b, body);
   tinygltf::Node node;
   node.name = "body";
-  node.mesh = AddBodyMesh(b, mesh, body, options, &s);
+  node.mesh = AddBodyMesh(b, body, options, &s);
   node.skin = 0;
   model.nodes.push_back(std::move(node));
   s.joints = body::kNumKinectV2Joints;
@@ -643,7 +647,7 @@ absl::StatusOr<std::string> ExportBodyMeshGlb(const v1::BodyMesh& mesh,
   return WriteGlb(b, s);
 }
 
-absl::Status WriteReenactmentGlb(const ReenactmentData& data, const std::string& path,
+absl::Status WriteReenactmentGlb(const Reenactment& data, const std::string& path,
                                  const GltfExportOptions& options, GltfExportSummary* summary) {
   ASSIGN_OR_RETURN(const std::string bytes, ExportReenactmentGlb(data, options, summary));
   return WriteFileAtomically(path, bytes);

@@ -36,7 +36,8 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
+#include "reenact/v1/reenactment.pb.h"
 
 namespace reenact {
 
@@ -74,7 +75,7 @@ struct GltfExportSummary {
 
 // The .glb bytes of `data` (validated first: InvalidArgument when it is not
 // a valid reenactment). Keyframes are not used and may be absent.
-absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
+absl::StatusOr<std::string> ExportReenactmentGlb(const Reenactment& data,
                                                  const GltfExportOptions& options = {},
                                                  GltfExportSummary* summary = nullptr);
 
@@ -85,13 +86,17 @@ absl::StatusOr<std::string> ExportReenactmentGlb(const ReenactmentData& data,
 // has one (plain grey otherwise). A viewer poses it by setting joint j's
 // rotation to BodyPose.local_rotations[j] and the root joint's
 // (SpineBase's) translation to its rest position plus root_translation_m.
-// InvalidArgument when the mesh does not decode.
+absl::StatusOr<std::string> ExportBodyMeshGlb(const BodyMesh& mesh,
+                                              const GltfExportOptions& options = {},
+                                              GltfExportSummary* summary = nullptr);
+// The same for a BodyMesh message (live previews send them); InvalidArgument
+// when it does not decode.
 absl::StatusOr<std::string> ExportBodyMeshGlb(const v1::BodyMesh& mesh,
                                               const GltfExportOptions& options = {},
                                               GltfExportSummary* summary = nullptr);
 
 // ExportReenactmentGlb written to `path` through a temporary file.
-absl::Status WriteReenactmentGlb(const ReenactmentData& data, const std::string& path,
+absl::Status WriteReenactmentGlb(const Reenactment& data, const std::string& path,
                                  const GltfExportOptions& options = {},
                                  GltfExportSummary* summary = nullptr);
 

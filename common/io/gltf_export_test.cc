@@ -106,7 +106,7 @@ double Seconds(const ReenactmentData& data, int frame) {
 TEST(ExportReenactmentGlb, WritesOneTexturedNodePerPartUnderARoot) {
   const ReenactmentData data = MakeTestReenactment();
   GltfExportSummary summary;
-  auto glb = ExportReenactmentGlb(data, {}, &summary);
+  auto glb = ExportReenactmentGlb(testing::ToPlain(data), {}, &summary);
   ASSERT_TRUE(glb.ok()) << glb.status();
   EXPECT_EQ(glb->substr(0, 4), "glTF");
   EXPECT_EQ(summary.bytes, static_cast<int64_t>(glb->size()));
@@ -161,7 +161,7 @@ TEST(ExportReenactmentGlb, KeysEqualThePartPoses) {
   TestReenactmentOptions options;
   options.frames = 12;
   const ReenactmentData data = MakeTestReenactment(options);
-  auto glb = ExportReenactmentGlb(data);
+  auto glb = ExportReenactmentGlb(testing::ToPlain(data));
   ASSERT_TRUE(glb.ok()) << glb.status();
   const tinygltf::Model model = Load(*glb);
   const KeyValues keys = KeysOf(model, /*node=*/1);  // Part 0, always valid.
@@ -189,7 +189,7 @@ TEST(ExportReenactmentGlb, InvalidPosesHideThePartWithSteps) {
   ReenactmentData data = MakeTestReenactment(options);
   data.frames[4].mutable_parts(2)->set_valid(false);  // Part 2 blinks out at frame 4.
   GltfExportSummary summary;
-  auto glb = ExportReenactmentGlb(data, {}, &summary);
+  auto glb = ExportReenactmentGlb(testing::ToPlain(data), {}, &summary);
   ASSERT_TRUE(glb.ok()) << glb.status();
   const tinygltf::Model model = Load(*glb);
 
@@ -225,7 +225,7 @@ TEST(ExportReenactmentGlb, OptionsAndFallbacks) {
   GltfExportOptions options;
   options.textures = false;
   options.unlit = false;
-  auto plain = ExportReenactmentGlb(data, options);
+  auto plain = ExportReenactmentGlb(testing::ToPlain(data), options);
   ASSERT_TRUE(plain.ok());
   const tinygltf::Model model = Load(*plain);
   EXPECT_TRUE(model.images.empty());
@@ -236,7 +236,7 @@ TEST(ExportReenactmentGlb, OptionsAndFallbacks) {
   // Stamps that repeat: key times from frame index / fps.
   for (auto& frame : data.frames) frame.set_stamp_ns(7);
   GltfExportSummary summary;
-  auto glb = ExportReenactmentGlb(data, {}, &summary);
+  auto glb = ExportReenactmentGlb(testing::ToPlain(data), {}, &summary);
   ASSERT_TRUE(glb.ok());
   EXPECT_TRUE(summary.stamps_fell_back);
   EXPECT_NEAR(summary.duration_s, 4.0 / 30.0, 1e-9);
@@ -245,18 +245,18 @@ TEST(ExportReenactmentGlb, OptionsAndFallbacks) {
 
   // A part without triangles: a node without a mesh.
   data.parts[2].clear_triangle_indices();
-  auto meshless = ExportReenactmentGlb(data);
+  auto meshless = ExportReenactmentGlb(testing::ToPlain(data));
   ASSERT_TRUE(meshless.ok());
   EXPECT_EQ(Load(*meshless).nodes[3].mesh, -1);
 }
 
 TEST(ExportReenactmentGlb, RejectsInvalidInput) {
-  ReenactmentData data = MakeTestReenactment();
-  data.frames[1].mutable_parts()->RemoveLast();
+  Reenactment data = testing::ToPlain(MakeTestReenactment());
+  data.frames[1].parts.pop_back();
   EXPECT_EQ(ExportReenactmentGlb(data).status().code(), absl::StatusCode::kInvalidArgument);
   GltfExportOptions options;
   options.fallback_fps = -1;
-  EXPECT_EQ(ExportReenactmentGlb(MakeTestReenactment(), options).status().code(),
+  EXPECT_EQ(ExportReenactmentGlb(testing::ToPlain(MakeTestReenactment()), options).status().code(),
             absl::StatusCode::kInvalidArgument);
 }
 
@@ -345,7 +345,7 @@ Eigen::Matrix3Xd SkinAt(const tinygltf::Model& model, size_t k) {
 TEST(ExportReenactmentGlb, BodyIsOneSkinnedMeshOverTheKinectV2Tree) {
   const ReenactmentData data = testing::MakeTestBodyReenactment(5);
   GltfExportSummary summary;
-  auto glb = ExportReenactmentGlb(data, {}, &summary);
+  auto glb = ExportReenactmentGlb(testing::ToPlain(data), {}, &summary);
   ASSERT_TRUE(glb.ok()) << glb.status();
   std::printf("test body: %s\n", summary.BriefReport().c_str());
   const tinygltf::Model model = Load(*glb);
@@ -399,7 +399,7 @@ TEST(ExportReenactmentGlb, BodyIsOneSkinnedMeshOverTheKinectV2Tree) {
 TEST(ExportReenactmentGlb, SkinningTheBodyReproducesPoseBodyMesh) {
   ReenactmentData data = testing::MakeTestBodyReenactment(4);
   testing::TurnEveryJoint(&data, 3);
-  auto glb = ExportReenactmentGlb(data);
+  auto glb = ExportReenactmentGlb(testing::ToPlain(data));
   ASSERT_TRUE(glb.ok()) << glb.status();
   const tinygltf::Model model = Load(*glb);
   auto body = DecodeBodyMesh(data.body[0]);
@@ -425,7 +425,8 @@ TEST(ExportReenactmentGlb, SkinningTheBodyReproducesPoseBodyMesh) {
 TEST(WriteReenactmentGlb, WritesTheFile) {
   const std::string path = testing::MakeTempDir("glb_write") + "/r.glb";
   GltfExportSummary summary;
-  ASSERT_TRUE(WriteReenactmentGlb(MakeTestReenactment(), path, {}, &summary).ok());
+  ASSERT_TRUE(
+      WriteReenactmentGlb(testing::ToPlain(MakeTestReenactment()), path, {}, &summary).ok());
   EXPECT_EQ(static_cast<int64_t>(std::filesystem::file_size(path)), summary.bytes);
   EXPECT_FALSE(summary.BriefReport().empty());
 }

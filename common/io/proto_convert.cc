@@ -32,7 +32,7 @@ v1::CameraIntrinsics ToProto(const CameraIntrinsics& k) {
   return m;
 }
 
-absl::StatusOr<CameraIntrinsics> FromProto(const v1::CameraIntrinsics& m) {
+CameraIntrinsics IntrinsicsAsStored(const v1::CameraIntrinsics& m) {
   CameraIntrinsics k;
   k.width = m.width_px();
   k.height = m.height_px();
@@ -45,6 +45,11 @@ absl::StatusOr<CameraIntrinsics> FromProto(const v1::CameraIntrinsics& m) {
   k.k3 = m.k3();
   k.p1 = m.p1();
   k.p2 = m.p2();
+  return k;
+}
+
+absl::StatusOr<CameraIntrinsics> FromProto(const v1::CameraIntrinsics& m) {
+  CameraIntrinsics k = IntrinsicsAsStored(m);
   if (auto status = k.Validate(); !status.ok()) return status;
   return k;
 }

@@ -17,6 +17,9 @@ v1::TextureMode ToProto(methods::TextureMode mode);
 v1::CameraIntrinsics ToProto(const CameraIntrinsics& intrinsics);
 // InvalidArgument when the message does not describe a valid camera.
 absl::StatusOr<CameraIntrinsics> FromProto(const v1::CameraIntrinsics& message);
+// The message's values as they are, not checked (calibrations carried along
+// whole, checked where a camera is used).
+CameraIntrinsics IntrinsicsAsStored(const v1::CameraIntrinsics& message);
 
 v1::Rigid3 ToProto(const Rigid3d& transform);
 // InvalidArgument for a zero or non-finite quaternion; the rotation is

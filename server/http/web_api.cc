@@ -368,7 +368,7 @@ absl::Status WebApi::EnsureGlb(const std::string& id, const std::string& token, 
     client::ConnectionOptions connection;
     connection.timeout_s = options_.call_timeout_s;
     ASSIGN_OR_RETURN(
-        const ReenactmentData data,
+        const Reenactment data,
         client::ReenactmentsClient(channel, connection).Fetch(id, /*skip_keyframes=*/true));
     GltfExportSummary summary;
     ASSIGN_OR_RETURN(bytes, ExportReenactmentGlb(data, GltfExportOptions{}, &summary));

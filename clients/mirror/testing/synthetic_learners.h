@@ -17,7 +17,7 @@
 #include "clients/view/truth_reenactment.h"
 #include "common/body/procedural_body.h"
 #include "common/io/proto_convert.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
@@ -99,7 +99,7 @@ inline std::string TeacherTake(bool sensor_skeleton = true) {
 // colour images; nullopt after a test failure.
 struct TruthTeacher {
   std::unique_ptr<TakeReader> take;
-  ReenactmentData data;
+  Reenactment data;
 };
 inline std::optional<TruthTeacher> MakeTruthTeacher(bool rigid, bool sensor_skeleton) {
   const std::string take_path = TeacherTake(sensor_skeleton);
@@ -120,8 +120,8 @@ inline std::optional<TruthTeacher> MakeTruthTeacher(bool rigid, bool sensor_skel
 }
 
 // Writes `data` to `path`: the path, or empty after a test failure.
-inline std::string WriteTeacher(const ReenactmentData& data, const std::string& path) {
-  if (absl::Status written = WriteReenactmentFile(data, path); !written.ok()) {
+inline std::string WriteTeacher(const Reenactment& data, const std::string& path) {
+  if (absl::Status written = WriteReenactment(data, path); !written.ok()) {
     ADD_FAILURE() << written;
     return "";
   }
@@ -152,7 +152,7 @@ inline std::string TrackedTeacherReen() {
       MakeTruthTeacher(/*rigid=*/false, /*sensor_skeleton=*/false);
   if (!teacher) return "";
   auto& take = teacher->take;
-  ReenactmentData* data = &teacher->data;
+  Reenactment* data = &teacher->data;
   auto tracked = tracking::TrackTakeSensor(*take, "k0");
   if (!tracked.ok()) {
     ADD_FAILURE() << tracked.status();
@@ -165,9 +165,9 @@ inline std::string TrackedTeacherReen() {
   }
   const double nan = std::numeric_limits<double>::quiet_NaN();
   int with_skeleton = 0;
-  for (v1::PartFrame& frame : data->frames) {
-    frame.clear_joints_in_world_m();
-    const auto found = tracked->find(frame.frame_index());
+  for (ReenactmentFrame& frame : data->frames) {
+    frame.joints_in_world_m.clear();
+    const auto found = tracked->find(frame.frame_index);
     for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
       Eigen::Vector3d p(nan, nan, nan);
       if (found != tracked->end() && !found->second.empty()) {
@@ -176,7 +176,7 @@ inline std::string TrackedTeacherReen() {
           p = *world_from_depth * FromProto(joint.position_in_depth_m());
         }
       }
-      *frame.add_joints_in_world_m() = ToProto(p);
+      frame.joints_in_world_m.push_back(p);
     }
     if (found != tracked->end()) ++with_skeleton;
   }

@@ -14,8 +14,7 @@
 
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
-#include "common/io/proto_convert.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "common/render/render_types.h"
 
 namespace reenact::view::testing {
@@ -42,21 +41,19 @@ inline Eigen::Isometry3d WorldFromCamera(double yaw_deg, double distance_m = 2.0
   return pose;
 }
 
-inline v1::SensorCalibration MakeSensor(const std::string& id, double yaw_deg) {
-  v1::SensorCalibration sensor;
-  sensor.set_sensor_id(id);
+inline SensorCalibration MakeSensor(const std::string& id, double yaw_deg) {
+  SensorCalibration sensor;
+  sensor.sensor_id = id;
   CameraIntrinsics k;
   k.width = kImageWidth;
   k.height = kImageHeight;
   k.fx = k.fy = kFocalPx;
   k.cx = (kImageWidth - 1) / 2.0;
   k.cy = (kImageHeight - 1) / 2.0;
-  *sensor.mutable_color_intrinsics() = ToProto(k);
-  *sensor.mutable_depth_intrinsics() = ToProto(k);
-  *sensor.mutable_color_from_depth() = ToProto(Rigid3d());
+  sensor.color_intrinsics = k;
+  sensor.depth_intrinsics = k;
   const Eigen::Isometry3d pose = WorldFromCamera(yaw_deg);
-  *sensor.mutable_world_from_depth() =
-      ToProto(Rigid3d(Eigen::Quaterniond(pose.linear()), pose.translation()));
+  sensor.world_from_depth = Rigid3d(Eigen::Quaterniond(pose.linear()), pose.translation());
   return sensor;
 }
 
@@ -73,32 +70,33 @@ inline render::RenderCamera ViewerCamera(double yaw_deg) {
 
 // The square in its part frame: z = 0, facing +Z, (kSubdivisions + 1)^2
 // vertices in rows of constant y, counter-clockwise seen from +Z.
-inline v1::PartMesh MakeSquarePart(int part, const std::string& name) {
-  std::vector<float> positions, normals, uvs;
+inline PartMesh MakeSquarePart(int part, const std::string& name) {
   const int n = kSubdivisions + 1;
+  PartMesh mesh;
+  mesh.part = part;
+  mesh.name = name;
+  mesh.positions_in_part_m.resize(3, n * n);
+  mesh.normals_in_part.resize(3, n * n);
+  mesh.uvs.resize(2, n * n);
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) {
       const double x = -kHalfSide + 2 * kHalfSide * i / kSubdivisions;
       const double y = -kHalfSide + 2 * kHalfSide * j / kSubdivisions;
-      positions.insert(positions.end(), {static_cast<float>(x), static_cast<float>(y), 0.0f});
-      normals.insert(normals.end(), {0.0f, 0.0f, 1.0f});
-      uvs.insert(uvs.end(),
-                 {static_cast<float>(i) / kSubdivisions, static_cast<float>(j) / kSubdivisions});
+      mesh.positions_in_part_m.col(j * n + i) =
+          Eigen::Vector3f(static_cast<float>(x), static_cast<float>(y), 0.0f);
+      mesh.normals_in_part.col(j * n + i) = Eigen::Vector3f::UnitZ();
+      mesh.uvs.col(j * n + i) = Eigen::Vector2f(static_cast<float>(i) / kSubdivisions,
+                                                static_cast<float>(j) / kSubdivisions);
     }
   }
-  v1::PartMesh mesh;
-  mesh.set_part(part);
-  mesh.set_name(name);
-  mesh.set_positions_in_part_m_f32(PackFloats(positions));
-  mesh.set_normals_in_part_f32(PackFloats(normals));
-  mesh.set_uvs_f32(PackFloats(uvs));
   for (int j = 0; j < kSubdivisions; ++j) {
     for (int i = 0; i < kSubdivisions; ++i) {
-      const uint32_t p = j * n + i;
-      for (uint32_t v : {p, p + 1, p + n + 1, p, p + n + 1, p + n}) mesh.add_triangle_indices(v);
+      const int p = j * n + i;
+      mesh.triangles.emplace_back(p, p + 1, p + n + 1);
+      mesh.triangles.emplace_back(p, p + n + 1, p + n);
     }
   }
-  mesh.set_reference_length_m(static_cast<float>(2 * kHalfSide));
+  mesh.reference_length_m = static_cast<float>(2 * kHalfSide);
   return mesh;
 }
 
@@ -106,62 +104,62 @@ inline int SquareVertexCount() { return (kSubdivisions + 1) * (kSubdivisions + 1
 
 // Part 0 at kCentre turned `part_yaw_deg` about +Y, with `scale`; joints
 // (optional) in the world.
-inline v1::PartFrame MakeFrame(int index, double part_yaw_deg, double scale = 1.0,
-                               const std::vector<Eigen::Vector3d>& joints = {}) {
-  v1::PartFrame frame;
-  frame.set_frame_index(index);
-  frame.set_stamp_ns(1'000'000'000LL + index * 33'333'333LL);
-  v1::PartPose* pose = frame.add_parts();
-  *pose->mutable_world_from_part() = ToProto(Rigid3d(
-      Eigen::Quaterniond(Eigen::AngleAxisd(Rad(part_yaw_deg), Eigen::Vector3d::UnitY())), kCentre));
-  pose->set_scale(static_cast<float>(scale));
-  pose->set_valid(true);
-  for (const Eigen::Vector3d& j : joints) *frame.add_joints_in_world_m() = ToProto(j);
+inline ReenactmentFrame MakeFrame(int index, double part_yaw_deg, double scale = 1.0,
+                                  const std::vector<Eigen::Vector3d>& joints = {}) {
+  ReenactmentFrame frame;
+  frame.frame_index = index;
+  frame.stamp_ns = 1'000'000'000LL + index * 33'333'333LL;
+  PartPose& pose = frame.parts.emplace_back();
+  pose.world_from_part.linear() =
+      Eigen::AngleAxisd(Rad(part_yaw_deg), Eigen::Vector3d::UnitY()).toRotationMatrix();
+  pose.world_from_part.translation() = kCentre;
+  pose.scale = static_cast<float>(scale);  // As stored: float32.
+  pose.valid = true;
+  frame.joints_in_world_m = joints;
   return frame;
 }
 
 // A whole-image keyframe of one colour, every vertex visible, all actor.
-inline v1::TextureKeyframe SolidKeyframe(int frame, const std::string& sensor_id,
-                                         const Eigen::Vector3i& rgb) {
+inline TextureKeyframe SolidKeyframe(int frame, const std::string& sensor_id,
+                                     const Eigen::Vector3i& rgb) {
   RgbImage image(kImageWidth, kImageHeight);
   for (int y = 0; y < kImageHeight; ++y) {
     for (int x = 0; x < kImageWidth; ++x) {
       for (int c = 0; c < 3; ++c) image.at(x, y, c) = static_cast<uint8_t>(rgb[c]);
     }
   }
-  v1::TextureKeyframe keyframe;
-  keyframe.set_frame_index(frame);
-  keyframe.set_sensor_id(sensor_id);
-  keyframe.set_color_jpeg(EncodeJpeg(image, 95).value());
-  keyframe.set_mask_rle(EncodeMaskRle(MaskImage(kImageWidth, kImageHeight, 1)));
-  keyframe.add_vertex_visible_bits(std::string((SquareVertexCount() + 7) / 8, '\xff'));
+  TextureKeyframe keyframe;
+  keyframe.frame_index = frame;
+  keyframe.sensor_id = sensor_id;
+  keyframe.color_jpeg = EncodeJpeg(image, 95).value();
+  keyframe.mask_rle = EncodeMaskRle(MaskImage(kImageWidth, kImageHeight, 1));
+  keyframe.vertex_visible_bits.emplace_back((SquareVertexCount() + 7) / 8, '\xff');
   return keyframe;
 }
 
 // Clears the visibility bit of every vertex of part 0 in `keyframe` whose
 // part-frame x is below `x_below` (row-major grid of MakeSquarePart).
-inline void HideVertices(v1::TextureKeyframe* keyframe, double x_below) {
-  std::string bits = keyframe->vertex_visible_bits(0);
+inline void HideVertices(TextureKeyframe* keyframe, double x_below) {
+  std::string& bits = keyframe->vertex_visible_bits[0];
   const int n = kSubdivisions + 1;
   for (int v = 0; v < SquareVertexCount(); ++v) {
     const double x = -kHalfSide + 2 * kHalfSide * (v % n) / kSubdivisions;
     if (x < x_below) bits[v / 8] = static_cast<char>(bits[v / 8] & ~(1 << (v % 8)));
   }
-  keyframe->set_vertex_visible_bits(0, bits);
 }
 
 // One square part, `frames`, sensors at the given yaws ("s0", "s1", ...).
-inline ReenactmentData MakeSquareReenactment(const std::vector<v1::PartFrame>& frames,
-                                             const std::vector<double>& sensor_yaws_deg,
-                                             const std::string& method = "rigid-carved") {
-  ReenactmentData data;
-  data.info.set_reenactment_id("r-square");
-  data.info.set_method(method);
-  data.info.set_frame_count(static_cast<int>(frames.size()));
-  data.info.set_fps(30.0);
-  data.info.add_part_names("chest");
+inline Reenactment MakeSquareReenactment(const std::vector<ReenactmentFrame>& frames,
+                                         const std::vector<double>& sensor_yaws_deg,
+                                         const std::string& method = "rigid-carved") {
+  Reenactment data;
+  data.info.reenactment_id = "r-square";
+  data.info.method = method;
+  data.info.frame_count = static_cast<int>(frames.size());
+  data.info.fps = 30.0;
+  data.info.part_names.push_back("chest");
   for (size_t s = 0; s < sensor_yaws_deg.size(); ++s) {
-    *data.info.add_sensors() = MakeSensor("s" + std::to_string(s), sensor_yaws_deg[s]);
+    data.info.sensors.push_back(MakeSensor("s" + std::to_string(s), sensor_yaws_deg[s]));
   }
   data.parts.push_back(MakeSquarePart(0, "chest"));
   data.frames = frames;

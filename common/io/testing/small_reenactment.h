@@ -15,9 +15,21 @@
 #include "common/body/procedural_body.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/reenactment_file.h"
 
 namespace reenact::testing {
+
+// The plain values of a test reenactment (ReenactmentFromProto); an empty
+// reenactment after a test failure.
+inline Reenactment ToPlain(const ReenactmentData& data) {
+  absl::StatusOr<Reenactment> plain = ReenactmentFromProto(data);
+  if (!plain.ok()) {
+    ADD_FAILURE() << plain.status();
+    return {};
+  }
+  return *std::move(plain);
+}
 
 // What MakeTestReenactment builds.
 struct TestReenactmentOptions {

@@ -152,8 +152,7 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
   // about leaving loopback.
   RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--http ", out.http.address), out.http.address,
                                      out.options.tls.enabled(), !out.options.auth_file.empty(),
-                                     out.options.insecure,
-                                     "anyone who reaches it could watch every reenactment"));
+                                     out.options.insecure, "watch every reenactment"));
   return out;
 }
 

@@ -11,13 +11,25 @@ const std::vector<Command>& AllCommands() {
   return *commands;
 }
 
-static void PrintUsage(std::ostream& out) {
-  out << "usage: reenact <command> [args]\n\ncommands:\n";
+// Every command, or those whose first word is `group` when it is not empty.
+static void PrintUsage(std::ostream& out, const std::string& group = "") {
+  out << "usage: reenact " << (group.empty() ? "" : group + " ")
+      << "<command> [args]\n\ncommands:\n";
   for (const Command& c : AllCommands()) {
+    if (!group.empty() && c.path.front() != group) continue;
     std::string name;
     for (const auto& p : c.path) name += (name.empty() ? "" : " ") + p;
     out << "  " << name << " " << c.usage << "\n      " << c.summary << "\n";
   }
+}
+
+// Whether `word` is the first word of a command of two or more words
+// ("takes", "auth", ...).
+static bool IsGroup(const std::string& word) {
+  for (const Command& c : AllCommands()) {
+    if (c.path.size() > 1 && c.path.front() == word) return true;
+  }
+  return false;
 }
 
 int Dispatch(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
@@ -31,6 +43,18 @@ int Dispatch(const std::vector<std::string>& argv, std::ostream& out, std::ostre
     bool match = true;
     for (size_t i = 0; i < c.path.size() && match; ++i) match = (c.path[i] == argv[i]);
     if (match && (!best || c.path.size() > best->path.size())) best = &c;
+  }
+  if (!best && IsGroup(argv[0])) {
+    // A group without its command: `reenact auth --help` lists the group's
+    // commands (exit 0), `reenact auth` does so as a usage error.
+    const bool help = argv.size() > 1 && (argv[1] == "--help" || argv[1] == "-h");
+    if (argv.size() == 1 || help) {
+      PrintUsage(help ? out : err, argv[0]);
+      return help ? kExitOk : kExitUsage;
+    }
+    err << "reenact: unknown command '" << argv[0] << " " << argv[1] << "'\n";
+    PrintUsage(err, argv[0]);
+    return kExitUsage;
   }
   if (!best) {
     err << "reenact: unknown command '" << argv[0] << "'\n";

@@ -134,6 +134,24 @@ class JobCommands : public ::testing::Test {
   std::ostringstream out_, err_;
 };
 
+// `reenact auth --help` lists the group's commands; a group alone or with an
+// unknown command is a usage error that lists them too.
+TEST(Dispatch, AGroupWithoutItsCommandListsTheGroup) {
+  std::ostringstream out, err;
+  EXPECT_EQ(Dispatch({"auth", "--help"}, out, err), kExitOk);
+  EXPECT_NE(out.str().find("auth add"), std::string::npos) << out.str();
+  EXPECT_EQ(out.str().find("jobs submit"), std::string::npos) << "only the group's commands";
+  std::ostringstream out2, err2;
+  EXPECT_EQ(Dispatch({"takes"}, out2, err2), kExitUsage);
+  EXPECT_NE(err2.str().find("takes upload"), std::string::npos) << err2.str();
+  std::ostringstream out3, err3;
+  EXPECT_EQ(Dispatch({"takes", "frobnicate"}, out3, err3), kExitUsage);
+  EXPECT_NE(err3.str().find("unknown command 'takes frobnicate'"), std::string::npos) << err3.str();
+  std::ostringstream out4, err4;
+  EXPECT_EQ(Dispatch({"nothing"}, out4, err4), kExitUsage);
+  EXPECT_NE(err4.str().find("unknown command 'nothing'"), std::string::npos);
+}
+
 TEST_F(JobCommands, SubmitWaitJsonPrintsTheJobAndTheReenactment) {
   ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "rigid-carved", "--option",
                  "voxel_mm=8", "--option=mu_mm=20", "--option", "note=a=b", "--wait", "--json"}),

@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/reenactment_file.h"
 
 namespace reenact {
@@ -59,64 +60,8 @@ absl::StatusOr<std::vector<Eigen::Vector3i>> Triangles(
 
 absl::StatusOr<v1::BodyMesh> MakeBodyMesh(const body::BodyModel& model,
                                           const Eigen::VectorXd& shape, std::string atlas_jpeg) {
-  RETURN_IF_ERROR(body::ValidateBodyModel(model));
-  ASSIGN_OR_RETURN(const Eigen::Matrix3Xd rest, body::ShapedRestVertices(model, shape));
-  ASSIGN_OR_RETURN(const auto joints, body::RestJointPositions(model, shape));
-  v1::BodyMesh mesh;
-  mesh.set_model_name(model.name);
-  for (int k = 0; k < model.num_shape_components(); ++k) {
-    mesh.add_shape(k < shape.size() ? shape[k] : 0.0);
-    mesh.add_shape_names(k < static_cast<int>(model.shape_names.size()) ? model.shape_names[k]
-                                                                        : absl::StrCat("pc", k));
-  }
-  std::vector<float> positions(3 * rest.cols());
-  for (Eigen::Index v = 0; v < rest.cols(); ++v) {
-    for (int c = 0; c < 3; ++c) positions[3 * v + c] = static_cast<float>(rest(c, v));
-  }
-  mesh.set_rest_positions_m_f32(PackFloats(positions));
-  for (const Eigen::Vector3i& t : model.triangles) {
-    for (int c = 0; c < 3; ++c) mesh.add_triangle_indices(static_cast<uint32_t>(t[c]));
-  }
-  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    v1::Vector3* p = mesh.add_rest_joints_m();
-    p->set_x(joints[j].x());
-    p->set_y(joints[j].y());
-    p->set_z(joints[j].z());
-    mesh.add_joint_names(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
-  }
-  std::string skin_joints(body::kMaxInfluences * model.skin_joints.size(), '\0');
-  std::vector<float> weights(body::kMaxInfluences * model.skin_weights.size());
-  for (size_t v = 0; v < model.skin_joints.size(); ++v) {
-    for (int k = 0; k < body::kMaxInfluences; ++k) {
-      const bool used = model.skin_weights[v][k] != 0.0f;
-      skin_joints[body::kMaxInfluences * v + k] =
-          static_cast<char>(used ? model.skin_joints[v][k] : 0);
-      weights[body::kMaxInfluences * v + k] = used ? model.skin_weights[v][k] : 0.0f;
-    }
-  }
-  mesh.set_skin_joints_u8(std::move(skin_joints));
-  mesh.set_skin_weights_f32(PackFloats(weights));
-  // Texture vertices: distinct (vertex, uv) pairs of the triangle corners.
-  const bool has_uvs = !model.uv_triangles.empty();
-  std::map<std::pair<int, int>, uint32_t> texture_vertex;
-  std::vector<float> uvs;
-  for (size_t t = 0; t < model.triangles.size(); ++t) {
-    for (int c = 0; c < 3; ++c) {
-      const int vertex = model.triangles[t][c];
-      const int uv = has_uvs ? model.uv_triangles[t][c] : -1;
-      auto [it, inserted] = texture_vertex.emplace(std::make_pair(vertex, uv),
-                                                   static_cast<uint32_t>(texture_vertex.size()));
-      if (inserted) {
-        mesh.add_texture_vertex_source(static_cast<uint32_t>(vertex));
-        uvs.push_back(has_uvs ? model.uvs[uv].x() : 0.0f);
-        uvs.push_back(has_uvs ? model.uvs[uv].y() : 0.0f);
-      }
-      mesh.add_texture_triangle_indices(it->second);
-    }
-  }
-  mesh.set_texture_uvs_f32(PackFloats(uvs));
-  mesh.set_atlas_jpeg(std::move(atlas_jpeg));
-  return mesh;
+  ASSIGN_OR_RETURN(const BodyMesh mesh, BuildBodyMesh(model, shape, std::move(atlas_jpeg)));
+  return BodyMeshToProto(mesh);
 }
 
 absl::StatusOr<DecodedBodyMesh> DecodeBodyMesh(const v1::BodyMesh& mesh) {

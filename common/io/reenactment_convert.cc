@@ -286,6 +286,34 @@ v1::BodyPose BodyFramePoseToProto(const BodyFramePose& pose) {
   return m;
 }
 
+absl::StatusOr<ReenactmentFrame> FrameFromProto(const v1::PartFrame& m, int num_vertices) {
+  ReenactmentFrame frame;
+  frame.frame_index = m.frame_index();
+  frame.stamp_ns = m.stamp_ns();
+  frame.parts.reserve(static_cast<size_t>(m.parts_size()));
+  for (const v1::PartPose& pose : m.parts()) frame.parts.push_back(PartPoseFromProto(pose));
+  frame.joints_in_world_m.reserve(static_cast<size_t>(m.joints_in_world_m_size()));
+  for (const v1::Vector3& joint : m.joints_in_world_m()) {
+    frame.joints_in_world_m.push_back(FromProto(joint));
+  }
+  if (m.has_body()) {
+    ASSIGN_OR_RETURN(frame.body, BodyFramePoseFromProto(m.body(), num_vertices));
+  }
+  return frame;
+}
+
+v1::PartFrame FrameToProto(const ReenactmentFrame& frame) {
+  v1::PartFrame m;
+  m.set_frame_index(frame.frame_index);
+  m.set_stamp_ns(frame.stamp_ns);
+  for (const PartPose& pose : frame.parts) *m.add_parts() = PartPoseToProto(pose);
+  for (const Eigen::Vector3d& joint : frame.joints_in_world_m) {
+    *m.add_joints_in_world_m() = ToProto(joint);
+  }
+  if (frame.body) *m.mutable_body() = BodyFramePoseToProto(*frame.body);
+  return m;
+}
+
 absl::StatusOr<Reenactment> ReenactmentFromProto(const ReenactmentData& data) {
   RETURN_IF_ERROR(ValidateReenactment(data));
   Reenactment out;
@@ -302,18 +330,7 @@ absl::StatusOr<Reenactment> ReenactmentFromProto(const ReenactmentData& data) {
   }
   out.frames.reserve(data.frames.size());
   for (const v1::PartFrame& m : data.frames) {
-    ReenactmentFrame frame;
-    frame.frame_index = m.frame_index();
-    frame.stamp_ns = m.stamp_ns();
-    frame.parts.reserve(static_cast<size_t>(m.parts_size()));
-    for (const v1::PartPose& pose : m.parts()) frame.parts.push_back(PartPoseFromProto(pose));
-    frame.joints_in_world_m.reserve(static_cast<size_t>(m.joints_in_world_m_size()));
-    for (const v1::Vector3& joint : m.joints_in_world_m()) {
-      frame.joints_in_world_m.push_back(FromProto(joint));
-    }
-    if (m.has_body()) {
-      ASSIGN_OR_RETURN(frame.body, BodyFramePoseFromProto(m.body(), num_vertices));
-    }
+    ASSIGN_OR_RETURN(ReenactmentFrame frame, FrameFromProto(m, num_vertices));
     out.frames.push_back(std::move(frame));
   }
   out.keyframes.reserve(data.keyframes.size());
@@ -326,14 +343,7 @@ ReenactmentData ReenactmentToProto(const Reenactment& reenactment) {
   data.info = InfoToProto(reenactment.info);
   for (const PartMesh& mesh : reenactment.parts) data.parts.push_back(PartMeshToProto(mesh));
   for (const ReenactmentFrame& frame : reenactment.frames) {
-    v1::PartFrame& m = data.frames.emplace_back();
-    m.set_frame_index(frame.frame_index);
-    m.set_stamp_ns(frame.stamp_ns);
-    for (const PartPose& pose : frame.parts) *m.add_parts() = PartPoseToProto(pose);
-    for (const Eigen::Vector3d& joint : frame.joints_in_world_m) {
-      *m.add_joints_in_world_m() = ToProto(joint);
-    }
-    if (frame.body) *m.mutable_body() = BodyFramePoseToProto(*frame.body);
+    data.frames.push_back(FrameToProto(frame));
   }
   for (const TextureKeyframe& k : reenactment.keyframes) {
     data.keyframes.push_back(KeyframeToProto(k));

@@ -46,4 +46,10 @@ v1::BodyMesh BodyMeshToProto(const BodyMesh& mesh);
 absl::StatusOr<BodyFramePose> BodyFramePoseFromProto(const v1::BodyPose& message, int num_vertices);
 v1::BodyPose BodyFramePoseToProto(const BodyFramePose& pose);
 
+// One frame on its own (live previews and a split job's parts carry them).
+// FrameFromProto checks a body pose as BodyFramePoseFromProto against
+// `num_vertices`; part poses read as in ReenactmentFromProto.
+absl::StatusOr<ReenactmentFrame> FrameFromProto(const v1::PartFrame& message, int num_vertices);
+v1::PartFrame FrameToProto(const ReenactmentFrame& frame);
+
 }  // namespace reenact

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/body/joint_set.h"
 
 namespace reenact {
 namespace {
@@ -161,6 +164,55 @@ void BodyFramePose::SetOffsetsMetres(const Eigen::Matrix3Xd& offsets_m) {
       vertex_offsets_50um(c, v) = static_cast<int16_t>(std::clamp(units, -32767.0, 32767.0));
     }
   }
+}
+
+absl::StatusOr<BodyMesh> BuildBodyMesh(const body::BodyModel& model, const Eigen::VectorXd& shape,
+                                       std::string atlas_jpeg) {
+  RETURN_IF_ERROR(body::ValidateBodyModel(model));
+  ASSIGN_OR_RETURN(const Eigen::Matrix3Xd rest, body::ShapedRestVertices(model, shape));
+  BodyMesh mesh;
+  ASSIGN_OR_RETURN(mesh.rest_joints_m, body::RestJointPositions(model, shape));
+  mesh.model_name = model.name;
+  for (int k = 0; k < model.num_shape_components(); ++k) {
+    mesh.shape.push_back(k < shape.size() ? shape[k] : 0.0);
+    mesh.shape_names.push_back(k < static_cast<int>(model.shape_names.size())
+                                   ? model.shape_names[k]
+                                   : absl::StrCat("pc", k));
+  }
+  mesh.rest_vertices_m = rest.cast<float>().cast<double>();
+  mesh.triangles = model.triangles;
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    mesh.joint_names.emplace_back(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j)));
+  }
+  mesh.skin_joints.resize(model.skin_joints.size());
+  mesh.skin_weights.resize(model.skin_weights.size());
+  for (size_t v = 0; v < model.skin_joints.size(); ++v) {
+    for (int k = 0; k < body::kMaxInfluences; ++k) {
+      const bool used = model.skin_weights[v][k] != 0.0f;
+      mesh.skin_joints[v][k] = used ? model.skin_joints[v][k] : 0;
+      mesh.skin_weights[v][k] = used ? model.skin_weights[v][k] : 0.0f;
+    }
+  }
+  // Texture vertices: distinct (vertex, uv) pairs of the triangle corners.
+  const bool has_uvs = !model.uv_triangles.empty();
+  std::map<std::pair<int, int>, int> texture_vertex;
+  for (size_t t = 0; t < model.triangles.size(); ++t) {
+    Eigen::Vector3i corners;
+    for (int c = 0; c < 3; ++c) {
+      const int vertex = model.triangles[t][c];
+      const int uv = has_uvs ? model.uv_triangles[t][c] : -1;
+      auto [it, inserted] = texture_vertex.emplace(std::make_pair(vertex, uv),
+                                                   static_cast<int>(texture_vertex.size()));
+      if (inserted) {
+        mesh.texture_vertex_source.push_back(static_cast<uint32_t>(vertex));
+        mesh.texture_uvs.push_back(has_uvs ? model.uvs[uv] : Eigen::Vector2f::Zero());
+      }
+      corners[c] = it->second;
+    }
+    mesh.texture_triangles.push_back(corners);
+  }
+  mesh.atlas_jpeg = std::move(atlas_jpeg);
+  return mesh;
 }
 
 absl::StatusOr<body::PosedBody> PoseBodyMesh(const BodyMesh& mesh, const BodyFramePose& pose) {

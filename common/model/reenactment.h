@@ -162,6 +162,16 @@ struct Reenactment {
 // checked by the viewers before they index by them.
 absl::Status ValidateReenactment(const Reenactment& data);
 
+// The BodyMesh of `model` with shape coefficients `shape` (rest pose, shape
+// applied; pose correctives are not carried) and the atlas `atlas_jpeg`
+// (may be empty while texturing has not run). Positions and skin weights are
+// rounded to float32, as the file stores them, so that what a method
+// computes on the mesh is what a reader of its file gets. Texture vertices
+// are the distinct (vertex, uv) corners of the model's triangles.
+// InvalidArgument when the model does not validate or the shape is too long.
+absl::StatusOr<BodyMesh> BuildBodyMesh(const body::BodyModel& model, const Eigen::VectorXd& shape,
+                                       std::string atlas_jpeg);
+
 // The posed body of `mesh` at `pose`: linear blend skinning (Eq. 4.3) plus
 // the pose's vertex offsets, with joints and joint frames. InvalidArgument
 // when the pose's offsets do not match the mesh.

@@ -60,31 +60,31 @@ ProgressCallback StageProgress::ForStage(const std::string& stage) const {
   };
 }
 
-v1::PartPose PartPoseToProto(const PartPose& pose, double scale) {
-  v1::PartPose out;
+reenact::PartPose ReenactmentPartPose(const PartPose& pose, double scale) {
+  reenact::PartPose out;
   if (!pose.valid || !pose.world_from_part.matrix().allFinite() || !(scale > 0) ||
       !std::isfinite(scale)) {
-    *out.mutable_world_from_part() = reenact::ToProto(Rigid3d());
-    out.set_scale(1.0f);
-    out.set_valid(false);
-    return out;
+    return out;  // Identity, scale 1, not valid.
   }
-  const Eigen::Quaterniond q(pose.world_from_part.linear());
-  *out.mutable_world_from_part() =
-      reenact::ToProto(Rigid3d(q.normalized(), pose.world_from_part.translation()));
-  out.set_scale(static_cast<float>(scale));
-  out.set_valid(true);
+  // The rotation re-orthonormalised through a unit quaternion, and the scale
+  // at the file's precision (float32), so that what is drawn here is what a
+  // reader of the file draws.
+  const Eigen::Quaterniond q = Eigen::Quaterniond(pose.world_from_part.linear()).normalized();
+  out.world_from_part.linear() = q.toRotationMatrix();
+  out.world_from_part.translation() = pose.world_from_part.translation();
+  out.scale = static_cast<float>(scale);
+  out.valid = true;
   return out;
 }
 
-v1::PartFrame MakePartFrame(int frame_index, int64_t stamp_ns, const PartPoses& poses,
-                            const std::array<double, kNumBodyParts>& scales,
-                            const JointArray& joints_in_world_m) {
-  v1::PartFrame frame;
-  frame.set_frame_index(frame_index);
-  frame.set_stamp_ns(stamp_ns);
+ReenactmentFrame MakePartFrame(int frame_index, int64_t stamp_ns, const PartPoses& poses,
+                               const std::array<double, kNumBodyParts>& scales,
+                               const JointArray& joints_in_world_m) {
+  ReenactmentFrame frame;
+  frame.frame_index = frame_index;
+  frame.stamp_ns = stamp_ns;
   for (int p = 0; p < kNumBodyParts; ++p) {
-    *frame.add_parts() = PartPoseToProto(poses[p], scales[p]);
+    frame.parts.push_back(ReenactmentPartPose(poses[p], scales[p]));
   }
   const bool any = std::any_of(joints_in_world_m.begin(), joints_in_world_m.end(),
                                [](const Eigen::Vector3d& j) { return IsJointValid(j); });
@@ -103,7 +103,7 @@ v1::PartFrame MakePartFrame(int frame_index, int64_t stamp_ns, const PartPoses& 
       p = *std::find_if(joints_in_world_m.begin(), joints_in_world_m.end(),
                         [](const Eigen::Vector3d& v) { return IsJointValid(v); });
     }
-    *frame.add_joints_in_world_m() = reenact::ToProto(p);
+    frame.joints_in_world_m.push_back(p);
   }
   return frame;
 }

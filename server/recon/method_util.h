@@ -13,7 +13,7 @@
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
 #include "common/methods/option_reader.h"
-#include "reenact/v1/reenactment.pb.h"
+#include "common/model/reenactment.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/take_frames.h"
 
@@ -45,18 +45,18 @@ class StageProgress {
   double total_weight_ = 0.0;
 };
 
-// reenact.v1.PartPose of `pose` with `scale` (1 for rigid meshes; cylinders:
-// length / reference length). An invalid pose is written with the identity
-// transform, scale 1 and valid false.
-v1::PartPose PartPoseToProto(const PartPose& pose, double scale);
+// The reenactment's pose of part `pose` with `scale` (1 for rigid meshes;
+// cylinders: length / reference length). An invalid pose (or a non-finite
+// one) becomes the identity transform, scale 1 and valid false.
+reenact::PartPose ReenactmentPartPose(const PartPose& pose, double scale);
 
-// One PartFrame: frame_index, stamp, the 15 poses with their scales (part-id
-// order) and the 25 joints. The reenactment file holds finite numbers only:
-// a missing (NaN) joint is written at its nearest present ancestor's
+// One reenactment frame: frame_index, stamp, the 15 poses with their scales
+// (part-id order) and the 25 joints. A reenactment holds finite numbers
+// only: a missing (NaN) joint is written at its nearest present ancestor's
 // position (Kinect v2 tree), and no joints at all are written when none is
 // present. Readers take the poses' valid flags as truth.
-v1::PartFrame MakePartFrame(int frame_index, int64_t stamp_ns, const PartPoses& poses,
-                            const std::array<double, kNumBodyParts>& scales,
-                            const JointArray& joints_in_world_m);
+ReenactmentFrame MakePartFrame(int frame_index, int64_t stamp_ns, const PartPoses& poses,
+                               const std::array<double, kNumBodyParts>& scales,
+                               const JointArray& joints_in_world_m);
 
 }  // namespace reenact::recon

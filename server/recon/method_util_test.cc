@@ -45,24 +45,26 @@ TEST(MakePartFrame, WritesPosesScalesAndFiniteJoints) {
   std::array<double, kNumBodyParts> scales;
   scales.fill(1.0);
   scales[2] = 1.25;
-  const v1::PartFrame frame = MakePartFrame(7, 123, poses, scales, joints);
-  EXPECT_EQ(frame.frame_index(), 7);
-  EXPECT_EQ(frame.stamp_ns(), 123);
-  ASSERT_EQ(frame.parts_size(), kNumBodyParts);
-  EXPECT_TRUE(frame.parts(2).valid());
-  EXPECT_FALSE(frame.parts(0).valid());
-  EXPECT_FLOAT_EQ(frame.parts(2).scale(), 1.25f);
-  EXPECT_NEAR(FromProto(frame.parts(2).world_from_part().translation_m()).y(), 1.0, 1e-12);
-  ASSERT_EQ(frame.joints_in_world_m_size(), 25);
+  const ReenactmentFrame frame = MakePartFrame(7, 123, poses, scales, joints);
+  EXPECT_EQ(frame.frame_index, 7);
+  EXPECT_EQ(frame.stamp_ns, 123);
+  ASSERT_EQ(frame.parts.size(), static_cast<size_t>(kNumBodyParts));
+  EXPECT_TRUE(frame.parts[2].valid);
+  EXPECT_FALSE(frame.parts[0].valid);
+  EXPECT_FLOAT_EQ(static_cast<float>(frame.parts[2].scale), 1.25f);
+  EXPECT_NEAR(frame.parts[2].world_from_part.translation().y(), 1.0, 1e-12);
+  EXPECT_LT((frame.parts[2].world_from_part.linear() - poses[2].world_from_part.linear())
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-12);
+  ASSERT_EQ(frame.joints_in_world_m.size(), 25u);
   // SpineShoulder is missing: it takes its parent SpineMid's position.
   const Eigen::Vector3d shoulder =
-      FromProto(frame.joints_in_world_m(body::Index(body::KinectV2Joint::kSpineShoulder)));
+      frame.joints_in_world_m[body::Index(body::KinectV2Joint::kSpineShoulder)];
   EXPECT_NEAR((shoulder - Eigen::Vector3d(0, 1.2, 0)).norm(), 0.0, 1e-12);
-  for (const v1::Vector3& j : frame.joints_in_world_m()) {
-    EXPECT_TRUE(std::isfinite(j.x()) && std::isfinite(j.y()) && std::isfinite(j.z()));
-  }
+  for (const Eigen::Vector3d& j : frame.joints_in_world_m) EXPECT_TRUE(j.allFinite());
   // No joint at all: none written.
-  EXPECT_EQ(MakePartFrame(0, 0, poses, scales, MissingJoints()).joints_in_world_m_size(), 0);
+  EXPECT_TRUE(MakePartFrame(0, 0, poses, scales, MissingJoints()).joints_in_world_m.empty());
 }
 
 }  // namespace

@@ -9,8 +9,7 @@
 #include "absl/strings/str_join.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
-#include "common/io/proto_convert.h"
-#include "common/io/reenactment_file.h"
+#include "common/io/reenactment_convert.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/registry.h"
 #include "server/recon/take_frames.h"
@@ -138,7 +137,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   if (input.phase == MethodPhase::kPrepare || input.phase == MethodPhase::kSegment) {
     return RunPartPhase(input, *method, *take, method_options, context, out_path, start);
   }
-  absl::StatusOr<ReenactmentData> made = absl::InternalError("no phase ran");
+  absl::StatusOr<Reenactment> made = absl::InternalError("no phase ran");
   if (input.phase == MethodPhase::kStitch) {
     ASSIGN_OR_RETURN(const std::string prepared,
                      ReadFileToString(input.prepared_path, kMaxPartFileBytes));
@@ -152,29 +151,27 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
     made = method->Run(*take, method_options, context);
   }
   if (!made.ok()) return made.status();
-  ReenactmentData& data = *made;
+  Reenactment& data = *made;
 
   // Bookkeeping.
-  v1::ReenactmentInfo& info = data.info;
-  info.set_reenactment_id(input.reenactment_id);
-  info.set_take_id(input.take_id);
-  info.set_job_id(input.job_id);
-  info.set_method(input.method);
-  info.set_texture_mode(ToProto(method->spec().texture));
-  info.mutable_options()->clear();
-  for (const auto& [key, value] : input.options) (*info.mutable_options())[key] = value;
-  info.set_created_unix_ns(NowUnixNs());
-  info.set_generator(kGenerator);
-  info.set_frame_count(static_cast<int32_t>(data.frames.size()));
-  if (!(info.fps() > 0)) info.set_fps(take->fps());
-  if (info.part_names_size() == 0 && !data.is_body()) {
-    for (const std::string& name : BodyPartNames()) info.add_part_names(name);
-  }
-  info.clear_sensors();
-  for (const TakeSensor& sensor : take->sensors()) *info.add_sensors() = sensor.calibration;
+  ReenactmentInfo& info = data.info;
+  info.reenactment_id = input.reenactment_id;
+  info.take_id = input.take_id;
+  info.job_id = input.job_id;
+  info.method = input.method;
+  info.texture_mode = method->spec().texture;
+  info.options.clear();
+  for (const auto& [key, value] : input.options) info.options[key] = value;
+  info.created_unix_ns = NowUnixNs();
+  info.generator = kGenerator;
+  info.frame_count = static_cast<int>(data.frames.size());
+  if (!(info.fps > 0)) info.fps = take->fps();
+  if (info.part_names.empty() && !data.is_body()) info.part_names = BodyPartNames();
+  info.sensors.clear();
+  for (const TakeSensor& sensor : take->sensors()) info.sensors.push_back(sensor.calibration);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  auto& figures = *info.mutable_figures();
+  auto& figures = info.figures;
   figures["seconds"] = seconds;
   figures["load_seconds"] = load_s;
   figures["frames_per_second"] = seconds > 0 ? data.frames.size() / seconds : 0.0;
@@ -183,7 +180,7 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   if (progress && !progress({"write", 0.95, 0, 1})) {
     return absl::CancelledError("cancelled before writing the reenactment");
   }
-  RETURN_IF_ERROR(WriteReenactmentFile(data, out_path));
+  RETURN_IF_ERROR(WriteReenactment(data, out_path));
   if (progress && !progress({"write", 1.0, 1, 1})) {
     std::error_code ec;
     std::filesystem::remove(out_path, ec);

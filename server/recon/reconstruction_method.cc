@@ -34,9 +34,9 @@ absl::StatusOr<std::string> ReconstructionMethod::Segment(const TakeFrames&, con
   return NotSegmentable(*this);
 }
 
-absl::StatusOr<ReenactmentData> ReconstructionMethod::Stitch(
-    const TakeFrames&, const OptionMap&, const MethodContext&, const std::string&,
-    const std::vector<std::string>&) const {
+absl::StatusOr<Reenactment> ReconstructionMethod::Stitch(const TakeFrames&, const OptionMap&,
+                                                         const MethodContext&, const std::string&,
+                                                         const std::vector<std::string>&) const {
   return NotSegmentable(*this);
 }
 

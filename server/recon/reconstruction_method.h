@@ -27,9 +27,9 @@
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
-#include "common/io/reenactment_file.h"
 #include "common/methods/method_spec.h"
 #include "common/methods/option_reader.h"
+#include "common/model/reenactment.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::recon {
@@ -79,8 +79,8 @@ class ReconstructionMethod {
   // bookkeeping (ids, method, options, sensors, texture mode) and writes it.
   // CheckOptions' errors; InvalidArgument for a take the method cannot use;
   // Cancelled when the context's progress returned false.
-  virtual absl::StatusOr<ReenactmentData> Run(const TakeFrames& take, const OptionMap& options,
-                                              const MethodContext& context) const = 0;
+  virtual absl::StatusOr<Reenactment> Run(const TakeFrames& take, const OptionMap& options,
+                                          const MethodContext& context) const = 0;
 
   // One take split across several workers, for a method whose spec says
   // `segmentable`: Prepare makes what every segment needs from the whole
@@ -95,10 +95,10 @@ class ReconstructionMethod {
                                               const MethodContext& context,
                                               const std::string& prepared, int index,
                                               int count) const;
-  virtual absl::StatusOr<ReenactmentData> Stitch(const TakeFrames& take, const OptionMap& options,
-                                                 const MethodContext& context,
-                                                 const std::string& prepared,
-                                                 const std::vector<std::string>& segments) const;
+  virtual absl::StatusOr<Reenactment> Stitch(const TakeFrames& take, const OptionMap& options,
+                                             const MethodContext& context,
+                                             const std::string& prepared,
+                                             const std::vector<std::string>& segments) const;
 };
 
 // The phases of a segmentable method with options `Options` (see
@@ -110,10 +110,9 @@ struct SegmentFunctions {
   absl::StatusOr<std::string> (*segment)(const TakeFrames& take, const Options& options,
                                          const MethodContext& context, const std::string& prepared,
                                          int index, int count) = nullptr;
-  absl::StatusOr<ReenactmentData> (*stitch)(const TakeFrames& take, const Options& options,
-                                            const MethodContext& context,
-                                            const std::string& prepared,
-                                            const std::vector<std::string>& segments) = nullptr;
+  absl::StatusOr<Reenactment> (*stitch)(const TakeFrames& take, const Options& options,
+                                        const MethodContext& context, const std::string& prepared,
+                                        const std::vector<std::string>& segments) = nullptr;
 };
 
 // A method whose options are the struct `Options`: default-constructible,
@@ -122,9 +121,9 @@ struct SegmentFunctions {
 template <typename Options>
 class TypedMethod final : public ReconstructionMethod {
  public:
-  using RunFunction = absl::StatusOr<ReenactmentData> (*)(const TakeFrames& take,
-                                                          const Options& options,
-                                                          const MethodContext& context);
+  using RunFunction = absl::StatusOr<Reenactment> (*)(const TakeFrames& take,
+                                                      const Options& options,
+                                                      const MethodContext& context);
 
   // `spec`'s options are filled from Options' Read, followed by
   // `live_options`: those only a live follow of the take reads (marked
@@ -152,8 +151,8 @@ class TypedMethod final : public ReconstructionMethod {
     return methods::ParseOptions(options, &parsed);
   }
 
-  absl::StatusOr<ReenactmentData> Run(const TakeFrames& take, const OptionMap& options,
-                                      const MethodContext& context) const override {
+  absl::StatusOr<Reenactment> Run(const TakeFrames& take, const OptionMap& options,
+                                  const MethodContext& context) const override {
     Options parsed;
     if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
       return status;
@@ -184,9 +183,9 @@ class TypedMethod final : public ReconstructionMethod {
     return segments_.segment(take, parsed, context, prepared, index, count);
   }
 
-  absl::StatusOr<ReenactmentData> Stitch(const TakeFrames& take, const OptionMap& options,
-                                         const MethodContext& context, const std::string& prepared,
-                                         const std::vector<std::string>& segments) const override {
+  absl::StatusOr<Reenactment> Stitch(const TakeFrames& take, const OptionMap& options,
+                                     const MethodContext& context, const std::string& prepared,
+                                     const std::vector<std::string>& segments) const override {
     if (!spec_.segmentable) {
       return ReconstructionMethod::Stitch(take, options, context, prepared, segments);
     }

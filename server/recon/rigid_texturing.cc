@@ -55,32 +55,33 @@ namespace {
 struct KeyframeJob {
   int instant = 0;
   int sensor = 0;
-  const v1::PartFrame* frame = nullptr;
+  const ReenactmentFrame* frame = nullptr;
 };
 
 // One keyframe: decode the view and call MakeTextureKeyframe (texturing.h).
 // nullopt when the view has nothing to crop (NotFound).
-absl::StatusOr<std::optional<v1::TextureKeyframe>> MakeKeyframe(
-    const TakeFrames& take, const RigidTexturingOptions& options,
-    const std::vector<PartGeometry>& geometry, const KeyframeJob& job) {
-  ASSIGN_OR_RETURN(std::vector<PartPoseInWorld> poses, PartPosesFromProto(*job.frame));
+absl::StatusOr<std::optional<TextureKeyframe>> MakeKeyframe(const TakeFrames& take,
+                                                            const RigidTexturingOptions& options,
+                                                            const std::vector<PartMesh>& geometry,
+                                                            const KeyframeJob& job) {
+  const std::vector<reenact::PartPose>& poses = job.frame->parts;
   ASSIGN_OR_RETURN(RgbImage colour, take.LoadColor(job.instant, job.sensor, options.color_scale));
   ASSIGN_OR_RETURN(DepthImageMm depth, take.LoadDepth(job.instant, job.sensor));
   ASSIGN_OR_RETURN(MaskImage mask, take.LoadActorMask(job.instant, job.sensor));
   const TakeSensor& sensor = take.sensors()[job.sensor];
   const SensorImages images{sensor.calibration, colour, mask, depth};
-  auto keyframe = MakeTextureKeyframe(geometry, poses, images, job.frame->frame_index(),
-                                      job.frame->stamp_ns(), sensor.sensor_id, options.keyframe);
-  if (absl::IsNotFound(keyframe.status())) return std::optional<v1::TextureKeyframe>();
+  auto keyframe = MakeTextureKeyframe(geometry, poses, images, job.frame->frame_index,
+                                      job.frame->stamp_ns, sensor.sensor_id, options.keyframe);
+  if (absl::IsNotFound(keyframe.status())) return std::optional<TextureKeyframe>();
   if (!keyframe.ok()) return keyframe.status();
-  return std::optional<v1::TextureKeyframe>(std::move(*keyframe));
+  return std::optional<TextureKeyframe>(std::move(*keyframe));
 }
 
 }  // namespace
 
 absl::StatusOr<RigidTexturingSummary> AddRigidTextures(const TakeFrames& take,
                                                        const RigidTexturingOptions& options,
-                                                       ReenactmentData* data,
+                                                       Reenactment* data,
                                                        const ProgressCallback& progress,
                                                        const LogCallback& log) {
   RETURN_IF_ERROR(options.Validate());
@@ -89,23 +90,19 @@ absl::StatusOr<RigidTexturingSummary> AddRigidTextures(const TakeFrames& take,
   summary.keyframe_stride =
       options.keyframe_stride > 0 ? options.keyframe_stride : DefaultKeyframeStride(take);
 
-  std::vector<PartGeometry> geometry;
-  for (const v1::PartMesh& mesh : data->parts) {
-    ASSIGN_OR_RETURN(PartGeometry g, PartGeometryFromProto(mesh));
-    geometry.push_back(std::move(g));
-  }
+  const std::vector<PartMesh>& geometry = data->parts;
   // The planned keyframes: every stride-th instant with a valid frame, every
   // sensor with colour there.
   std::vector<KeyframeJob> jobs;
-  for (const v1::PartFrame& frame : data->frames) {
-    const int i = frame.frame_index();
+  for (const ReenactmentFrame& frame : data->frames) {
+    const int i = frame.frame_index;
     if (i < 0 || i >= take.num_instants()) {
       return absl::InvalidArgumentError(
-          absl::StrCat("PartFrame ", i, " is not an instant of the take"));
+          absl::StrCat("frame ", i, " is not an instant of the take"));
     }
     if (i % summary.keyframe_stride != 0) continue;
-    const bool any_valid = std::any_of(frame.parts().begin(), frame.parts().end(),
-                                       [](const v1::PartPose& p) { return p.valid(); });
+    const bool any_valid = std::any_of(frame.parts.begin(), frame.parts.end(),
+                                       [](const reenact::PartPose& p) { return p.valid; });
     for (int s = 0; s < take.num_sensors(); ++s) {
       const SensorView& view = take.instant(i).views[s];
       if (!view.present || view.color_jpeg.empty() || !any_valid) {
@@ -116,7 +113,7 @@ absl::StatusOr<RigidTexturingSummary> AddRigidTextures(const TakeFrames& take,
     }
   }
 
-  std::vector<std::optional<v1::TextureKeyframe>> made(jobs.size());
+  std::vector<std::optional<TextureKeyframe>> made(jobs.size());
   const int batch = std::max(2, 2 * take.pool().num_threads());
   for (size_t begin = 0; begin < jobs.size(); begin += batch) {
     const size_t end = std::min(jobs.size(), begin + batch);
@@ -150,9 +147,9 @@ absl::StatusOr<RigidTexturingSummary> AddRigidTextures(const TakeFrames& take,
   }
 
   if (options.bake && !data->keyframes.empty()) {
-    std::vector<v1::SensorCalibration> sensors;
+    std::vector<SensorCalibration> sensors;
     for (const TakeSensor& sensor : take.sensors()) sensors.push_back(sensor.calibration);
-    const std::vector<v1::PartMesh> before = data->parts;
+    const std::vector<PartMesh> before = data->parts;
     RETURN_IF_ERROR(BakePartTextures(data->keyframes, data->frames, sensors, options.baking,
                                      &data->parts, &summary.bake));
     // The keyframes' bits are in the old vertex order (texturing.h).

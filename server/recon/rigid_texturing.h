@@ -9,7 +9,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "server/recon/method_util.h"
 #include "server/recon/reconstruction_method.h"
 #include "server/recon/take_frames.h"
@@ -48,7 +48,7 @@ struct RigidTexturingSummary {
   double seconds = 0.0;
 };
 
-// Adds keyframes to `data->keyframes` (instants whose PartFrame is in
+// Adds keyframes to `data->keyframes` (instants whose frame is in
 // `data->frames`, matched by frame_index = instant index) and, with
 // options.bake, rewrites `data->parts` with baked textures. Baking splits
 // mesh vertices per triangle corner, so the keyframes' vertex_visible_bits
@@ -58,7 +58,7 @@ struct RigidTexturingSummary {
 // for inconsistent data; DataLoss when a frame does not decode; Cancelled.
 absl::StatusOr<RigidTexturingSummary> AddRigidTextures(const TakeFrames& take,
                                                        const RigidTexturingOptions& options,
-                                                       ReenactmentData* data,
+                                                       Reenactment* data,
                                                        const ProgressCallback& progress = {},
                                                        const LogCallback& log = {});
 

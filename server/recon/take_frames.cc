@@ -16,6 +16,7 @@
 #include "common/io/depth_codec.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
+#include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
 #include "common/tracking/skeleton_fusion.h"
 
@@ -226,8 +227,12 @@ class TakeFramesLoader {
       const std::string& id = calibration.sensor_id();
       TakeSensor sensor;
       sensor.sensor_id = id;
-      sensor.calibration = calibration;
       const std::string what = absl::StrCat(where, ": sensor ", id);
+      absl::StatusOr<SensorCalibration> plain = SensorCalibrationFromProto(calibration);
+      if (!plain.ok()) {
+        return absl::InvalidArgumentError(absl::StrCat(what, ": ", plain.status().message()));
+      }
+      sensor.calibration = *std::move(plain);
       auto depth_k = FromProto(calibration.depth_intrinsics());
       if (!depth_k.ok()) {
         return absl::InvalidArgumentError(

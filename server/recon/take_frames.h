@@ -36,6 +36,7 @@
 #include "common/body/joint_set.h"
 #include "common/geometry/camera.h"
 #include "common/geometry/transforms.h"
+#include "common/model/sensor_calibration.h"
 #include "reenact/v1/frame.pb.h"
 #include "reenact/v1/sensor.pb.h"
 #include "reenact/v1/take.pb.h"
@@ -54,7 +55,7 @@ bool IsJointValid(const Eigen::Vector3d& joint);
 // One sensor of the take, calibration decoded.
 struct TakeSensor {
   std::string sensor_id;
-  v1::SensorCalibration calibration;  // As stored in the take.
+  SensorCalibration calibration;      // As stored in the take.
   CameraIntrinsics depth_intrinsics;  // Pixels of the depth image.
   CameraIntrinsics color_intrinsics;  // Pixels of the full-size colour image.
   Rigid3d world_from_depth;           // Depth camera -> world (metres).

@@ -15,7 +15,6 @@
 #include "common/base/status_macros.h"
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
-#include "common/io/proto_convert.h"
 
 namespace reenact::recon {
 namespace {
@@ -36,24 +35,20 @@ struct SensorCameras {
   double depth_m_per_unit = 0.001;
 };
 
-absl::StatusOr<SensorCameras> CamerasFromProto(const v1::SensorCalibration& calibration) {
-  const std::string where = absl::StrCat("sensor '", calibration.sensor_id(), "': ");
+absl::StatusOr<SensorCameras> CamerasOf(const SensorCalibration& calibration) {
+  const std::string where = absl::StrCat("sensor '", calibration.sensor_id, "': ");
   SensorCameras cameras;
-  auto depth = FromProto(calibration.depth_intrinsics());
-  auto color = FromProto(calibration.color_intrinsics());
-  auto world_from_depth = FromProto(calibration.world_from_depth());
-  auto color_from_depth = FromProto(calibration.color_from_depth());
-  if (!depth.ok())
-    return Invalid(where + "depth intrinsics: " + std::string(depth.status().message()));
-  if (!color.ok())
-    return Invalid(where + "colour intrinsics: " + std::string(color.status().message()));
-  if (!world_from_depth.ok()) return Invalid(where + "world_from_depth is not a rigid transform");
-  if (!color_from_depth.ok()) return Invalid(where + "color_from_depth is not a rigid transform");
-  cameras.depth = *depth;
-  cameras.color = *color;
-  cameras.world_from_depth = *world_from_depth;
-  cameras.color_from_depth = *color_from_depth;
-  const double scale = calibration.depth_scale_m_per_unit();
+  if (const absl::Status depth = calibration.depth_intrinsics.Validate(); !depth.ok()) {
+    return Invalid(where + "depth intrinsics: " + std::string(depth.message()));
+  }
+  if (const absl::Status color = calibration.color_intrinsics.Validate(); !color.ok()) {
+    return Invalid(where + "colour intrinsics: " + std::string(color.message()));
+  }
+  cameras.depth = calibration.depth_intrinsics;
+  cameras.color = calibration.color_intrinsics;
+  cameras.world_from_depth = calibration.world_from_depth;
+  cameras.color_from_depth = calibration.color_from_depth;
+  const double scale = calibration.depth_scale_m_per_unit;
   if (!std::isfinite(scale) || scale < 0.0) return Invalid(where + "bad depth_scale_m_per_unit");
   if (scale > 0.0) cameras.depth_m_per_unit = scale;
   return cameras;
@@ -63,7 +58,7 @@ Rigid3d ColorFromWorld(const SensorCameras& cameras) {
   return cameras.color_from_depth * cameras.world_from_depth.Inverse();
 }
 
-absl::Status ValidateGeometry(const PartGeometry& part, int id) {
+absl::Status ValidateGeometry(const PartMesh& part, int id) {
   const auto n = part.positions_in_part_m.cols();
   if (part.normals_in_part.cols() != n) {
     return Invalid(absl::StrCat("part ", id, ": ", n, " positions but ",
@@ -80,7 +75,7 @@ absl::Status ValidateGeometry(const PartGeometry& part, int id) {
   return absl::OkStatus();
 }
 
-absl::Status ValidatePose(const PartPoseInWorld& pose, int id) {
+absl::Status ValidatePose(const reenact::PartPose& pose, int id) {
   if (!pose.valid) return absl::OkStatus();
   const Eigen::Matrix4d m = pose.world_from_part.matrix();
   if (!m.allFinite() || !std::isfinite(pose.scale) || pose.scale <= 0.0) {
@@ -105,7 +100,7 @@ absl::Status ValidateImage(const ImageT& image, const std::string& name) {
 
 // Applies a pose and a rigid camera transform to a part point: the camera
 // frame point (Eq. 3.14 with T_{b,n} = pose).
-Eigen::Vector3d PartToCamera(const Eigen::Vector3d& point_in_part, const PartPoseInWorld& pose,
+Eigen::Vector3d PartToCamera(const Eigen::Vector3d& point_in_part, const reenact::PartPose& pose,
                              const Rigid3d& camera_from_world) {
   const Eigen::Vector3d in_world = pose.scale * (pose.world_from_part.linear() * point_in_part) +
                                    pose.world_from_part.translation();
@@ -292,7 +287,7 @@ struct ProjectedPart {
   std::vector<Eigen::Vector2d> in_crop;    // Crop pixels; NaN when behind the camera.
 };
 
-ProjectedPart ProjectPart(const PartGeometry& part, const PartPoseInWorld& pose,
+ProjectedPart ProjectPart(const PartMesh& part, const reenact::PartPose& pose,
                           const Rigid3d& color_from_world, const CameraIntrinsics& color,
                           const Crop& crop) {
   ProjectedPart out;
@@ -353,7 +348,7 @@ void RasterizeTriangle(const Eigen::Vector2d (&p)[3], const double (&z)[3], ZBuf
   }
 }
 
-void RasterizePart(const PartGeometry& part, const ProjectedPart& projected, ZBuffer* zbuffer) {
+void RasterizePart(const PartMesh& part, const ProjectedPart& projected, ZBuffer* zbuffer) {
   for (const Eigen::Vector3i& t : part.triangles) {
     Eigen::Vector2d p[3];
     double z[3];
@@ -386,7 +381,7 @@ void SetBit(std::string* bits, int index) {
 // Fig. 3.7: a vertex is visible when it faces the camera, lands on the
 // crop's actor mask, and is no more than `tolerance_m` behind the depth
 // buffer of all parts.
-std::string VisibilityBits(const PartGeometry& part, const PartPoseInWorld& pose,
+std::string VisibilityBits(const PartMesh& part, const reenact::PartPose& pose,
                            const Rigid3d& color_from_world, const ProjectedPart& projected,
                            const ZBuffer& zbuffer, const MaskImage& mask, double tolerance_m) {
   const int n = static_cast<int>(part.positions_in_part_m.cols());
@@ -407,8 +402,8 @@ std::string VisibilityBits(const PartGeometry& part, const PartPoseInWorld& pose
   return bits;
 }
 
-absl::Status ValidateKeyframeInputs(const std::vector<PartGeometry>& parts,
-                                    const std::vector<PartPoseInWorld>& poses,
+absl::Status ValidateKeyframeInputs(const std::vector<PartMesh>& parts,
+                                    const std::vector<reenact::PartPose>& poses,
                                     const SensorImages& images, const SensorCameras& cameras) {
   if (parts.size() != poses.size()) {
     return Invalid(absl::StrCat(parts.size(), " parts but ", poses.size(), " poses"));
@@ -442,59 +437,6 @@ absl::Status ValidateKeyframeInputs(const std::vector<PartGeometry>& parts,
 
 // ------------------------------------------------------------ public API --
 
-absl::StatusOr<PartGeometry> PartGeometryFromProto(const v1::PartMesh& mesh) {
-  const std::string& pos = mesh.positions_in_part_m_f32();
-  const std::string& nrm = mesh.normals_in_part_f32();
-  if (pos.size() % 12 != 0 || nrm.size() != pos.size()) {
-    return Invalid(absl::StrCat("part ", mesh.part(), ": positions (", pos.size(),
-                                " bytes) and normals (", nrm.size(),
-                                " bytes) are not equal runs of float triples"));
-  }
-  if (mesh.triangle_indices_size() % 3 != 0) {
-    return Invalid(absl::StrCat("part ", mesh.part(), ": ", mesh.triangle_indices_size(),
-                                " triangle indices, not a multiple of 3"));
-  }
-  PartGeometry geometry;
-  const Eigen::Index n = static_cast<Eigen::Index>(pos.size() / 12);
-  geometry.positions_in_part_m.resize(3, n);
-  geometry.normals_in_part.resize(3, n);
-  if (n > 0) {  // Little-endian hosts only, as everywhere in this tree.
-    std::memcpy(geometry.positions_in_part_m.data(), pos.data(), pos.size());
-    std::memcpy(geometry.normals_in_part.data(), nrm.data(), nrm.size());
-  }
-  geometry.triangles.reserve(mesh.triangle_indices_size() / 3);
-  for (int i = 0; i + 2 < mesh.triangle_indices_size(); i += 3) {
-    const uint32_t a = mesh.triangle_indices(i), b = mesh.triangle_indices(i + 1),
-                   c = mesh.triangle_indices(i + 2);
-    if (a >= n || b >= n || c >= n) {
-      return Invalid(
-          absl::StrCat("part ", mesh.part(), ": triangle index out of range (", n, " vertices)"));
-    }
-    geometry.triangles.emplace_back(a, b, c);
-  }
-  RETURN_IF_ERROR(ValidateGeometry(geometry, mesh.part()));
-  return geometry;
-}
-
-absl::StatusOr<std::vector<PartPoseInWorld>> PartPosesFromProto(const v1::PartFrame& frame) {
-  std::vector<PartPoseInWorld> poses(frame.parts_size());
-  for (int i = 0; i < frame.parts_size(); ++i) {
-    const v1::PartPose& message = frame.parts(i);
-    poses[i].valid = message.valid();
-    if (!message.valid()) continue;
-    const auto rigid = FromProto(message.world_from_part());
-    if (!rigid.ok()) {
-      return Invalid(
-          absl::StrCat("frame ", frame.frame_index(), " part ", i, ": ", rigid.status().message()));
-    }
-    poses[i].world_from_part.linear() = rigid->rotation.toRotationMatrix();
-    poses[i].world_from_part.translation() = rigid->translation;
-    poses[i].scale = message.scale();
-    RETURN_IF_ERROR(ValidatePose(poses[i], i));
-  }
-  return poses;
-}
-
 absl::Status KeyframeOptions::Validate() const {
   if (margin_px < 0) return Invalid("KeyframeOptions.margin_px must be >= 0");
   if (jpeg_quality < 1 || jpeg_quality > 100) {
@@ -507,14 +449,13 @@ absl::Status KeyframeOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<v1::TextureKeyframe> MakeTextureKeyframe(const std::vector<PartGeometry>& parts,
-                                                        const std::vector<PartPoseInWorld>& poses,
-                                                        const SensorImages& images, int frame_index,
-                                                        int64_t stamp_ns,
-                                                        const std::string& sensor_id,
-                                                        const KeyframeOptions& options) {
+absl::StatusOr<TextureKeyframe> MakeTextureKeyframe(const std::vector<PartMesh>& parts,
+                                                    const std::vector<reenact::PartPose>& poses,
+                                                    const SensorImages& images, int frame_index,
+                                                    int64_t stamp_ns, const std::string& sensor_id,
+                                                    const KeyframeOptions& options) {
   RETURN_IF_ERROR(options.Validate());
-  ASSIGN_OR_RETURN(const SensorCameras cameras, CamerasFromProto(images.calibration));
+  ASSIGN_OR_RETURN(const SensorCameras cameras, CamerasOf(images.calibration));
   RETURN_IF_ERROR(ValidateKeyframeInputs(parts, poses, images, cameras));
   const double image_scale = static_cast<double>(images.colour.width) / cameras.color.width;
 
@@ -524,17 +465,17 @@ absl::StatusOr<v1::TextureKeyframe> MakeTextureKeyframe(const std::vector<PartGe
                                             "': no actor pixel projects into the colour image"));
   }
   const Crop crop = ChooseCrop(actor, cameras.color, image_scale, options);
-  v1::TextureKeyframe keyframe;
-  keyframe.set_frame_index(frame_index);
-  keyframe.set_sensor_id(sensor_id);
-  keyframe.set_stamp_ns(stamp_ns);
-  keyframe.set_crop_x_px(crop.x_px);
-  keyframe.set_crop_y_px(crop.y_px);
-  keyframe.set_crop_scale(static_cast<float>(crop.scale));
-  ASSIGN_OR_RETURN(*keyframe.mutable_color_jpeg(),
+  TextureKeyframe keyframe;
+  keyframe.frame_index = frame_index;
+  keyframe.sensor_id = sensor_id;
+  keyframe.stamp_ns = stamp_ns;
+  keyframe.crop_x_px = crop.x_px;
+  keyframe.crop_y_px = crop.y_px;
+  keyframe.crop_scale = static_cast<float>(crop.scale);
+  ASSIGN_OR_RETURN(keyframe.color_jpeg,
                    EncodeJpeg(CutCrop(images.colour, image_scale, crop), options.jpeg_quality));
   const MaskImage mask = SplatMask(actor, crop);
-  keyframe.set_mask_rle(EncodeMaskRle(mask));
+  keyframe.mask_rle = EncodeMaskRle(mask);
 
   // Fig. 3.7: depth of all posed parts, then per-vertex visibility.
   const Rigid3d color_from_world = ColorFromWorld(cameras);
@@ -546,31 +487,31 @@ absl::StatusOr<v1::TextureKeyframe> MakeTextureKeyframe(const std::vector<PartGe
     RasterizePart(parts[i], projected[i], &zbuffer);
   }
   for (size_t i = 0; i < parts.size(); ++i) {
-    keyframe.add_vertex_visible_bits(VisibilityBits(parts[i], poses[i], color_from_world,
-                                                    projected[i], zbuffer, mask,
-                                                    options.visibility_tolerance_m));
+    keyframe.vertex_visible_bits.push_back(VisibilityBits(parts[i], poses[i], color_from_world,
+                                                          projected[i], zbuffer, mask,
+                                                          options.visibility_tolerance_m));
   }
   return keyframe;
 }
 
-absl::StatusOr<KeyframeCamera> KeyframeCameraFromProto(const v1::SensorCalibration& calibration,
-                                                       const v1::TextureKeyframe& keyframe) {
-  ASSIGN_OR_RETURN(const SensorCameras cameras, CamerasFromProto(calibration));
-  const double scale = keyframe.crop_scale();
+absl::StatusOr<KeyframeCamera> KeyframeCameraOf(const SensorCalibration& calibration,
+                                                const TextureKeyframe& keyframe) {
+  ASSIGN_OR_RETURN(const SensorCameras cameras, CamerasOf(calibration));
+  const double scale = keyframe.crop_scale;
   if (!std::isfinite(scale) || scale < 0.0) {
-    return Invalid(absl::StrCat("keyframe ", keyframe.frame_index(), ": bad crop_scale ", scale));
+    return Invalid(absl::StrCat("keyframe ", keyframe.frame_index, ": bad crop_scale ", scale));
   }
   KeyframeCamera camera;
   camera.color_intrinsics = cameras.color;
   camera.color_from_world = ColorFromWorld(cameras);
-  camera.crop_x_px = keyframe.crop_x_px();
-  camera.crop_y_px = keyframe.crop_y_px();
+  camera.crop_x_px = keyframe.crop_x_px;
+  camera.crop_y_px = keyframe.crop_y_px;
   camera.crop_scale = scale == 0.0 ? 1.0 : scale;
   return camera;
 }
 
 std::optional<Eigen::Vector2d> ProjectToKeyframeCrop(const Eigen::Vector3d& point_in_part_m,
-                                                     const PartPoseInWorld& pose,
+                                                     const reenact::PartPose& pose,
                                                      const KeyframeCamera& camera) {
   // Eq. 3.14: x_n = T_{b,n} x (the part's pose at the keyframe's instant).
   const Eigen::Vector3d in_color = PartToCamera(point_in_part_m, pose, camera.color_from_world);
@@ -594,9 +535,9 @@ namespace {
 // A keyframe's camera and poses; its crop and mask are decoded one keyframe
 // at a time (takes keep hundreds of keyframes).
 struct BakeKeyframe {
-  const v1::TextureKeyframe* message = nullptr;
+  const TextureKeyframe* message = nullptr;
   KeyframeCamera camera;
-  std::vector<PartPoseInWorld> poses;  // Of the keyframe's instant, part-id order.
+  std::vector<reenact::PartPose> poses;  // Of the keyframe's instant, part-id order.
   // Per part: the rotation of colour_from_world * world_from_part and the
   // part origin in the colour camera (PartToCamera = scale * rotation * x +
   // origin), precomputed for the per-triangle loops.
@@ -604,26 +545,29 @@ struct BakeKeyframe {
   std::vector<Eigen::Vector3d> part_origin_in_color;
 };
 
-std::string KeyframeName(const v1::TextureKeyframe& m) {
-  return absl::StrCat("keyframe (frame ", m.frame_index(), ", sensor '", m.sensor_id(), "')");
+std::string KeyframeName(const TextureKeyframe& m) {
+  return absl::StrCat("keyframe (frame ", m.frame_index, ", sensor '", m.sensor_id, "')");
 }
 
 absl::StatusOr<BakeKeyframe> PrepareKeyframe(
-    const v1::TextureKeyframe& message, const std::map<int, const v1::PartFrame*>& frames,
-    const std::map<std::string, const v1::SensorCalibration*>& sensors) {
-  const auto frame = frames.find(message.frame_index());
+    const TextureKeyframe& message, const std::map<int, const ReenactmentFrame*>& frames,
+    const std::map<std::string, const SensorCalibration*>& sensors) {
+  const auto frame = frames.find(message.frame_index);
   if (frame == frames.end()) {
-    return Invalid(KeyframeName(message) + ": no PartFrame with that frame_index");
+    return Invalid(KeyframeName(message) + ": no frame with that frame_index");
   }
-  const auto sensor = sensors.find(message.sensor_id());
+  const auto sensor = sensors.find(message.sensor_id);
   if (sensor == sensors.end()) return Invalid(KeyframeName(message) + ": no such sensor");
   BakeKeyframe keyframe;
   keyframe.message = &message;
-  ASSIGN_OR_RETURN(keyframe.camera, KeyframeCameraFromProto(*sensor->second, message));
-  ASSIGN_OR_RETURN(keyframe.poses, PartPosesFromProto(*frame->second));
+  ASSIGN_OR_RETURN(keyframe.camera, KeyframeCameraOf(*sensor->second, message));
+  keyframe.poses = frame->second->parts;
+  for (size_t i = 0; i < keyframe.poses.size(); ++i) {
+    RETURN_IF_ERROR(ValidatePose(keyframe.poses[i], static_cast<int>(i)));
+  }
   const Eigen::Matrix3d color_from_world =
       keyframe.camera.color_from_world.rotation.toRotationMatrix();
-  for (const PartPoseInWorld& pose : keyframe.poses) {
+  for (const reenact::PartPose& pose : keyframe.poses) {
     keyframe.color_from_part_rotation.push_back(color_from_world * pose.world_from_part.linear());
     keyframe.part_origin_in_color.push_back(keyframe.camera.color_from_world *
                                             pose.world_from_part.translation());
@@ -631,13 +575,13 @@ absl::StatusOr<BakeKeyframe> PrepareKeyframe(
   return keyframe;
 }
 
-absl::Status DecodeKeyframe(const v1::TextureKeyframe& message, RgbImage* crop, MaskImage* mask) {
-  auto jpeg = DecodeJpeg(message.color_jpeg());
+absl::Status DecodeKeyframe(const TextureKeyframe& message, RgbImage* crop, MaskImage* mask) {
+  auto jpeg = DecodeJpeg(message.color_jpeg);
   if (!jpeg.ok()) {
     return Invalid(KeyframeName(message) +
                    ": colour crop: " + std::string(jpeg.status().message()));
   }
-  auto rle = DecodeMaskRle(message.mask_rle());
+  auto rle = DecodeMaskRle(message.mask_rle);
   if (!rle.ok()) {
     return Invalid(KeyframeName(message) + ": mask: " + std::string(rle.status().message()));
   }
@@ -651,14 +595,16 @@ absl::Status DecodeKeyframe(const v1::TextureKeyframe& message, RgbImage* crop, 
 }
 
 absl::Status CheckKeyframeCoversPart(const BakeKeyframe& keyframe, int part, int vertices) {
-  const v1::TextureKeyframe& m = *keyframe.message;
+  const TextureKeyframe& m = *keyframe.message;
   const std::string where = absl::StrCat(KeyframeName(m), " part ", part);
   if (static_cast<int>(keyframe.poses.size()) <= part)
     return Invalid(where + ": frame has no pose");
-  if (m.vertex_visible_bits_size() <= part) return Invalid(where + ": no vertex_visible_bits");
+  if (static_cast<int>(m.vertex_visible_bits.size()) <= part) {
+    return Invalid(where + ": no vertex_visible_bits");
+  }
   const size_t expected = (static_cast<size_t>(vertices) + 7) / 8;
-  if (m.vertex_visible_bits(part).size() != expected) {
-    return Invalid(absl::StrCat(where, ": ", m.vertex_visible_bits(part).size(),
+  if (m.vertex_visible_bits[part].size() != expected) {
+    return Invalid(absl::StrCat(where, ": ", m.vertex_visible_bits[part].size(),
                                 " bytes of visibility bits for ", vertices, " vertices"));
   }
   return absl::OkStatus();
@@ -753,7 +699,7 @@ struct Candidate {
 
 // Unit normal of triangle `t` in the part frame: the mean of its vertex
 // normals, else the geometric normal; zero for a degenerate triangle.
-Eigen::Vector3d TriangleNormal(const PartGeometry& part, const Eigen::Vector3i& t) {
+Eigen::Vector3d TriangleNormal(const PartMesh& part, const Eigen::Vector3i& t) {
   Eigen::Vector3d normal = (part.normals_in_part.col(t[0]) + part.normals_in_part.col(t[1]) +
                             part.normals_in_part.col(t[2]))
                                .cast<double>();
@@ -769,8 +715,7 @@ Eigen::Vector3d TriangleNormal(const PartGeometry& part, const Eigen::Vector3i& 
 // The keyframes a triangle takes its colour from: those that see all three
 // vertices (else those that see any), most frontal first, up to blend_count
 // within blend_frontality_window of the best.
-std::vector<Candidate> ChooseKeyframes(const PartGeometry& part, int part_id,
-                                       const Eigen::Vector3i& t,
+std::vector<Candidate> ChooseKeyframes(const PartMesh& part, int part_id, const Eigen::Vector3i& t,
                                        const std::vector<BakeKeyframe>& keyframes,
                                        const BakeOptions& options) {
   const Eigen::Vector3d normal = TriangleNormal(part, t);
@@ -783,9 +728,9 @@ std::vector<Candidate> ChooseKeyframes(const PartGeometry& part, int part_id,
   std::vector<Candidate> full, partial;
   for (size_t k = 0; k < keyframes.size(); ++k) {
     const BakeKeyframe& kf = keyframes[k];
-    const PartPoseInWorld& pose = kf.poses[part_id];
+    const reenact::PartPose& pose = kf.poses[part_id];
     if (!pose.valid) continue;
-    const std::string& bits = kf.message->vertex_visible_bits(part_id);
+    const std::string& bits = kf.message->vertex_visible_bits[part_id];
     const int seen =
         VertexVisible(bits, t[0]) + VertexVisible(bits, t[1]) + VertexVisible(bits, t[2]);
     if (seen == 0) continue;
@@ -812,7 +757,7 @@ std::vector<Candidate> ChooseKeyframes(const PartGeometry& part, int part_id,
 // One part being baked: its atlas and per-texel colour sums.
 struct PartBake {
   int part_id = 0;
-  const PartGeometry* geometry = nullptr;
+  const PartMesh* geometry = nullptr;
   Atlas atlas;
   std::vector<float> colour_sum;       // 3 per texel, weighted.
   std::vector<float> weight_sum;       // 1 per texel.
@@ -831,10 +776,10 @@ struct WorkItem {
 // partly visible triangle, whose nearest vertex is visible).
 void AccumulateTriangle(const BakeKeyframe& kf, const RgbImage& crop, const MaskImage& mask,
                         const WorkItem& item, PartBake* bake) {
-  const PartGeometry& part = *bake->geometry;
+  const PartMesh& part = *bake->geometry;
   const Eigen::Vector3i& tri = part.triangles[item.triangle];
-  const std::string& bits = kf.message->vertex_visible_bits(bake->part_id);
-  const PartPoseInWorld& pose = kf.poses[bake->part_id];
+  const std::string& bits = kf.message->vertex_visible_bits[bake->part_id];
+  const reenact::PartPose& pose = kf.poses[bake->part_id];
   const float w = static_cast<float>(item.candidate.weight);
   ForEachTexel(bake->atlas, item.triangle, [&](int x, int y, const Eigen::Vector3d& b) {
     int nearest = 0;
@@ -882,57 +827,49 @@ RgbImage FinishTexture(const PartBake& bake) {
   return texture;
 }
 
-std::string FloatBytes(const std::vector<float>& v) {
-  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(float));
-}
-
-// Rewrites `mesh` with one vertex per triangle corner and its uv.
-void WriteSplitMesh(const PartGeometry& part, const Atlas& atlas, v1::PartMesh* mesh) {
-  const size_t corners = part.triangles.size() * 3;
-  std::vector<float> positions, normals, uvs;
-  positions.reserve(corners * 3);
-  normals.reserve(corners * 3);
-  uvs.reserve(corners * 2);
-  mesh->clear_triangle_indices();
+// `part` with one vertex per triangle corner and its uv (the shape, name,
+// id and other fields unchanged).
+PartMesh SplitMesh(const PartMesh& part, const Atlas& atlas) {
+  const auto corners = static_cast<Eigen::Index>(part.triangles.size() * 3);
+  PartMesh mesh = part;
+  mesh.positions_in_part_m.resize(3, corners);
+  mesh.normals_in_part.resize(3, corners);
+  mesh.uvs.resize(2, corners);
+  mesh.triangles.clear();
   for (size_t t = 0; t < part.triangles.size(); ++t) {
     const std::array<Eigen::Vector2d, 3> uv_px = atlas.Corners(static_cast<int>(t));
     for (int k = 0; k < 3; ++k) {
       const int v = part.triangles[t][k];
-      for (int a = 0; a < 3; ++a) {
-        positions.push_back(part.positions_in_part_m(a, v));
-        normals.push_back(part.normals_in_part(a, v));
-      }
-      uvs.push_back(static_cast<float>(uv_px[k].x() / atlas.size_px));
-      uvs.push_back(static_cast<float>(1.0 - uv_px[k].y() / atlas.size_px));  // (0, 0) bottom-left.
-      mesh->add_triangle_indices(static_cast<uint32_t>(t * 3 + k));
+      const auto corner = static_cast<Eigen::Index>(t * 3 + k);
+      mesh.positions_in_part_m.col(corner) = part.positions_in_part_m.col(v);
+      mesh.normals_in_part.col(corner) = part.normals_in_part.col(v);
+      mesh.uvs.col(corner) =
+          Eigen::Vector2f(static_cast<float>(uv_px[k].x() / atlas.size_px),
+                          static_cast<float>(1.0 - uv_px[k].y() / atlas.size_px));  // Bottom-left.
     }
+    const int first = static_cast<int>(t * 3);
+    mesh.triangles.emplace_back(first, first + 1, first + 2);
   }
-  mesh->set_positions_in_part_m_f32(FloatBytes(positions));
-  mesh->set_normals_in_part_f32(FloatBytes(normals));
-  mesh->set_uvs_f32(FloatBytes(uvs));
+  return mesh;
 }
 
 // Validates the meshes against the keyframes and lays out their atlases.
-absl::StatusOr<std::vector<PartBake>> PlanParts(const std::vector<v1::PartMesh>& parts,
+absl::StatusOr<std::vector<PartBake>> PlanParts(const std::vector<PartMesh>& parts,
                                                 const std::vector<BakeKeyframe>& keyframes,
-                                                const BakeOptions& options,
-                                                std::vector<PartGeometry>* geometries) {
-  geometries->clear();
-  geometries->reserve(parts.size());  // PartBake keeps pointers into it.
+                                                const BakeOptions& options) {
   std::vector<PartBake> bakes;
-  for (const v1::PartMesh& mesh : parts) {
-    if (mesh.part() < 0) return Invalid(absl::StrCat("negative part id ", mesh.part()));
-    ASSIGN_OR_RETURN(PartGeometry geometry, PartGeometryFromProto(mesh));
-    const int vertices = static_cast<int>(geometry.positions_in_part_m.cols());
+  for (const PartMesh& mesh : parts) {
+    if (mesh.part < 0) return Invalid(absl::StrCat("negative part id ", mesh.part));
+    RETURN_IF_ERROR(ValidateGeometry(mesh, mesh.part));
+    const int vertices = mesh.num_vertices();
     for (const BakeKeyframe& k : keyframes) {
-      RETURN_IF_ERROR(CheckKeyframeCoversPart(k, mesh.part(), vertices));
+      RETURN_IF_ERROR(CheckKeyframeCoversPart(k, mesh.part, vertices));
     }
-    geometries->push_back(std::move(geometry));
     PartBake bake;
-    bake.part_id = mesh.part();
-    bake.geometry = &geometries->back();
+    bake.part_id = mesh.part;
+    bake.geometry = &mesh;
     const int triangles = static_cast<int>(bake.geometry->triangles.size());
-    ASSIGN_OR_RETURN(bake.atlas, LayOutAtlas(triangles, options.texture_size_px, mesh.part()));
+    ASSIGN_OR_RETURN(bake.atlas, LayOutAtlas(triangles, options.texture_size_px, mesh.part));
     const size_t texels = static_cast<size_t>(bake.atlas.size_px) * bake.atlas.size_px;
     bake.colour_sum.assign(texels * 3, 0.0f);
     bake.weight_sum.assign(texels, 0.0f);
@@ -957,31 +894,30 @@ absl::Status BakeOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::Status BakePartTextures(const std::vector<v1::TextureKeyframe>& keyframes,
-                              const std::vector<v1::PartFrame>& frames,
-                              const std::vector<v1::SensorCalibration>& sensors,
-                              const BakeOptions& options, std::vector<v1::PartMesh>* parts,
+absl::Status BakePartTextures(const std::vector<TextureKeyframe>& keyframes,
+                              const std::vector<ReenactmentFrame>& frames,
+                              const std::vector<SensorCalibration>& sensors,
+                              const BakeOptions& options, std::vector<PartMesh>* parts,
                               BakeSummary* summary) {
   if (parts == nullptr) return Invalid("BakePartTextures: parts is null");
   RETURN_IF_ERROR(options.Validate());
-  std::map<int, const v1::PartFrame*> frame_by_index;
-  for (const v1::PartFrame& f : frames) frame_by_index[f.frame_index()] = &f;
-  std::map<std::string, const v1::SensorCalibration*> sensor_by_id;
-  for (const v1::SensorCalibration& s : sensors) sensor_by_id[s.sensor_id()] = &s;
+  std::map<int, const ReenactmentFrame*> frame_by_index;
+  for (const ReenactmentFrame& f : frames) frame_by_index[f.frame_index] = &f;
+  std::map<std::string, const SensorCalibration*> sensor_by_id;
+  for (const SensorCalibration& s : sensors) sensor_by_id[s.sensor_id] = &s;
   std::vector<BakeKeyframe> prepared;
   prepared.reserve(keyframes.size());
-  for (const v1::TextureKeyframe& k : keyframes) {
+  for (const TextureKeyframe& k : keyframes) {
     ASSIGN_OR_RETURN(BakeKeyframe keyframe, PrepareKeyframe(k, frame_by_index, sensor_by_id));
     prepared.push_back(std::move(keyframe));
   }
-  std::vector<PartGeometry> geometries;
-  ASSIGN_OR_RETURN(std::vector<PartBake> bakes, PlanParts(*parts, prepared, options, &geometries));
+  ASSIGN_OR_RETURN(std::vector<PartBake> bakes, PlanParts(*parts, prepared, options));
 
   // Keyframe choice per triangle, then one pass per keyframe so that only
   // one crop is decoded at a time.
   std::vector<std::vector<WorkItem>> work(prepared.size());
   for (size_t p = 0; p < bakes.size(); ++p) {
-    const PartGeometry& geometry = *bakes[p].geometry;
+    const PartMesh& geometry = *bakes[p].geometry;
     for (size_t t = 0; t < geometry.triangles.size(); ++t) {
       for (const Candidate& c :
            ChooseKeyframes(geometry, bakes[p].part_id, geometry.triangles[t], prepared, options)) {
@@ -999,10 +935,11 @@ absl::Status BakePartTextures(const std::vector<v1::TextureKeyframe>& keyframes,
   }
 
   BakeSummary figures;
-  std::vector<v1::PartMesh> baked(*parts);
+  std::vector<PartMesh> baked;
+  baked.reserve(bakes.size());
   for (size_t p = 0; p < bakes.size(); ++p) {
-    WriteSplitMesh(*bakes[p].geometry, bakes[p].atlas, &baked[p]);
-    ASSIGN_OR_RETURN(*baked[p].mutable_baked_texture_jpeg(),
+    baked.push_back(SplitMesh(*bakes[p].geometry, bakes[p].atlas));
+    ASSIGN_OR_RETURN(baked[p].baked_texture_jpeg,
                      EncodeJpeg(FinishTexture(bakes[p]), options.jpeg_quality));
     const int triangles = static_cast<int>(bakes[p].triangle_seen.size());
     figures.triangles += triangles;
@@ -1018,21 +955,21 @@ absl::Status BakePartTextures(const std::vector<v1::TextureKeyframe>& keyframes,
   return absl::OkStatus();
 }
 
-absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<v1::PartMesh>& before_bake,
-                                              std::vector<v1::TextureKeyframe>* keyframes) {
+absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<PartMesh>& before_bake,
+                                              std::vector<TextureKeyframe>* keyframes) {
   if (keyframes == nullptr) return Invalid("RemapVisibilityBitsToBakedMeshes: keyframes is null");
-  std::vector<v1::TextureKeyframe> remapped(*keyframes);
-  for (const v1::PartMesh& mesh : before_bake) {
-    ASSIGN_OR_RETURN(const PartGeometry geometry, PartGeometryFromProto(mesh));
-    const int part = mesh.part();
+  std::vector<TextureKeyframe> remapped(*keyframes);
+  for (const PartMesh& geometry : before_bake) {
+    RETURN_IF_ERROR(ValidateGeometry(geometry, geometry.part));
+    const int part = geometry.part;
     const size_t vertices = static_cast<size_t>(geometry.positions_in_part_m.cols());
-    for (v1::TextureKeyframe& keyframe : remapped) {
-      if (part < 0 || part >= keyframe.vertex_visible_bits_size() ||
-          keyframe.vertex_visible_bits(part).size() != (vertices + 7) / 8) {
+    for (TextureKeyframe& keyframe : remapped) {
+      if (part < 0 || part >= static_cast<int>(keyframe.vertex_visible_bits.size()) ||
+          keyframe.vertex_visible_bits[part].size() != (vertices + 7) / 8) {
         return Invalid(absl::StrCat(KeyframeName(keyframe), " part ", part,
                                     ": visibility bits do not match the mesh"));
       }
-      const std::string& old_bits = keyframe.vertex_visible_bits(part);
+      const std::string& old_bits = keyframe.vertex_visible_bits[part];
       std::string bits((geometry.triangles.size() * 3 + 7) / 8, '\0');
       for (size_t t = 0; t < geometry.triangles.size(); ++t) {
         for (int k = 0; k < 3; ++k) {
@@ -1041,7 +978,7 @@ absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<v1::PartMesh>& b
           }
         }
       }
-      keyframe.set_vertex_visible_bits(part, bits);
+      keyframe.vertex_visible_bits[part] = std::move(bits);
     }
   }
   keyframes->swap(remapped);

@@ -45,45 +45,21 @@
 #include "common/base/image.h"
 #include "common/geometry/camera.h"
 #include "common/geometry/transforms.h"
-#include "reenact/v1/reenactment.pb.h"
-#include "reenact/v1/sensor.pb.h"
+#include "common/model/reenactment.h"
 
 namespace reenact::recon {
 
-// The shape of one body part in its part frame (reenact.v1.PartMesh without
-// the texture): vertex positions (metres), unit vertex normals, and
-// counter-clockwise (seen from outside) vertex-index triangles.
-struct PartGeometry {
-  Eigen::Matrix3Xf positions_in_part_m;
-  Eigen::Matrix3Xf normals_in_part;
-  std::vector<Eigen::Vector3i> triangles;
-};
-
-// Reads positions, normals and triangles of a PartMesh. InvalidArgument when
-// the byte sizes are not whole float triples, the counts differ, a value is
-// not finite, or a triangle index is out of range.
-absl::StatusOr<PartGeometry> PartGeometryFromProto(const v1::PartMesh& mesh);
-
-// The pose of one part at one instant (reenact.v1.PartPose):
-// point_in_world = scale * (world_from_part.linear() * point_in_part) +
-// world_from_part.translation(), metres.
-struct PartPoseInWorld {
-  Eigen::Isometry3d world_from_part = Eigen::Isometry3d::Identity();
-  double scale = 1.0;  // Dimensionless, > 0.
-  bool valid = false;  // False: the part is not posed (hidden) at this instant.
-};
-
-// The poses of a PartFrame, in part-id order. InvalidArgument for a valid
-// pose with a zero or non-finite quaternion, a non-finite translation or a
-// non-positive or non-finite scale. Invalid poses are passed on as invalid.
-absl::StatusOr<std::vector<PartPoseInWorld>> PartPosesFromProto(const v1::PartFrame& frame);
+// Parts are common/model's PartMesh (the shape of one body part in its part
+// frame: positions in metres, unit vertex normals, counter-clockwise
+// triangles seen from outside; one normal per position is required here)
+// and PartPose (point_in_world = scale * (R * point_in_part) + t).
 
 // One sensor's images at one instant.
 struct SensorImages {
   // The sensor's calibration: colour intrinsics at the colour camera's full
   // resolution (crop_x/y of the keyframe are in those pixels), depth
   // intrinsics, color_from_depth and world_from_depth.
-  const v1::SensorCalibration& calibration;
+  const SensorCalibration& calibration;
   // Colour image, full resolution or scaled by the same factor along both
   // axes (the scale is width / color_intrinsics.width_px; its intrinsics are
   // ScaledIntrinsics of the calibration's).
@@ -120,12 +96,11 @@ struct KeyframeOptions {
 // malformed geometry, bad options); NotFound when the mask holds no actor
 // pixel with depth that projects into the colour image (nothing to crop;
 // callers skip the instant).
-absl::StatusOr<v1::TextureKeyframe> MakeTextureKeyframe(const std::vector<PartGeometry>& parts,
-                                                        const std::vector<PartPoseInWorld>& poses,
-                                                        const SensorImages& images, int frame_index,
-                                                        int64_t stamp_ns,
-                                                        const std::string& sensor_id,
-                                                        const KeyframeOptions& options = {});
+absl::StatusOr<TextureKeyframe> MakeTextureKeyframe(const std::vector<PartMesh>& parts,
+                                                    const std::vector<reenact::PartPose>& poses,
+                                                    const SensorImages& images, int frame_index,
+                                                    int64_t stamp_ns, const std::string& sensor_id,
+                                                    const KeyframeOptions& options = {});
 
 // Everything needed to project into one keyframe's crop.
 struct KeyframeCamera {
@@ -138,8 +113,8 @@ struct KeyframeCamera {
 
 // The camera of `keyframe` from its sensor's calibration. InvalidArgument
 // for an invalid calibration or a negative or non-finite crop_scale.
-absl::StatusOr<KeyframeCamera> KeyframeCameraFromProto(const v1::SensorCalibration& calibration,
-                                                       const v1::TextureKeyframe& keyframe);
+absl::StatusOr<KeyframeCamera> KeyframeCameraOf(const SensorCalibration& calibration,
+                                                const TextureKeyframe& keyframe);
 
 // Eq. 3.14-3.15: the pixel of a point of a part (part frame, metres) in a
 // keyframe's crop image, for the part's pose at the keyframe's instant:
@@ -152,7 +127,7 @@ absl::StatusOr<KeyframeCamera> KeyframeCameraFromProto(const v1::SensorCalibrati
 // part frame) is the caller's. nullopt when the point is behind the camera.
 // The pixel may fall outside the crop.
 std::optional<Eigen::Vector2d> ProjectToKeyframeCrop(const Eigen::Vector3d& point_in_part_m,
-                                                     const PartPoseInWorld& pose,
+                                                     const reenact::PartPose& pose,
                                                      const KeyframeCamera& camera);
 
 // Bit `vertex` of one part's vertex_visible_bits (LSB first); false when the
@@ -193,9 +168,9 @@ struct BakeSummary {
 // = PartMesh.part) to carry it: an atlas of one square cell per pair of
 // triangles (each triangle a right triangle in one half, 1.5-3 px gutters,
 // every texel of a cell filled), vertices split so that each triangle corner
-// has its own uv (positions/normals/triangle_indices rewritten; the shape is
-// unchanged), uvs_f32 ((0, 0) bottom-left) and baked_texture_jpeg. Keyframe
-// poses come from `frames` (by PartFrame.frame_index), cameras from
+// has its own uv (positions, normals and triangles rewritten; the shape is
+// unchanged), uvs ((0, 0) bottom-left) and baked_texture_jpeg. Keyframe
+// poses come from `frames` (by frame_index), cameras from
 // `sensors` (by sensor_id). Texels that no keyframe sees take the part's
 // mean observed colour (mid grey when the part is seen nowhere). Crops are
 // decoded one keyframe at a time; memory is about 16 bytes per texel of all
@@ -204,10 +179,10 @@ struct BakeSummary {
 // sensors, bits whose length disagrees with a part's vertex count,
 // undecodable crops or masks, non-finite poses, or bad options; `parts` is
 // left unchanged on error.
-absl::Status BakePartTextures(const std::vector<v1::TextureKeyframe>& keyframes,
-                              const std::vector<v1::PartFrame>& frames,
-                              const std::vector<v1::SensorCalibration>& sensors,
-                              const BakeOptions& options, std::vector<v1::PartMesh>* parts,
+absl::Status BakePartTextures(const std::vector<TextureKeyframe>& keyframes,
+                              const std::vector<ReenactmentFrame>& frames,
+                              const std::vector<SensorCalibration>& sensors,
+                              const BakeOptions& options, std::vector<PartMesh>* parts,
                               BakeSummary* summary = nullptr);
 
 // Keyframes made before BakePartTextures carry bits in the old vertex order;
@@ -216,7 +191,7 @@ absl::Status BakePartTextures(const std::vector<v1::TextureKeyframe>& keyframes,
 // as it was passed to BakePartTextures; bits indexed by PartMesh.part).
 // InvalidArgument (keyframes unchanged) when a mesh is malformed or a
 // keyframe's bits for a part disagree with its vertex count.
-absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<v1::PartMesh>& before_bake,
-                                              std::vector<v1::TextureKeyframe>* keyframes);
+absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<PartMesh>& before_bake,
+                                              std::vector<TextureKeyframe>* keyframes);
 
 }  // namespace reenact::recon

@@ -29,7 +29,7 @@ constexpr double kPi = 3.14159265358979323846;
 // A box of half extents `h` centred on the part origin, each face a
 // `subdiv` x `subdiv` grid with its own vertices and flat normals,
 // triangles counter-clockwise seen from outside.
-PartGeometry MakeBox(const Vector3f& h, int subdiv) {
+PartMesh MakeBox(const Vector3f& h, int subdiv) {
   std::vector<Vector3f> positions, normals;
   std::vector<Eigen::Vector3i> triangles;
   for (int axis = 0; axis < 3; ++axis) {
@@ -63,7 +63,7 @@ PartGeometry MakeBox(const Vector3f& h, int subdiv) {
       }
     }
   }
-  PartGeometry g;
+  PartMesh g;
   g.positions_in_part_m.resize(3, positions.size());
   g.normals_in_part.resize(3, normals.size());
   for (size_t i = 0; i < positions.size(); ++i) {
@@ -77,6 +77,14 @@ PartGeometry MakeBox(const Vector3f& h, int subdiv) {
 const Vector3f kHalf0(0.3f, 0.3f, 0.1f);
 const Vector3f kHalf1(0.1f, 0.1f, 0.1f);
 
+// MakeBox(half, 8) as part `part` named `name`.
+PartMesh BoxPart(int part, const std::string& name, const Vector3f& half) {
+  PartMesh mesh = MakeBox(half, 8);
+  mesh.part = part;
+  mesh.name = name;
+  return mesh;
+}
+
 // The painted colour of a point of part `part` (part frame, metres).
 Vector3f Pattern(int part, const Vector3d& p) {
   const double k = 2.0 * kPi / 0.3;
@@ -87,8 +95,8 @@ Vector3f Pattern(int part, const Vector3d& p) {
 
 const Vector3f kBackground(20, 150, 40);
 
-PartPoseInWorld Pose(const Vector3d& translation, double yaw_deg = 0.0) {
-  PartPoseInWorld pose;
+reenact::PartPose Pose(const Vector3d& translation, double yaw_deg = 0.0) {
+  reenact::PartPose pose;
   pose.world_from_part.linear() =
       Eigen::AngleAxisd(yaw_deg * kPi / 180.0, Vector3d::UnitY()).toRotationMatrix();
   pose.world_from_part.translation() = translation;
@@ -104,7 +112,7 @@ struct Hit {
 
 // Nearest hit of the ray o + t d (world) with the posed boxes (slab test).
 std::optional<Hit> CastRay(const Vector3d& o, const Vector3d& d,
-                           const std::vector<PartPoseInWorld>& poses) {
+                           const std::vector<reenact::PartPose>& poses) {
   std::optional<Hit> best;
   for (size_t i = 0; i < poses.size(); ++i) {
     if (!poses[i].valid) continue;
@@ -130,7 +138,7 @@ std::optional<Hit> CastRay(const Vector3d& o, const Vector3d& d,
 }
 
 struct Sensor {
-  v1::SensorCalibration calibration;
+  SensorCalibration calibration;
   CameraIntrinsics color;  // Full resolution.
   CameraIntrinsics depth;
   Rigid3d world_from_depth;
@@ -147,13 +155,13 @@ Sensor MakeSensor() {
   // world -Z (camera y down = world -Y).
   s.world_from_depth =
       Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Vector3d::UnitX())), Vector3d(0, 1.2, 0));
-  s.calibration.set_sensor_id("k0");
-  s.calibration.set_model("test");
-  *s.calibration.mutable_color_intrinsics() = ToProto(s.color);
-  *s.calibration.mutable_depth_intrinsics() = ToProto(s.depth);
-  *s.calibration.mutable_color_from_depth() = ToProto(s.color_from_depth);
-  *s.calibration.mutable_world_from_depth() = ToProto(s.world_from_depth);
-  s.calibration.set_depth_scale_m_per_unit(0.001);
+  s.calibration.sensor_id = "k0";
+  s.calibration.model = "test";
+  s.calibration.color_intrinsics = s.color;
+  s.calibration.depth_intrinsics = s.depth;
+  s.calibration.color_from_depth = s.color_from_depth;
+  s.calibration.world_from_depth = s.world_from_depth;
+  s.calibration.depth_scale_m_per_unit = 0.001;
   return s;
 }
 
@@ -166,7 +174,7 @@ std::pair<Vector3d, Vector3d> PixelRay(const CameraIntrinsics& k, const Rigid3d&
 
 // Colour rendered with intrinsics `k` (full or scaled), one ray per pixel.
 RgbImage RenderColour(const Sensor& s, const CameraIntrinsics& k,
-                      const std::vector<PartPoseInWorld>& poses) {
+                      const std::vector<reenact::PartPose>& poses) {
   RgbImage image(k.width, k.height);
   for (int y = 0; y < k.height; ++y) {
     for (int x = 0; x < k.width; ++x) {
@@ -184,7 +192,7 @@ struct DepthAndMask {
   MaskImage mask;
 };
 
-DepthAndMask RenderDepth(const Sensor& s, const std::vector<PartPoseInWorld>& poses) {
+DepthAndMask RenderDepth(const Sensor& s, const std::vector<reenact::PartPose>& poses) {
   DepthAndMask out{DepthImageMm(s.depth.width, s.depth.height),
                    MaskImage(s.depth.width, s.depth.height)};
   for (int y = 0; y < s.depth.height; ++y) {
@@ -200,21 +208,21 @@ DepthAndMask RenderDepth(const Sensor& s, const std::vector<PartPoseInWorld>& po
   return out;
 }
 
-std::vector<PartPoseInWorld> Frame0Poses() {
+std::vector<reenact::PartPose> Frame0Poses() {
   return {Pose(Vector3d(0.0, 1.2, -2.5)), Pose(Vector3d(0.05, 1.2, -1.9))};
 }
-std::vector<PartPoseInWorld> Frame1Poses() {
+std::vector<reenact::PartPose> Frame1Poses() {
   return {Pose(Vector3d(0.0, 1.2, -2.5), 25.0), Pose(Vector3d(0.65, 1.2, -2.2))};
 }
 
 struct Scene {
   Sensor sensor = MakeSensor();
-  std::vector<PartGeometry> parts = {MakeBox(kHalf0, 8), MakeBox(kHalf1, 8)};
+  std::vector<PartMesh> parts = {BoxPart(0, "big", kHalf0), BoxPart(1, "small", kHalf1)};
 };
 
-v1::TextureKeyframe MakeKeyframe(const Scene& scene, const std::vector<PartPoseInWorld>& poses,
-                                 int frame_index, const KeyframeOptions& options = {},
-                                 int colour_divisor = 1) {
+TextureKeyframe MakeKeyframe(const Scene& scene, const std::vector<reenact::PartPose>& poses,
+                             int frame_index, const KeyframeOptions& options = {},
+                             int colour_divisor = 1) {
   const CameraIntrinsics k =
       *ScaledIntrinsics(scene.sensor.color, scene.sensor.color.width / colour_divisor,
                         scene.sensor.color.height / colour_divisor);
@@ -224,13 +232,14 @@ v1::TextureKeyframe MakeKeyframe(const Scene& scene, const std::vector<PartPoseI
   auto keyframe = MakeTextureKeyframe(scene.parts, poses, images, frame_index, 1000 * frame_index,
                                       "k0", options);
   EXPECT_TRUE(keyframe.ok()) << keyframe.status();
-  return keyframe.ok() ? *keyframe : v1::TextureKeyframe();
+  return keyframe.ok() ? *keyframe : TextureKeyframe();
 }
 
 // Ground truth: the vertex faces the colour camera, lies in the image and
 // the first surface along its ray is itself (within 1 cm).
-bool TrulyVisible(const Scene& scene, const std::vector<PartPoseInWorld>& poses, int part, int v) {
-  const PartPoseInWorld& pose = poses[part];
+bool TrulyVisible(const Scene& scene, const std::vector<reenact::PartPose>& poses, int part,
+                  int v) {
+  const reenact::PartPose& pose = poses[part];
   const Vector3d p =
       pose.world_from_part * scene.parts[part].positions_in_part_m.col(v).cast<double>();
   const Vector3d n =
@@ -245,7 +254,7 @@ bool TrulyVisible(const Scene& scene, const std::vector<PartPoseInWorld>& poses,
 
 // Whether the rays through `pixel` and its four neighbours at +-3 px all hit
 // part `part` (a vertex well inside that part's silhouette).
-bool WellInsideSilhouette(const Scene& scene, const std::vector<PartPoseInWorld>& poses,
+bool WellInsideSilhouette(const Scene& scene, const std::vector<reenact::PartPose>& poses,
                           const Vector2d& pixel, int part) {
   for (const Vector2d& off :
        {Vector2d(0, 0), Vector2d(3, 0), Vector2d(-3, 0), Vector2d(0, 3), Vector2d(0, -3)}) {
@@ -256,7 +265,7 @@ bool WellInsideSilhouette(const Scene& scene, const std::vector<PartPoseInWorld>
   return true;
 }
 
-std::optional<Vector2d> ColourPixel(const Scene& scene, const PartPoseInWorld& pose,
+std::optional<Vector2d> ColourPixel(const Scene& scene, const reenact::PartPose& pose,
                                     const Vector3d& in_part) {
   return scene.sensor.color.Project(scene.sensor.world_from_color().Inverse() *
                                     (pose.world_from_part * in_part));
@@ -267,15 +276,15 @@ std::optional<Vector2d> ColourPixel(const Scene& scene, const PartPoseInWorld& p
 TEST(MakeTextureKeyframe, VisibilityBitsFollowOcclusion) {
   const Scene scene;
   const auto poses = Frame0Poses();
-  const v1::TextureKeyframe keyframe = MakeKeyframe(scene, poses, 0);
-  ASSERT_EQ(keyframe.vertex_visible_bits_size(), 2);
+  const TextureKeyframe keyframe = MakeKeyframe(scene, poses, 0);
+  ASSERT_EQ(static_cast<int>(keyframe.vertex_visible_bits.size()), 2);
   int occluded_checked = 0, occluded_wrong = 0, visible_checked = 0, visible_wrong = 0;
   int truth_count = 0, bit_count = 0, agree = 0, total = 0;
   for (int part = 0; part < 2; ++part) {
     const int n = static_cast<int>(scene.parts[part].positions_in_part_m.cols());
-    ASSERT_EQ(keyframe.vertex_visible_bits(part).size(), static_cast<size_t>((n + 7) / 8));
+    ASSERT_EQ(keyframe.vertex_visible_bits[part].size(), static_cast<size_t>((n + 7) / 8));
     for (int v = 0; v < n; ++v) {
-      const bool bit = VertexVisible(keyframe.vertex_visible_bits(part), v);
+      const bool bit = VertexVisible(keyframe.vertex_visible_bits[part], v);
       const bool truth = TrulyVisible(scene, poses, part, v);
       truth_count += truth;
       bit_count += bit;
@@ -315,13 +324,13 @@ TEST(MakeTextureKeyframe, CropCoversTheActorAndMaskMatches) {
   const Scene scene;
   const auto poses = Frame0Poses();
   KeyframeOptions options;
-  const v1::TextureKeyframe keyframe = MakeKeyframe(scene, poses, 0, options);
-  const auto crop = DecodeJpeg(keyframe.color_jpeg());
-  const auto mask = DecodeMaskRle(keyframe.mask_rle());
+  const TextureKeyframe keyframe = MakeKeyframe(scene, poses, 0, options);
+  const auto crop = DecodeJpeg(keyframe.color_jpeg);
+  const auto mask = DecodeMaskRle(keyframe.mask_rle);
   ASSERT_TRUE(crop.ok() && mask.ok());
   ASSERT_EQ(crop->width, mask->width);
   ASSERT_EQ(crop->height, mask->height);
-  EXPECT_FLOAT_EQ(keyframe.crop_scale(), 1.0f);
+  EXPECT_FLOAT_EQ(keyframe.crop_scale, 1.0f);
   // Ground-truth actor in full colour pixels.
   const CameraIntrinsics& k = scene.sensor.color;
   int x_min = k.width, x_max = -1, y_min = k.height, y_max = -1;
@@ -334,7 +343,7 @@ TEST(MakeTextureKeyframe, CropCoversTheActorAndMaskMatches) {
         x_min = std::min(x_min, x), x_max = std::max(x_max, x);
         y_min = std::min(y_min, y), y_max = std::max(y_max, y);
       }
-      const int cx = x - keyframe.crop_x_px(), cy = y - keyframe.crop_y_px();
+      const int cx = x - keyframe.crop_x_px, cy = y - keyframe.crop_y_px;
       const bool in_mask =
           cx >= 0 && cy >= 0 && cx < mask->width && cy < mask->height && mask->at(cx, cy) > 0;
       inter += actor && in_mask;
@@ -344,27 +353,27 @@ TEST(MakeTextureKeyframe, CropCoversTheActorAndMaskMatches) {
   ASSERT_GE(x_max, 0);
   // The crop holds the actor's box and no more than the margin (+4 px for
   // the depth camera's coarser silhouette) around it.
-  EXPECT_LE(keyframe.crop_x_px(), x_min);
-  EXPECT_LE(keyframe.crop_y_px(), y_min);
-  EXPECT_GE(keyframe.crop_x_px() + crop->width - 1, x_max);
-  EXPECT_GE(keyframe.crop_y_px() + crop->height - 1, y_max);
-  EXPECT_GE(keyframe.crop_x_px(), x_min - options.margin_px - 4);
-  EXPECT_GE(keyframe.crop_y_px(), y_min - options.margin_px - 4);
-  EXPECT_LE(keyframe.crop_x_px() + crop->width - 1, x_max + options.margin_px + 4);
-  EXPECT_LE(keyframe.crop_y_px() + crop->height - 1, y_max + options.margin_px + 4);
+  EXPECT_LE(keyframe.crop_x_px, x_min);
+  EXPECT_LE(keyframe.crop_y_px, y_min);
+  EXPECT_GE(keyframe.crop_x_px + crop->width - 1, x_max);
+  EXPECT_GE(keyframe.crop_y_px + crop->height - 1, y_max);
+  EXPECT_GE(keyframe.crop_x_px, x_min - options.margin_px - 4);
+  EXPECT_GE(keyframe.crop_y_px, y_min - options.margin_px - 4);
+  EXPECT_LE(keyframe.crop_x_px + crop->width - 1, x_max + options.margin_px + 4);
+  EXPECT_LE(keyframe.crop_y_px + crop->height - 1, y_max + options.margin_px + 4);
   const double iou = static_cast<double>(inter) / uni;
   EXPECT_GE(iou, 0.97) << "mask IoU against the ray-cast silhouette";
   std::printf("crop %dx%d at (%d, %d) for actor box x %d..%d y %d..%d; mask IoU %.4f\n",
-              crop->width, crop->height, keyframe.crop_x_px(), keyframe.crop_y_px(), x_min, x_max,
+              crop->width, crop->height, keyframe.crop_x_px, keyframe.crop_y_px, x_min, x_max,
               y_min, y_max, iou);
 }
 
 // Mean absolute error (8-bit levels) between the crop at the projection of
 // clearly visible vertices and their painted colour.
-double VertexColourError(const Scene& scene, const std::vector<PartPoseInWorld>& poses,
-                         const v1::TextureKeyframe& keyframe, int* count) {
-  const auto camera = KeyframeCameraFromProto(scene.sensor.calibration, keyframe);
-  const auto crop = DecodeJpeg(keyframe.color_jpeg());
+double VertexColourError(const Scene& scene, const std::vector<reenact::PartPose>& poses,
+                         const TextureKeyframe& keyframe, int* count) {
+  const auto camera = KeyframeCameraOf(scene.sensor.calibration, keyframe);
+  const auto crop = DecodeJpeg(keyframe.color_jpeg);
   EXPECT_TRUE(camera.ok() && crop.ok());
   double error = 0.0;
   *count = 0;
@@ -397,46 +406,24 @@ TEST(ProjectToKeyframeCrop, LandsOnThePaintedColour) {
   // The same through a half-resolution colour image and a downscaled crop.
   KeyframeOptions small;
   small.max_crop_side_px = 60;
-  const v1::TextureKeyframe scaled = MakeKeyframe(scene, poses, 0, small, 2);
-  EXPECT_LT(scaled.crop_scale(), 0.5f);
-  EXPECT_GT(scaled.crop_scale(), 0.2f);
+  const TextureKeyframe scaled = MakeKeyframe(scene, poses, 0, small, 2);
+  EXPECT_LT(scaled.crop_scale, 0.5f);
+  EXPECT_GT(scaled.crop_scale, 0.2f);
   const double mae_scaled = VertexColourError(scene, poses, scaled, &count);
   EXPECT_LT(mae_scaled, 10.0) << "levels";
   std::printf(
       "vertex colour through Eq. 3.14-3.15: %.2f levels (full), %.2f levels "
       "(half-resolution colour, crop_scale %.3f)\n",
-      mae, mae_scaled, scaled.crop_scale());
+      mae, mae_scaled, scaled.crop_scale);
 }
 
-// Proto parts, frames and sensors for BakePartTextures.
-std::vector<v1::PartMesh> PartMeshes(const Scene& scene) {
-  std::vector<v1::PartMesh> meshes(2);
-  for (int p = 0; p < 2; ++p) {
-    const PartGeometry& g = scene.parts[p];
-    meshes[p].set_part(p);
-    meshes[p].set_name(p == 0 ? "big" : "small");
-    meshes[p].set_positions_in_part_m_f32(
-        std::string(reinterpret_cast<const char*>(g.positions_in_part_m.data()),
-                    g.positions_in_part_m.size() * 4));
-    meshes[p].set_normals_in_part_f32(std::string(
-        reinterpret_cast<const char*>(g.normals_in_part.data()), g.normals_in_part.size() * 4));
-    for (const auto& t : g.triangles) {
-      for (int k = 0; k < 3; ++k) meshes[p].add_triangle_indices(t[k]);
-    }
-  }
-  return meshes;
-}
+// The parts and a frame for BakePartTextures.
+std::vector<PartMesh> PartMeshes(const Scene& scene) { return scene.parts; }
 
-v1::PartFrame ToFrame(int index, const std::vector<PartPoseInWorld>& poses) {
-  v1::PartFrame frame;
-  frame.set_frame_index(index);
-  for (const PartPoseInWorld& pose : poses) {
-    v1::PartPose* m = frame.add_parts();
-    *m->mutable_world_from_part() = ToProto(Rigid3d(
-        Eigen::Quaterniond(pose.world_from_part.linear()), pose.world_from_part.translation()));
-    m->set_scale(static_cast<float>(pose.scale));
-    m->set_valid(pose.valid);
-  }
+ReenactmentFrame ToFrame(int index, const std::vector<reenact::PartPose>& poses) {
+  ReenactmentFrame frame;
+  frame.frame_index = index;
+  frame.parts = poses;
   return frame;
 }
 
@@ -449,18 +436,17 @@ struct BakeError {
 
 // Compares the baked textures with the painted pattern at texels at least
 // 1 px inside their triangle whose point some keyframe truly sees.
-BakeError MeasureBake(const Scene& scene, const std::vector<v1::PartMesh>& baked) {
-  const std::vector<std::vector<PartPoseInWorld>> frames = {Frame0Poses(), Frame1Poses()};
+BakeError MeasureBake(const Scene& scene, const std::vector<PartMesh>& baked) {
+  const std::vector<std::vector<reenact::PartPose>> frames = {Frame0Poses(), Frame1Poses()};
   BakeError out;
   double sum = 0.0, sum_hidden = 0.0;
   for (int p = 0; p < 2; ++p) {
-    const auto texture = DecodeJpeg(baked[p].baked_texture_jpeg());
-    const auto geometry = PartGeometryFromProto(baked[p]);
-    EXPECT_TRUE(texture.ok() && geometry.ok());
-    if (!texture.ok() || !geometry.ok()) return out;
-    const std::string& uv_bytes = baked[p].uvs_f32();
-    EXPECT_EQ(uv_bytes.size(), static_cast<size_t>(geometry->positions_in_part_m.cols()) * 8);
-    const float* uv = reinterpret_cast<const float*>(uv_bytes.data());
+    const auto texture = DecodeJpeg(baked[p].baked_texture_jpeg);
+    const PartMesh* geometry = &baked[p];
+    EXPECT_TRUE(texture.ok());
+    if (!texture.ok()) return out;
+    EXPECT_EQ(geometry->uvs.cols(), geometry->positions_in_part_m.cols());
+    const float* uv = geometry->uvs.data();
     const int size = texture->width;
     for (const auto& t : geometry->triangles) {
       std::array<Vector2d, 3> c;
@@ -514,10 +500,11 @@ BakeError MeasureBake(const Scene& scene, const std::vector<v1::PartMesh>& baked
 
 TEST(BakePartTextures, ReproducesPaintedColoursAndSkipsOccluders) {
   const Scene scene;
-  const std::vector<v1::TextureKeyframe> keyframes = {MakeKeyframe(scene, Frame0Poses(), 0),
-                                                      MakeKeyframe(scene, Frame1Poses(), 1)};
-  const std::vector<v1::PartFrame> frames = {ToFrame(0, Frame0Poses()), ToFrame(1, Frame1Poses())};
-  std::vector<v1::PartMesh> parts = PartMeshes(scene);
+  const std::vector<TextureKeyframe> keyframes = {MakeKeyframe(scene, Frame0Poses(), 0),
+                                                  MakeKeyframe(scene, Frame1Poses(), 1)};
+  const std::vector<ReenactmentFrame> frames = {ToFrame(0, Frame0Poses()),
+                                                ToFrame(1, Frame1Poses())};
+  std::vector<PartMesh> parts = PartMeshes(scene);
   BakeSummary summary;
   ASSERT_TRUE(BakePartTextures(keyframes, frames, {scene.sensor.calibration}, BakeOptions(), &parts,
                                &summary)
@@ -528,9 +515,8 @@ TEST(BakePartTextures, ReproducesPaintedColoursAndSkipsOccluders) {
   EXPECT_GT(summary.triangles_unobserved, 0);
   EXPECT_LT(summary.triangles_unobserved, summary.triangles);
   for (int p = 0; p < 2; ++p) {
-    EXPECT_EQ(parts[p].triangle_indices_size(), 6 * 8 * 8 * 2 * 3);
-    EXPECT_EQ(parts[p].positions_in_part_m_f32().size(),
-              static_cast<size_t>(6 * 8 * 8 * 2 * 3 * 12));
+    EXPECT_EQ(parts[p].triangles.size(), static_cast<size_t>(6 * 8 * 8 * 2));
+    EXPECT_EQ(parts[p].num_vertices(), 6 * 8 * 8 * 2 * 3);
   }
   const BakeError error = MeasureBake(scene, parts);
   EXPECT_GT(error.texels, 20000);
@@ -547,21 +533,22 @@ TEST(BakePartTextures, ReproducesPaintedColoursAndSkipsOccluders) {
 
 TEST(RemapVisibilityBitsToBakedMeshes, FollowsTheVertexSplit) {
   const Scene scene;
-  std::vector<v1::TextureKeyframe> keyframes = {MakeKeyframe(scene, Frame0Poses(), 0)};
-  const std::vector<v1::TextureKeyframe> before_keyframes = keyframes;
-  const std::vector<v1::PartMesh> before = PartMeshes(scene);
-  std::vector<v1::PartMesh> parts = before;
+  std::vector<TextureKeyframe> keyframes = {MakeKeyframe(scene, Frame0Poses(), 0)};
+  const std::vector<TextureKeyframe> before_keyframes = keyframes;
+  const std::vector<PartMesh> before = PartMeshes(scene);
+  std::vector<PartMesh> parts = before;
   ASSERT_TRUE(BakePartTextures(keyframes, {ToFrame(0, Frame0Poses())}, {scene.sensor.calibration},
                                BakeOptions(), &parts)
                   .ok());
   ASSERT_TRUE(RemapVisibilityBitsToBakedMeshes(before, &keyframes).ok());
   int set_before = 0, set_after = 0;
   for (int p = 0; p < 2; ++p) {
-    const std::string& old_bits = before_keyframes[0].vertex_visible_bits(p);
-    const std::string& new_bits = keyframes[0].vertex_visible_bits(p);
-    ASSERT_EQ(new_bits.size(), static_cast<size_t>((parts[p].triangle_indices_size() + 7) / 8));
-    for (int i = 0; i < parts[p].triangle_indices_size(); ++i) {
-      const int old_vertex = before[p].triangle_indices(i);
+    const std::string& old_bits = before_keyframes[0].vertex_visible_bits[p];
+    const std::string& new_bits = keyframes[0].vertex_visible_bits[p];
+    const int corners = static_cast<int>(3 * parts[p].triangles.size());
+    ASSERT_EQ(new_bits.size(), static_cast<size_t>((corners + 7) / 8));
+    for (int i = 0; i < corners; ++i) {
+      const int old_vertex = before[p].triangles[i / 3][i % 3];
       EXPECT_EQ(VertexVisible(new_bits, i), VertexVisible(old_bits, old_vertex));
       set_after += VertexVisible(new_bits, i);
     }
@@ -571,10 +558,10 @@ TEST(RemapVisibilityBitsToBakedMeshes, FollowsTheVertexSplit) {
   }
   EXPECT_GT(set_after, set_before);  // Shared vertices become several corners.
   // Bits that do not fit the meshes: error, keyframes unchanged.
-  std::vector<v1::TextureKeyframe> again = keyframes;
+  std::vector<TextureKeyframe> again = keyframes;
   EXPECT_EQ(RemapVisibilityBitsToBakedMeshes(before, &again).code(),
             absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(again[0].SerializeAsString(), keyframes[0].SerializeAsString());
+  EXPECT_EQ(again[0].vertex_visible_bits, keyframes[0].vertex_visible_bits);
 }
 
 // Control: without the occlusion test (a tolerance beyond the scene's
@@ -584,11 +571,12 @@ TEST(BakePartTextures, OcclusionTestMatters) {
   const Scene scene;
   KeyframeOptions no_occlusion;
   no_occlusion.visibility_tolerance_m = 10.0;
-  const std::vector<v1::TextureKeyframe> keyframes = {
+  const std::vector<TextureKeyframe> keyframes = {
       MakeKeyframe(scene, Frame0Poses(), 0, no_occlusion),
       MakeKeyframe(scene, Frame1Poses(), 1, no_occlusion)};
-  const std::vector<v1::PartFrame> frames = {ToFrame(0, Frame0Poses()), ToFrame(1, Frame1Poses())};
-  std::vector<v1::PartMesh> parts = PartMeshes(scene);
+  const std::vector<ReenactmentFrame> frames = {ToFrame(0, Frame0Poses()),
+                                                ToFrame(1, Frame1Poses())};
+  std::vector<PartMesh> parts = PartMeshes(scene);
   ASSERT_TRUE(
       BakePartTextures(keyframes, frames, {scene.sensor.calibration}, BakeOptions(), &parts).ok());
   const BakeError error = MeasureBake(scene, parts);
@@ -604,7 +592,7 @@ TEST(MakeTextureKeyframe, RejectsCorruptInput) {
   auto poses = Frame0Poses();
   const RgbImage colour = RenderColour(scene.sensor, scene.sensor.color, poses);
   const DepthAndMask dm = RenderDepth(scene.sensor, poses);
-  auto make = [&](const std::vector<PartGeometry>& parts, const std::vector<PartPoseInWorld>& p,
+  auto make = [&](const std::vector<PartMesh>& parts, const std::vector<reenact::PartPose>& p,
                   const RgbImage& c, const MaskImage& m, const DepthImageMm& d) {
     return MakeTextureKeyframe(parts, p, SensorImages{scene.sensor.calibration, c, m, d}, 0, 0,
                                "k0")
@@ -638,15 +626,15 @@ TEST(MakeTextureKeyframe, RejectsCorruptInput) {
 
 TEST(BakePartTextures, RejectsCorruptInputAndLeavesPartsUnchanged) {
   const Scene scene;
-  const std::vector<v1::TextureKeyframe> good = {MakeKeyframe(scene, Frame0Poses(), 0)};
-  const std::vector<v1::PartFrame> frames = {ToFrame(0, Frame0Poses())};
-  const std::vector<v1::SensorCalibration> sensors = {scene.sensor.calibration};
-  const std::vector<v1::PartMesh> original = PartMeshes(scene);
-  auto bake = [&](const std::vector<v1::TextureKeyframe>& k, const std::vector<v1::PartFrame>& f,
-                  std::vector<v1::PartMesh> parts) {
+  const std::vector<TextureKeyframe> good = {MakeKeyframe(scene, Frame0Poses(), 0)};
+  const std::vector<ReenactmentFrame> frames = {ToFrame(0, Frame0Poses())};
+  const std::vector<SensorCalibration> sensors = {scene.sensor.calibration};
+  const std::vector<PartMesh> original = PartMeshes(scene);
+  auto bake = [&](const std::vector<TextureKeyframe>& k, const std::vector<ReenactmentFrame>& f,
+                  std::vector<PartMesh> parts) {
     const absl::Status status = BakePartTextures(k, f, sensors, BakeOptions(), &parts);
     if (!status.ok()) {
-      for (size_t i = 0; i < parts.size(); ++i) EXPECT_TRUE(parts[i].baked_texture_jpeg().empty());
+      for (size_t i = 0; i < parts.size(); ++i) EXPECT_TRUE(parts[i].baked_texture_jpeg.empty());
     }
     return status.code();
   };
@@ -654,35 +642,34 @@ TEST(BakePartTextures, RejectsCorruptInputAndLeavesPartsUnchanged) {
   ASSERT_EQ(bake(good, frames, original), absl::StatusCode::kOk);
 
   auto short_bits = good;
-  short_bits[0].set_vertex_visible_bits(1, "x");
+  short_bits[0].vertex_visible_bits[1] = "x";
   EXPECT_EQ(bake(short_bits, frames, original), kInvalid);
   auto bad_jpeg = good;
-  bad_jpeg[0].set_color_jpeg("not a jpeg");
+  bad_jpeg[0].color_jpeg = "not a jpeg";
   EXPECT_EQ(bake(bad_jpeg, frames, original), kInvalid);
   auto bad_mask = good;
-  bad_mask[0].set_mask_rle(EncodeMaskRle(MaskImage(3, 3)));
+  bad_mask[0].mask_rle = EncodeMaskRle(MaskImage(3, 3));
   EXPECT_EQ(bake(bad_mask, frames, original), kInvalid);
   auto unknown_frame = good;
-  unknown_frame[0].set_frame_index(7);
+  unknown_frame[0].frame_index = 7;
   EXPECT_EQ(bake(unknown_frame, frames, original), kInvalid);
   auto unknown_sensor = good;
-  unknown_sensor[0].set_sensor_id("k9");
+  unknown_sensor[0].sensor_id = "k9";
   EXPECT_EQ(bake(unknown_sensor, frames, original), kInvalid);
   auto nan_frames = frames;
-  nan_frames[0].mutable_parts(0)->mutable_world_from_part()->mutable_translation_m()->set_x(
-      std::nan(""));
+  nan_frames[0].parts[0].world_from_part.translation().x() = std::nan("");
   EXPECT_EQ(bake(good, nan_frames, original), kInvalid);
   auto nan_scale = frames;
-  nan_scale[0].mutable_parts(1)->set_scale(std::nanf(""));
+  nan_scale[0].parts[1].scale = std::nan("");
   EXPECT_EQ(bake(good, nan_scale, original), kInvalid);
-  auto odd_bytes = original;
-  odd_bytes[0].mutable_positions_in_part_m_f32()->resize(13);
-  EXPECT_EQ(bake(good, frames, odd_bytes), kInvalid);
+  auto odd_normals = original;
+  odd_normals[0].normals_in_part.conservativeResize(3, odd_normals[0].num_vertices() - 1);
+  EXPECT_EQ(bake(good, frames, odd_normals), kInvalid);
   auto bad_index = original;
-  bad_index[1].set_triangle_indices(0, 99999);
+  bad_index[1].triangles[0][0] = 99999;
   EXPECT_EQ(bake(good, frames, bad_index), kInvalid);
   auto nan_crop_scale = good;
-  nan_crop_scale[0].set_crop_scale(std::nanf(""));
+  nan_crop_scale[0].crop_scale = std::nanf("");
   EXPECT_EQ(bake(nan_crop_scale, frames, original), kInvalid);
 }
 
@@ -690,11 +677,11 @@ TEST(BakePartTextures, GrowsATextureTooSmallForThePartsTriangles) {
   const Scene scene;
   BakeOptions tiny;
   tiny.texture_size_px = 16;  // 768 triangles: a 20 x 20 grid of 4 px cells, 80 px.
-  std::vector<v1::PartMesh> parts = PartMeshes(scene);
+  std::vector<PartMesh> parts = PartMeshes(scene);
   ASSERT_TRUE(BakePartTextures({MakeKeyframe(scene, Frame0Poses(), 0)}, {ToFrame(0, Frame0Poses())},
                                {scene.sensor.calibration}, tiny, &parts)
                   .ok());
-  auto baked = DecodeJpeg(parts[0].baked_texture_jpeg());
+  auto baked = DecodeJpeg(parts[0].baked_texture_jpeg);
   ASSERT_TRUE(baked.ok()) << baked.status();
   EXPECT_EQ(baked->width, 128);  // 16 doubled until it holds 80 px.
   EXPECT_EQ(baked->height, 128);

@@ -17,8 +17,8 @@
 #include "common/base/status_macros.h"
 #include "common/body/model_spec.h"
 #include "common/bodyfit/body_fit.h"
-#include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
+#include "common/io/reenactment_convert.h"
 #include "reenact/v1/segments.pb.h"
 #include "server/recon/body/body_cloud.h"
 #include "server/recon/body/body_texturing.h"
@@ -30,14 +30,6 @@ namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-v1::Vector3 ToProto(const Eigen::Vector3d& p) {
-  v1::Vector3 out;
-  out.set_x(p.x());
-  out.set_y(p.y());
-  out.set_z(p.z());
-  return out;
 }
 
 // Instants with fewer depth points of the actor are not fitted.
@@ -68,7 +60,7 @@ struct AtlasFigures {
 
 // The mesh of the fitted shape with its atlas.
 struct TexturedMesh {
-  v1::BodyMesh mesh;
+  BodyMesh mesh;
   AtlasFigures atlas;
 };
 
@@ -254,14 +246,14 @@ std::vector<Eigen::Matrix3Xd> PosedVertices(const FrameFits& fits) {
   return posed;
 }
 
-// The PartFrame of every fitted instant; none for the others.
-std::vector<std::optional<v1::PartFrame>> FittedFrames(const TakeFrames& take,
-                                                       const FrameFits& fits) {
-  std::vector<std::optional<v1::PartFrame>> frames(fits.fits.size());
+// The frame of every fitted instant; none for the others.
+std::vector<std::optional<ReenactmentFrame>> FittedFrames(const TakeFrames& take,
+                                                          const FrameFits& fits) {
+  std::vector<std::optional<ReenactmentFrame>> frames(fits.fits.size());
   for (size_t i = 0; i < fits.fits.size(); ++i) {
     if (!fits.fits[i]) continue;
     const int index = static_cast<int>(i);
-    frames[i] = BodyFrameToProto(index, take.instant(index).stamp_ns, *fits.fits[i], true);
+    frames[i] = BodyFrame(index, take.instant(index).stamp_ns, *fits.fits[i], true);
   }
   return frames;
 }
@@ -272,13 +264,11 @@ absl::StatusOr<TexturedMesh> BakeAtlas(const TakeFrames& take, const LoadedModel
                                        const FrameFits& fits, const AtlasOptions& options,
                                        const StageProgress& stages) {
   TexturedMesh out;
-  ASSIGN_OR_RETURN(out.mesh, MakeBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
-  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(out.mesh));
+  ASSIGN_OR_RETURN(out.mesh, BuildBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
   const auto texture_start = std::chrono::steady_clock::now();
-  ASSIGN_OR_RETURN(const AtlasResult atlas, BakeBodyAtlas(take, decoded, PosedVertices(fits),
+  ASSIGN_OR_RETURN(const AtlasResult atlas, BakeBodyAtlas(take, out.mesh, PosedVertices(fits),
                                                           options, stages.ForStage("texture")));
-  ASSIGN_OR_RETURN(std::string atlas_jpeg, EncodeJpeg(atlas.atlas, 90));
-  out.mesh.set_atlas_jpeg(std::move(atlas_jpeg));
+  ASSIGN_OR_RETURN(out.mesh.atlas_jpeg, EncodeJpeg(atlas.atlas, 90));
   out.atlas.seconds = SecondsSince(texture_start);
   out.atlas.observed_fraction = atlas.observed_fraction;
   out.atlas.views = atlas.views;
@@ -299,14 +289,13 @@ FitFigures FiguresOf(const FrameFits& fits) {
 
 // The reenactment: the mesh and a frame for every instant (`frames`: those
 // of the fitted instants), with the run's figures.
-ReenactmentData AssembleReenactment(const TakeFrames& take, const body::BodyModel& model,
-                                    v1::BodyMesh mesh,
-                                    const std::vector<std::optional<v1::PartFrame>>& f,
-                                    const FitFigures& fits, const StageSeconds& seconds,
-                                    const AtlasFigures& atlas) {
+Reenactment AssembleReenactment(const TakeFrames& take, const body::BodyModel& model, BodyMesh mesh,
+                                const std::vector<std::optional<ReenactmentFrame>>& f,
+                                const FitFigures& fits, const StageSeconds& seconds,
+                                const AtlasFigures& atlas) {
   const int n = take.num_instants();
-  ReenactmentData data;
-  data.body.push_back(std::move(mesh));
+  Reenactment data;
+  data.body = std::move(mesh);
   int nearest_fit = -1;
   for (int i = 0; i < n; ++i) {
     if (f[i]) nearest_fit = i;
@@ -324,15 +313,15 @@ ReenactmentData AssembleReenactment(const TakeFrames& take, const body::BodyMode
       else if (i + d < n && f[i + d])
         best = i + d;
     }
-    v1::PartFrame frame = *f[best >= 0 ? best : nearest_fit];
-    frame.set_frame_index(i);
-    frame.set_stamp_ns(take.instant(i).stamp_ns);
-    frame.mutable_body()->set_valid(false);
+    ReenactmentFrame frame = *f[best >= 0 ? best : nearest_fit];
+    frame.frame_index = i;
+    frame.stamp_ns = take.instant(i).stamp_ns;
+    frame.body->valid = false;
     data.frames.push_back(std::move(frame));
   }
-  v1::ReenactmentInfo& info = data.info;
-  info.set_fps(take.fps());
-  auto& figures = *info.mutable_figures();
+  ReenactmentInfo& info = data.info;
+  info.fps = take.fps();
+  auto& figures = info.figures;
   figures["fitted_frames"] = fits.fitted;
   figures["reinitialised_frames"] = fits.reinitialised;
   figures["point_rms_mm"] = fits.rms_sum / fits.fitted;
@@ -418,21 +407,22 @@ absl::Status BodyMethodOptions::Validate() const {
   return atlas.Validate();
 }
 
-v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
-                               bool valid) {
-  v1::PartFrame frame;
-  frame.set_frame_index(frame_index);
-  frame.set_stamp_ns(stamp_ns);
-  *frame.mutable_body() = BodyPoseToProto(fit.pose);
-  frame.mutable_body()->set_valid(valid);
-  frame.mutable_body()->set_point_rms_mm(static_cast<float>(fit.point_rms_mm));
-  if (fit.offsets_m.cols() > 0) SetBodyPoseOffsets(fit.offsets_m, frame.mutable_body());
-  for (const Eigen::Vector3d& j : fit.joints_m) *frame.add_joints_in_world_m() = ToProto(j);
+ReenactmentFrame BodyFrame(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
+                           bool valid) {
+  ReenactmentFrame frame;
+  frame.frame_index = frame_index;
+  frame.stamp_ns = stamp_ns;
+  BodyFramePose& pose = frame.body.emplace();
+  pose.pose = fit.pose;
+  pose.valid = valid;
+  pose.point_rms_mm = static_cast<float>(fit.point_rms_mm);
+  if (fit.offsets_m.cols() > 0) pose.SetOffsetsMetres(fit.offsets_m);
+  frame.joints_in_world_m.assign(fit.joints_m.begin(), fit.joints_m.end());
   return frame;
 }
 
-absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take, const BodyMethodOptions& o,
-                                        const MethodContext& context) {
+absl::StatusOr<Reenactment> RunBody(const TakeFrames& take, const BodyMethodOptions& o,
+                                    const MethodContext& context) {
   RETURN_IF_ERROR(o.Validate());
   const StageProgress stages(
       context.progress,
@@ -456,7 +446,7 @@ absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take, const BodyMethod
   }
   ASSIGN_OR_RETURN(const FrameFits fits, FitAllFrames(take, clouds, *loaded.fitter, stages));
   ASSIGN_OR_RETURN(TexturedMesh textured, BakeAtlas(take, loaded, fits, o.atlas, stages));
-  ReenactmentData data =
+  Reenactment data =
       AssembleReenactment(take, *loaded.model, std::move(textured.mesh), FittedFrames(take, fits),
                           FiguresOf(fits), seconds, textured.atlas);
   if (context.log) {
@@ -589,11 +579,9 @@ absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMet
   ASSIGN_OR_RETURN(const FrameFits fits, FitFrames(take, clouds, *loaded.fitter, stages, range));
   // The segment's share of the atlas.
   const auto texture_start = std::chrono::steady_clock::now();
-  ASSIGN_OR_RETURN(const v1::BodyMesh mesh,
-                   MakeBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
-  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(mesh));
+  ASSIGN_OR_RETURN(const BodyMesh mesh, BuildBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
   ASSIGN_OR_RETURN(const AtlasSums sums,
-                   AccumulateBodyAtlas(take, decoded, PosedVertices(fits), o.atlas,
+                   AccumulateBodyAtlas(take, mesh, PosedVertices(fits), o.atlas,
                                        stages.ForStage("texture"), range.first, range.end));
   v1::BodySegmentPart part;
   part.set_index(index);
@@ -601,8 +589,8 @@ absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMet
   part.set_first(range.first);
   part.set_end(range.end);
   part.set_warmup_first(range.warmup_first);
-  for (std::optional<v1::PartFrame>& frame : FittedFrames(take, fits)) {
-    if (frame) *part.add_frames() = std::move(*frame);
+  for (const std::optional<ReenactmentFrame>& frame : FittedFrames(take, fits)) {
+    if (frame) *part.add_frames() = FrameToProto(*frame);
   }
   part.set_reinitialised(fits.reinitialised);
   part.set_fit_seconds(fits.fit_seconds);
@@ -623,17 +611,17 @@ absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMet
   return part.SerializeAsString();
 }
 
-absl::StatusOr<ReenactmentData> StitchBody(const TakeFrames& take, const BodyMethodOptions& o,
-                                           const MethodContext& context,
-                                           const std::string& prepared,
-                                           const std::vector<std::string>& segments) {
+absl::StatusOr<Reenactment> StitchBody(const TakeFrames& take, const BodyMethodOptions& o,
+                                       const MethodContext& context, const std::string& prepared,
+                                       const std::vector<std::string>& segments) {
   RETURN_IF_ERROR(o.Validate());
   ASSIGN_OR_RETURN(const v1::BodyShapePart shape, ParseShapePart(prepared, take, o));
   const StageProgress stages(context.progress, {{"model", 0.3}, {"stitch", 0.7}});
   ASSIGN_OR_RETURN(const LoadedModel loaded, ShapedModel(shape, o, context, stages));
   const int n = take.num_instants();
   const int count = static_cast<int>(segments.size());
-  std::vector<std::optional<v1::PartFrame>> frames(n);
+  std::vector<std::optional<ReenactmentFrame>> frames(n);
+  ASSIGN_OR_RETURN(BodyMesh mesh, BuildBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
   FitFigures fits;
   StageSeconds seconds{shape.model_seconds(), 0.0, shape.shape_seconds()};
   AtlasFigures atlas;
@@ -654,13 +642,19 @@ absl::StatusOr<ReenactmentData> StitchBody(const TakeFrames& take, const BodyMet
                        "; expected [", range.first, ", ", range.end, ")"));
     }
     next_first = part.end();
-    for (v1::PartFrame& frame : *part.mutable_frames()) {
-      const int i = frame.frame_index();
+    for (const v1::PartFrame& message : part.frames()) {
+      const int i = message.frame_index();
       if (i < part.first() || i >= part.end() || frames[i]) {
         return absl::InvalidArgumentError(
             absl::StrCat("segment ", k, " holds a frame of instant ", i, " twice or outside it"));
       }
-      frames[i] = std::move(frame);
+      absl::StatusOr<ReenactmentFrame> frame = FrameFromProto(message, mesh.num_vertices());
+      if (!frame.ok() || !frame->body) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("segment ", k, " frame of instant ", i,
+                         " is not a body pose of the model: ", frame.status().message()));
+      }
+      frames[i] = *std::move(frame);
       ++fits.fitted;
     }
     fits.reinitialised += part.reinitialised();
@@ -677,17 +671,14 @@ absl::StatusOr<ReenactmentData> StitchBody(const TakeFrames& take, const BodyMet
   }
   if (fits.fitted == 0) return absl::InvalidArgumentError("no instant of the take could be fitted");
   const auto finish_start = std::chrono::steady_clock::now();
-  ASSIGN_OR_RETURN(v1::BodyMesh mesh, MakeBodyMesh(*loaded.model, loaded.fitter->shape(), ""));
-  ASSIGN_OR_RETURN(const DecodedBodyMesh decoded, DecodeBodyMesh(mesh));
-  ASSIGN_OR_RETURN(const AtlasResult finished, FinishBodyAtlas(decoded, std::move(sums)));
-  ASSIGN_OR_RETURN(std::string atlas_jpeg, EncodeJpeg(finished.atlas, 90));
-  mesh.set_atlas_jpeg(std::move(atlas_jpeg));
+  ASSIGN_OR_RETURN(const AtlasResult finished, FinishBodyAtlas(mesh, std::move(sums)));
+  ASSIGN_OR_RETURN(mesh.atlas_jpeg, EncodeJpeg(finished.atlas, 90));
   atlas.seconds += SecondsSince(finish_start);
   atlas.observed_fraction = finished.observed_fraction;
   atlas.views = finished.views;
-  ReenactmentData data =
+  Reenactment data =
       AssembleReenactment(take, *loaded.model, std::move(mesh), frames, fits, seconds, atlas);
-  (*data.info.mutable_figures())["segments"] = count;
+  data.info.figures["segments"] = count;
   RETURN_IF_ERROR(stages.Report("stitch", count + 1, count + 1));
   if (context.log) {
     context.log(absl::StrCat("body: stitched ", count, " segments; ",

@@ -45,7 +45,7 @@
 #include "common/base/progress.h"
 #include "common/body/body_model.h"
 #include "common/bodyfit/body_fit.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/method_util.h"
 #include "server/recon/reconstruction_method.h"
@@ -69,18 +69,17 @@ struct BodyMethodOptions {
   absl::Status Validate() const;
 };
 
-// The PartFrame of one fitted instant: its BodyPose (with the offsets of
-// step 2 when present), point RMS, valid flag and fitted joints.
-v1::PartFrame BodyFrameToProto(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
-                               bool valid);
+// The frame of one fitted instant: its body pose (with the offsets of step
+// 2 when present), point RMS, valid flag and fitted joints.
+ReenactmentFrame BodyFrame(int frame_index, int64_t stamp_ns, const bodyfit::FrameFit& fit,
+                           bool valid);
 
 // Runs the method on a loaded take. InvalidArgument for options that fail
 // Validate() or a take without a usable instant (no skeleton with a torso
 // and no points); NotFound for a model name the context's asset roots do
 // not hold; Cancelled when the context's progress returned false.
-absl::StatusOr<ReenactmentData> RunBody(const TakeFrames& take,
-                                        const BodyMethodOptions& options = {},
-                                        const MethodContext& context = {});
+absl::StatusOr<Reenactment> RunBody(const TakeFrames& take, const BodyMethodOptions& options = {},
+                                    const MethodContext& context = {});
 
 // The phases of a run split across workers (see above); the bytes are
 // serialised v1::BodyShapePart and v1::BodySegmentPart
@@ -92,10 +91,9 @@ absl::StatusOr<std::string> PrepareBody(const TakeFrames& take, const BodyMethod
 absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMethodOptions& options,
                                            const MethodContext& context,
                                            const std::string& prepared, int index, int count);
-absl::StatusOr<ReenactmentData> StitchBody(const TakeFrames& take, const BodyMethodOptions& options,
-                                           const MethodContext& context,
-                                           const std::string& prepared,
-                                           const std::vector<std::string>& segments);
+absl::StatusOr<Reenactment> StitchBody(const TakeFrames& take, const BodyMethodOptions& options,
+                                       const MethodContext& context, const std::string& prepared,
+                                       const std::vector<std::string>& segments);
 
 // The method "body" for the registry (registry.cc); it can follow a take
 // live (live_body.h, LiveBodyOptions).

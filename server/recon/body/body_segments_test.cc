@@ -105,35 +105,34 @@ TEST_F(BodySegments, ThreeSegmentsEqualTheWholeRun) {
   ASSERT_TRUE(stitched.ok()) << stitched.status();
 
   // The same shape: the prepared one is the whole run's.
-  ASSERT_EQ(whole->body.size(), 1u);
-  ASSERT_EQ(stitched->body.size(), 1u);
-  ASSERT_EQ(whole->body[0].shape_size(), stitched->body[0].shape_size());
-  for (int k = 0; k < whole->body[0].shape_size(); ++k) {
-    EXPECT_NEAR(whole->body[0].shape(k), stitched->body[0].shape(k), 1e-9) << k;
+  ASSERT_TRUE(whole->is_body());
+  ASSERT_TRUE(stitched->is_body());
+  ASSERT_EQ(whole->body->shape.size(), stitched->body->shape.size());
+  for (size_t k = 0; k < whole->body->shape.size(); ++k) {
+    EXPECT_NEAR(whole->body->shape[k], stitched->body->shape[k], 1e-9) << k;
   }
 
   // Joints and posed vertices, frame by frame.
   ASSERT_EQ(whole->frames.size(), stitched->frames.size());
-  auto mesh = DecodeBodyMesh(whole->body[0]);
-  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  const BodyMesh* mesh = &*whole->body;
   double joint_sum_mm = 0.0, vertex_sum_mm = 0.0, joint_max_mm = 0.0;
   int joints = 0, frames = 0;
   for (size_t i = 0; i < whole->frames.size(); ++i) {
-    const v1::PartFrame& a = whole->frames[i];
-    const v1::PartFrame& b = stitched->frames[i];
-    ASSERT_EQ(a.frame_index(), b.frame_index());
-    EXPECT_EQ(a.stamp_ns(), b.stamp_ns());
-    EXPECT_EQ(a.body().valid(), b.body().valid()) << i;
-    ASSERT_EQ(a.joints_in_world_m_size(), b.joints_in_world_m_size());
-    for (int j = 0; j < a.joints_in_world_m_size(); ++j) {
-      const double d =
-          1000.0 * (FromProto(a.joints_in_world_m(j)) - FromProto(b.joints_in_world_m(j))).norm();
+    const ReenactmentFrame& a = whole->frames[i];
+    const ReenactmentFrame& b = stitched->frames[i];
+    ASSERT_EQ(a.frame_index, b.frame_index);
+    EXPECT_EQ(a.stamp_ns, b.stamp_ns);
+    ASSERT_TRUE(a.body && b.body);
+    EXPECT_EQ(a.body->valid, b.body->valid) << i;
+    ASSERT_EQ(a.joints_in_world_m.size(), b.joints_in_world_m.size());
+    for (size_t j = 0; j < a.joints_in_world_m.size(); ++j) {
+      const double d = 1000.0 * (a.joints_in_world_m[j] - b.joints_in_world_m[j]).norm();
       joint_sum_mm += d;
       joint_max_mm = std::max(joint_max_mm, d);
       ++joints;
     }
-    auto pa = PoseBodyMesh(*mesh, a.body());
-    auto pb = PoseBodyMesh(*mesh, b.body());
+    auto pa = PoseBodyMesh(*mesh, *a.body);
+    auto pb = PoseBodyMesh(*mesh, *b.body);
     ASSERT_TRUE(pa.ok() && pb.ok());
     vertex_sum_mm += 1000.0 * (pa->vertices_m - pb->vertices_m).colwise().norm().mean();
     ++frames;
@@ -142,8 +141,8 @@ TEST_F(BodySegments, ThreeSegmentsEqualTheWholeRun) {
   const double vertex_mm = vertex_sum_mm / std::max(1, frames);
 
   // The atlases.
-  auto atlas_whole = DecodeJpeg(whole->body[0].atlas_jpeg());
-  auto atlas_stitched = DecodeJpeg(stitched->body[0].atlas_jpeg());
+  auto atlas_whole = DecodeJpeg(whole->body->atlas_jpeg);
+  auto atlas_stitched = DecodeJpeg(stitched->body->atlas_jpeg);
   ASSERT_TRUE(atlas_whole.ok() && atlas_stitched.ok());
   ASSERT_EQ(atlas_whole->width, atlas_stitched->width);
   const double atlas_psnr = PsnrDb(*atlas_whole, *atlas_stitched);

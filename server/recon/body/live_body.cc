@@ -9,6 +9,7 @@
 #include "common/body/model_spec.h"
 #include "common/bodyfit/body_fit.h"
 #include "common/io/body_reenactment.h"
+#include "common/io/reenactment_convert.h"
 #include "server/recon/body/body_cloud.h"
 #include "server/recon/body/body_method.h"
 #include "server/recon/method_util.h"
@@ -137,7 +138,7 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
                      s.fitter->FitNext(input, s.previous ? &*s.previous : nullptr));
     if (next.has_value()) {
       s.previous = next->fit.pose;
-      update.frame = BodyFrameToProto(i, set.stamp_ns(), next->fit, /*valid=*/true);
+      update.frame = FrameToProto(BodyFrame(i, set.stamp_ns(), next->fit, /*valid=*/true));
     }
   }
   update.fit_ms =

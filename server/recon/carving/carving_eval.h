@@ -19,8 +19,8 @@
 #include "common/body/joint_set.h"
 #include "common/geometry/surface_distance.h"
 #include "common/io/proto_convert.h"
-#include "common/io/reenactment_file.h"
 #include "common/io/take.h"
+#include "common/model/reenactment.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/take_frames.h"
 #include "server/recon/texturing.h"
@@ -110,14 +110,10 @@ struct CarvedAccuracy {
 };
 
 // Compares every `stride`-th frame of `data` with the truth.
-inline absl::StatusOr<CarvedAccuracy> Evaluate(const ReenactmentData& data, const Truth& truth,
+inline absl::StatusOr<CarvedAccuracy> Evaluate(const Reenactment& data, const Truth& truth,
                                                int stride) {
   CarvedAccuracy accuracy;
-  std::vector<PartGeometry> parts;
-  for (const v1::PartMesh& mesh : data.parts) {
-    ASSIGN_OR_RETURN(PartGeometry geometry, PartGeometryFromProto(mesh));
-    parts.push_back(std::move(geometry));
-  }
+  const std::vector<PartMesh>& parts = data.parts;
   std::vector<double> distances;
   std::array<double, kNumBodyParts> part_sum{};
   std::array<int64_t, kNumBodyParts> part_count{};
@@ -126,18 +122,18 @@ inline absl::StatusOr<CarvedAccuracy> Evaluate(const ReenactmentData& data, cons
   double joint_sum = 0.0, skeleton_sum = 0.0;
   int64_t joint_count = 0;
   for (size_t f = 0; f < data.frames.size(); f += stride) {
-    const v1::PartFrame& frame = data.frames[f];
-    auto mesh = truth.mesh_by_frame.find(frame.frame_index());
-    auto joints = truth.joints_by_frame.find(frame.frame_index());
+    const ReenactmentFrame& frame = data.frames[f];
+    auto mesh = truth.mesh_by_frame.find(frame.frame_index);
+    auto joints = truth.joints_by_frame.find(frame.frame_index);
     if (mesh == truth.mesh_by_frame.end() || joints == truth.joints_by_frame.end()) continue;
     ++accuracy.frames;
     const SurfaceDistance truth_surface(mesh->second, truth.triangles);
-    ASSIGN_OR_RETURN(std::vector<PartPoseInWorld> poses, PartPosesFromProto(frame));
+    const std::vector<reenact::PartPose>& poses = frame.parts;
     std::vector<Eigen::Vector3d> carved_vertices;
     std::vector<Eigen::Vector3i> carved_triangles;
     JointArray fused = MissingJoints();
-    for (int j = 0; j < frame.joints_in_world_m_size(); ++j) {
-      fused[j] = FromProto(frame.joints_in_world_m(j));
+    for (size_t j = 0; j < frame.joints_in_world_m.size() && j < fused.size(); ++j) {
+      fused[j] = frame.joints_in_world_m[j];
     }
     for (int p = 0; p < kNumBodyParts; ++p) {
       if (!poses[p].valid) continue;
@@ -157,7 +153,7 @@ inline absl::StatusOr<CarvedAccuracy> Evaluate(const ReenactmentData& data, cons
       const BodyPartInfo& info = BodyParts()[p];
       const Eigen::Vector3d& proximal = joints->second[body::Index(info.proximal)];
       const Eigen::Vector3d& distal = joints->second[body::Index(info.distal)];
-      const double length = data.parts[p].reference_length_m();
+      const double length = data.parts[p].reference_length_m;
       joint_sum += (poses[p].world_from_part * Eigen::Vector3d::Zero() - proximal).norm() +
                    (poses[p].world_from_part * Eigen::Vector3d(0, length, 0) - distal).norm();
       skeleton_sum += (fused[body::Index(info.proximal)] - proximal).norm() +

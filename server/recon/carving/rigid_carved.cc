@@ -306,7 +306,7 @@ class RigidCarved {
                          ? options.fuse_stride
                          : std::max(1, static_cast<int>(std::lround(take.fps() / 15.0)))) {}
 
-  absl::StatusOr<ReenactmentData> Run();
+  absl::StatusOr<Reenactment> Run();
 
  private:
   absl::Status MakeCameras();
@@ -324,8 +324,7 @@ class RigidCarved {
                        const std::vector<SensorFrame>& current);
   void KeepForFusion(int instant, std::vector<SensorFrame>* frames);
   absl::Status Fuse(std::vector<std::optional<TsdfVolume>>* volumes);
-  absl::StatusOr<std::vector<v1::PartMesh>> Mesh(
-      const std::vector<std::optional<TsdfVolume>>& volumes);
+  absl::StatusOr<std::vector<PartMesh>> Mesh(const std::vector<std::optional<TsdfVolume>>& volumes);
 
   const TakeFrames& take_;
   const RigidCarvedOptions& options_;
@@ -723,9 +722,9 @@ absl::Status RigidCarved::Fuse(std::vector<std::optional<TsdfVolume>>* volumes) 
 }
 
 // The geometry of a carved mesh, or nullopt when it is empty.
-std::optional<PartGeometry> ToGeometry(const carving::TriangleMesh& mesh) {
+std::optional<PartMesh> ToGeometry(const carving::TriangleMesh& mesh) {
   if (mesh.num_triangles() == 0) return std::nullopt;
-  PartGeometry geometry;
+  PartMesh geometry;
   const Eigen::Index count = static_cast<Eigen::Index>(mesh.positions_m.size());
   geometry.positions_in_part_m.resize(3, count);
   geometry.normals_in_part.resize(3, count);
@@ -740,10 +739,10 @@ std::optional<PartGeometry> ToGeometry(const carving::TriangleMesh& mesh) {
   return geometry;
 }
 
-absl::StatusOr<std::vector<v1::PartMesh>> RigidCarved::Mesh(
+absl::StatusOr<std::vector<PartMesh>> RigidCarved::Mesh(
     const std::vector<std::optional<TsdfVolume>>& volumes) {
   const auto start = Clock::now();
-  std::vector<std::optional<PartGeometry>> geometry(kNumBodyParts);
+  std::vector<std::optional<PartMesh>> geometry(kNumBodyParts);
   std::mutex mutex;
   absl::Status status = absl::OkStatus();
   RETURN_IF_ERROR(stages_.Report("mesh", 0, kNumBodyParts));
@@ -760,7 +759,7 @@ absl::StatusOr<std::vector<v1::PartMesh>> RigidCarved::Mesh(
     geometry[p] = ToGeometry(carving::KeepLargeComponents(*mesh, options_.min_component_fraction));
   });
   RETURN_IF_ERROR(status);
-  std::vector<v1::PartMesh> meshes;
+  std::vector<PartMesh> meshes;
   for (int p = 0; p < kNumBodyParts; ++p) {
     const BodyPart part = static_cast<BodyPart>(p);
     double length = parts_[p].reference_length_m;
@@ -778,7 +777,7 @@ absl::StatusOr<std::vector<v1::PartMesh>> RigidCarved::Mesh(
   return meshes;
 }
 
-absl::StatusOr<ReenactmentData> RigidCarved::Run() {
+absl::StatusOr<Reenactment> RigidCarved::Run() {
   if (take_.num_valid_instants() == 0) {
     return absl::InvalidArgumentError("the take has no instant with a skeleton");
   }
@@ -786,7 +785,7 @@ absl::StatusOr<ReenactmentData> RigidCarved::Run() {
   RETURN_IF_ERROR(Register());
   std::vector<std::optional<TsdfVolume>> volumes;
   RETURN_IF_ERROR(Fuse(&volumes));
-  ReenactmentData data;
+  Reenactment data;
   ASSIGN_OR_RETURN(data.parts, Mesh(volumes));
   volumes.clear();
 
@@ -810,7 +809,7 @@ absl::StatusOr<ReenactmentData> RigidCarved::Run() {
       const RigidTexturingSummary texturing,
       AddRigidTextures(take_, options_.texturing, &data, stages_.ForStage("texture"), log_));
 
-  auto& figures = *data.info.mutable_figures();
+  auto& figures = data.info.figures;
   const double registrations = std::max<int64_t>(1, registrations_);
   figures["registration_rms_mm"] = 1e3 * plane_rms_sum_m_ / registrations;
   figures["flow_rms_mm"] = 1e3 * flow_rms_sum_m_ / registrations;
@@ -840,9 +839,9 @@ absl::StatusOr<ReenactmentData> RigidCarved::Run() {
                       " iterations, register ", register_seconds_, " s, fuse ", fuse_seconds_,
                       " s, mesh ", mesh_seconds_, " s, ", triangles_, " triangles"));
   }
-  data.info.set_frame_count(static_cast<int32_t>(data.frames.size()));
-  data.info.set_fps(take_.fps());
-  for (const std::string& name : BodyPartNames()) data.info.add_part_names(name);
+  data.info.frame_count = static_cast<int>(data.frames.size());
+  data.info.fps = take_.fps();
+  data.info.part_names = BodyPartNames();
   return data;
 }
 
@@ -907,9 +906,9 @@ absl::Status RigidCarvedOptions::Validate() const {
   return texturing.Validate();
 }
 
-absl::StatusOr<ReenactmentData> RunRigidCarved(const TakeFrames& take,
-                                               const RigidCarvedOptions& options,
-                                               const MethodContext& context) {
+absl::StatusOr<Reenactment> RunRigidCarved(const TakeFrames& take,
+                                           const RigidCarvedOptions& options,
+                                           const MethodContext& context) {
   RETURN_IF_ERROR(options.Validate());
   const StageProgress stages(context.progress,
                              {{"register", 0.3}, {"fuse", 0.2}, {"mesh", 0.05}, {"texture", 0.45}});

@@ -8,7 +8,7 @@
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "server/recon/reconstruction_method.h"
 #include "server/recon/rigid_texturing.h"
 #include "server/recon/take_frames.h"
@@ -102,9 +102,9 @@ struct RigidCarvedOptions {
 // it makes the method stop with Cancelled. `context.log` may be empty.
 // InvalidArgument for bad options or a take without a valid instant;
 // Cancelled; DataLoss when a frame of the take does not decode.
-absl::StatusOr<ReenactmentData> RunRigidCarved(const TakeFrames& take,
-                                               const RigidCarvedOptions& options = {},
-                                               const MethodContext& context = {});
+absl::StatusOr<Reenactment> RunRigidCarved(const TakeFrames& take,
+                                           const RigidCarvedOptions& options = {},
+                                           const MethodContext& context = {});
 
 // The method "rigid-carved" for the registry (registry.cc).
 const ReconstructionMethod& RigidCarvedMethod();

@@ -81,7 +81,7 @@ TEST(RunRigidCarved, CarvedPartsLieOnTheTrueSurface) {
   // Registration must not drift away from the skeleton it starts from.
   EXPECT_LT(accuracy->joint_error_mm, accuracy->skeleton_joint_error_mm + 1.0);
 
-  const auto& figures = data->info.figures();
+  const auto& figures = data->info.figures;
   for (const char* figure : {"registration_rms_mm", "mean_iterations", "voxels", "triangles",
                              "carve_instants_per_second", "keyframes"}) {
     EXPECT_TRUE(figures.contains(figure)) << figure;
@@ -93,16 +93,16 @@ TEST(RunRigidCarved, CarvedPartsLieOnTheTrueSurface) {
                  static_cast<int>(figures.at("carve_instants_per_second")));
   ASSERT_EQ(data->parts.size(), static_cast<size_t>(kNumBodyParts));
   for (int p = 0; p < kNumBodyParts; ++p) {
-    EXPECT_EQ(data->parts[p].part(), p);
-    EXPECT_EQ(data->parts[p].radius_rate(), 0.0f);
-    EXPECT_GT(data->parts[p].reference_length_m(), 0.05f);
+    EXPECT_EQ(data->parts[p].part, p);
+    EXPECT_EQ(data->parts[p].radius_rate, 0.0f);
+    EXPECT_GT(data->parts[p].reference_length_m, 0.05f);
   }
   ASSERT_EQ(data->frames.size(), static_cast<size_t>(SharedFrames().num_instants()));
-  for (const v1::PartFrame& frame : data->frames) {
-    ASSERT_EQ(frame.parts_size(), kNumBodyParts);
-    for (const v1::PartPose& pose : frame.parts()) {
-      EXPECT_TRUE(pose.valid());
-      EXPECT_EQ(pose.scale(), 1.0f);
+  for (const ReenactmentFrame& frame : data->frames) {
+    ASSERT_EQ(frame.parts.size(), static_cast<size_t>(kNumBodyParts));
+    for (const reenact::PartPose& pose : frame.parts) {
+      EXPECT_TRUE(pose.valid);
+      EXPECT_EQ(pose.scale, 1.0);
     }
   }
 }

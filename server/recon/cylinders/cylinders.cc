@@ -8,7 +8,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
-#include "common/io/reenactment_file.h"
 
 namespace reenact::recon {
 namespace {
@@ -400,13 +399,12 @@ absl::StatusOr<std::array<PartRadius, kNumBodyParts>> FitPartRadii(
   return radii;
 }
 
-PartGeometry MakeCylinderGeometry(double radius_m, double y0_m, double y1_m, int segments,
-                                  int rings) {
+PartMesh MakeCylinderGeometry(double radius_m, double y0_m, double y1_m, int segments, int rings) {
   segments = std::max(segments, 3);
   rings = std::max(rings, 1);
   const int side_vertices = (rings + 1) * segments;
   const int cap_vertices = 2 * (segments + 1);
-  PartGeometry g;
+  PartMesh g;
   g.positions_in_part_m.resize(3, side_vertices + cap_vertices);
   g.normals_in_part.resize(3, side_vertices + cap_vertices);
   auto set = [&](int v, double x, double y, double z, double nx, double ny, double nz) {
@@ -451,24 +449,12 @@ PartGeometry MakeCylinderGeometry(double radius_m, double y0_m, double y1_m, int
   return g;
 }
 
-v1::PartMesh ToPartMesh(BodyPart part, const PartGeometry& geometry, float radius_rate,
-                        float reference_length_m) {
-  v1::PartMesh mesh;
-  mesh.set_part(Index(part));
-  mesh.set_name(std::string(GetBodyPartInfo(part).name));
-  const Eigen::Index n = geometry.positions_in_part_m.cols();
-  std::vector<float> positions(geometry.positions_in_part_m.data(),
-                               geometry.positions_in_part_m.data() + 3 * n);
-  std::vector<float> normals(geometry.normals_in_part.data(),
-                             geometry.normals_in_part.data() + 3 * n);
-  mesh.set_positions_in_part_m_f32(PackFloats(positions));
-  mesh.set_normals_in_part_f32(PackFloats(normals));
-  for (const Eigen::Vector3i& t : geometry.triangles) {
-    for (int c = 0; c < 3; ++c) mesh.add_triangle_indices(static_cast<uint32_t>(t[c]));
-  }
-  mesh.set_radius_rate(radius_rate);
-  mesh.set_reference_length_m(reference_length_m);
-  return mesh;
+PartMesh ToPartMesh(BodyPart part, PartMesh geometry, float radius_rate, float reference_length_m) {
+  geometry.part = Index(part);
+  geometry.name = std::string(GetBodyPartInfo(part).name);
+  geometry.radius_rate = radius_rate;
+  geometry.reference_length_m = reference_length_m;
+  return geometry;
 }
 
 absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
@@ -500,9 +486,9 @@ absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
   return model;
 }
 
-absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
-                                                  const CylinderOptions& options,
-                                                  const MethodContext& context) {
+absl::StatusOr<Reenactment> RunRigidCylinders(const TakeFrames& take,
+                                              const CylinderOptions& options,
+                                              const MethodContext& context) {
   RETURN_IF_ERROR(options.Validate());
   const ProgressCallback& progress = context.progress;
   const LogCallback& log = context.log;
@@ -512,20 +498,18 @@ absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
   RETURN_IF_ERROR(stages.Report("shape", 0, 1));
   ASSIGN_OR_RETURN(const CylinderModel model, FitCylinderModel(take, options));
   RETURN_IF_ERROR(stages.Report("shape", 1, 1));
-  ReenactmentData data;
+  Reenactment data;
   int fitted = 0;
   for (int p = 0; p < kNumBodyParts; ++p) {
     const P part = static_cast<P>(p);
     const double l_ref = model.reference_length_m[p];
     const double rate = model.radii[p].radius_rate;
     const double y1 = part == P::kHead ? l_ref * (1.0 + options.head_top_extension) : l_ref;
-    const PartGeometry geometry =
-        MakeCylinderGeometry(rate * l_ref, 0.0, y1, options.segments, options.rings);
-    data.parts.push_back(
-        ToPartMesh(part, geometry, static_cast<float>(rate), static_cast<float>(l_ref)));
+    data.parts.push_back(ToPartMesh(
+        part, MakeCylinderGeometry(rate * l_ref, 0.0, y1, options.segments, options.rings),
+        static_cast<float>(rate), static_cast<float>(l_ref)));
     fitted += model.radii[p].fitted ? 1 : 0;
-    (*data.info
-          .mutable_figures())[absl::StrCat("radius_mm.", std::string(GetBodyPartInfo(part).name))] =
+    data.info.figures[absl::StrCat("radius_mm.", std::string(GetBodyPartInfo(part).name))] =
         1e3 * rate * l_ref;
   }
   if (log) {
@@ -563,7 +547,7 @@ absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
       const RigidTexturingSummary texturing,
       AddRigidTextures(take, options.texturing, &data, stages.ForStage("texture"), log));
 
-  auto& figures = *data.info.mutable_figures();
+  auto& figures = data.info.figures;
   figures["representative_frame"] = model.representative.instant;
   figures["representative_sensor"] = model.representative.sensor;
   figures["representative_score"] = model.representative.score.e;
@@ -575,9 +559,9 @@ absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
     figures["baked_unobserved_fraction"] =
         static_cast<double>(texturing.bake.triangles_unobserved) / texturing.bake.triangles;
   }
-  data.info.set_frame_count(static_cast<int32_t>(data.frames.size()));
-  data.info.set_fps(take.fps());
-  for (const std::string& name : BodyPartNames()) data.info.add_part_names(name);
+  data.info.frame_count = static_cast<int>(data.frames.size());
+  data.info.fps = take.fps();
+  data.info.part_names = BodyPartNames();
   return data;
 }
 

@@ -55,7 +55,7 @@
 #include "absl/status/statusor.h"
 #include "common/base/image.h"
 #include "common/geometry/camera.h"
-#include "common/io/reenactment_file.h"
+#include "common/model/reenactment.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/method_util.h"
 #include "server/recon/reconstruction_method.h"
@@ -145,12 +145,11 @@ absl::StatusOr<std::array<PartRadius, kNumBodyParts>> FitPartRadii(
 // `segments` round, `rings` along; side vertices have radial normals, caps
 // their own vertices with normals -Y / +Y; triangles counter-clockwise seen
 // from outside.
-PartGeometry MakeCylinderGeometry(double radius_m, double y0_m, double y1_m, int segments,
-                                  int rings);
+PartMesh MakeCylinderGeometry(double radius_m, double y0_m, double y1_m, int segments, int rings);
 
-// The reenact.v1.PartMesh of `geometry` (no texture yet).
-v1::PartMesh ToPartMesh(BodyPart part, const PartGeometry& geometry, float radius_rate,
-                        float reference_length_m);
+// `geometry` as the mesh of `part` (id, name, radius rate and reference
+// length; no texture yet).
+PartMesh ToPartMesh(BodyPart part, PartMesh geometry, float radius_rate, float reference_length_m);
 
 // The shape model of a take: representative frame, radii, reference lengths.
 struct CylinderModel {
@@ -169,9 +168,9 @@ absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
 // (frame_count, fps, part_names, figures); RunMethod fills the rest.
 // InvalidArgument for options that fail Validate(). Progress stages
 // "shape", "pose", "texture".
-absl::StatusOr<ReenactmentData> RunRigidCylinders(const TakeFrames& take,
-                                                  const CylinderOptions& options = {},
-                                                  const MethodContext& context = {});
+absl::StatusOr<Reenactment> RunRigidCylinders(const TakeFrames& take,
+                                              const CylinderOptions& options = {},
+                                              const MethodContext& context = {});
 
 // The method "rigid-cylinders" for the registry (registry.cc).
 const ReconstructionMethod& RigidCylindersMethod();

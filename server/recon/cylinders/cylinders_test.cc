@@ -175,7 +175,7 @@ TEST(FitPartRadii, MeasuresAnAnalyticCylinderInFrontOfAnother) {
 }
 
 TEST(MakeCylinderGeometry, ClosedOutwardCounterClockwise) {
-  const PartGeometry g = MakeCylinderGeometry(0.05, 0.0, 0.3, 24, 8);
+  const PartMesh g = MakeCylinderGeometry(0.05, 0.0, 0.3, 24, 8);
   const int n = static_cast<int>(g.positions_in_part_m.cols());
   EXPECT_EQ(n, 9 * 24 + 2 * 25);
   EXPECT_EQ(g.triangles.size(), 2u * 24 * 8 + 2u * 24);
@@ -199,11 +199,13 @@ TEST(MakeCylinderGeometry, ClosedOutwardCounterClockwise) {
     EXPECT_GE(p.y(), -1e-6f);
     EXPECT_LE(p.y(), 0.3f + 1e-6f);
   }
-  const v1::PartMesh mesh = ToPartMesh(BodyPart::kShinLeft, g, 0.2f, 0.25f);
-  EXPECT_EQ(mesh.part(), Index(BodyPart::kShinLeft));
-  EXPECT_EQ(mesh.name(), "shin_left");
-  EXPECT_EQ(mesh.positions_in_part_m_f32().size(), 12u * n);
-  EXPECT_EQ(mesh.triangle_indices_size(), static_cast<int>(3 * g.triangles.size()));
+  const PartMesh mesh = ToPartMesh(BodyPart::kShinLeft, g, 0.2f, 0.25f);
+  EXPECT_EQ(mesh.part, Index(BodyPart::kShinLeft));
+  EXPECT_EQ(mesh.name, "shin_left");
+  EXPECT_EQ(mesh.num_vertices(), static_cast<int>(n));
+  EXPECT_EQ(mesh.triangles.size(), g.triangles.size());
+  EXPECT_EQ(mesh.radius_rate, 0.2f);
+  EXPECT_EQ(mesh.reference_length_m, 0.25f);
 }
 
 // Nearest point parameter of p on segment a-b and the distance to it.

@@ -58,7 +58,6 @@
 #include "absl/status/statusor.h"
 #include "clients/view/reenactment_renderer.h"
 #include "common/base/progress.h"
-#include "common/io/reenactment_file.h"
 #include "common/io/take.h"
 
 namespace reenact::view {

@@ -1,4 +1,4 @@
-// Draws a reenactment (common/io/reenactment_file.h) at one instant from any
+// Draws a reenactment (common/model/reenactment.h) at one instant from any
 // camera, headless, through OffscreenRenderer. Rigid-part reenactments:
 //  * TextureMode::kVdtm: view-dependent texture mapping from the texture
 //    keyframes (clients/view/texture_selection.h: Eq. 3.13 for

@@ -12,7 +12,6 @@
 #include "absl/strings/str_cat.h"
 #include "clients/view/reenactment_renderer.h"
 #include "common/base/status_macros.h"
-#include "common/io/body_reenactment.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
 #include "common/io/reenactment_convert.h"
@@ -88,7 +87,7 @@ Eigen::Isometry3d PartFrame(const body::PosedBody& posed, int part) {
 }
 
 struct Parts {
-  std::vector<v1::PartMesh> meshes;
+  std::vector<PartMesh> meshes;
   std::vector<Eigen::Matrix3Xd> positions;  // Part frame.
   std::vector<Eigen::Matrix3Xd> normals;    // Part frame.
   std::vector<std::vector<Eigen::Vector3i>> triangles;
@@ -135,20 +134,16 @@ Parts CutParts(const body::BodyModel& model, const body::PosedBody& posed0) {
       normals.col(i) =
           (part_from_world.linear() * normals0.col(source[b][i]).cast<double>()).cast<float>();
     }
-    v1::PartMesh& mesh = parts.meshes[b];
-    mesh.set_part(b);
-    mesh.set_name(kPartNames[b]);
-    mesh.set_positions_in_part_m_f32(
-        PackFloats(std::vector<float>(positions.data(), positions.data() + positions.size())));
-    mesh.set_normals_in_part_f32(
-        PackFloats(std::vector<float>(normals.data(), normals.data() + normals.size())));
-    mesh.set_uvs_f32(PackFloats(std::vector<float>(2 * n, 0.0f)));  // No baked texture.
-    for (const Eigen::Vector3i& t : parts.triangles[b]) {
-      for (int c = 0; c < 3; ++c) mesh.add_triangle_indices(t[c]);
-    }
+    PartMesh& mesh = parts.meshes[b];
+    mesh.part = b;
+    mesh.name = kPartNames[b];
+    mesh.positions_in_part_m = positions;
+    mesh.normals_in_part = normals;
+    mesh.uvs = Eigen::Matrix2Xf::Zero(2, n);  // No baked texture.
+    mesh.triangles = parts.triangles[b];
     const J proximal = kPartJoints[b].first, distal = kPartJoints[b].second;
-    mesh.set_reference_length_m(static_cast<float>(
-        (posed0.joints_m[Index(distal)] - posed0.joints_m[Index(proximal)]).norm()));
+    mesh.reference_length_m = static_cast<float>(
+        (posed0.joints_m[Index(distal)] - posed0.joints_m[Index(proximal)]).norm());
     parts.positions[b] = positions.cast<double>();
     parts.normals[b] = normals.cast<double>();
     parts.part_from_joint.push_back(frame0.inverse() * posed0.world_from_joint[Index(proximal)]);
@@ -156,35 +151,39 @@ Parts CutParts(const body::BodyModel& model, const body::PosedBody& posed0) {
   return parts;
 }
 
-v1::PartFrame MakeFrame(const Parts& parts, const body::PosedBody& posed, int frame_index,
-                        int64_t stamp_ns) {
-  v1::PartFrame frame;
-  frame.set_frame_index(frame_index);
-  frame.set_stamp_ns(stamp_ns);
+ReenactmentFrame MakeFrame(const Parts& parts, const body::PosedBody& posed, int frame_index,
+                           int64_t stamp_ns) {
+  ReenactmentFrame frame;
+  frame.frame_index = frame_index;
+  frame.stamp_ns = stamp_ns;
   for (int b = 0; b < kNumParts; ++b) {
     // F_b(n) = G_p(n) G_p(0)^-1 F_b(0): the part moves with its proximal joint.
     const Eigen::Isometry3d world_from_part =
         posed.world_from_joint[Index(kPartJoints[b].first)] * parts.part_from_joint[b].inverse();
-    v1::PartPose* pose = frame.add_parts();
-    *pose->mutable_world_from_part() = ToProto(
-        Rigid3d(Eigen::Quaterniond(world_from_part.linear()), world_from_part.translation()));
-    pose->set_scale(1.0f);
-    pose->set_valid(true);
+    PartPose& pose = frame.parts.emplace_back();
+    // The rotation re-orthonormalised through a unit quaternion, as a file
+    // stores it.
+    pose.world_from_part.linear() =
+        Eigen::Quaterniond(world_from_part.linear()).normalized().toRotationMatrix();
+    pose.world_from_part.translation() = world_from_part.translation();
+    pose.scale = 1.0;
+    pose.valid = true;
   }
-  for (const Eigen::Vector3d& joint : posed.joints_m)
-    *frame.add_joints_in_world_m() = ToProto(joint);
+  frame.joints_in_world_m.assign(posed.joints_m.begin(), posed.joints_m.end());
   return frame;
 }
 
 // Mask (truth silhouette) and vertex visibility of one colour camera.
-absl::StatusOr<v1::TextureKeyframe> MakeKeyframe(
-    render::OffscreenRenderer* renderer, const Parts& parts, const v1::PartFrame& frame,
-    const body::PosedBody& posed, const std::vector<Eigen::Vector3i>& truth_triangles,
-    const v1::SensorCalibration& sensor, const v1::ColorImage& colour, double tolerance_m) {
-  const int w = sensor.color_intrinsics().width_px(), h = sensor.color_intrinsics().height_px();
-  ASSIGN_OR_RETURN(const SensorCalibration calibration, SensorCalibrationFromProto(sensor));
-  ASSIGN_OR_RETURN(render::RenderCamera camera, SensorRenderCamera(calibration, w, h));
-  ASSIGN_OR_RETURN(CameraIntrinsics intrinsics, FromProto(sensor.color_intrinsics()));
+absl::StatusOr<TextureKeyframe> MakeKeyframe(render::OffscreenRenderer* renderer,
+                                             const Parts& parts, const ReenactmentFrame& frame,
+                                             const body::PosedBody& posed,
+                                             const std::vector<Eigen::Vector3i>& truth_triangles,
+                                             const SensorCalibration& sensor,
+                                             const v1::ColorImage& colour, double tolerance_m) {
+  const CameraIntrinsics& intrinsics = sensor.color_intrinsics;
+  RETURN_IF_ERROR(intrinsics.Validate());
+  const int w = intrinsics.width, h = intrinsics.height;
+  ASSIGN_OR_RETURN(render::RenderCamera camera, SensorRenderCamera(sensor, w, h));
   // Truth silhouette -> mask.
   render::MeshData truth_mesh;
   truth_mesh.positions_m = posed.vertices_m.cast<float>();
@@ -200,8 +199,7 @@ absl::StatusOr<v1::TextureKeyframe> MakeKeyframe(
   std::vector<render::DrawItem> items;
   std::vector<Eigen::Isometry3d> world_from_part(kNumParts);
   for (int b = 0; b < kNumParts; ++b) {
-    ASSIGN_OR_RETURN(Rigid3d pose, FromProto(frame.parts(b).world_from_part()));
-    world_from_part[b] = Eigen::Isometry3d(pose.ToMatrix4());
+    world_from_part[b] = frame.parts[b].world_from_part;
     render::MeshData mesh;
     mesh.positions_m = parts.positions[b].cast<float>();
     mesh.triangles = parts.triangles[b];
@@ -216,14 +214,14 @@ absl::StatusOr<v1::TextureKeyframe> MakeKeyframe(
   const absl::Status rendered = renderer->Render(camera, items, &depth);
   for (const render::DrawItem& item : items) RETURN_IF_ERROR(renderer->ReleaseMesh(item.mesh));
   RETURN_IF_ERROR(rendered);
-  v1::TextureKeyframe keyframe;
-  keyframe.set_frame_index(frame.frame_index());
-  keyframe.set_sensor_id(sensor.sensor_id());
-  keyframe.set_stamp_ns(colour.host_stamp_ns());
-  keyframe.set_color_jpeg(colour.data());
+  TextureKeyframe keyframe;
+  keyframe.frame_index = frame.frame_index;
+  keyframe.sensor_id = sensor.sensor_id;
+  keyframe.stamp_ns = colour.host_stamp_ns();
+  keyframe.color_jpeg = colour.data();
   MaskImage mask(w, h);
   for (size_t i = 0; i < mask.data.size(); ++i) mask.data[i] = truth_out.label.data[i] > 0 ? 1 : 0;
-  keyframe.set_mask_rle(EncodeMaskRle(mask));
+  keyframe.mask_rle = EncodeMaskRle(mask);
   const Eigen::Isometry3d color_from_world = camera.world_from_camera.inverse();
   const Eigen::Vector3d centre = camera.world_from_camera.translation();
   for (int b = 0; b < kNumParts; ++b) {
@@ -242,7 +240,7 @@ absl::StatusOr<v1::TextureKeyframe> MakeKeyframe(
       if (z <= 0 || x_camera.z() - z > tolerance_m || mask.at(px, py) == 0) continue;
       bits[v / 8] = static_cast<char>(bits[v / 8] | (1 << (v % 8)));
     }
-    keyframe.add_vertex_visible_bits(bits);
+    keyframe.vertex_visible_bits.push_back(std::move(bits));
   }
   return keyframe;
 }
@@ -304,8 +302,7 @@ absl::StatusOr<Reenactment> MakeTruthBodyReenactment(const TakeReader& take,
     ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
     info.sensors.push_back(std::move(sensor));
   }
-  ASSIGN_OR_RETURN(const v1::BodyMesh mesh, MakeBodyMesh(model, shape, std::move(atlas)));
-  ASSIGN_OR_RETURN(data.body, BodyMeshFromProto(mesh));
+  ASSIGN_OR_RETURN(data.body, BuildBodyMesh(model, shape, std::move(atlas)));
   for (size_t f = 0; f < bodies.size(); ++f) {
     const auto truth = meshes.find(static_cast<int64_t>(f));
     if (truth == meshes.end()) {
@@ -336,16 +333,19 @@ absl::StatusOr<Reenactment> MakeTruthReenactment(const TakeReader& take,
     ASSIGN_OR_RETURN(body::PosedBody p, body::PoseBody(model, PoseFromProto(message), shape));
     posed.push_back(std::move(p));
   }
-  ReenactmentData data;
-  v1::ReenactmentInfo& info = data.info;
-  info.set_reenactment_id("r-truth");
-  info.set_take_id(take.info().name());
-  info.set_method(options.method);
-  info.set_frame_count(static_cast<int>(bodies.size()));
-  info.set_fps(take.info().fps());
-  info.set_generator("truth_reenactment (test)");
-  for (const char* name : kPartNames) info.add_part_names(name);
-  for (const auto& [id, calibration] : take.sensors()) *info.add_sensors() = calibration;
+  Reenactment data;
+  ReenactmentInfo& info = data.info;
+  info.reenactment_id = "r-truth";
+  info.take_id = take.info().name();
+  info.method = options.method;
+  info.frame_count = static_cast<int>(bodies.size());
+  info.fps = take.info().fps();
+  info.generator = "truth_reenactment (test)";
+  info.part_names.assign(kPartNames.begin(), kPartNames.end());
+  for (const auto& [id, calibration] : take.sensors()) {
+    ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
+    info.sensors.push_back(std::move(sensor));
+  }
   Parts parts = CutParts(model, posed[0]);
   data.parts = parts.meshes;
   for (size_t f = 0; f < bodies.size(); ++f) {
@@ -353,30 +353,31 @@ absl::StatusOr<Reenactment> MakeTruthReenactment(const TakeReader& take,
   }
   // Keyframes: colour images of every k-th instant, every sensor.
   int max_w = 16, max_h = 16;
-  for (const auto& [id, calibration] : take.sensors()) {
-    max_w = std::max(max_w, calibration.color_intrinsics().width_px());
-    max_h = std::max(max_h, calibration.color_intrinsics().height_px());
+  for (const SensorCalibration& sensor : info.sensors) {
+    max_w = std::max(max_w, sensor.color_intrinsics.width);
+    max_h = std::max(max_h, sensor.color_intrinsics.height);
   }
   render::RendererOptions renderer_options;
   renderer_options.max_width = max_w;
   renderer_options.max_height = max_h;
   ASSIGN_OR_RETURN(auto renderer, render::OffscreenRenderer::Create(renderer_options));
-  for (const auto& [id, calibration] : take.sensors()) {
+  for (const SensorCalibration& sensor : info.sensors) {
     RETURN_IF_ERROR(take.ForEach<v1::ColorImage>(
-        SensorTopic(id, "color"), [&](const v1::ColorImage& colour) -> absl::Status {
+        SensorTopic(sensor.sensor_id, "color"), [&](const v1::ColorImage& colour) -> absl::Status {
           const int64_t f = colour.frame_index();
           if (f < 0 || f >= static_cast<int64_t>(posed.size()) || f % options.keyframe_every != 0) {
             return absl::OkStatus();
           }
           ASSIGN_OR_RETURN(
-              v1::TextureKeyframe keyframe,
-              MakeKeyframe(renderer.get(), parts, data.frames[f], posed[f], model.triangles,
-                           calibration, colour, options.visibility_tolerance_m));
+              TextureKeyframe keyframe,
+              MakeKeyframe(renderer.get(), parts, data.frames[f], posed[f], model.triangles, sensor,
+                           colour, options.visibility_tolerance_m));
           data.keyframes.push_back(std::move(keyframe));
           return absl::OkStatus();
         }));
   }
-  return ReenactmentFromProto(data);
+  RETURN_IF_ERROR(ValidateReenactment(data));
+  return data;
 }
 
 void PerturbPoses(Reenactment* data, const Eigen::Vector3d& offset_m, double angle_deg) {

@@ -3,6 +3,8 @@
 #include <memory>
 #include <utility>
 
+#include "common/io/reenactment_convert.h"
+#include "common/io/take_convert.h"
 #include "server/recon/body/live_body.h"
 
 namespace reenact::server {
@@ -14,11 +16,11 @@ class BodyFollower final : public LiveFollower {
       : follower_(std::move(follower)) {}
 
   absl::StatusOr<LiveFit> Push(const v1::FrameSet& set) override {
-    absl::StatusOr<recon::LiveUpdate> update = follower_->Push(set);
+    absl::StatusOr<recon::LiveUpdate> update = follower_->Push(FrameSetFromProto(set));
     if (!update.ok()) return update.status();
     LiveFit fit;
-    fit.mesh = std::move(update->mesh);
-    fit.frame = std::move(update->frame);
+    if (update->mesh) fit.mesh = BodyMeshToProto(*update->mesh);
+    if (update->frame) fit.frame = FrameToProto(*update->frame);
     fit.fit_ms = update->fit_ms;
     return fit;
   }
@@ -34,8 +36,16 @@ LiveFollowerFactory MakeLiveBodyFollowerFactory(std::vector<std::string> asset_r
                                                 const std::vector<v1::SensorCalibration>& sensors,
                                                 const std::map<std::string, std::string>& options)
              -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
+    std::vector<SensorCalibration> calibrations;
+    calibrations.reserve(sensors.size());
+    for (const v1::SensorCalibration& sensor : sensors) {
+      absl::StatusOr<SensorCalibration> calibration = SensorCalibrationFromProto(sensor);
+      if (!calibration.ok()) return calibration.status();
+      calibrations.push_back(*std::move(calibration));
+    }
     absl::StatusOr<std::unique_ptr<recon::LiveBodyFollower>> follower =
-        recon::LiveBodyFollower::Create(info, sensors, options, asset_roots);
+        recon::LiveBodyFollower::Create(TakeInfoFromProto(info), calibrations, options,
+                                        asset_roots);
     if (!follower.ok()) return follower.status();
     return std::make_unique<BodyFollower>(std::move(*follower));
   };

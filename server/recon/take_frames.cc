@@ -15,9 +15,7 @@
 #include "common/base/status_macros.h"
 #include "common/io/depth_codec.h"
 #include "common/io/mask_codec.h"
-#include "common/io/proto_convert.h"
-#include "common/io/reenactment_convert.h"
-#include "common/io/take.h"
+#include "common/io/take_convert.h"
 #include "common/tracking/skeleton_fusion.h"
 
 namespace reenact::recon {
@@ -38,39 +36,21 @@ absl::Status TakeFramesOptions::Validate() const {
 
 namespace {
 
-// One sensor's messages of one frame_index, as read.
-struct RawFrame {
-  bool has_depth = false;
-  v1::DepthImage depth;
-  bool has_mask = false;
-  v1::ActorMask mask;
-  bool has_color = false;
-  v1::ColorImage color;
-  std::vector<v1::Skeleton> skeletons;
-};
-
-enum class Stream { kDepth, kMask, kColor, kSkeleton };
-
-struct TopicRoute {
-  int sensor = -1;
-  Stream stream = Stream::kDepth;
-};
-
-bool Tracked(v1::TrackingState state) {
-  return state == v1::TRACKING_STATE_TRACKED || state == v1::TRACKING_STATE_UNSPECIFIED;
+bool Tracked(JointTrackingState state) {
+  return state == JointTrackingState::kTracked || state == JointTrackingState::kUnspecified;
 }
 
 // Picks the skeleton with the most tracked joints and fills the view's
 // skeleton fields (joints not tracked or inferred stay NaN there) and
 // `fusion_input`, the sensor's joints for the fusion (inferred ones
 // included, with their state and confidence).
-void SetSkeleton(const std::vector<v1::Skeleton>& skeletons, const TakeSensor& sensor,
-                 SensorView* view, std::optional<tracking::SensorSkeleton>* fusion_input) {
-  const v1::Skeleton* best = nullptr;
+void SetSkeleton(const std::vector<Skeleton>& skeletons, const TakeSensor& sensor, SensorView* view,
+                 std::optional<tracking::SensorSkeleton>* fusion_input) {
+  const Skeleton* best = nullptr;
   int best_count = -1;
-  for (const v1::Skeleton& s : skeletons) {
+  for (const Skeleton& s : skeletons) {
     int count = 0;
-    for (const v1::Joint& j : s.joints()) count += Tracked(j.tracking_state()) ? 1 : 0;
+    for (const SkeletonJoint& j : s.joints) count += Tracked(j.state) ? 1 : 0;
     if (count > best_count) {
       best = &s;
       best_count = count;
@@ -79,22 +59,22 @@ void SetSkeleton(const std::vector<v1::Skeleton>& skeletons, const TakeSensor& s
   fusion_input->reset();
   if (best == nullptr) return;
   view->has_skeleton = true;
-  view->body_index = best->body_index();
+  view->body_index = best->body_index;
   tracking::SensorSkeleton input;
   input.sensor_id = sensor.sensor_id;
   input.world_from_camera = sensor.world_from_depth;
-  for (const v1::Joint& j : best->joints()) {
-    const auto id = body::KinectV2JointFromName(j.name());
-    if (!id || j.tracking_state() == v1::TRACKING_STATE_NOT_TRACKED) continue;
-    const Eigen::Vector3d p = FromProto(j.position_in_depth_m());
+  for (const SkeletonJoint& j : best->joints) {
+    const auto id = body::KinectV2JointFromName(j.name);
+    if (!id || j.state == JointTrackingState::kNotTracked) continue;
+    const Eigen::Vector3d& p = j.position_in_depth_m;
     if (!p.allFinite()) continue;
     const int index = body::Index(*id);
     tracking::TrackedJoint& joint = input.joints[index];
     joint.position_in_camera_m = p;
     // Device SDKs give no confidence (0): full confidence in their state.
-    const float confidence = j.confidence();
+    const float confidence = j.confidence;
     joint.confidence = confidence > 0.0f && confidence <= 1.0f ? confidence : 1.0;
-    if (Tracked(j.tracking_state())) {
+    if (Tracked(j.state)) {
       joint.state = tracking::JointState::kTracked;
       view->joints_in_depth_m[index] = p;
       view->joints_in_world_m[index] = sensor.world_from_depth * p;
@@ -132,27 +112,34 @@ void FuseSkeleton(std::vector<tracking::SensorSkeleton> inputs, bool use_inferre
   }
 }
 
+bool IsRigidFinite(const Rigid3d& t) {
+  return t.rotation.coeffs().allFinite() && t.translation.allFinite() &&
+         std::abs(t.rotation.norm() - 1.0) < 1e-6;
+}
+
 }  // namespace
 
-// Reads the take into a TakeFrames (friend of TakeFrames).
-class TakeFramesLoader {
+// Groups a recording's frames into a TakeFrames' instants, or appends a live
+// take's FrameSets (friend of TakeFrames).
+class TakeFramesBuilder {
  public:
-  TakeFramesLoader(const TakeFramesOptions& options, const ProgressCallback& progress)
-      : options_(options), progress_(progress) {}
+  explicit TakeFramesBuilder(const TakeFramesOptions& options) : options_(options) {}
 
-  absl::StatusOr<std::unique_ptr<TakeFrames>> Load(const std::string& path) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) {
-      return absl::NotFoundError(absl::StrCat("take not found: ", path));
-    }
-    ASSIGN_OR_RETURN(reader_, TakeReader::Open(path));
+  absl::StatusOr<std::unique_ptr<TakeFrames>> FromRecording(RecordedTake take,
+                                                            const std::string& path) {
     frames_.reset(new TakeFrames());
     frames_->path_ = path;
-    frames_->info_ = reader_->info();
-    RETURN_IF_ERROR(ReadSensors());
-    RETURN_IF_ERROR(ReadMessages());
-    if (!records_.empty()) {
-      GroupByFrameSets();
+    frames_->info_ = std::move(take.info);
+    RETURN_IF_ERROR(AddSensors(take.sensors, path));
+    for (SensorFrame& frame : take.frames) {
+      const int s = frames_->SensorIndex(frame.sensor_id);
+      if (s < 0) continue;
+      const int64_t index = frame.frame_index;
+      raw_[s][index] = std::move(frame);
+    }
+    take.frames.clear();
+    if (!take.frame_sets.empty()) {
+      GroupByFrameSets(std::move(take.frame_sets));
       frames_->grouped_by_frame_sets_ = true;
     } else {
       GroupByFrameIndex();
@@ -166,45 +153,29 @@ class TakeFramesLoader {
 
   // A live take: calibrations now, FrameSets through Append.
   absl::StatusOr<std::unique_ptr<TakeFrames>> CreateLive(
-      const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors) {
+      const TakeInfo& info, const std::vector<SensorCalibration>& sensors) {
     frames_.reset(new TakeFrames());
     frames_->path_ = "(live)";
     frames_->info_ = info;
     RETURN_IF_ERROR(AddSensors(sensors, "live take"));
-    frames_->fps_ = info.fps() > 0 ? info.fps() : 30.0;
-    int threads = options_.num_threads;
-    if (threads == 0) {
-      threads = std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 8);
-    }
-    frames_->pool_ = std::make_unique<ThreadPool>(threads);
+    frames_->fps_ = info.fps > 0 ? info.fps : 30.0;
+    frames_->pool_ = std::make_unique<ThreadPool>(NumThreads());
     frames_->grouped_by_frame_sets_ = true;
     return std::move(frames_);
   }
 
   // Appends `set` to `frames` as its next instant.
-  void Append(const v1::FrameSet& set, TakeFrames* frames) {
+  void Append(FrameSet set, TakeFrames* frames) {
     frames_.reset(frames);  // Borrowed for MakeView; released below.
     Instant instant;
     instant.views.resize(frames->sensors_.size());
-    instant.stamp_ns = set.stamp_ns();
+    instant.stamp_ns = set.stamp_ns;
     std::vector<tracking::SensorSkeleton> skeletons;
-    for (const v1::Frame& frame : set.frames()) {
-      const int s = frames->SensorIndex(frame.sensor_id());
-      if (s < 0 || !frame.has_depth()) continue;
-      RawFrame f;
-      f.has_depth = true;
-      f.depth = frame.depth();
-      if (frame.has_mask()) {
-        f.has_mask = true;
-        f.mask = frame.mask();
-      }
-      if (options_.load_color && color_ok_[s] && frame.has_color()) {
-        f.has_color = true;
-        f.color = frame.color();
-      }
-      f.skeletons.assign(frame.skeletons().begin(), frame.skeletons().end());
+    for (SensorFrame& frame : set.frames) {
+      const int s = frames->SensorIndex(frame.sensor_id);
+      if (s < 0 || !frame.depth) continue;
       std::optional<tracking::SensorSkeleton> skeleton;
-      instant.views[s] = MakeView(s, f, &skeleton);
+      instant.views[s] = MakeView(s, frame, &skeleton);
       if (skeleton) skeletons.push_back(*std::move(skeleton));
     }
     FuseSkeleton(std::move(skeletons), options_.use_inferred_joints, &fusion_, &instant);
@@ -213,56 +184,43 @@ class TakeFramesLoader {
   }
 
  private:
-  absl::Status ReadSensors() {
-    std::vector<v1::SensorCalibration> sensors;
-    for (const auto& [id, calibration] : reader_->sensors()) sensors.push_back(calibration);
-    return AddSensors(sensors, reader_->mcap().path());
+  int NumThreads() const {
+    if (options_.num_threads > 0) return options_.num_threads;
+    return std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 8);
   }
 
-  // Decodes the calibrations into TakeSensors (`where` names the source in
-  // errors).
-  absl::Status AddSensors(const std::vector<v1::SensorCalibration>& calibrations,
+  // Checks the calibrations and makes them TakeSensors (`where` names the
+  // source in errors).
+  absl::Status AddSensors(const std::vector<SensorCalibration>& calibrations,
                           const std::string& where) {
-    for (const v1::SensorCalibration& calibration : calibrations) {
-      const std::string& id = calibration.sensor_id();
+    for (const SensorCalibration& calibration : calibrations) {
+      const std::string what = absl::StrCat(where, ": sensor ", calibration.sensor_id);
+      if (frames_->SensorIndex(calibration.sensor_id) >= 0) {
+        return absl::InvalidArgumentError(absl::StrCat(what, ": calibrated twice"));
+      }
       TakeSensor sensor;
-      sensor.sensor_id = id;
-      const std::string what = absl::StrCat(where, ": sensor ", id);
-      absl::StatusOr<SensorCalibration> plain = SensorCalibrationFromProto(calibration);
-      if (!plain.ok()) {
-        return absl::InvalidArgumentError(absl::StrCat(what, ": ", plain.status().message()));
-      }
-      sensor.calibration = *std::move(plain);
-      auto depth_k = FromProto(calibration.depth_intrinsics());
-      if (!depth_k.ok()) {
+      sensor.sensor_id = calibration.sensor_id;
+      sensor.calibration = calibration;
+      if (absl::Status status = calibration.depth_intrinsics.Validate(); !status.ok()) {
         return absl::InvalidArgumentError(
-            absl::StrCat(what, ": bad depth intrinsics: ", depth_k.status().message()));
+            absl::StrCat(what, ": bad depth intrinsics: ", status.message()));
       }
-      sensor.depth_intrinsics = *depth_k;
-      auto world_from_depth = FromProto(calibration.world_from_depth());
-      if (!world_from_depth.ok()) {
+      sensor.depth_intrinsics = calibration.depth_intrinsics;
+      if (!IsRigidFinite(calibration.world_from_depth)) {
         return absl::InvalidArgumentError(
-            absl::StrCat(what, ": bad world_from_depth: ", world_from_depth.status().message()));
+            absl::StrCat(what, ": world_from_depth is not a finite rigid transform"));
       }
-      sensor.world_from_depth = *world_from_depth;
+      sensor.world_from_depth = calibration.world_from_depth;
       // Colour is optional: a sensor without usable colour calibration keeps
       // its depth, and its colour frames are dropped.
-      auto color_k = FromProto(calibration.color_intrinsics());
-      auto color_from_depth = FromProto(calibration.color_from_depth());
-      color_ok_.push_back(color_k.ok() && color_from_depth.ok());
+      color_ok_.push_back(calibration.color_intrinsics.Validate().ok() &&
+                          IsRigidFinite(calibration.color_from_depth));
       if (color_ok_.back()) {
-        sensor.color_intrinsics = *color_k;
-        sensor.color_from_depth = *color_from_depth;
+        sensor.color_intrinsics = calibration.color_intrinsics;
+        sensor.color_from_depth = calibration.color_from_depth;
       }
-      if (calibration.depth_scale_m_per_unit() > 0) {
-        sensor.depth_scale_m_per_unit = calibration.depth_scale_m_per_unit();
-      }
-      for (const char* stream : {"depth", "mask", "color", "skeleton"}) {
-        const Stream s = std::string(stream) == "depth"   ? Stream::kDepth
-                         : std::string(stream) == "mask"  ? Stream::kMask
-                         : std::string(stream) == "color" ? Stream::kColor
-                                                          : Stream::kSkeleton;
-        routes_[SensorTopic(id, stream)] = {static_cast<int>(frames_->sensors_.size()), s};
+      if (calibration.depth_scale_m_per_unit > 0) {
+        sensor.depth_scale_m_per_unit = calibration.depth_scale_m_per_unit;
       }
       frames_->sensors_.push_back(std::move(sensor));
     }
@@ -274,126 +232,22 @@ class TakeFramesLoader {
     return absl::OkStatus();
   }
 
-  // The schema a topic's messages must have.
-  static const char* ExpectedType(Stream stream) {
-    switch (stream) {
-      case Stream::kDepth:
-        return "reenact.v1.DepthImage";
-      case Stream::kMask:
-        return "reenact.v1.ActorMask";
-      case Stream::kColor:
-        return "reenact.v1.ColorImage";
-      case Stream::kSkeleton:
-        return "reenact.v1.Skeleton";
-    }
-    return "";
-  }
-
-  absl::Status CheckSchema(const McapChannel& channel, const std::string& expected) const {
-    const auto& schemas = reader_->mcap().schemas();
-    auto it = schemas.find(channel.schema_id);
-    if (it == schemas.end() || it->second.name != expected) {
-      return absl::InvalidArgumentError(absl::StrCat(reader_->mcap().path(), ": channel ",
-                                                     channel.topic, " does not hold ", expected));
-    }
-    return absl::OkStatus();
-  }
-
-  template <typename Message>
-  absl::Status Parse(const McapChannel& channel, const McapMessage& message, Message* out) {
-    if (!out->ParseFromString(message.data)) {
-      return absl::DataLossError(absl::StrCat(reader_->mcap().path(), ": message on ",
-                                              channel.topic, " at log time ", message.log_time_ns,
-                                              " ns does not parse"));
-    }
-    return absl::OkStatus();
-  }
-
-  absl::Status ReadMessages() {
-    const uint64_t total = reader_->mcap().statistics().message_count;
-    uint64_t done = 0;
-    std::map<uint16_t, bool> checked;  // Channel id -> schema checked.
-    return reader_->mcap().ForEachMessage(
-        [&](const McapChannel& channel, const McapMessage& message) -> absl::Status {
-          if ((++done % 32 == 0 || done == total) && progress_) {
-            Progress p{"load", total > 0 ? static_cast<double>(done) / total : 0.0,
-                       static_cast<int64_t>(done), static_cast<int64_t>(total)};
-            if (!progress_(p)) return absl::CancelledError("cancelled while loading the take");
-          }
-          if (channel.topic == kIngestFrameSetTopic) {
-            if (!checked[channel.id]) {
-              RETURN_IF_ERROR(CheckSchema(channel, "reenact.v1.FrameSetRecord"));
-              checked[channel.id] = true;
-            }
-            v1::FrameSetRecord record;
-            RETURN_IF_ERROR(Parse(channel, message, &record));
-            records_.push_back(std::move(record));
-            return absl::OkStatus();
-          }
-          auto route = routes_.find(channel.topic);
-          if (route == routes_.end()) return absl::OkStatus();
-          if (!checked[channel.id]) {
-            RETURN_IF_ERROR(CheckSchema(channel, ExpectedType(route->second.stream)));
-            checked[channel.id] = true;
-          }
-          return Store(channel, message, route->second);
-        });
-  }
-
-  absl::Status Store(const McapChannel& channel, const McapMessage& message,
-                     const TopicRoute& route) {
-    auto& frames = raw_[route.sensor];
-    switch (route.stream) {
-      case Stream::kDepth: {
-        v1::DepthImage m;
-        RETURN_IF_ERROR(Parse(channel, message, &m));
-        RawFrame& f = frames[m.frame_index()];
-        f.has_depth = true;
-        f.depth = std::move(m);
-        break;
-      }
-      case Stream::kMask: {
-        v1::ActorMask m;
-        RETURN_IF_ERROR(Parse(channel, message, &m));
-        RawFrame& f = frames[m.frame_index()];
-        f.has_mask = true;
-        f.mask = std::move(m);
-        break;
-      }
-      case Stream::kColor: {
-        if (!options_.load_color || !color_ok_[route.sensor]) break;
-        v1::ColorImage m;
-        RETURN_IF_ERROR(Parse(channel, message, &m));
-        RawFrame& f = frames[m.frame_index()];
-        f.has_color = true;
-        f.color = std::move(m);
-        break;
-      }
-      case Stream::kSkeleton: {
-        v1::Skeleton m;
-        RETURN_IF_ERROR(Parse(channel, message, &m));
-        frames[m.frame_index()].skeletons.push_back(std::move(m));
-        break;
-      }
-    }
-    return absl::OkStatus();
-  }
-
-  // Moves one raw frame into a view.
-  SensorView MakeView(int sensor, RawFrame& f, std::optional<tracking::SensorSkeleton>* skeleton) {
+  // Moves one frame (with depth) into a view.
+  SensorView MakeView(int sensor, SensorFrame& f,
+                      std::optional<tracking::SensorSkeleton>* skeleton) {
     SensorView view;
     view.present = true;
-    view.frame_index = f.depth.frame_index();
-    view.host_stamp_ns = f.depth.host_stamp_ns();
-    view.depth_encoding = f.depth.encoding();
-    view.depth_data = std::move(*f.depth.mutable_data());
-    if (f.has_mask) {
-      view.mask_encoding = f.mask.encoding();
-      view.mask_data = std::move(*f.mask.mutable_data());
+    view.frame_index = f.frame_index;
+    view.host_stamp_ns = f.depth->host_stamp_ns;
+    view.depth_encoding = std::move(f.depth->encoding);
+    view.depth_data = std::move(f.depth->data);
+    if (f.mask) {
+      view.mask_encoding = std::move(f.mask->encoding);
+      view.mask_data = std::move(f.mask->data);
     }
-    if (f.has_color) {
-      view.color_jpeg = std::move(*f.color.mutable_data());
-      view.color_host_stamp_ns = f.color.host_stamp_ns();
+    if (f.color && options_.load_color && color_ok_[sensor]) {
+      view.color_jpeg = std::move(f.color->data);
+      view.color_host_stamp_ns = f.color->host_stamp_ns;
     }
     SetSkeleton(f.skeletons, frames_->sensors_[sensor], &view, skeleton);
     return view;
@@ -411,7 +265,7 @@ class TakeFramesLoader {
     for (int s = 0; s < num_sensors; ++s) {
       if (!chosen[s]) continue;
       auto it = raw_[s].find(*chosen[s]);
-      if (it == raw_[s].end() || !it->second.has_depth) continue;
+      if (it == raw_[s].end() || !it->second.depth) continue;
       std::optional<tracking::SensorSkeleton> skeleton;
       instant.views[s] = MakeView(s, it->second, &skeleton);
       if (skeleton) skeletons.push_back(*std::move(skeleton));
@@ -429,7 +283,7 @@ class TakeFramesLoader {
     std::vector<int64_t> indices;
     for (const auto& frames : raw_) {
       for (const auto& [index, f] : frames) {
-        if (f.has_depth) indices.push_back(index);
+        if (f.depth) indices.push_back(index);
       }
     }
     std::sort(indices.begin(), indices.end());
@@ -444,44 +298,44 @@ class TakeFramesLoader {
   // (FrameSetRecord.frame_indices) or, in takes without them, the nearest
   // unused depth frame within skew + half a frame period of the record's
   // stamp.
-  void GroupByFrameSets() {
-    std::sort(records_.begin(), records_.end(),
-              [](const auto& a, const auto& b) { return a.sequence() < b.sequence(); });
-    const double fps = frames_->info_.fps() > 0 ? frames_->info_.fps() : 30.0;
+  void GroupByFrameSets(std::vector<FrameSetRecord> records) {
+    std::sort(records.begin(), records.end(),
+              [](const auto& a, const auto& b) { return a.sequence < b.sequence; });
+    const double fps = frames_->info_.fps > 0 ? frames_->info_.fps : 30.0;
     const int64_t half_period_ns = static_cast<int64_t>(0.5e9 / fps);
     // Per sensor: (host stamp, frame_index) sorted by stamp, and a cursor.
     std::vector<std::vector<std::pair<int64_t, int64_t>>> by_stamp(raw_.size());
     for (size_t s = 0; s < raw_.size(); ++s) {
       for (const auto& [index, f] : raw_[s]) {
-        if (f.has_depth) by_stamp[s].push_back({f.depth.host_stamp_ns(), index});
+        if (f.depth) by_stamp[s].push_back({f.depth->host_stamp_ns, index});
       }
       std::sort(by_stamp[s].begin(), by_stamp[s].end());
     }
     std::vector<size_t> cursor(raw_.size(), 0);
-    for (const v1::FrameSetRecord& record : records_) {
+    for (const FrameSetRecord& record : records) {
       std::vector<std::optional<int64_t>> chosen(raw_.size());
-      const int64_t tolerance_ns = std::max<int64_t>(record.skew_ns(), 0) + half_period_ns;
-      const bool indexed = record.frame_indices_size() == record.sensor_ids_size();
-      for (int k = 0; k < record.sensor_ids_size(); ++k) {
-        const int s = frames_->SensorIndex(record.sensor_ids(k));
+      const int64_t tolerance_ns = std::max<int64_t>(record.skew_ns, 0) + half_period_ns;
+      const bool indexed = record.frame_indices.size() == record.sensor_ids.size();
+      for (size_t k = 0; k < record.sensor_ids.size(); ++k) {
+        const int s = frames_->SensorIndex(record.sensor_ids[k]);
         if (s < 0) continue;
         if (indexed) {
           // The clock-corrected set stamp may lie more than half a period
           // from a frame's host stamp (irregular device clocks); the index
           // names the frame itself.
-          const auto it = raw_[s].find(record.frame_indices(k));
-          if (it != raw_[s].end() && it->second.has_depth) chosen[s] = it->first;
+          const auto it = raw_[s].find(record.frame_indices[k]);
+          if (it != raw_[s].end() && it->second.depth) chosen[s] = it->first;
           continue;
         }
         const auto& list = by_stamp[s];
         size_t best = list.size();
         int64_t best_dt = std::numeric_limits<int64_t>::max();
         for (size_t i = cursor[s]; i < list.size(); ++i) {
-          const int64_t dt = std::llabs(list[i].first - record.stamp_ns());
+          const int64_t dt = std::llabs(list[i].first - record.stamp_ns);
           if (dt < best_dt) {
             best_dt = dt;
             best = i;
-          } else if (list[i].first > record.stamp_ns()) {
+          } else if (list[i].first > record.stamp_ns) {
             break;
           }
         }
@@ -490,7 +344,7 @@ class TakeFramesLoader {
           cursor[s] = best + 1;
         }
       }
-      AddInstant(chosen, record.stamp_ns());
+      AddInstant(chosen, record.stamp_ns);
     }
   }
 
@@ -501,9 +355,10 @@ class TakeFramesLoader {
     if (options_.max_instants > 0 && static_cast<int>(instants.size()) > options_.max_instants) {
       instants.resize(options_.max_instants);
     }
-    double fps = frames_->info_.fps();
+    double fps = frames_->info_.fps;
     if (!(fps > 0) && instants.size() >= 2) {
       std::vector<int64_t> steps;
+      steps.reserve(instants.size() - 1);
       for (size_t i = 1; i < instants.size(); ++i) {
         steps.push_back(instants[i].stamp_ns - instants[i - 1].stamp_ns);
       }
@@ -511,49 +366,51 @@ class TakeFramesLoader {
       if (steps[steps.size() / 2] > 0) fps = 1e9 / static_cast<double>(steps[steps.size() / 2]);
     }
     frames_->fps_ = fps > 0 && std::isfinite(fps) ? fps : 30.0;
-    int threads = options_.num_threads;
-    if (threads == 0) {
-      threads = std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 8);
-    }
-    frames_->pool_ = std::make_unique<ThreadPool>(threads);
+    frames_->pool_ = std::make_unique<ThreadPool>(NumThreads());
+    raw_.clear();
   }
 
   TakeFramesOptions options_;
-  ProgressCallback progress_;
   tracking::SequentialSkeletonFusion fusion_;
-  std::unique_ptr<TakeReader> reader_;
   std::unique_ptr<TakeFrames> frames_;
-  std::map<std::string, TopicRoute> routes_;
   std::vector<bool> color_ok_;
-  std::vector<std::map<int64_t, RawFrame>> raw_;  // Per sensor, by frame_index.
-  std::vector<v1::FrameSetRecord> records_;
+  std::vector<std::map<int64_t, SensorFrame>> raw_;  // Per sensor, by frame_index.
 };
 
 absl::StatusOr<std::unique_ptr<TakeFrames>> TakeFrames::Load(const std::string& path,
                                                              const TakeFramesOptions& options,
                                                              const ProgressCallback& progress) {
   RETURN_IF_ERROR(options.Validate());
-  TakeFramesLoader loader(options, progress);
-  return loader.Load(path);
+  RecordedTakeOptions read;
+  read.load_color = options.load_color;
+  ASSIGN_OR_RETURN(RecordedTake take, ReadRecordedTake(path, read, progress));
+  return FromRecording(std::move(take), options, path);
+}
+
+absl::StatusOr<std::unique_ptr<TakeFrames>> TakeFrames::FromRecording(
+    RecordedTake take, const TakeFramesOptions& options, const std::string& path) {
+  RETURN_IF_ERROR(options.Validate());
+  TakeFramesBuilder builder(options);
+  return builder.FromRecording(std::move(take), path);
 }
 
 TakeFrames::~TakeFrames() = default;
 
 absl::StatusOr<std::unique_ptr<TakeFrames>> TakeFrames::CreateLive(
-    const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+    const TakeInfo& info, const std::vector<SensorCalibration>& sensors,
     const TakeFramesOptions& options) {
   RETURN_IF_ERROR(options.Validate());
-  auto loader = std::make_unique<TakeFramesLoader>(options, ProgressCallback());
-  ASSIGN_OR_RETURN(std::unique_ptr<TakeFrames> frames, loader->CreateLive(info, sensors));
-  frames->live_ = std::move(loader);
+  auto builder = std::make_unique<TakeFramesBuilder>(options);
+  ASSIGN_OR_RETURN(std::unique_ptr<TakeFrames> frames, builder->CreateLive(info, sensors));
+  frames->live_ = std::move(builder);
   return frames;
 }
 
-absl::Status TakeFrames::AppendFrameSet(const v1::FrameSet& set) {
+absl::Status TakeFrames::AppendFrameSet(FrameSet set) {
   if (live_ == nullptr) {
     return absl::FailedPreconditionError("AppendFrameSet on a take loaded from a file");
   }
-  live_->Append(set, this);
+  live_->Append(std::move(set), this);
   return absl::OkStatus();
 }
 

@@ -37,9 +37,7 @@
 #include "common/geometry/camera.h"
 #include "common/geometry/transforms.h"
 #include "common/model/sensor_calibration.h"
-#include "reenact/v1/frame.pb.h"
-#include "reenact/v1/sensor.pb.h"
-#include "reenact/v1/take.pb.h"
+#include "common/model/take.h"
 
 namespace reenact::recon {
 
@@ -52,15 +50,18 @@ JointArray MissingJoints();
 // True when every coordinate of `joint` is finite.
 bool IsJointValid(const Eigen::Vector3d& joint);
 
-// One sensor of the take, calibration decoded.
+// One sensor of the take: its calibration as stored, and the parts of it
+// that the methods use, checked.
 struct TakeSensor {
   std::string sensor_id;
   SensorCalibration calibration;      // As stored in the take.
   CameraIntrinsics depth_intrinsics;  // Pixels of the depth image.
-  CameraIntrinsics color_intrinsics;  // Pixels of the full-size colour image.
-  Rigid3d world_from_depth;           // Depth camera -> world (metres).
-  Rigid3d color_from_depth;           // Depth camera -> colour camera (metres).
-  double depth_scale_m_per_unit = 0.001;
+  // Pixels of the full-size colour image. A sensor whose colour intrinsics
+  // do not validate has none (zero size), and its colour frames are dropped.
+  CameraIntrinsics color_intrinsics;
+  Rigid3d world_from_depth;               // Depth camera -> world (metres).
+  Rigid3d color_from_depth;               // Depth camera -> colour camera (metres).
+  double depth_scale_m_per_unit = 0.001;  // The calibration's, when > 0.
 };
 
 // One sensor's frame at one instant, still encoded (decode through
@@ -113,37 +114,49 @@ struct TakeFramesOptions {
   absl::Status Validate() const;
 };
 
-class TakeFramesLoader;
+class TakeFramesBuilder;
 
 class TakeFrames {
  public:
-  // Reads the take at `path`. NotFound when it does not exist;
+  // Reads the take at `path` (ReadRecordedTake, common/io/take_convert.h)
+  // and groups it (FromRecording). NotFound when it does not exist;
   // InvalidArgument when it is not a take or has no sensor with depth;
-  // DataLoss when a message, calibration or skeleton is corrupt. `progress`
-  // gets stage "load" (items: messages read); returning false cancels
-  // (Cancelled).
+  // DataLoss when a message is corrupt. `progress` gets stage "load" (items:
+  // messages read); returning false cancels (Cancelled).
   static absl::StatusOr<std::unique_ptr<TakeFrames>> Load(const std::string& path,
                                                           const TakeFramesOptions& options = {},
                                                           const ProgressCallback& progress = {});
 
+  // Groups a recording's frames into instants (see the top of this file);
+  // the encoded bytes move into the views. `path` names the take in errors.
+  // InvalidArgument for bad options, a sensor calibrated twice, depth
+  // intrinsics that do not validate, a world_from_depth that is not a
+  // finite rigid transform, or a take with no calibration or no depth
+  // frame.
+  static absl::StatusOr<std::unique_ptr<TakeFrames>> FromRecording(
+      RecordedTake take, const TakeFramesOptions& options = {},
+      const std::string& path = "(recording)");
+
   // A take that grows while it is recorded (live following): the
   // calibrations now, each FrameSet through AppendFrameSet as the next
   // instant (frames of unknown sensors skipped; the skeleton fused as in
-  // Load). InvalidArgument for bad calibrations or options.
+  // Load). InvalidArgument for bad calibrations (as FromRecording) or
+  // options.
   static absl::StatusOr<std::unique_ptr<TakeFrames>> CreateLive(
-      const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+      const TakeInfo& info, const std::vector<SensorCalibration>& sensors,
       const TakeFramesOptions& options = {});
   // Appends an instant to a live take (FailedPrecondition for a loaded
-  // one). Not thread-safe against readers of instants().
-  absl::Status AppendFrameSet(const v1::FrameSet& set);
+  // one); its encoded bytes move into the views. Not thread-safe against
+  // readers of instants().
+  absl::Status AppendFrameSet(FrameSet set);
   // Drops the encoded frames of `instant` (its views become not present),
   // so a long live take keeps only what is still to be processed.
   void ReleaseInstant(int instant);
   ~TakeFrames();
 
   const std::string& path() const { return path_; }
-  const v1::TakeInfo& info() const { return info_; }
-  // Frames per second: TakeInfo.fps, else from the instants' stamps, else 30.
+  const TakeInfo& info() const { return info_; }
+  // Frames per second: TakeInfo::fps, else from the instants' stamps, else 30.
   double fps() const { return fps_; }
   const std::vector<TakeSensor>& sensors() const { return sensors_; }
   int num_sensors() const { return static_cast<int>(sensors_.size()); }
@@ -188,16 +201,16 @@ class TakeFrames {
 
  private:
   TakeFrames() = default;
-  friend class TakeFramesLoader;
+  friend class TakeFramesBuilder;
 
   std::string path_;
-  v1::TakeInfo info_;
+  TakeInfo info_;
   double fps_ = 30.0;
   std::vector<TakeSensor> sensors_;
   std::vector<Instant> instants_;
   bool grouped_by_frame_sets_ = false;
   std::unique_ptr<ThreadPool> pool_;
-  std::unique_ptr<TakeFramesLoader> live_;  // Live takes only.
+  std::unique_ptr<TakeFramesBuilder> live_;  // Live takes only.
 };
 
 }  // namespace reenact::recon

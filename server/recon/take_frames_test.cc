@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/io/depth_codec.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
 #include "server/recon/testing/short_take.h"
@@ -276,6 +277,99 @@ TEST(TakeFrames, GroupsByFrameSetRecords) {
       EXPECT_EQ((*take)->LoadColor(f, 0).status().code(), absl::StatusCode::kNotFound);
     }
   }
+}
+
+// A two-sensor recording made in memory (no file): the instants its
+// FrameSet records name, skeletons in the world frame, colour kept only
+// where the sensor's colour calibration is usable.
+RecordedTake SmallRecording() {
+  RecordedTake take;
+  take.info.name = "memory";
+  take.info.fps = 10.0;
+  for (const char* id : {"a", "b"}) {
+    SensorCalibration& s = take.sensors.emplace_back();
+    s.sensor_id = id;
+    s.depth_intrinsics = {8, 6, 5.0, 5.0, 4.0, 3.0};
+    s.world_from_depth.translation = Eigen::Vector3d(id[0] == 'a' ? 1.0 : -1.0, 0.0, 0.0);
+  }
+  take.sensors[0].color_intrinsics = {16, 12, 10.0, 10.0, 8.0, 6.0};  // b: none.
+  DepthImageMm depth(8, 6, 1500);
+  const std::string encoded = *EncodeDepth(depth);
+  for (int s = 0; s < 2; ++s) {
+    for (int f = 0; f < 3; ++f) {
+      SensorFrame& frame = take.frames.emplace_back();
+      frame.sensor_id = take.sensors[s].sensor_id;
+      frame.frame_index = 10 * s + f;  // The sensors count differently.
+      frame.depth = EncodedImage{"rvl", encoded, 1000000000LL + 100000000LL * f};
+      frame.color = EncodedImage{"jpeg", "not decoded here", frame.depth->host_stamp_ns};
+      Skeleton& skeleton = frame.skeletons.emplace_back();
+      skeleton.body_index = 1;
+      SkeletonJoint& joint = skeleton.joints.emplace_back();
+      joint.name = std::string(body::KinectV2JointName(body::KinectV2Joint::kSpineBase));
+      joint.position_in_depth_m = Eigen::Vector3d(s == 0 ? -1.0 : 1.0, 0.1 * f, 2.0);
+      joint.state = JointTrackingState::kTracked;
+    }
+  }
+  for (int f = 0; f < 3; ++f) {
+    FrameSetRecord& record = take.frame_sets.emplace_back();
+    record.sequence = static_cast<uint64_t>(3 - f);  // Out of order on purpose.
+    record.stamp_ns = 1000000000LL + 100000000LL * (2 - f);
+    record.sensor_ids = {"a", "b"};
+    record.frame_indices = {2 - f, 10 + (2 - f)};
+  }
+  return take;
+}
+
+TEST(TakeFrames, GroupsARecordingMadeInMemory) {
+  auto take = TakeFrames::FromRecording(SmallRecording());
+  ASSERT_TRUE(take.ok()) << take.status();
+  const TakeFrames& frames = **take;
+  EXPECT_EQ(frames.info().name, "memory");
+  EXPECT_DOUBLE_EQ(frames.fps(), 10.0);
+  EXPECT_TRUE(frames.grouped_by_frame_sets());
+  ASSERT_EQ(frames.num_instants(), 3);
+  ASSERT_EQ(frames.num_sensors(), 2);
+  for (int i = 0; i < 3; ++i) {
+    const Instant& instant = frames.instant(i);
+    EXPECT_EQ(instant.stamp_ns, 1000000000LL + 100000000LL * i);
+    ASSERT_TRUE(instant.views[0].present && instant.views[1].present);
+    EXPECT_EQ(instant.views[0].frame_index, i);
+    EXPECT_EQ(instant.views[1].frame_index, 10 + i);
+    EXPECT_FALSE(instant.views[0].color_jpeg.empty()) << "a's colour is calibrated";
+    EXPECT_TRUE(instant.views[1].color_jpeg.empty()) << "b has no colour calibration";
+    // Both sensors see the joint at (0, 0.1 i, 2) in the world.
+    ASSERT_TRUE(instant.valid);
+    const Eigen::Vector3d& joint = instant.joints_in_world_m[0];
+    EXPECT_NEAR(joint.x(), 0.0, 1e-9);
+    EXPECT_NEAR(joint.y(), 0.1 * i, 1e-9);
+    EXPECT_NEAR(joint.z(), 2.0, 1e-9);
+    auto depth = frames.LoadDepth(i, 1);
+    ASSERT_TRUE(depth.ok()) << depth.status();
+    EXPECT_EQ(depth->at(3, 2), 1500);
+  }
+}
+
+TEST(TakeFrames, BadRecordingsAreInvalidArgument) {
+  RecordedTake twice = SmallRecording();
+  twice.sensors[1].sensor_id = "a";
+  EXPECT_EQ(TakeFrames::FromRecording(std::move(twice)).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  RecordedTake no_focal = SmallRecording();
+  no_focal.sensors[0].depth_intrinsics.fx = 0.0;
+  EXPECT_EQ(TakeFrames::FromRecording(std::move(no_focal)).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  RecordedTake nan_pose = SmallRecording();
+  nan_pose.sensors[1].world_from_depth.translation.x() = NAN;
+  EXPECT_EQ(TakeFrames::FromRecording(std::move(nan_pose)).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  RecordedTake no_depth = SmallRecording();
+  for (SensorFrame& frame : no_depth.frames) frame.depth.reset();
+  EXPECT_EQ(TakeFrames::FromRecording(std::move(no_depth)).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  RecordedTake none = SmallRecording();
+  none.sensors.clear();
+  EXPECT_EQ(TakeFrames::FromRecording(std::move(none)).status().code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 TEST(TakeFrames, BadInputIsAnErrorNotACrash) {

@@ -20,7 +20,7 @@ struct Texel {
 };
 
 // Texels whose centres lie in a texture triangle (first triangle wins).
-std::vector<Texel> RasteriseAtlas(const DecodedBodyMesh& mesh, int size) {
+std::vector<Texel> RasteriseAtlas(const BodyMesh& mesh, int size) {
   std::vector<Texel> texels;
   std::vector<uint8_t> taken(static_cast<size_t>(size) * size, 0);
   for (size_t t = 0; t < mesh.texture_triangles.size(); ++t) {
@@ -167,7 +167,7 @@ absl::Status AtlasOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const BodyMesh& mesh,
                                               const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
                                               const AtlasOptions& options,
                                               const ProgressCallback& progress, int first,
@@ -324,7 +324,7 @@ absl::Status AddAtlasSums(const AtlasSums& part, AtlasSums& total) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<AtlasResult> FinishBodyAtlas(const DecodedBodyMesh& mesh, AtlasSums sums) {
+absl::StatusOr<AtlasResult> FinishBodyAtlas(const BodyMesh& mesh, AtlasSums sums) {
   const int size = sums.size_px;
   if (size < 16 || size > 8192 || sums.sums.size() != static_cast<size_t>(size) * size) {
     return absl::InvalidArgumentError("atlas sums of the wrong size");
@@ -348,7 +348,7 @@ absl::StatusOr<AtlasResult> FinishBodyAtlas(const DecodedBodyMesh& mesh, AtlasSu
   return result;
 }
 
-absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const BodyMesh& mesh,
                                           const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
                                           const AtlasOptions& options,
                                           const ProgressCallback& progress) {

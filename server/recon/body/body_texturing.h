@@ -41,7 +41,7 @@
 #include "absl/status/statusor.h"
 #include "common/base/image.h"
 #include "common/base/progress.h"
-#include "common/io/body_reenactment.h"
+#include "common/model/reenactment.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::recon {
@@ -81,7 +81,7 @@ struct AtlasSums {
 
 // The sums of the instants in [first, end) (end < 0: the take's end) that
 // are multiples of options.every; errors as BakeBodyAtlas.
-absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const BodyMesh& mesh,
                                               const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
                                               const AtlasOptions& options = {},
                                               const ProgressCallback& progress = {}, int first = 0,
@@ -94,13 +94,13 @@ absl::Status AddAtlasSums(const AtlasSums& part, AtlasSums& total);
 // The atlas of the sums: each texel the weighted average of its
 // observations, unobserved texels filled from the nearest observed ones
 // (push-pull). InvalidArgument for sums of a bad size.
-absl::StatusOr<AtlasResult> FinishBodyAtlas(const DecodedBodyMesh& mesh, AtlasSums sums);
+absl::StatusOr<AtlasResult> FinishBodyAtlas(const BodyMesh& mesh, AtlasSums sums);
 
 // Bakes the atlas of `mesh` (its texture vertices, UVs and triangles) posed
 // per instant as `posed_vertices_m[i]` (3 x V; an empty matrix skips the
 // instant). InvalidArgument for bad options or sizes; errors of the take's
 // decoders; Cancelled when `progress` returns false (stage "texture").
-absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const DecodedBodyMesh& mesh,
+absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const BodyMesh& mesh,
                                           const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
                                           const AtlasOptions& options = {},
                                           const ProgressCallback& progress = {});

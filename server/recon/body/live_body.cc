@@ -8,8 +8,6 @@
 #include "common/base/status_macros.h"
 #include "common/body/model_spec.h"
 #include "common/bodyfit/body_fit.h"
-#include "common/io/body_reenactment.h"
-#include "common/io/reenactment_convert.h"
 #include "server/recon/body/body_cloud.h"
 #include "server/recon/body/body_method.h"
 #include "server/recon/method_util.h"
@@ -50,7 +48,7 @@ void LiveBodyFollower::WaitForShape() {
 }
 
 absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
-    const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+    const TakeInfo& info, const std::vector<SensorCalibration>& sensors,
     const std::map<std::string, std::string>& options,
     const std::vector<std::string>& asset_roots) {
   BodyMethodOptions o;
@@ -81,14 +79,15 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
 int LiveBodyFollower::frames_pushed() const { return state_->take->num_instants(); }
 bool LiveBodyFollower::shape_settled() const { return state_->settled; }
 
-absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
+absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(FrameSet set) {
   const auto start = std::chrono::steady_clock::now();
   State& s = *state_;
-  RETURN_IF_ERROR(s.take->AppendFrameSet(set));
+  const int64_t stamp_ns = set.stamp_ns;
+  RETURN_IF_ERROR(s.take->AppendFrameSet(std::move(set)));
   const int i = s.take->num_instants() - 1;
   LiveUpdate update;
   if (i == 0) {
-    ASSIGN_OR_RETURN(update.mesh, MakeBodyMesh(s.model, s.fitter->shape(), ""));
+    ASSIGN_OR_RETURN(update.mesh, BuildBodyMesh(s.model, s.fitter->shape(), ""));
   }
   absl::StatusOr<bodyfit::PointCloud> cloud = s.builder->Build(i);
   const JointArray skeleton = s.take->instant(i).joints_in_world_m;
@@ -103,7 +102,7 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
     ASSIGN_OR_RETURN(const Eigen::VectorXd shape, s.shape_future.get());
     RETURN_IF_ERROR(s.fitter->set_shape(shape));
     s.settled = true;
-    ASSIGN_OR_RETURN(update.mesh, MakeBodyMesh(s.model, shape, ""));
+    ASSIGN_OR_RETURN(update.mesh, BuildBodyMesh(s.model, shape, ""));
   }
   // The shape, from the first usable instants `shape_spacing` apart.
   const bool sampling = !s.settled && !s.shape_future.valid();
@@ -138,7 +137,7 @@ absl::StatusOr<LiveUpdate> LiveBodyFollower::Push(const v1::FrameSet& set) {
                      s.fitter->FitNext(input, s.previous ? &*s.previous : nullptr));
     if (next.has_value()) {
       s.previous = next->fit.pose;
-      update.frame = FrameToProto(BodyFrame(i, set.stamp_ns(), next->fit, /*valid=*/true));
+      update.frame = BodyFrame(i, stamp_ns, next->fit, /*valid=*/true);
     }
   }
   update.fit_ms =

@@ -23,10 +23,9 @@
 #include "absl/status/statusor.h"
 #include "common/body/body_model.h"
 #include "common/methods/option_reader.h"
-#include "reenact/v1/frame.pb.h"
-#include "reenact/v1/reenactment.pb.h"
-#include "reenact/v1/sensor.pb.h"
-#include "reenact/v1/take.pb.h"
+#include "common/model/reenactment.h"
+#include "common/model/sensor_calibration.h"
+#include "common/model/take.h"
 
 namespace reenact::recon {
 
@@ -43,11 +42,11 @@ struct LiveBodyOptions {
 // What one FrameSet produced.
 struct LiveUpdate {
   // A new mesh (the first FrameSet's, and once the shape has settled).
-  std::optional<v1::BodyMesh> mesh;
+  std::optional<BodyMesh> mesh;
   // The fitted instant (frame_index counts the FrameSets pushed, from 0);
   // unset when the FrameSet could not be fitted (no skeleton or no points
   // before the first fit).
-  std::optional<v1::PartFrame> frame;
+  std::optional<ReenactmentFrame> frame;
   double fit_ms = 0.0;  // Decode, cloud and fit of this FrameSet.
 };
 
@@ -57,14 +56,14 @@ class LiveBodyFollower {
   // LiveBodyOptions'; `asset_roots`: the server's --assets folders.
   // InvalidArgument for bad options or calibrations; the model's errors.
   static absl::StatusOr<std::unique_ptr<LiveBodyFollower>> Create(
-      const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+      const TakeInfo& info, const std::vector<SensorCalibration>& sensors,
       const std::map<std::string, std::string>& options,
       const std::vector<std::string>& asset_roots = {});
   ~LiveBodyFollower();
 
-  // Fits the next FrameSet. DataLoss for frames that do not decode;
-  // frames of unknown sensors are skipped.
-  absl::StatusOr<LiveUpdate> Push(const v1::FrameSet& set);
+  // Fits the next FrameSet (its encoded bytes are moved from). DataLoss for
+  // frames that do not decode; frames of unknown sensors are skipped.
+  absl::StatusOr<LiveUpdate> Push(FrameSet set);
 
   int frames_pushed() const;
   bool shape_settled() const;

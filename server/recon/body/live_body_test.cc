@@ -12,6 +12,7 @@
 #include "common/body/joint_set.h"
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
+#include "common/io/take_convert.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 
@@ -20,32 +21,16 @@ namespace {
 
 // The take's frames regrouped into FrameSets (by frame index), as the
 // capture daemon sends them.
-std::vector<v1::FrameSet> FrameSetsOf(const TakeReader& take) {
-  std::map<int64_t, v1::FrameSet> sets;
-  for (const auto& [id, calibration] : take.sensors()) {
-    auto depths = take.ReadAll<v1::DepthImage>(SensorTopic(id, "depth"));
-    auto masks = take.ReadAll<v1::ActorMask>(SensorTopic(id, "mask"));
-    auto skeletons = take.ReadAll<v1::Skeleton>(SensorTopic(id, "skeleton"));
-    EXPECT_TRUE(depths.ok() && masks.ok() && skeletons.ok());
-    if (!depths.ok() || !masks.ok() || !skeletons.ok()) return {};
-    std::map<int64_t, v1::Frame> frames;
-    for (const v1::DepthImage& d : *depths) {
-      v1::Frame& f = frames[d.frame_index()];
-      f.set_sensor_id(id);
-      f.set_frame_index(d.frame_index());
-      f.set_host_stamp_ns(d.host_stamp_ns());
-      *f.mutable_depth() = d;
-    }
-    for (const v1::ActorMask& m : *masks) *frames[m.frame_index()].mutable_mask() = m;
-    for (const v1::Skeleton& s : *skeletons) *frames[s.frame_index()].add_skeletons() = s;
-    for (auto& [index, frame] : frames) {
-      v1::FrameSet& set = sets[index];
-      set.set_sequence(static_cast<uint64_t>(index) + 1);
-      set.set_stamp_ns(frame.host_stamp_ns());
-      *set.add_frames() = std::move(frame);
-    }
+std::vector<FrameSet> FrameSetsOf(RecordedTake take) {
+  std::map<int64_t, FrameSet> sets;
+  for (SensorFrame& frame : take.frames) {
+    if (!frame.depth) continue;
+    FrameSet& set = sets[frame.frame_index];
+    set.sequence = static_cast<uint64_t>(frame.frame_index) + 1;
+    set.stamp_ns = frame.depth->host_stamp_ns;
+    set.frames.push_back(std::move(frame));
   }
-  std::vector<v1::FrameSet> out;
+  std::vector<FrameSet> out;
   for (auto& [index, set] : sets) out.push_back(std::move(set));
   return out;
 }
@@ -69,15 +54,19 @@ TEST(LiveBodyFollower, FollowsASyntheticTakeFrameSetByFrameSet) {
   ASSERT_TRUE(summary.ok()) << summary.status();
   auto take = TakeReader::Open(path);
   ASSERT_TRUE(take.ok());
-  std::vector<v1::SensorCalibration> sensors;
-  for (const auto& [id, calibration] : (*take)->sensors()) sensors.push_back(calibration);
-  const std::vector<v1::FrameSet> sets = FrameSetsOf(**take);
+  RecordedTakeOptions read;
+  read.load_color = false;
+  auto recorded = ReadRecordedTake(path, read);
+  ASSERT_TRUE(recorded.ok()) << recorded.status();
+  const TakeInfo info = recorded->info;
+  const std::vector<SensorCalibration> sensors = recorded->sensors;
+  const std::vector<FrameSet> sets = FrameSetsOf(*std::move(recorded));
   ASSERT_EQ(static_cast<int>(sets.size()), summary->frames);
   auto truth = (*take)->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
   ASSERT_TRUE(truth.ok());
 
-  auto follower = LiveBodyFollower::Create((*take)->info(), sensors,
-                                           {{"live", "true"}, {"shape_spacing", "2"}});
+  auto follower =
+      LiveBodyFollower::Create(info, sensors, {{"live", "true"}, {"shape_spacing", "2"}});
   ASSERT_TRUE(follower.ok()) << follower.status();
   // Two passes over the take (the second after the background shape fit
   // has finished); the joints are measured in the second.
@@ -99,14 +88,14 @@ TEST(LiveBodyFollower, FollowsASyntheticTakeFrameSetByFrameSet) {
       if (!update->frame) continue;
       ++frames;
       fit_ms += update->fit_ms;
-      EXPECT_EQ(update->frame->frame_index(), index);
-      ASSERT_EQ(update->frame->joints_in_world_m_size(), body::kNumKinectV2Joints);
+      EXPECT_EQ(update->frame->frame_index, index);
+      ASSERT_EQ(update->frame->joints_in_world_m.size(), size_t{body::kNumKinectV2Joints});
       if (pass == 0 || settled_at < 0) continue;
       const v1::GroundTruthJoints& g = (*truth)[k];
       for (int i = 0; i < g.joint_names_size(); ++i) {
         auto id = body::KinectV2JointFromName(g.joint_names(i));
         if (!id) continue;
-        joint_sum_mm += 1000.0 * (FromProto(update->frame->joints_in_world_m(body::Index(*id))) -
+        joint_sum_mm += 1000.0 * (update->frame->joints_in_world_m[body::Index(*id)] -
                                   FromProto(g.positions_in_world_m(i)))
                                      .norm();
         ++joints;
@@ -125,7 +114,7 @@ TEST(LiveBodyFollower, FollowsASyntheticTakeFrameSetByFrameSet) {
 }
 
 TEST(LiveBodyFollower, BadOptionsAreInvalidArgument) {
-  v1::TakeInfo info;
+  const TakeInfo info;
   EXPECT_EQ(LiveBodyFollower::Create(info, {}, {{"shape_spacing", "0"}}).status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(LiveBodyFollower::Create(info, {}, {{"unknown", "1"}}).status().code(),

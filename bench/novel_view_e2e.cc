@@ -67,6 +67,7 @@
 #include "common/io/jpeg.h"
 #include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
+#include "common/io/take_convert.h"
 #include "common/synth/synthesizer.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/methods.h"
@@ -203,7 +204,9 @@ absl::StatusOr<Score> Evaluate(const Reenactment& data, const TakeReader& take, 
   // A body-model reenactment draws its atlas in either mode; rigid parts
   // by view-dependent texture mapping, as the viewers do.
   options.mode = data.is_body() ? view::TextureMode::kBaked : view::TextureMode::kVdtm;
-  ASSIGN_OR_RETURN(const view::EvaluationResult r, view::EvaluateReenactment(data, take, options));
+  ASSIGN_OR_RETURN(const GroundTruth truth,
+                   ReadGroundTruth(take, view::EvaluationMeshFrames(data, options)));
+  ASSIGN_OR_RETURN(const view::EvaluationResult r, view::EvaluateReenactment(data, truth, options));
   return Score{r.psnr_db_90, r.ssim_90, r.iou_90, 0.0};
 }
 

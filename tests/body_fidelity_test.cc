@@ -17,6 +17,7 @@
 #include "clients/view/evaluation.h"
 #include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
+#include "common/io/take_convert.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 #include "server/recon/methods.h"
@@ -69,7 +70,10 @@ class BodyFidelity : public ::testing::Test {
     view::EvaluationOptions options;
     options.every = 2;
     options.mode = view::TextureMode::kBaked;
-    auto evaluation = view::EvaluateReenactment(*data, **take, options);
+    auto truth = ReadGroundTruth(**take, view::EvaluationMeshFrames(*data, options));
+    EXPECT_TRUE(truth.ok()) << truth.status();
+    if (!truth.ok()) return {};
+    auto evaluation = view::EvaluateReenactment(*data, *truth, options);
     if (!evaluation.ok() && evaluation.status().code() == absl::StatusCode::kUnavailable) {
       unavailable_ = true;
       return {};

@@ -31,6 +31,7 @@
 #include "common/base/status_macros.h"
 #include "common/io/reenactment_convert.h"
 #include "common/io/take.h"
+#include "common/io/take_convert.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact::cli {
@@ -208,8 +209,12 @@ int RunEval(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     remove_temporary();
     return ReportLoadError(take.status(), err);
   }
-  auto result = view::EvaluateReenactment(*data, **take, options,
-                                          [&bar](const Progress& p) { return bar.Update(p); });
+  absl::StatusOr<view::EvaluationResult> result = [&]() -> absl::StatusOr<view::EvaluationResult> {
+    ASSIGN_OR_RETURN(const GroundTruth truth,
+                     ReadGroundTruth(**take, view::EvaluationMeshFrames(*data, options)));
+    return view::EvaluateReenactment(*data, truth, options,
+                                     [&bar](const Progress& p) { return bar.Update(p); });
+  }();
   bar.Finish();
   remove_temporary();
   if (!result.ok()) {

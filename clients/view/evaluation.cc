@@ -16,77 +16,11 @@
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
 #include "common/geometry/surface_distance.h"
-#include "common/io/proto_convert.h"
-#include "common/io/reenactment_convert.h"
 #include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
 
 namespace reenact::view {
 namespace {
-
-using Joints = std::array<Eigen::Vector3d, kNumSkeletonJoints>;
-
-struct GroundTruth {
-  v1::GroundTruthTopology topology;
-  std::vector<Eigen::Vector3i> triangles;
-  std::map<int64_t, Eigen::Matrix3Xd> meshes;  // By frame_index; evaluated instants only.
-  std::map<int64_t, Joints> joints;            // By frame_index.
-};
-
-absl::Status LoadTopology(const TakeReader& take, GroundTruth* truth) {
-  ASSIGN_OR_RETURN(auto topologies,
-                   take.ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic));
-  if (topologies.empty()) {
-    return absl::FailedPreconditionError(
-        "the take has no ground truth (/ground_truth/topology); evaluate against a synthetic take");
-  }
-  truth->topology = std::move(topologies.front());
-  const auto& indices = truth->topology.triangle_indices();
-  if (indices.size() % 3 != 0) {
-    return absl::DataLossError("ground truth topology: triangle indices not a multiple of 3");
-  }
-  for (int i = 0; i < indices.size(); i += 3) {
-    const Eigen::Vector3i t(indices[i], indices[i + 1], indices[i + 2]);
-    if ((t.array() < 0).any() || (t.array() >= truth->topology.vertex_count()).any()) {
-      return absl::DataLossError("ground truth topology: triangle index out of range");
-    }
-    truth->triangles.push_back(t);
-  }
-  return absl::OkStatus();
-}
-
-absl::StatusOr<GroundTruth> LoadGroundTruth(const TakeReader& take, const std::set<int64_t>& wanted,
-                                            bool meshes) {
-  GroundTruth truth;
-  RETURN_IF_ERROR(LoadTopology(take, &truth));
-  const int vertex_count = truth.topology.vertex_count();
-  if (meshes) {
-    RETURN_IF_ERROR(take.ForEach<v1::GroundTruthMesh>(
-        kGroundTruthMeshTopic, [&](const v1::GroundTruthMesh& mesh) -> absl::Status {
-          if (!wanted.count(mesh.frame_index())) return absl::OkStatus();
-          const std::string& bytes = mesh.positions_in_world_m_f32();
-          if (mesh.vertex_count() != vertex_count ||
-              bytes.size() != static_cast<size_t>(vertex_count) * 3 * sizeof(float)) {
-            return absl::DataLossError(absl::StrCat("ground truth mesh of frame ",
-                                                    mesh.frame_index(), " has the wrong size"));
-          }
-          Eigen::Matrix3Xf positions(3, vertex_count);
-          std::memcpy(positions.data(), bytes.data(), bytes.size());
-          truth.meshes[mesh.frame_index()] = positions.cast<double>();
-          return absl::OkStatus();
-        }));
-  }
-  RETURN_IF_ERROR(take.ForEach<v1::GroundTruthJoints>(
-      kGroundTruthJointsTopic, [&](const v1::GroundTruthJoints& joints) -> absl::Status {
-        if (joints.positions_in_world_m_size() != kNumSkeletonJoints) return absl::OkStatus();
-        Joints& out = truth.joints[joints.frame_index()];
-        for (int j = 0; j < kNumSkeletonJoints; ++j) {
-          out[j] = FromProto(joints.positions_in_world_m(j));
-        }
-        return absl::OkStatus();
-      }));
-  return truth;
-}
 
 // The reconstructed surface at `frame`: every valid part posed in the world.
 void PosedParts(const VdtmModel& model, int frame, Eigen::Matrix3Xd* vertices,
@@ -166,8 +100,10 @@ absl::StatusOr<RgbImage> DecodePng(const std::string& bytes) {
 // the colour error and silhouette overlap.
 class NovelViewScorer {
  public:
+  // `first_mesh`: a true posed mesh, uploaded once (AddFrame moves it).
   static absl::StatusOr<std::unique_ptr<NovelViewScorer>> Create(const Reenactment& data,
                                                                  const GroundTruth& truth,
+                                                                 const Eigen::Matrix3Xd& first_mesh,
                                                                  const SensorCalibration& sensor,
                                                                  const Eigen::Vector3d& pivot,
                                                                  const EvaluationOptions& options) {
@@ -183,7 +119,7 @@ class NovelViewScorer {
     reenactment_options.mode = options.mode;
     ASSIGN_OR_RETURN(scorer->reenactment_, ReenactmentRenderer::Create(
                                                data, scorer->renderer_.get(), reenactment_options));
-    RETURN_IF_ERROR(scorer->SetUpTruth(truth));
+    RETURN_IF_ERROR(scorer->SetUpTruth(truth, first_mesh));
     return scorer;
   }
 
@@ -235,42 +171,32 @@ class NovelViewScorer {
  private:
   explicit NovelViewScorer(const EvaluationOptions& options) : options_(options) {}
 
-  absl::Status SetUpTruth(const GroundTruth& truth) {
-    const v1::GroundTruthTopology& topology = truth.topology;
-    const Eigen::Matrix3Xf rest = truth.meshes.begin()->second.cast<float>();
-    ASSIGN_OR_RETURN(std::vector<float> uv_values, UnpackFloats(topology.uvs_f32()));
-    ASSIGN_OR_RETURN(RgbImage albedo, DecodePng(topology.albedo_png()));
-    has_albedo_ = !albedo.empty() && !uv_values.empty() &&
-                  topology.uv_triangle_indices_size() == topology.triangle_indices_size();
+  absl::Status SetUpTruth(const GroundTruth& truth, const Eigen::Matrix3Xd& first_mesh) {
+    const GroundTruthTopology& topology = truth.topology;
+    const Eigen::Matrix3Xf rest = first_mesh.cast<float>();
+    ASSIGN_OR_RETURN(RgbImage albedo, DecodePng(topology.albedo_png));
+    has_albedo_ = !albedo.empty() && !topology.uvs.empty() &&
+                  topology.uv_triangles.size() == topology.triangles.size();
     render::MeshData mesh;
     if (has_albedo_) {
-      std::vector<Eigen::Vector2f> uvs(uv_values.size() / 2);
-      for (size_t i = 0; i < uvs.size(); ++i) uvs[i] = {uv_values[2 * i], uv_values[2 * i + 1]};
-      std::vector<Eigen::Vector3i> uv_triangles;
-      for (int i = 0; i + 2 < topology.uv_triangle_indices_size(); i += 3) {
-        uv_triangles.emplace_back(topology.uv_triangle_indices(i),
-                                  topology.uv_triangle_indices(i + 1),
-                                  topology.uv_triangle_indices(i + 2));
-      }
-      ASSIGN_OR_RETURN(mesh, render::MeshFromCornerUvs(rest, truth.triangles, uvs, uv_triangles));
+      ASSIGN_OR_RETURN(mesh, render::MeshFromCornerUvs(rest, topology.triangles, topology.uvs,
+                                                       topology.uv_triangles));
       ASSIGN_OR_RETURN(truth_item_.texture, renderer_->UploadTexture(albedo));
     } else {
       mesh.positions_m = rest;
-      mesh.triangles = truth.triangles;
-      mesh.normals = render::ComputeVertexNormals(rest, truth.triangles);
+      mesh.triangles = topology.triangles;
+      mesh.normals = render::ComputeVertexNormals(rest, topology.triangles);
     }
     ASSIGN_OR_RETURN(truth_item_.mesh, renderer_->UploadMesh(mesh));
     truth_item_.lit = true;
     truth_item_.label = 1;
     render::ShadingOptions shading;  // The light the take's colour was rendered under.
-    if (topology.has_direction_to_light_in_world()) {
-      const Eigen::Vector3d light = FromProto(topology.direction_to_light_in_world());
-      if (light.norm() > 0) {
-        shading.headlight = false;
-        shading.direction_to_light_in_world = light;
-        shading.ambient = topology.ambient();
-        shading.diffuse = topology.diffuse();
-      }
+    const Eigen::Vector3d& light = topology.direction_to_light_in_world;
+    if (light.norm() > 0) {
+      shading.headlight = false;
+      shading.direction_to_light_in_world = light;
+      shading.ambient = topology.ambient;
+      shading.diffuse = topology.diffuse;
     }
     return renderer_->SetShading(shading);
   }
@@ -312,10 +238,17 @@ class NovelViewScorer {
 };
 
 // Sensor 0 of the reenactment (else the take's first sensor).
-absl::StatusOr<SensorCalibration> FirstSensor(const Reenactment& data, const TakeReader& take) {
+absl::StatusOr<SensorCalibration> FirstSensor(const Reenactment& data, const GroundTruth& truth) {
   if (!data.info.sensors.empty()) return data.info.sensors.front();
-  if (!take.sensors().empty()) return SensorCalibrationFromProto(take.sensors().begin()->second);
+  if (!truth.sensors.empty()) return truth.sensors.front();
   return absl::FailedPreconditionError("neither the reenactment nor the take has a sensor");
+}
+
+// Every options.every-th instant of `num_frames`.
+std::set<int64_t> EveryKth(int num_frames, int every) {
+  std::set<int64_t> frames;
+  for (int f = 0; f < num_frames; f += every) frames.insert(f);
+  return frames;
 }
 
 }  // namespace
@@ -399,16 +332,19 @@ double PsnrDb(double sum_squared_error, int64_t count) {
   return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
+std::set<int64_t> EvaluationMeshFrames(const Reenactment& data, const EvaluationOptions& options) {
+  if (!(options.surface || options.novel_view) || options.every < 1) return {};
+  return EveryKth(static_cast<int>(data.frames.size()), options.every);
+}
+
 absl::StatusOr<EvaluationResult> EvaluateReenactment(const Reenactment& data,
-                                                     const TakeReader& take,
+                                                     const GroundTruth& truth,
                                                      const EvaluationOptions& options,
                                                      const ProgressCallback& progress) {
   RETURN_IF_ERROR(options.Validate());
   ASSIGN_OR_RETURN(VdtmModel model, VdtmModel::Create(data));
-  std::set<int64_t> wanted;
-  for (int f = 0; f < model.num_frames(); f += options.every) wanted.insert(f);
+  const std::set<int64_t> wanted = EveryKth(model.num_frames(), options.every);
   const bool need_mesh = options.surface || options.novel_view;
-  ASSIGN_OR_RETURN(GroundTruth truth, LoadGroundTruth(take, wanted, need_mesh));
   std::vector<int> frames;  // Evaluated instants: every k-th with ground truth.
   for (int64_t f : wanted) {
     if (truth.joints.count(f) && (!need_mesh || truth.meshes.count(f)))
@@ -423,10 +359,11 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const Reenactment& data,
   std::unique_ptr<NovelViewScorer> scorer;
   if (options.novel_view) {
     Eigen::Vector3d pivot = Eigen::Vector3d::Zero();  // Mean true root (SpineBase).
-    for (int f : frames) pivot += truth.joints[f][0];
+    for (int f : frames) pivot += truth.joints.at(f)[0];
     pivot /= static_cast<double>(frames.size());
-    ASSIGN_OR_RETURN(SensorCalibration sensor, FirstSensor(data, take));
-    ASSIGN_OR_RETURN(scorer, NovelViewScorer::Create(data, truth, sensor, pivot, options));
+    ASSIGN_OR_RETURN(SensorCalibration sensor, FirstSensor(data, truth));
+    ASSIGN_OR_RETURN(scorer, NovelViewScorer::Create(data, truth, truth.meshes.at(frames.front()),
+                                                     sensor, pivot, options));
   }
   SurfaceSums surface;
   double joint_error_m = 0.0;
@@ -440,14 +377,14 @@ absl::StatusOr<EvaluationResult> EvaluateReenactment(const Reenactment& data,
       } else {
         PosedParts(model, f, &recon, &recon_triangles);
       }
-      RETURN_IF_ERROR(AddSurfaceFrame(recon, recon_triangles, truth.meshes[f], truth.triangles,
-                                      options.grid_cell_m, &surface));
+      RETURN_IF_ERROR(AddSurfaceFrame(recon, recon_triangles, truth.meshes.at(f),
+                                      truth.topology.triangles, options.grid_cell_m, &surface));
     }
-    if (scorer != nullptr) RETURN_IF_ERROR(scorer->AddFrame(f, truth.meshes[f]));
+    if (scorer != nullptr) RETURN_IF_ERROR(scorer->AddFrame(f, truth.meshes.at(f)));
     if (options.joints) {
       for (int j = 0; j < kNumSkeletonJoints; ++j) {
         if (!model.joints_valid(f)[j]) continue;
-        joint_error_m += (model.joints(f)[j] - truth.joints[f][j]).norm();
+        joint_error_m += (model.joints(f)[j] - truth.joints.at(f)[j]).norm();
         ++result.mpjpe_joints;
       }
     }

@@ -52,13 +52,14 @@
 #include <cstdint>
 #include <limits>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "clients/view/reenactment_renderer.h"
 #include "common/base/progress.h"
-#include "common/io/take.h"
+#include "common/model/ground_truth.h"
 
 namespace reenact::view {
 
@@ -108,13 +109,20 @@ struct EvaluationResult {
   std::map<std::string, double> Figures() const;
 };
 
-// Measures `data` against the ground truth in `take` (see the file comment).
-// FailedPrecondition when the take has no ground truth (not synthetic) or no
-// instant is shared; InvalidArgument for bad options or a reenactment that
-// does not validate; Unavailable when no GL context can be had for the
-// novel view; Cancelled when `progress` returns false.
+// The frames whose true meshes EvaluateReenactment needs for `data` under
+// `options` (none when it measures joints only): read the ground truth with
+// them, e.g. ReadGroundTruth(take, EvaluationMeshFrames(data, options))
+// (common/io/take_convert.h).
+std::set<int64_t> EvaluationMeshFrames(const Reenactment& data, const EvaluationOptions& options);
+
+// Measures `data` against the take's ground truth `truth` (see the file
+// comment); instants whose true mesh `truth` lacks are left out when the
+// surface or the novel view is measured. FailedPrecondition when no instant
+// is shared; InvalidArgument for bad options or a reenactment that does not
+// validate; Unavailable when no GL context can be had for the novel view;
+// Cancelled when `progress` returns false.
 absl::StatusOr<EvaluationResult> EvaluateReenactment(const Reenactment& data,
-                                                     const TakeReader& take,
+                                                     const GroundTruth& truth,
                                                      const EvaluationOptions& options = {},
                                                      const ProgressCallback& progress = {});
 

@@ -8,12 +8,24 @@
 #include <gtest/gtest.h>
 
 #include "clients/view/truth_reenactment.h"
+#include "common/base/status_macros.h"
 #include "common/body/procedural_body.h"
+#include "common/io/take_convert.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 
 namespace reenact::view {
 namespace {
+
+// The take's ground truth for `data` (the meshes it needs), then the
+// evaluation.
+absl::StatusOr<EvaluationResult> EvaluateAgainstTake(const Reenactment& data,
+                                                     const TakeReader& take,
+                                                     const EvaluationOptions& options = {}) {
+  ASSIGN_OR_RETURN(const GroundTruth truth,
+                   ReadGroundTruth(take, EvaluationMeshFrames(data, options)));
+  return EvaluateReenactment(data, truth, options);
+}
 
 struct SharedTake {
   std::unique_ptr<TakeReader> reader;
@@ -87,7 +99,7 @@ TEST(EvaluateReenactment, TruthReenactmentScoresWellAndAPerturbedOneWorse) {
   ASSERT_FALSE(take.truth.frames.empty());
   EvaluationOptions options;
   options.every = 2;
-  auto truth = EvaluateReenactment(take.truth, *take.reader, options);
+  auto truth = EvaluateAgainstTake(take.truth, *take.reader, options);
   ASSERT_TRUE(truth.ok()) << truth.status();
   Print("truth reenactment", *truth);
   EXPECT_EQ(truth->frames_evaluated, 8);  // Instants 0, 2, ..., 14.
@@ -104,7 +116,7 @@ TEST(EvaluateReenactment, TruthReenactmentScoresWellAndAPerturbedOneWorse) {
   for (ReenactmentFrame& frame : perturbed.frames) {
     for (Eigen::Vector3d& joint : frame.joints_in_world_m) joint.x() += 0.03;
   }
-  auto worse = EvaluateReenactment(perturbed, *take.reader, options);
+  auto worse = EvaluateAgainstTake(perturbed, *take.reader, options);
   ASSERT_TRUE(worse.ok()) << worse.status();
   Print("perturbed (3.6 cm, 8 deg)", *worse);
   EXPECT_GT(worse->surface_mm, truth->surface_mm + 10.0);
@@ -123,7 +135,7 @@ TEST(EvaluateReenactment, TruthBodyReenactmentIsTheTruthAndAMovedOneIsNot) {
   ASSERT_TRUE(take.body_truth.is_body());
   EvaluationOptions options;
   options.every = 2;
-  auto truth = EvaluateReenactment(take.body_truth, *take.reader, options);
+  auto truth = EvaluateAgainstTake(take.body_truth, *take.reader, options);
   ASSERT_TRUE(truth.ok()) << truth.status();
   Print("truth body reenactment", *truth);
   std::printf("truth body reenactment: surface %.6f mm, IoU90 %.5f\n", truth->surface_mm,
@@ -145,7 +157,7 @@ TEST(EvaluateReenactment, TruthBodyReenactmentIsTheTruthAndAMovedOneIsNot) {
     t.x() += 0.03;
     t.z() += 0.02;
   }
-  auto worse = EvaluateReenactment(moved, *take.reader, options);
+  auto worse = EvaluateAgainstTake(moved, *take.reader, options);
   ASSERT_TRUE(worse.ok()) << worse.status();
   Print("truth body reenactment moved by 3.6 cm", *worse);
   EXPECT_GT(worse->surface_mm, truth->surface_mm + 10.0);
@@ -169,7 +181,7 @@ TEST(EvaluateReenactment, FromSensor0sOwnViewTheTruthReenactmentMatchesTheTruth)
   options.novel_width = 640;
   options.novel_height = 360;
   options.image_dir = reenact::testing::MakeTempDir("view_eval_images");
-  auto result = EvaluateReenactment(take.truth, *take.reader, options);
+  auto result = EvaluateAgainstTake(take.truth, *take.reader, options);
   ASSERT_TRUE(result.ok()) << result.status();
   Print("truth reenactment from sensor 0", *result);
   // What is left is the take's colour noise (2 levels), JPEG and the
@@ -184,7 +196,7 @@ TEST(EvaluateReenactment, FromSensor0sOwnViewTheTruthReenactmentMatchesTheTruth)
   Reenactment cylinders = take.truth;
   cylinders.info.method = "rigid-cylinders";
   options.image_dir.clear();
-  auto by_pose = EvaluateReenactment(cylinders, *take.reader, options);
+  auto by_pose = EvaluateAgainstTake(cylinders, *take.reader, options);
   ASSERT_TRUE(by_pose.ok()) << by_pose.status();
   Print("truth reenactment from sensor 0, Eq. 3.6", *by_pose);
   EXPECT_GT(by_pose->psnr_db_90, 28.0);
@@ -199,13 +211,13 @@ TEST(EvaluateReenactment, BakedFallbackAndOptions) {
   options.novel_width = 320;
   options.novel_height = 180;
   options.mode = TextureMode::kBaked;  // No baked texture: flat grey, lit.
-  auto result = EvaluateReenactment(take.truth, *take.reader, options);
+  auto result = EvaluateAgainstTake(take.truth, *take.reader, options);
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_EQ(result->frames_evaluated, 3);
   EXPECT_TRUE(std::isnan(result->surface_mm));
   EXPECT_GT(result->iou_90, 0.9);  // The shape is the truth's whatever the texture.
   options.every = 0;
-  EXPECT_EQ(EvaluateReenactment(take.truth, *take.reader, options).status().code(),
+  EXPECT_EQ(EvaluateAgainstTake(take.truth, *take.reader, options).status().code(),
             absl::StatusCode::kInvalidArgument);
 }
 
@@ -220,7 +232,7 @@ TEST(EvaluateReenactment, TakeWithoutGroundTruthIsFailedPrecondition) {
   ASSERT_TRUE((*writer)->Close().ok());
   auto plain = TakeReader::Open(path);
   ASSERT_TRUE(plain.ok()) << plain.status();
-  EXPECT_EQ(EvaluateReenactment(take.truth, **plain).status().code(),
+  EXPECT_EQ(EvaluateAgainstTake(take.truth, **plain).status().code(),
             absl::StatusCode::kFailedPrecondition);
 }
 

@@ -1,5 +1,6 @@
 #include "common/io/take_convert.h"
 
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <utility>
@@ -283,6 +284,99 @@ absl::StatusOr<RecordedTake> ReadRecordedTake(const std::string& path,
   }
   ASSIGN_OR_RETURN(std::unique_ptr<TakeReader> reader, TakeReader::Open(path));
   return RecordedTakeReader(*reader, options, progress).Read();
+}
+
+namespace {
+
+absl::StatusOr<GroundTruthTopology> TopologyFromProto(const v1::GroundTruthTopology& m) {
+  GroundTruthTopology topology;
+  topology.model_name = m.model_name();
+  topology.vertex_count = m.vertex_count();
+  if (topology.vertex_count <= 0) {
+    return absl::DataLossError("ground truth topology: no vertices");
+  }
+  const auto triangles = [&](const auto& indices, int limit, const char* what,
+                             std::vector<Eigen::Vector3i>* out) -> absl::Status {
+    if (indices.size() % 3 != 0) {
+      return absl::DataLossError(
+          absl::StrCat("ground truth topology: ", what, " indices not a multiple of 3"));
+    }
+    out->reserve(indices.size() / 3);
+    for (int i = 0; i < indices.size(); i += 3) {
+      const Eigen::Vector3i t(static_cast<int>(indices[i]), static_cast<int>(indices[i + 1]),
+                              static_cast<int>(indices[i + 2]));
+      if ((t.array() < 0).any() || (t.array() >= limit).any()) {
+        return absl::DataLossError(
+            absl::StrCat("ground truth topology: ", what, " index out of range"));
+      }
+      out->push_back(t);
+    }
+    return absl::OkStatus();
+  };
+  RETURN_IF_ERROR(
+      triangles(m.triangle_indices(), topology.vertex_count, "triangle", &topology.triangles));
+  ASSIGN_OR_RETURN(const std::vector<float> uvs, UnpackFloats(m.uvs_f32()));
+  if (uvs.size() % 2 != 0) return absl::DataLossError("ground truth topology: odd uv count");
+  topology.uvs.reserve(uvs.size() / 2);
+  for (size_t i = 0; i + 1 < uvs.size(); i += 2) topology.uvs.emplace_back(uvs[i], uvs[i + 1]);
+  if (!topology.uvs.empty()) {
+    RETURN_IF_ERROR(triangles(m.uv_triangle_indices(), static_cast<int>(topology.uvs.size()),
+                              "uv triangle", &topology.uv_triangles));
+  }
+  topology.albedo_png = m.albedo_png();
+  if (m.has_direction_to_light_in_world()) {
+    topology.direction_to_light_in_world = FromProto(m.direction_to_light_in_world());
+  }
+  topology.ambient = m.ambient();
+  topology.diffuse = m.diffuse();
+  return topology;
+}
+
+}  // namespace
+
+absl::StatusOr<GroundTruth> ReadGroundTruth(const TakeReader& take,
+                                            const std::set<int64_t>& mesh_frames) {
+  GroundTruth truth;
+  ASSIGN_OR_RETURN(auto topologies,
+                   take.ReadAll<v1::GroundTruthTopology>(kGroundTruthTopologyTopic));
+  if (topologies.empty()) {
+    return absl::FailedPreconditionError(
+        "the take has no ground truth (/ground_truth/topology); evaluate against a synthetic take");
+  }
+  ASSIGN_OR_RETURN(truth.topology, TopologyFromProto(topologies.front()));
+  const int vertex_count = truth.topology.vertex_count;
+  if (!mesh_frames.empty()) {
+    RETURN_IF_ERROR(take.ForEach<v1::GroundTruthMesh>(
+        kGroundTruthMeshTopic, [&](const v1::GroundTruthMesh& mesh) -> absl::Status {
+          if (!mesh_frames.count(mesh.frame_index())) return absl::OkStatus();
+          const std::string& bytes = mesh.positions_in_world_m_f32();
+          if (mesh.vertex_count() != vertex_count ||
+              bytes.size() != static_cast<size_t>(vertex_count) * 3 * sizeof(float)) {
+            return absl::DataLossError(absl::StrCat("ground truth mesh of frame ",
+                                                    mesh.frame_index(), " has the wrong size"));
+          }
+          Eigen::Matrix3Xf positions(3, vertex_count);
+          std::memcpy(positions.data(), bytes.data(), bytes.size());
+          truth.meshes[mesh.frame_index()] = positions.cast<double>();
+          return absl::OkStatus();
+        }));
+  }
+  RETURN_IF_ERROR(take.ForEach<v1::GroundTruthJoints>(
+      kGroundTruthJointsTopic, [&](const v1::GroundTruthJoints& joints) -> absl::Status {
+        if (joints.positions_in_world_m_size() != body::kNumKinectV2Joints) {
+          return absl::OkStatus();
+        }
+        TrueJoints& out = truth.joints[joints.frame_index()];
+        for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+          out[j] = FromProto(joints.positions_in_world_m(j));
+        }
+        return absl::OkStatus();
+      }));
+  for (const auto& [id, calibration] : take.sensors()) {
+    ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
+    truth.sensors.push_back(std::move(sensor));
+  }
+  return truth;
 }
 
 }  // namespace reenact

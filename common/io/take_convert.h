@@ -5,10 +5,13 @@
 // values.
 #pragma once
 
+#include <cstdint>
+#include <set>
 #include <string>
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
+#include "common/model/ground_truth.h"
 #include "common/model/take.h"
 #include "reenact/v1/frame.pb.h"
 #include "reenact/v1/sensor.pb.h"
@@ -45,5 +48,17 @@ struct RecordedTakeOptions {
 absl::StatusOr<RecordedTake> ReadRecordedTake(const std::string& path,
                                               const RecordedTakeOptions& options = {},
                                               const ProgressCallback& progress = {});
+
+class TakeReader;
+
+// The ground truth of the synthetic take `take`: its topology, the true
+// meshes of the frames in `mesh_frames` (none when empty; a take holds one
+// per frame, so a reader asks for those it needs), every frame's joints and
+// the sensors' calibrations. FailedPrecondition when the take has no
+// ground truth (/ground_truth/topology); DataLoss when a message does not
+// parse or a mesh or triangle does not fit the topology; InvalidArgument
+// for a sensor transform that is zero or not finite.
+absl::StatusOr<GroundTruth> ReadGroundTruth(const TakeReader& take,
+                                            const std::set<int64_t>& mesh_frames);
 
 }  // namespace reenact

@@ -544,7 +544,8 @@ absl::StatusOr<ReenactmentData> BodyReenactment() {
     frame.set_stamp_ns(1'000'000'000 + 33'333'333 * f);
     *frame.mutable_body() = BodyPoseToProto(pose);
     if (f == 1) {
-      SetBodyPoseOffsets(Eigen::Matrix3Xd::Constant(3, model->num_vertices(), 0.002),
+      // 2 mm: 40 steps of 0.05 mm.
+      SetBodyPoseOffsets(VertexOffsets50um::Constant(3, model->num_vertices(), 40),
                          frame.mutable_body());
     }
     data.frames.push_back(std::move(frame));

@@ -71,10 +71,6 @@ absl::StatusOr<VdtmModel> VdtmModel::Create(const Reenactment& data) {
   model.num_parts_ = static_cast<int>(data.parts.size());
   const int num_parts = model.num_parts();
   for (const ReenactmentFrame& frame : data.frames) {
-    std::vector<PartPose> poses(
-        frame.parts.begin(), frame.parts.begin() + std::min<size_t>(num_parts, frame.parts.size()));
-    poses.resize(num_parts);  // Missing poses stay invalid.
-    model.poses_.push_back(std::move(poses));
     std::array<Eigen::Vector3d, kNumSkeletonJoints> joints;
     std::array<bool, kNumSkeletonJoints> valid{};
     for (int j = 0; j < kNumSkeletonJoints; ++j) {
@@ -112,7 +108,7 @@ absl::StatusOr<VdtmModel> VdtmModel::Create(const Reenactment& data) {
   for (int b = 0; b < num_parts; ++b) {
     for (const KeyframeCamera& k : model.keyframes_) {
       model.keyframe_rotation_[b].push_back(k.color_from_world.linear() *
-                                            model.poses_[k.frame][b].world_from_part.linear());
+                                            model.pose(k.frame, b).world_from_part.linear());
     }
   }
   for (const KeyframeCamera& k : model.keyframes_) {
@@ -143,11 +139,11 @@ std::vector<int> VdtmModel::RankByRotation(int frame, int part,
                                            std::vector<double>* angles_rad) const {
   // R_b* of Eq. 3.12-3.13: the part's rotation in the viewer camera.
   const Eigen::Matrix3d r_star =
-      camera_from_world.linear() * poses_[frame][part].world_from_part.linear();
+      camera_from_world.linear() * pose(frame, part).world_from_part.linear();
   std::vector<double> angle(keyframes_.size(), std::numeric_limits<double>::infinity());
   std::vector<int> candidates;
   for (int k = 0; k < num_keyframes(); ++k) {
-    if (!poses_[keyframes_[k].frame][part].valid) continue;
+    if (!pose(keyframes_[k].frame, part).valid) continue;
     angle[k] = RotationAngle(r_star * keyframe_rotation_[part][k].transpose());  // Eq. 3.13.
     candidates.push_back(k);
   }
@@ -189,7 +185,7 @@ std::vector<int> VdtmModel::AssignTriangles(int part, const std::vector<int>& ra
                                             int* not_best) const {
   std::vector<int> usable;
   for (int k : ranking) {
-    if (poses_[keyframes_[k].frame][part].valid) usable.push_back(k);
+    if (pose(keyframes_[k].frame, part).valid) usable.push_back(k);
   }
   const std::vector<Eigen::Vector3i>& triangles = data_->parts[part].triangles;
   std::vector<int> chosen(triangles.size(), -1);
@@ -213,10 +209,9 @@ Eigen::Vector2f VdtmModel::KeyframeUv(int keyframe, int part,
                                       const Eigen::Vector3f& point_in_part_m, int image_width,
                                       int image_height) const {
   const KeyframeCamera& k = keyframes_[keyframe];
-  const PartPose& pose = poses_[k.frame][part];
   // Eq. 3.14: x_n = T_{b,n} x (the part's pose at the keyframe's instant).
   const Eigen::Vector3d point_in_world =
-      pose.WorldFromPartScaled() * point_in_part_m.cast<double>();
+      pose(k.frame, part).WorldFromPartScaled() * point_in_part_m.cast<double>();
   // Eq. 3.15: rho, into the keyframe's colour image, then into its crop.
   const auto pixel = k.color_intrinsics.Project(k.color_from_world * point_in_world);
   if (!pixel) return Eigen::Vector2f(-1.0f, -1.0f);

@@ -93,7 +93,8 @@ class VdtmModel {
   int num_frames() const { return static_cast<int>(data_->frames.size()); }
   int num_keyframes() const { return static_cast<int>(keyframes_.size()); }
   const PartMesh& part(int part) const { return data_->parts[part]; }
-  const PartPose& pose(int frame, int part) const { return poses_[frame][part]; }
+  // ValidateReenactment holds every frame to one pose per part.
+  const PartPose& pose(int frame, int part) const { return data_->frames[frame].parts[part]; }
   const KeyframeCamera& keyframe(int keyframe) const { return keyframes_[keyframe]; }
   // Joints of a frame in the world (metres) and which are known.
   const std::array<Eigen::Vector3d, kNumSkeletonJoints>& joints(int frame) const {
@@ -144,7 +145,6 @@ class VdtmModel {
  private:
   const Reenactment* data_ = nullptr;
   int num_parts_ = 0;
-  std::vector<std::vector<PartPose>> poses_;  // [frame][part], every part.
   std::vector<std::array<Eigen::Vector3d, kNumSkeletonJoints>> joints_;
   std::vector<std::array<bool, kNumSkeletonJoints>> joints_valid_;
   std::vector<KeyframeCamera> keyframes_;

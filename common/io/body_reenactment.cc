@@ -15,8 +15,14 @@
 namespace reenact {
 namespace {
 
-// The unit of BodyPose.vertex_offsets_50um_i16.
-constexpr double kOffsetUnitM = 50e-6;
+// BodyPose.vertex_offsets_50um_i16 holds 3 int16 per vertex, or nothing.
+absl::Status CheckOffsetBytes(const std::string& bytes, int num_vertices) {
+  if (!bytes.empty() && bytes.size() != 6 * static_cast<size_t>(num_vertices)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "vertex offsets hold ", bytes.size(), " bytes for ", num_vertices, " vertices (6 each)"));
+  }
+  return absl::OkStatus();
+}
 
 absl::Status Invalid(const std::string& what) {
   return absl::InvalidArgumentError(absl::StrCat("invalid body mesh: ", what));
@@ -166,9 +172,9 @@ absl::Status ValidateBodyPose(const v1::BodyPose& pose, int num_vertices, const 
   if (!std::isfinite(pose.point_rms_mm())) {
     return absl::InvalidArgumentError(absl::StrCat(what, " has a non-finite point_rms_mm"));
   }
-  const absl::StatusOr<Eigen::Matrix3Xd> offsets = BodyPoseOffsets(pose, num_vertices);
-  if (!offsets.ok()) {
-    return absl::InvalidArgumentError(absl::StrCat(what, ": ", offsets.status().message()));
+  if (absl::Status status = CheckOffsetBytes(pose.vertex_offsets_50um_i16(), num_vertices);
+      !status.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": ", status.message()));
   }
   return absl::OkStatus();
 }
@@ -213,31 +219,25 @@ absl::StatusOr<body::BodyPose> BodyPoseFromProto(const v1::BodyPose& pose) {
   return out;
 }
 
-absl::StatusOr<Eigen::Matrix3Xd> BodyPoseOffsets(const v1::BodyPose& pose, int num_vertices) {
+absl::StatusOr<VertexOffsets50um> BodyPoseOffsets(const v1::BodyPose& pose, int num_vertices) {
   const std::string& bytes = pose.vertex_offsets_50um_i16();
-  if (bytes.empty()) return Eigen::Matrix3Xd();
-  if (bytes.size() != 6 * static_cast<size_t>(num_vertices)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "vertex offsets hold ", bytes.size(), " bytes for ", num_vertices, " vertices (6 each)"));
-  }
-  Eigen::Matrix3Xd out(3, num_vertices);
+  RETURN_IF_ERROR(CheckOffsetBytes(bytes, num_vertices));
+  if (bytes.empty()) return VertexOffsets50um();
+  VertexOffsets50um out(3, num_vertices);
   for (size_t i = 0; i < 3 * static_cast<size_t>(num_vertices); ++i) {
     const auto lo = static_cast<uint16_t>(static_cast<uint8_t>(bytes[2 * i]));
     const auto hi = static_cast<uint16_t>(static_cast<uint8_t>(bytes[2 * i + 1]));
-    const auto value = static_cast<int16_t>(static_cast<uint16_t>(lo | (hi << 8)));
     out(static_cast<Eigen::Index>(i % 3), static_cast<Eigen::Index>(i / 3)) =
-        kOffsetUnitM * static_cast<double>(value);
+        static_cast<int16_t>(static_cast<uint16_t>(lo | (hi << 8)));
   }
   return out;
 }
 
-void SetBodyPoseOffsets(const Eigen::Matrix3Xd& offsets_m, v1::BodyPose* pose) {
-  std::string bytes(6 * static_cast<size_t>(offsets_m.cols()), '\0');
-  for (Eigen::Index v = 0; v < offsets_m.cols(); ++v) {
+void SetBodyPoseOffsets(const VertexOffsets50um& offsets, v1::BodyPose* pose) {
+  std::string bytes(6 * static_cast<size_t>(offsets.cols()), '\0');
+  for (Eigen::Index v = 0; v < offsets.cols(); ++v) {
     for (int c = 0; c < 3; ++c) {
-      const double units = std::round(offsets_m(c, v) / kOffsetUnitM);
-      const auto value = static_cast<int16_t>(std::clamp(units, -32767.0, 32767.0));
-      const auto bits = static_cast<uint16_t>(value);
+      const auto bits = static_cast<uint16_t>(offsets(c, v));
       const size_t i = 3 * static_cast<size_t>(v) + c;
       bytes[2 * i] = static_cast<char>(bits & 0xFF);
       bytes[2 * i + 1] = static_cast<char>(bits >> 8);
@@ -248,13 +248,10 @@ void SetBodyPoseOffsets(const Eigen::Matrix3Xd& offsets_m, v1::BodyPose* pose) {
 
 absl::StatusOr<body::PosedBody> PoseBodyMesh(const DecodedBodyMesh& mesh,
                                              const v1::BodyPose& pose) {
-  ASSIGN_OR_RETURN(const body::BodyPose body_pose, BodyPoseFromProto(pose));
-  ASSIGN_OR_RETURN(const Eigen::Matrix3Xd offsets, BodyPoseOffsets(pose, mesh.num_vertices()));
-  ASSIGN_OR_RETURN(body::PosedBody posed,
-                   body::SkinRestVertices(mesh.skin_joints, mesh.skin_weights, mesh.rest_vertices_m,
-                                          mesh.rest_joints_m, body_pose));
-  if (offsets.cols() > 0) posed.vertices_m += offsets;
-  return posed;
+  BodyFramePose plain;
+  ASSIGN_OR_RETURN(plain.pose, BodyPoseFromProto(pose));
+  ASSIGN_OR_RETURN(plain.vertex_offsets_50um, BodyPoseOffsets(pose, mesh.num_vertices()));
+  return PoseBodyMesh(mesh, plain);
 }
 
 }  // namespace reenact

@@ -45,11 +45,13 @@ absl::Status ValidateBodyPose(const v1::BodyPose& pose, int num_vertices, const 
 v1::BodyPose BodyPoseToProto(const body::BodyPose& pose);
 absl::StatusOr<body::BodyPose> BodyPoseFromProto(const v1::BodyPose& pose);
 
-// Per-vertex offsets of a BodyPose (3 x V, metres), or an empty matrix when
+// Per-vertex offsets of a BodyPose in the file's units, 0.05 mm (3 x V, as
+// BodyFramePose::vertex_offsets_50um keeps them), or an empty matrix when
 // the pose has none. InvalidArgument when the size disagrees with V.
-absl::StatusOr<Eigen::Matrix3Xd> BodyPoseOffsets(const v1::BodyPose& pose, int num_vertices);
-// Packs offsets (3 x V) into `pose` (to 0.05 mm; clamped at +-1.6 m).
-void SetBodyPoseOffsets(const Eigen::Matrix3Xd& offsets_m, v1::BodyPose* pose);
+using VertexOffsets50um = Eigen::Matrix<int16_t, 3, Eigen::Dynamic>;
+absl::StatusOr<VertexOffsets50um> BodyPoseOffsets(const v1::BodyPose& pose, int num_vertices);
+// Packs offsets (3 x V, 0.05 mm units) into `pose`.
+void SetBodyPoseOffsets(const VertexOffsets50um& offsets, v1::BodyPose* pose);
 
 // The posed body of `mesh` at `pose`: skinned vertices plus the pose's
 // offsets, joints and joint frames. Errors as ValidateBodyPose.

@@ -271,8 +271,7 @@ absl::StatusOr<BodyFramePose> BodyFramePoseFromProto(const v1::BodyPose& message
   RETURN_IF_ERROR(ValidateBodyPose(message, num_vertices, "body pose"));
   BodyFramePose pose;
   ASSIGN_OR_RETURN(pose.pose, BodyPoseFromProto(message));
-  ASSIGN_OR_RETURN(const Eigen::Matrix3Xd offsets, BodyPoseOffsets(message, num_vertices));
-  if (offsets.cols() > 0) pose.SetOffsetsMetres(offsets);
+  ASSIGN_OR_RETURN(pose.vertex_offsets_50um, BodyPoseOffsets(message, num_vertices));
   pose.valid = message.valid();
   pose.point_rms_mm = message.point_rms_mm();
   return pose;
@@ -280,7 +279,7 @@ absl::StatusOr<BodyFramePose> BodyFramePoseFromProto(const v1::BodyPose& message
 
 v1::BodyPose BodyFramePoseToProto(const BodyFramePose& pose) {
   v1::BodyPose m = BodyPoseToProto(pose.pose);
-  if (pose.vertex_offsets_50um.cols() > 0) SetBodyPoseOffsets(pose.OffsetsMetres(), &m);
+  if (pose.vertex_offsets_50um.cols() > 0) SetBodyPoseOffsets(pose.vertex_offsets_50um, &m);
   m.set_valid(pose.valid);
   m.set_point_rms_mm(pose.point_rms_mm);
   return m;

@@ -247,8 +247,8 @@ inline ReenactmentData MakeTestBodyReenactment(int frames = 5,
     frame.set_stamp_ns(1000000000LL + f * 33333333LL);
     *frame.mutable_body() = BodyPoseToProto(TestBodyPose(f));
     if (f == 1) {
-      Eigen::Matrix3Xd offsets = Eigen::Matrix3Xd::Zero(3, vertices);
-      offsets.row(2).setConstant(0.005);
+      VertexOffsets50um offsets = VertexOffsets50um::Zero(3, vertices);
+      offsets.row(2).setConstant(100);  // 5 mm.
       SetBodyPoseOffsets(offsets, frame.mutable_body());
     }
     frame.mutable_body()->set_point_rms_mm(3.0f);

@@ -16,7 +16,7 @@ fi
 
 packages=(
   build-essential cmake ninja-build pkg-config git ccache
-  clang libclang-rt-14-dev clang-format
+  clang libclang-rt-14-dev clang-format clang-tidy
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libabsl-dev libeigen3-dev libboost-dev libceres-dev libpcl-dev libopencv-dev
   libusb-1.0-0-dev libfreenect-dev libopenni2-dev

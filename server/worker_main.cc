@@ -279,9 +279,7 @@ int RunNetworkWorker(const reenact::Flags& flags, const char* argv0) {
   return options.once && summary->jobs > 0 && summary->succeeded == 0 ? kExitFailure : kExitOk;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int WorkerMain(int argc, char** argv) {
   // Takes, spools, reenactments and logs hold images of people: everything
   // this process creates is its user's alone (files 0600, folders 0700).
   ::umask(077);
@@ -369,4 +367,32 @@ int main(int argc, char** argv) {
                       {"file_bytes", result->file_bytes}},
                      "reenact-worker finished");
   return kExitOk;
+}
+
+// Reports an exception that escaped WorkerMain, as a failed job: a line on
+// stdout and worker_failed in the log.
+void ReportUncaught(const char* what) noexcept {
+  try {
+    const std::string error = std::string("reenact-worker: uncaught exception: ") + what;
+    Output().Line({{"error", error}});
+    reenact::log::Error("worker_failed", {{"error", error}}, error);
+  } catch (...) {
+    // Reporting failed too: stderr is all that is left.
+    std::fputs("reenact-worker: uncaught exception\n", stderr);
+  }
+}
+
+}  // namespace
+
+// An exception nothing else caught is a failed job (exit 1), not a
+// std::terminate.
+int main(int argc, char** argv) {
+  try {
+    return WorkerMain(argc, argv);
+  } catch (const std::exception& e) {
+    ReportUncaught(e.what());
+  } catch (...) {
+    ReportUncaught("an exception of unknown type");
+  }
+  return kExitFailure;
 }

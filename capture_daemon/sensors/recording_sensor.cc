@@ -35,12 +35,13 @@ class RecordingSensor : public ThreadedSensor {
  public:
   RecordingSensor(std::string path, RecordingFormat format, std::unique_ptr<RecordingReader> reader,
                   v1::SensorInfo info, const SourceOptions& options)
-      : ThreadedSensor(info, {0.0, "frame", "the recording"}),
+      : ThreadedSensor(std::move(info), {0.0, "frame", "the recording"}),
         path_(std::move(path)),
         format_(format),
         reader_(std::move(reader)),
         options_(options),
-        period_ns_(static_cast<int64_t>(1e9 / std::max(1.0, info.nominal_fps()))) {}
+        // `info` now lives in the base: read the rate back from there.
+        period_ns_(static_cast<int64_t>(1e9 / std::max(1.0, this->info().nominal_fps()))) {}
 
   ~RecordingSensor() override { Stop(); }
 

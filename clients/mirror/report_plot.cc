@@ -2,6 +2,7 @@
 // with OpenCV.
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -88,7 +89,10 @@ void DrawAxes(cv::Mat& image, const Axes& axes) {
   for (double t = 0.0; t <= axes.max_time_s + 1e-9; t += time_step) {
     const cv::Point p = axes.ToPixel(t, 0.0);
     cv::line(image, p, {p.x, p.y + 6}, kInk, 1);
-    PutText(image, absl::StrFormat(time_step < 1.0 ? "%.1f" : "%.0f", t), {p.x - 12, p.y + 24});
+    // absl::StrFormat checks its format at compile time: one literal per branch.
+    const std::string label =
+        time_step < 1.0 ? absl::StrFormat("%.1f", t) : absl::StrFormat("%.0f", t);
+    PutText(image, label, {p.x - 12, p.y + 24});
   }
   cv::rectangle(image, kPlotArea, kInk, 1);
   PutText(image, "error (deg)", {kPlotArea.x - 70, kPlotArea.y - 16});

@@ -46,12 +46,16 @@ absl::StatusOr<std::unique_ptr<Subprocess>> Subprocess::Start(const std::vector<
     const std::string name = entry.substr(0, entry.find('='));
     if (options.env.count(name) == 0) env_strings.push_back(std::move(entry));
   }
-  for (const auto& [name, value] : options.env) env_strings.push_back(name + "=" + value);
+  for (const auto& [name, value] : options.env) {
+    env_strings.push_back(absl::StrCat(name, "=", value));
+  }
   std::vector<char*> envp;
+  envp.reserve(env_strings.size() + 1);
   for (auto& s : env_strings) envp.push_back(s.data());
   envp.push_back(nullptr);
   std::vector<std::string> args = argv;
   std::vector<char*> argp;
+  argp.reserve(args.size() + 1);
   for (auto& a : args) argp.push_back(a.data());
   argp.push_back(nullptr);
 

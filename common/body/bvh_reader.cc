@@ -499,6 +499,7 @@ absl::StatusOr<Motion> ReadBvh(const std::string& path, const BvhOptions& option
   RETURN_IF_ERROR(SetUnit(path, bvh_joints, options, info));
 
   std::vector<MotionJoint> joints;
+  joints.reserve(bvh_joints.size());
   for (const BvhJoint& j : bvh_joints) {
     joints.push_back({j.name, j.parent, j.offset_units * info.metres_per_unit});
   }

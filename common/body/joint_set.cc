@@ -30,6 +30,7 @@ constexpr std::array<std::string_view, kNumKinectV2Joints> kKinectV2Names = {
 
 std::vector<JointMapping> KinectV2Table() {
   std::vector<JointMapping> table;
+  table.reserve(kNumKinectV2Joints);
   for (int j = 0; j < kNumKinectV2Joints; ++j) {
     table.push_back({std::string(kKinectV2Names[j]), static_cast<KinectV2Joint>(j)});
   }

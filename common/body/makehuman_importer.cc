@@ -257,6 +257,7 @@ std::vector<std::pair<int, double>> AffineWeights(const Eigen::Matrix3Xd& vertic
   const Eigen::Matrix4d gram = a * a.transpose();
   weights += a.transpose() * gram.completeOrthogonalDecomposition().solve(residual);
   std::vector<std::pair<int, double>> row;
+  row.reserve(k);
   for (int i = 0; i < k; ++i) row.emplace_back(candidates[i], weights[i]);
   return row;
 }
@@ -558,7 +559,8 @@ absl::StatusOr<MakeHumanImport> ImportMakeHumanDetailed(const std::string& dir,
   ASSIGN_OR_RETURN(RegressorResult regressor,
                    BuildRegressor(skel_path, skeleton, all_m, body_from_original,
                                   out.model.template_vertices_m, options));
-  out.model.joint_regressor = std::move(regressor.regressor);
+  // Eigen 3.4's SparseMatrix has no move assignment; swap hands the storage over.
+  out.model.joint_regressor.swap(regressor.regressor);
   out.skeleton_joints_m = regressor.skeleton_joints_m;
 
   RETURN_IF_ERROR(ReadSkinWeights(dir + "/rigs/default_weights.mhw", skeleton, body_from_original,

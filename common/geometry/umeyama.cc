@@ -72,7 +72,7 @@ absl::StatusOr<Sim3d> FitSimilarityUmeyama(const std::vector<Eigen::Vector3d>& p
 
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(covariance,
                                               Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Vector3d singular_values = svd.singularValues();
+  const Eigen::Vector3d& singular_values = svd.singularValues();
   // Rank < 2 (Eq. 39 needs rank >= m - 1): collinear or coincident points.
   if (!(singular_values(1) > options.min_singular_value_ratio * singular_values(0))) {
     return absl::FailedPreconditionError(

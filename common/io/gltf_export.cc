@@ -323,6 +323,7 @@ void AddPartChannels(GlbBuilder& b, tinygltf::Animation& animation, int node,
   int input = shared_input;
   if (keys.size() != frame_count) {
     std::vector<float> times;
+    times.reserve(keys.size());
     for (const Key& k : keys) times.push_back(static_cast<float>(k.time_s));
     input = b.AddFloats(times, 1, TINYGLTF_TYPE_SCALAR, 0, true);
   }

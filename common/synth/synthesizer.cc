@@ -126,7 +126,7 @@ absl::Status TurnMotion(const body::BodyModel& model, const Eigen::VectorXd& sha
                         body::RetargetedMotion* motion) {
   if (yaw_deg == 0.0) return absl::OkStatus();
   ASSIGN_OR_RETURN(const auto rest_joints_m, body::RestJointPositions(model, shape));
-  const Eigen::Vector3d root_m = rest_joints_m[body::Index(body::KinectV2Joint::kSpineBase)];
+  const Eigen::Vector3d& root_m = rest_joints_m[body::Index(body::KinectV2Joint::kSpineBase)];
   const Eigen::Quaterniond yaw(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()));
   const int root = body::Index(body::KinectV2Joint::kSpineBase);
   for (body::BodyPose& pose : motion->poses) {

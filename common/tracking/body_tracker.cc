@@ -387,8 +387,9 @@ absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm
              labels->data.size() != depth.num_pixels()) {
     return absl::InvalidArgumentError("tracker: the label image and the depth differ in size");
   }
-  std::vector<TrackedPerson> people;
   const std::vector<PersonView> views = CutPeople(depth, *labels);
+  std::vector<TrackedPerson> people;
+  people.reserve(views.size());
   for (const PersonView& view : views) {
     people.push_back(impl_->TrackPerson(view, depth, *labels, intrinsics));
   }

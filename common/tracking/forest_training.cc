@@ -130,13 +130,14 @@ class TreeTrainer {
       for (size_t i = 0; i < subset.size(); ++i) {
         const int b = static_cast<int>(
             std::upper_bound(thresholds.begin(), thresholds.end(), values[i]) - thresholds.begin());
-        ++bins[static_cast<size_t>(b * num_parts_ + samples_[subset[i]].part)];
+        ++bins[static_cast<size_t>(b) * static_cast<size_t>(num_parts_) + samples_[subset[i]].part];
       }
       Histogram left(static_cast<size_t>(num_parts_), 0);
       int64_t n_left = 0;
       for (int k = 0; k < t; ++k) {  // Left of threshold k: bins 0..k.
         for (int p = 0; p < num_parts_; ++p) {
-          const int64_t c_kp = bins[static_cast<size_t>(k * num_parts_ + p)];
+          const int64_t c_kp = bins[static_cast<size_t>(k) * static_cast<size_t>(num_parts_) +
+                                    static_cast<size_t>(p)];
           left[static_cast<size_t>(p)] += c_kp;
           n_left += c_kp;
         }
@@ -162,10 +163,13 @@ class TreeTrainer {
     if (!*cancel_ && depth < o_.max_depth && n >= 2 * static_cast<size_t>(o_.min_samples_leaf) &&
         !IsPure(begin, end)) {
       const auto [gain, feature] = ChooseSplit(begin, end);
+      // A named reference for the lambda (clang before 16 cannot capture a
+      // structured binding).
+      const SplitFeature& split_on = feature;
       const auto mid = std::stable_partition(
           samples_.begin() + static_cast<std::ptrdiff_t>(begin),
           samples_.begin() + static_cast<std::ptrdiff_t>(end),
-          [&](const Sample& s) { return Evaluate(feature, s) < feature.threshold_m; });
+          [&](const Sample& s) { return Evaluate(split_on, s) < split_on.threshold_m; });
       const size_t split = static_cast<size_t>(mid - samples_.begin());
       if (gain > 0 && split > begin && split < end) {
         const int32_t index = static_cast<int32_t>(tree_.nodes.size());
@@ -290,6 +294,7 @@ absl::StatusOr<BodyPartForest> TrainForest(const std::vector<TrainingImage>& ima
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int threads = std::min(options.num_trees, options.threads > 0 ? options.threads : cores);
   std::vector<std::thread> workers;
+  workers.reserve(static_cast<size_t>(threads));
   for (int w = 0; w < threads; ++w) {
     workers.emplace_back([&] {
       for (int t = next_tree++; t < options.num_trees; t = next_tree++) {

@@ -43,7 +43,6 @@ double RestBoneM(J child) {
       return 0.075;
     case J::kHandTipLeft:
     case J::kHandTipRight:
-      return 0.08;
     case J::kThumbLeft:
     case J::kThumbRight:
       return 0.08;

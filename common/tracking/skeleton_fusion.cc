@@ -291,7 +291,7 @@ double MedoidCost(const Eigen::Vector3d& x, const JointEstimates& e,
 Eigen::Vector3d StartPoint(const JointEstimates& e,
                            const std::optional<Eigen::Vector3d>& previous_m,
                            const SkeletonFusionOptions& options) {
-  const Eigen::Vector3d mean = WeightedMean(e, {});
+  Eigen::Vector3d mean = WeightedMean(e, {});
   double spread = 0.0;
   for (const Eigen::Vector3d& p : e.position_m) spread = std::max(spread, (p - mean).norm());
   if (spread <= kMedoidSpreadScales * options.robust_scale_m) return mean;
@@ -496,7 +496,7 @@ absl::StatusOr<SkeletonFusionSummary> FuseSkeletons(const std::vector<SensorSkel
 
 SequentialSkeletonFusion::SequentialSkeletonFusion(SkeletonFusionOptions options,
                                                    int64_t max_gap_ns)
-    : options_(std::move(options)), max_gap_ns_(max_gap_ns) {}
+    : options_(options), max_gap_ns_(max_gap_ns) {}
 
 absl::StatusOr<SkeletonFusionSummary> SequentialSkeletonFusion::Fuse(
     const std::vector<SensorSkeleton>& sensors, int64_t stamp_ns) {

@@ -162,7 +162,7 @@ struct HttpFront::Impl {
 
   void AcceptLoop();
   void ReaperLoop();
-  void Serve(tcp::socket socket, std::shared_ptr<Connection> connection);
+  void Serve(tcp::socket socket, const std::shared_ptr<Connection>& connection);
   template <class Stream>
   void Session(Stream& stream, Connection& connection);
   template <class Stream>
@@ -242,7 +242,7 @@ void HttpFront::Impl::ReaperLoop() {
   }
 }
 
-void HttpFront::Impl::Serve(tcp::socket socket, std::shared_ptr<Connection> connection) {
+void HttpFront::Impl::Serve(tcp::socket socket, const std::shared_ptr<Connection>& connection) {
   beast::error_code error;
   socket.set_option(tcp::no_delay(true), error);
   if (tls.has_value()) {

@@ -542,8 +542,7 @@ int WebApi::Follow(const std::string& job_id, const std::string& token, const Se
             {"joints_m", std::move(joints)},
         });
       }
-      case v1::FollowEvent::kEnd:
-        return true;  // Follow returns it.
+      case v1::FollowEvent::kEnd:  // Follow returns it.
       default:
         return true;
     }

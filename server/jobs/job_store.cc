@@ -68,8 +68,7 @@ std::string JobStore::NewIdLocked() const {
   char stamp[32];
   std::strftime(stamp, sizeof(stamp), "%Y%m%d-%H%M%S", &tm);
   while (true) {
-    const std::string id =
-        absl::StrFormat("j-%s-%04x", stamp, static_cast<unsigned>(random() & 0xffffu));
+    std::string id = absl::StrFormat("j-%s-%04x", stamp, static_cast<unsigned>(random() & 0xffffu));
     if (jobs_.count(id) == 0) return id;
   }
 }

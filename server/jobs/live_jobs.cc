@@ -34,7 +34,7 @@ absl::Status LiveJobs::CheckFollowable(const std::string& take_id, bool live) co
 }
 
 absl::StatusOr<v1::Job> LiveJobs::FollowLocked(const v1::Job& job) {
-  const std::string job_id = job.job_id();
+  const std::string& job_id = job.job_id();
   LiveJobCallbacks callbacks;
   callbacks.progress = [this, job_id](int64_t frames) { Progress(job_id, frames); };
   callbacks.ended = [this, job_id](const LiveFollowSummary& summary) { Ended(job_id, summary); };

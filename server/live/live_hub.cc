@@ -107,6 +107,7 @@ void LiveHub::FrameSetArrived(const std::string& take_id, v1::FrameSet set,
       ++job.skipped;
     }
     // The last follower takes the set itself, the others a copy.
+    // NOLINTNEXTLINE(bugprone-use-after-move): only the last pass moves; no pass follows it.
     job.queue.emplace_back(i + 1 < followers.size() ? set : std::move(set), arrived_unix_ns);
     job.wake.notify_one();
   }

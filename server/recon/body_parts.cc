@@ -110,6 +110,7 @@ const BodyPartInfo& GetBodyPartInfo(BodyPart part) { return kParts[Index(part)];
 
 std::vector<std::string> BodyPartNames() {
   std::vector<std::string> names;
+  names.reserve(kParts.size());
   for (const BodyPartInfo& info : kParts) names.emplace_back(info.name);
   return names;
 }
@@ -136,8 +137,8 @@ PartPoses PartPosesFromJoints(const JointArray25& joints) {
   const Vector3d hip_line = Line(joints, J::kHipRight, J::kHipLeft);
   for (P part : kOrder) {
     const BodyPartInfo& info = kParts[Index(part)];
-    const Vector3d a = joints[body::Index(info.proximal)];
-    const Vector3d b = joints[body::Index(info.distal)];
+    const Vector3d& a = joints[body::Index(info.proximal)];
+    const Vector3d& b = joints[body::Index(info.distal)];
     PartPose& pose = poses[Index(part)];
     const bool joints_ok = Finite(a) && Finite(b) && (b - a).norm() >= kMinBoneLengthM;
     Matrix3d parent_rotation = Matrix3d::Identity();  // World axes without a parent.

@@ -358,7 +358,7 @@ absl::Status Catalog::Put(const TakeRow& row) {
   const v1::Take& t = row.take;
   RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
   auto fail = [&](const std::string& what) {
-    const absl::Status status = Error(what);
+    absl::Status status = Error(what);
     Exec("ROLLBACK").IgnoreError();
     return status;
   };

@@ -129,8 +129,7 @@ std::string ReenactmentStore::NewId() const {
   char stamp[32];
   std::strftime(stamp, sizeof(stamp), "%Y%m%d-%H%M%S", &utc);
   for (;;) {
-    const std::string id =
-        absl::StrFormat("r-%s-%04x", stamp, static_cast<unsigned>(random() & 0xFFFF));
+    std::string id = absl::StrFormat("r-%s-%04x", stamp, static_cast<unsigned>(random() & 0xFFFF));
     std::error_code ec;
     std::lock_guard<std::mutex> lock(mutex_);
     if (!entries_.contains(id) && !std::filesystem::exists(PathFor(id), ec) &&

@@ -202,7 +202,9 @@ absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const Body
   absl::Status first_error;
   take.pool().ParallelFor(0, static_cast<int>(views.size()), [&](int k) {
     if (cancelled) return;
-    const auto [instant, sensor] = views[k];
+    // Named locals, not a structured binding: the lambda below uses them.
+    const int instant = views[k].first;
+    const int sensor = views[k].second;
     absl::Status status = [&]() -> absl::Status {
       ASSIGN_OR_RETURN(const RgbImage colour,
                        take.LoadColor(instant, sensor, options.colour_denominator));

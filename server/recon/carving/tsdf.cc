@@ -100,8 +100,13 @@ absl::Status TsdfVolume::Integrate(const PosedCamera& camera, const DepthImageMm
               pixel.y() < height - 0.5f)) {
           continue;
         }
+        // The nearest pixel, halves up: both are >= -0.5 here, where the
+        // truncation is a floor (std::lround would take -0.5 to -1, off the
+        // image).
+        // NOLINTBEGIN(bugprone-incorrect-roundings)
         const int x = static_cast<int>(pixel.x() + 0.5f);
         const int y = static_cast<int>(pixel.y() + 0.5f);
+        // NOLINTEND(bugprone-incorrect-roundings)
         const uint16_t observed_mm = depth_mm.at(x, y);
         if (observed_mm == 0) continue;
         const float eta = observed_mm * 0.001f - in_camera.z();  // Projective distance.

@@ -8,7 +8,9 @@
 //   * latency of one job split across the workers (--segments = workers),
 //     when there are two or more;
 //   * the protocol's overhead: time from submit to the first lease, and the
-//     bytes the Work service streamed per job (take, part inputs, uploads).
+//     bytes the Work service streamed per job (JobAttempt.read_bytes: the
+//     take, or the frames each phase of a split job reads, and part inputs;
+//     part uploads).
 //
 //   build/bench/scale_out_e2e [--seconds 60] [--workers 1,2] [--jobs 2]
 //                             [--method body] [--option k=v,...]
@@ -95,14 +97,23 @@ struct JobTimes {
   double seconds = 0.0;        // Submit to the end.
   int64_t input_bytes = 0;     // Part files streamed to later parts.
   int64_t upload_bytes = 0;    // Part files uploaded (the reenactment not counted).
+  int64_t read_bytes = 0;      // Streamed by the server: take, selections, inputs.
 };
+
+// JobAttempt.read_bytes of the last attempt in `history`.
+int64_t LastRead(const nlohmann::json& history) {
+  return history.is_array() && !history.empty() ? history.back().value("read_bytes", int64_t{0})
+                                                : 0;
+}
 
 JobTimes TimesOf(const nlohmann::json& job) {
   JobTimes t;
   const double submitted = job["submitted_unix_ns"].get<double>();
   double started = job["started_unix_ns"].get<double>();
   int segments = job.value("segments", 0);
+  t.read_bytes = LastRead(job["attempt_history"]);
   for (const auto& part : job["parts"]) {
+    t.read_bytes += LastRead(part["attempt_history"]);
     const int64_t bytes = part.value("file_bytes", int64_t{0});
     const std::string name = part["name"].get<std::string>();
     if (name == "stitch") continue;
@@ -257,10 +268,12 @@ int Run(int argc, char** argv) {
       ids.push_back(*id);
     }
     double first_lease_sum = 0.0;
+    int64_t read_sum = 0;
     for (const std::string& id : ids) {
       const auto job = wait_for(id);
       if (!job) return 1;
       first_lease_sum += TimesOf(*job).first_lease_s;
+      read_sum += TimesOf(*job).read_bytes;
     }
     const double wall_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -269,7 +282,7 @@ int Run(int argc, char** argv) {
                          {"wall_s", wall_s},
                          {"jobs_per_hour", jobs_per_hour},
                          {"first_lease_s_mean", first_lease_sum / *jobs_per_run},
-                         {"take_bytes_streamed_per_job", take_bytes}};
+                         {"bytes_streamed_per_job", read_sum / *jobs_per_run}};
 
     // Latency: one job split across the workers.
     if (workers > 1) {
@@ -281,7 +294,8 @@ int Run(int argc, char** argv) {
       run["segmented"] = {{"segments", workers},
                           {"seconds", t.seconds},
                           {"first_lease_s", t.first_lease_s},
-                          {"take_bytes_streamed", take_bytes * (workers + 2)},
+                          {"bytes_streamed", t.read_bytes},
+                          {"take_bytes_streamed", t.read_bytes - t.input_bytes},
                           {"part_input_bytes", t.input_bytes},
                           {"part_upload_bytes", t.upload_bytes}};
     }

@@ -58,8 +58,10 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "common/base/flags.h"
+#include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/log/log.h"
 #include "common/rpc/channel.h"
@@ -203,6 +205,54 @@ std::string ReadPhase(const reenact::Flags& flags, reenact::recon::MethodInput& 
   return "";
 }
 
+// [first, end) runs of sorted, distinct frame indices.
+void AddRuns(const std::string& sensor_id, const std::vector<int64_t>& frames,
+             google::protobuf::RepeatedPtrField<reenact::v1::FrameRange>* ranges) {
+  for (size_t i = 0; i < frames.size();) {
+    size_t j = i + 1;
+    while (j < frames.size() && frames[j] == frames[j - 1] + 1) ++j;
+    reenact::v1::FrameRange* range = ranges->Add();
+    range->set_sensor_id(sensor_id);
+    range->set_first(frames[i]);
+    range->set_end(frames[j - 1] + 1);
+    i = j;
+  }
+}
+
+// The frames a phase of a segmented job decodes (WorkAgentOptions::
+// select_take): its method names them from the take without image bytes.
+absl::StatusOr<reenact::v1::TakeSelection> SelectTake(const reenact::v1::WorkLease& lease,
+                                                      const std::string& index_path) {
+  using reenact::recon::MethodPhase;
+  reenact::recon::MethodInput input;
+  input.take_path = index_path;
+  input.method = lease.job().method();
+  input.options.insert(lease.job().options().begin(), lease.job().options().end());
+  input.segment_count = lease.job().segments();
+  const std::string& part = lease.part();
+  int number = 0;
+  if (part == "prepare") {
+    input.phase = MethodPhase::kPrepare;
+  } else if (part == "stitch") {
+    input.phase = MethodPhase::kStitch;
+  } else if (absl::StartsWith(part, "segment-") &&
+             absl::SimpleAtoi(part.substr(std::strlen("segment-")), &number)) {
+    input.phase = MethodPhase::kSegment;
+    input.segment_index = number - 1;
+  } else {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the lease names part \"", part.substr(0, 64), "\", which is no phase"));
+  }
+  ASSIGN_OR_RETURN(const std::vector<reenact::recon::SensorFrameNeeds> needs,
+                   reenact::recon::FramesNeeded(input));
+  reenact::v1::TakeSelection selection;
+  for (const reenact::recon::SensorFrameNeeds& sensor : needs) {
+    AddRuns(sensor.sensor_id, sensor.depth_frames, selection.mutable_depth());
+    AddRuns(sensor.sensor_id, sensor.color_frames, selection.mutable_color());
+  }
+  return selection;
+}
+
 // reenact-worker --server: jobs from a server's Work service, each run by
 // this program in its one-job mode as a child.
 int RunNetworkWorker(const reenact::Flags& flags, const char* argv0) {
@@ -248,6 +298,7 @@ int RunNetworkWorker(const reenact::Flags& flags, const char* argv0) {
   if (const std::string assets = flags.GetOr("assets", ""); !assets.empty()) {
     options.asset_roots = absl::StrSplit(assets, ',', absl::SkipEmpty());
   }
+  options.select_take = &SelectTake;
   options.scratch_dir = flags.GetOr("scratch", "");
   options.name = flags.GetOr("name", "");
   options.once = flags.Has("once");

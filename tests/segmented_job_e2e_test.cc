@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <set>
 #include <string>
 #include <thread>
@@ -196,6 +197,53 @@ TEST_F(SegmentedJobEndToEnd, ThreeSegmentsOnTwoWorkersEqualTheWholeJob) {
     }
   }
   EXPECT_EQ(segment_workers.size(), 2u) << "the segments should run on both workers: " << show.out;
+
+  // What the server streamed: the whole job the take as stored; each phase
+  // of the segmented one the take without image bytes, then the images it
+  // decodes (prepare every depth, a segment its own frames, the stitch
+  // none), and its part inputs.
+  const CommandResult show_whole =
+      RunCommand(dir_, "show-whole",
+                 {Bin("reenact"), "jobs", "show", whole["job"]["job_id"].get<std::string>(),
+                  "--server", address_, "--json"});
+  const auto whole_job = nlohmann::json::parse(show_whole.out, nullptr, false);
+  ASSERT_TRUE(whole_job.is_object() && !whole_job["attempt_history"].empty()) << show_whole.out;
+  const int64_t whole_read = whole_job["attempt_history"].back()["read_bytes"].get<int64_t>();
+  // Per part: the take bytes streamed (its read less its part inputs).
+  std::map<std::string, int64_t> part_bytes;
+  for (const auto& part : job["parts"]) {
+    part_bytes[part["name"].get<std::string>()] = part.value("file_bytes", int64_t{0});
+  }
+  std::map<std::string, int64_t> take_read;
+  int64_t segmented_take_read = 0;
+  int64_t segmented_read = 0;
+  for (const auto& part : job["parts"]) {
+    const std::string name = part["name"].get<std::string>();
+    const int64_t read = part["attempt_history"].back()["read_bytes"].get<int64_t>();
+    int64_t inputs = 0;
+    if (name != "prepare") inputs += part_bytes["prepare"];
+    if (name == "stitch") {
+      for (const char* s : {"segment-1", "segment-2", "segment-3"}) inputs += part_bytes[s];
+    }
+    take_read[name] = read - inputs;
+    segmented_take_read += read - inputs;
+    segmented_read += read;
+  }
+  std::printf(
+      "[ segments ] take bytes streamed: whole job %.2f MB; segmented %.2f MB (prepare %.2f, "
+      "segments %.2f / %.2f / %.2f, stitch %.2f MB), plus %.2f MB of part files\n",
+      1e-6 * whole_read, 1e-6 * segmented_take_read, 1e-6 * take_read["prepare"],
+      1e-6 * take_read["segment-1"], 1e-6 * take_read["segment-2"], 1e-6 * take_read["segment-3"],
+      1e-6 * take_read["stitch"], 1e-6 * (segmented_read - segmented_take_read));
+  EXPECT_GT(whole_read, 0);
+  for (const auto& [name, read] : take_read) EXPECT_GT(read, 0) << name;
+  for (const char* segment : {"segment-1", "segment-2", "segment-3"}) {
+    EXPECT_LT(take_read[segment], whole_read * 3 / 4) << segment << " streamed the whole take";
+  }
+  // 6 s: 40 of the 90 instants lie near the 5 shape targets.
+  EXPECT_LT(take_read["prepare"], whole_read / 3) << "prepare decodes the depth near its targets";
+  EXPECT_LT(take_read["stitch"], whole_read / 10) << "the stitch decodes no image";
+  EXPECT_LT(segmented_take_read, 3 * whole_read / 2);
 
   // The two reenactments, frame by frame.
   const auto a = ReadReenactmentFile(ReenactmentFile(whole["reenactment"].get<std::string>()));

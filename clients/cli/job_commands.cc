@@ -41,6 +41,12 @@ std::string Duration(double seconds) {
   return absl::StrFormat("%ds", s);
 }
 
+// ", read N MB" for an attempt that streamed from the server.
+std::string ReadBytes(const v1::JobAttempt& a) {
+  if (a.read_bytes() <= 0) return "";
+  return absl::StrFormat(", read %.1f MB", 1e-6 * static_cast<double>(a.read_bytes()));
+}
+
 nlohmann::json AttemptsJson(const google::protobuf::RepeatedPtrField<v1::JobAttempt>& attempts) {
   nlohmann::json history = nlohmann::json::array();
   for (const v1::JobAttempt& a : attempts) {
@@ -48,7 +54,8 @@ nlohmann::json AttemptsJson(const google::protobuf::RepeatedPtrField<v1::JobAtte
                        {"worker", a.worker()},
                        {"started_unix_ns", a.started_unix_ns()},
                        {"ended_unix_ns", a.ended_unix_ns()},
-                       {"outcome", a.outcome()}});
+                       {"outcome", a.outcome()},
+                       {"read_bytes", a.read_bytes()}});
   }
   return history;
 }
@@ -414,7 +421,7 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
     out << "  attempt " << a.number() << "  on " << a.worker() << ", "
         << UtcTime(a.started_unix_ns()) << " .. "
         << (a.ended_unix_ns() == 0 ? "running" : UtcTime(a.ended_unix_ns()))
-        << (a.outcome().empty() ? "" : ": " + a.outcome()) << "\n";
+        << (a.outcome().empty() ? "" : ": " + a.outcome()) << ReadBytes(a) << "\n";
   }
   if (job->segments() > 0) out << "segments     " << job->segments() << "\n";
   for (const v1::JobPart& part : job->parts()) {
@@ -428,7 +435,7 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
       out << "    attempt " << a.number() << "  on " << a.worker() << ", "
           << UtcTime(a.started_unix_ns()) << " .. "
           << (a.ended_unix_ns() == 0 ? "running" : UtcTime(a.ended_unix_ns()))
-          << (a.outcome().empty() ? "" : ": " + a.outcome()) << "\n";
+          << (a.outcome().empty() ? "" : ": " + a.outcome()) << ReadBytes(a) << "\n";
     }
   }
   if (!job->reenactment_id().empty()) out << "reenactment  " << job->reenactment_id() << "\n";

@@ -351,6 +351,22 @@ absl::StatusOr<std::string> JobScheduler::LeasedTakePath(const std::string& leas
   return takes_->TakeFileForReading(take_id);
 }
 
+absl::StatusOr<std::string> JobScheduler::LeaseScratchDir(const std::string& lease_id) const {
+  std::string job_id;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    ASSIGN_OR_RETURN(const Running* run, HeldLeaseLocked(lease_id));
+    job_id = run->job_id;
+  }
+  const std::string dir = (fs::path(jobs_dir_) / job_id).string();
+  std::error_code error;
+  fs::create_directories(dir, error);
+  if (error) {
+    return absl::InternalError(absl::StrCat("cannot create ", dir, ": ", error.message()));
+  }
+  return dir;
+}
+
 absl::StatusOr<v1::HeartbeatResponse> JobScheduler::Heartbeat(const v1::HeartbeatRequest& request) {
   v1::JobProgress progress = request.progress();
   std::string job_id;

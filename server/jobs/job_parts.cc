@@ -157,6 +157,24 @@ void JobScheduler::AdvancePartsLocked(const std::string& job_id) {
   }
 }
 
+void JobScheduler::CountRead(const std::string& lease_id, int64_t bytes) {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Running*> run = HeldLeaseLocked(lease_id);
+  if (!run.ok() || bytes <= 0) return;
+  const std::string& part = (*run)->part;
+  (void)jobs_->Mutate((*run)->job_id, [&](v1::Job& j) {
+    auto* history = j.mutable_attempt_history();
+    if (!part.empty()) {
+      v1::JobPart* p = FindPart(j, part);
+      if (p == nullptr) return;
+      history = p->mutable_attempt_history();
+    }
+    if (history->empty()) return;
+    v1::JobAttempt* last = history->Mutable(history->size() - 1);
+    last->set_read_bytes(last->read_bytes() + bytes);
+  });
+}
+
 absl::StatusOr<v1::Job> JobScheduler::CompletePart(const Running& run, int64_t file_bytes) {
   {
     std::lock_guard<std::mutex> lock(mu_);

@@ -247,6 +247,13 @@ class JobScheduler {
   // worker. NotFound for an input the lease does not list.
   absl::StatusOr<std::string> LeasedTakePath(const std::string& lease_id,
                                              const std::string& input = "") const;
+  // A folder for files the server makes for one of the lease's reads (a
+  // take selection): the job's own folder, made if missing, deleted with
+  // the job. Aborted when the lease is not held.
+  absl::StatusOr<std::string> LeaseScratchDir(const std::string& lease_id) const;
+  // Adds `bytes` streamed to the lease's worker to its attempt
+  // (JobAttempt.read_bytes); nothing when the lease is no longer held.
+  void CountRead(const std::string& lease_id, int64_t bytes);
   // Renews the lease, sets the job's progress (with the ETA) and passes the
   // log lines to its watchers.
   absl::StatusOr<v1::HeartbeatResponse> Heartbeat(const v1::HeartbeatRequest& request);

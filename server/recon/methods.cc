@@ -201,4 +201,43 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   return result;
 }
 
+absl::StatusOr<std::vector<SensorFrameNeeds>> FramesNeeded(const MethodInput& input) {
+  const ReconstructionMethod* method = FindMethod(input.method);
+  if (method == nullptr) return methods::UnknownMethodError(MethodSpecs(), input.method);
+  OptionMap load_options, method_options;
+  SplitLoadOptions(input.options, &load_options, &method_options);
+  LoadOptions load;
+  RETURN_IF_ERROR(methods::ParseOptions(load_options, &load));
+  RETURN_IF_ERROR(method->CheckOptions(method_options));
+  ASSIGN_OR_RETURN(const std::unique_ptr<TakeFrames> take,
+                   TakeFrames::Load(input.take_path, load.frames));
+  ASSIGN_OR_RETURN(const TakeNeeds needs, method->Needs(*take, method_options, input.phase,
+                                                        input.segment_index, input.segment_count));
+  std::vector<SensorFrameNeeds> out(take->num_sensors());
+  for (int s = 0; s < take->num_sensors(); ++s) out[s].sensor_id = take->sensors()[s].sensor_id;
+  const auto add = [&](const std::vector<int>& instants, bool color) -> absl::Status {
+    for (const int i : instants) {
+      if (i < 0 || i >= take->num_instants()) {
+        return absl::InternalError(absl::StrCat("method ", input.method, " needs instant ", i,
+                                                " of ", take->num_instants()));
+      }
+      for (int s = 0; s < take->num_sensors(); ++s) {
+        const SensorView& view = take->instant(i).views[s];
+        if (!view.present) continue;
+        (color ? out[s].color_frames : out[s].depth_frames).push_back(view.frame_index);
+      }
+    }
+    return absl::OkStatus();
+  };
+  RETURN_IF_ERROR(add(needs.depth, false));
+  RETURN_IF_ERROR(add(needs.color, true));
+  for (SensorFrameNeeds& sensor : out) {
+    for (std::vector<int64_t>* frames : {&sensor.depth_frames, &sensor.color_frames}) {
+      std::sort(frames->begin(), frames->end());
+      frames->erase(std::unique(frames->begin(), frames->end()), frames->end());
+    }
+  }
+  return out;
+}
+
 }  // namespace reenact::recon

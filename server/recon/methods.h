@@ -40,15 +40,6 @@ struct LoadOptions {
 // reject (naming the key, or the known keys for an unknown one).
 absl::Status CheckJob(const std::string& method, const OptionMap& options);
 
-// Which part of a job a run makes (ReconstructionMethod::Prepare): the
-// whole reenactment, or one phase of a take split across several workers.
-enum class MethodPhase {
-  kWhole,    // The reenactment.
-  kPrepare,  // What every segment needs, from the whole take (a part file).
-  kSegment,  // One segment's part file, from the prepared one.
-  kStitch,   // The reenactment, from the prepared and every segment's part.
-};
-
 // Longest part file a run reads (an atlas of 8192 px has 1 GiB of sums).
 inline constexpr uint64_t kMaxPartFileBytes = uint64_t{2} << 30;
 
@@ -91,5 +82,20 @@ struct MethodResult {
 absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::string& out_path,
                                        const ProgressCallback& progress = {},
                                        const LogCallback& log = {});
+
+// The frames whose images one sensor's stream must hold for a run.
+struct SensorFrameNeeds {
+  std::string sensor_id;
+  std::vector<int64_t> depth_frames;  // Sorted, each once (the sensor's own frame_index).
+  std::vector<int64_t> color_frames;
+};
+
+// What a run of `input` (its phase) decodes of the take, by sensor and
+// frame: loads `input.take_path` (the take, or the take without image
+// bytes: ReadTake's empty selection) as RunMethod does and asks the method
+// (ReconstructionMethod::Needs). A worker that streams the take reads only
+// these frames' images. Errors as RunMethod's for the method, its options
+// and the take.
+absl::StatusOr<std::vector<SensorFrameNeeds>> FramesNeeded(const MethodInput& input);
 
 }  // namespace reenact::recon

@@ -1,6 +1,7 @@
 #include "server/recon/reconstruction_method.h"
 
 #include <algorithm>
+#include <numeric>
 
 #include "absl/strings/str_cat.h"
 
@@ -21,6 +22,19 @@ SegmentRange SegmentOf(int num_instants, int index, int count, int warmup) {
   range.end = static_cast<int>(int64_t{index + 1} * num_instants / count);
   range.warmup_first = std::max(0, range.first - std::max(0, warmup));
   return range;
+}
+
+TakeNeeds TakeNeeds::All(const TakeFrames& take) {
+  TakeNeeds all;
+  all.depth.resize(take.num_instants());
+  std::iota(all.depth.begin(), all.depth.end(), 0);
+  all.color = all.depth;
+  return all;
+}
+
+absl::StatusOr<TakeNeeds> ReconstructionMethod::Needs(const TakeFrames& take, const OptionMap&,
+                                                      MethodPhase, int, int) const {
+  return TakeNeeds::All(take);
 }
 
 absl::StatusOr<std::string> ReconstructionMethod::Prepare(const TakeFrames&, const OptionMap&,

@@ -62,6 +62,25 @@ struct SegmentRange {
 // `warmup` instants before its first (none before the take's start).
 SegmentRange SegmentOf(int num_instants, int index, int count, int warmup);
 
+// Which part of a job a run makes (ReconstructionMethod::Prepare): the
+// whole reenactment, or one phase of a take split across several workers.
+enum class MethodPhase {
+  kWhole,    // The reenactment.
+  kPrepare,  // What every segment needs, from the whole take (a part file).
+  kSegment,  // One segment's part file, from the prepared one.
+  kStitch,   // The reenactment, from the prepared and every segment's part.
+};
+
+// The images of the take a phase decodes, by instant (sorted, each once): a
+// worker that streams the take from the server asks for these bytes alone
+// (ReadTake's selection); the other frames come without their bytes.
+struct TakeNeeds {
+  std::vector<int> depth;  // Depth and actor mask.
+  std::vector<int> color;
+  // Every instant's depth and colour (what a method needs by default).
+  static TakeNeeds All(const TakeFrames& take);
+};
+
 class ReconstructionMethod {
  public:
   virtual ~ReconstructionMethod() = default;
@@ -99,6 +118,14 @@ class ReconstructionMethod {
                                              const MethodContext& context,
                                              const std::string& prepared,
                                              const std::vector<std::string>& segments) const;
+
+  // The images phase `phase` (segment `index` of `count`) decodes from
+  // `take`, which may be the take without any image bytes (it groups into
+  // the same instants). By default every instant's depth and colour; a
+  // segmentable method names only what each phase reads. Errors as the
+  // phase's for bad options.
+  virtual absl::StatusOr<TakeNeeds> Needs(const TakeFrames& take, const OptionMap& options,
+                                          MethodPhase phase, int index, int count) const;
 };
 
 // The phases of a segmentable method with options `Options` (see
@@ -113,6 +140,9 @@ struct SegmentFunctions {
   absl::StatusOr<Reenactment> (*stitch)(const TakeFrames& take, const Options& options,
                                         const MethodContext& context, const std::string& prepared,
                                         const std::vector<std::string>& segments) = nullptr;
+  // What each phase decodes (ReconstructionMethod::Needs); null: all.
+  absl::StatusOr<TakeNeeds> (*needs)(const TakeFrames& take, const Options& options,
+                                     MethodPhase phase, int index, int count) = nullptr;
 };
 
 // A method whose options are the struct `Options`: default-constructible,
@@ -194,6 +224,16 @@ class TypedMethod final : public ReconstructionMethod {
       return status;
     }
     return segments_.stitch(take, parsed, context, prepared, segments);
+  }
+
+  absl::StatusOr<TakeNeeds> Needs(const TakeFrames& take, const OptionMap& options,
+                                  MethodPhase phase, int index, int count) const override {
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    if (segments_.needs == nullptr) return TakeNeeds::All(take);
+    return segments_.needs(take, parsed, phase, index, count);
   }
 
  private:

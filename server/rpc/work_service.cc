@@ -4,14 +4,19 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
+#include "common/io/take.h"
+#include "common/io/take_selection.h"
 #include "proto/grpc_status.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/rpc/rpc_auth.h"
@@ -19,10 +24,16 @@
 namespace reenact::server {
 namespace {
 
-// Sends the take of a lease (or one of its inputs) chunk by chunk.
+// Sends the take of a lease (or one of its inputs, or a selection of the
+// take) chunk by chunk.
 class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
  public:
-  TakeStream(ServerContext& context, const v1::ReadTakeRequest& request) {
+  TakeStream(ServerContext& context, const v1::ReadTakeRequest& request)
+      : context_(context), lease_id_(request.lease_id()) {
+    if (request.has_selection()) {
+      StartSelection(context, request);
+      return;
+    }
     const absl::Status opened = Open(context, request.lease_id(), request.input());
     if (!opened.ok()) {
       Finish(ToGrpcStatus(opened));
@@ -41,6 +52,7 @@ class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
     }
     Next();
   }
+  void OnCancel() override { cancelled_.store(true); }
   void OnDone() override { delete this; }
 
  private:
@@ -57,8 +69,56 @@ class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
     return absl::OkStatus();
   }
 
+  // A selection is made into a file of the job's folder by a thread of its
+  // own (reading and writing the take takes seconds; gRPC's callback
+  // threads must not block), opened and unlinked at once (nothing is left
+  // behind, whatever happens to the stream), then streamed.
+  void StartSelection(ServerContext& context, const v1::ReadTakeRequest& request) {
+    if (!request.input().empty()) {
+      Finish(ToGrpcStatus(absl::InvalidArgumentError(
+          "a selection reads the take, not an input; leave input empty")));
+      return;
+    }
+    const absl::StatusOr<std::string> take = context.jobs->LeasedTakePath(request.lease_id(), "");
+    const absl::StatusOr<std::string> dir =
+        take.ok() ? context.jobs->LeaseScratchDir(request.lease_id()) : take.status();
+    if (!dir.ok()) {
+      Finish(ToGrpcStatus(dir.status()));
+      return;
+    }
+    static std::atomic<uint64_t> serial{0};
+    const std::string path = absl::StrCat(*dir, "/selection-", ::getpid(), "-", ++serial, ".mcap");
+    std::thread([this, take = *take, path, selection = request.selection()] {
+      const absl::Status made = MakeSelection(take, selection, path);
+      std::error_code ignored;
+      std::filesystem::remove(path, ignored);
+      if (!made.ok()) {
+        Finish(ToGrpcStatus(made));
+        return;
+      }
+      Next();  // Touches nothing of `this` after its StartWrite or Finish.
+    }).detach();
+  }
+
+  absl::Status MakeSelection(const std::string& take_path, const v1::TakeSelection& selection,
+                             const std::string& path) {
+    ASSIGN_OR_RETURN(const std::unique_ptr<TakeReader> take, TakeReader::Open(take_path));
+    RETURN_IF_ERROR(ValidateTakeSelection(*take, selection));
+    RETURN_IF_ERROR(
+        WriteTakeSelection(*take, selection, path, [this] { return cancelled_.load(); }));
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    struct stat st {};
+    if (fd_ < 0 || ::fstat(fd_, &st) != 0) {
+      return absl::InternalError(
+          absl::StrCat("the take selection cannot be read back: ", std::strerror(errno)));
+    }
+    size_ = static_cast<int64_t>(st.st_size);
+    return absl::OkStatus();
+  }
+
   void Next() {
     if (offset_ >= size_) {
+      context_.jobs->CountRead(lease_id_, size_);
       Finish(grpc::Status::OK);
       return;
     }
@@ -68,13 +128,17 @@ class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
       return;
     }
     chunk_.set_offset(offset_);
+    chunk_.set_file_bytes(size_);
     offset_ += n;
     StartWrite(&chunk_);
   }
 
+  ServerContext& context_;
+  const std::string lease_id_;
   int fd_ = -1;
   int64_t size_ = 0;
   int64_t offset_ = 0;
+  std::atomic<bool> cancelled_{false};
   v1::TakeChunk chunk_;
 };
 

@@ -20,6 +20,7 @@
 #include "common/base/subprocess.h"
 #include "common/base/time.h"
 #include "common/io/reenactment_file.h"
+#include "common/io/take_convert.h"
 #include "common/io/testing/small_reenactment.h"
 #include "common/testing/test_data.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
@@ -305,6 +306,101 @@ TEST_F(Work, BadCallsGetClearStatusesAndStoreNothing) {
   for (const auto& entry : fs::directory_iterator(dir_ + "/data/reenactments")) {
     EXPECT_EQ(entry.path().extension(), ".reen") << entry.path();
   }
+}
+
+TEST_F(Work, ATakeSelectionStreamsOnlyTheFramesItNamesAndTheAttemptCountsTheBytes) {
+  StartServer(NetworkOnly());
+  const v1::Job job = Submit({});
+  grpc::Status status;
+  const v1::LeaseResponse lease = Lease(5, &status);
+  ASSERT_TRUE(status.ok() && lease.has_lease()) << status.error_message();
+  const std::string lease_id = lease.lease().lease_id();
+  // Reads into `path`; the bytes, or -1 with *status set.
+  auto read = [&](const v1::TakeSelection* selection, const std::string& input,
+                  const std::string& path, grpc::Status* status) -> int64_t {
+    grpc::ClientContext context;
+    v1::ReadTakeRequest request;
+    request.set_lease_id(lease_id);
+    request.set_input(input);
+    if (selection != nullptr) *request.mutable_selection() = *selection;
+    auto reader = work_->ReadTake(&context, request);
+    v1::TakeChunk chunk;
+    std::string data;
+    int64_t stated = -1;
+    while (reader->Read(&chunk)) {
+      EXPECT_EQ(chunk.offset(), static_cast<int64_t>(data.size()));
+      stated = chunk.file_bytes();
+      data.append(chunk.data());
+    }
+    *status = reader->Finish();
+    if (!status->ok()) return -1;
+    EXPECT_EQ(stated, static_cast<int64_t>(data.size()));
+    std::ofstream(path, std::ios::binary) << data;
+    return static_cast<int64_t>(data.size());
+  };
+  const int64_t whole = read(nullptr, "", dir_ + "/whole.mcap", &status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(whole, lease.lease().take_bytes());
+  const v1::TakeSelection nothing;
+  const int64_t index = read(&nothing, "", dir_ + "/index.mcap", &status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  v1::TakeSelection first_two;
+  v1::FrameRange* range = first_two.add_depth();
+  range->set_sensor_id("k0");
+  range->set_first(0);
+  range->set_end(2);
+  *first_two.add_color() = *range;
+  const int64_t selected = read(&first_two, "", dir_ + "/selected.mcap", &status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  std::printf("[ selection ] whole take %lld bytes, without images %lld, frames 0-1 %lld\n",
+              static_cast<long long>(whole), static_cast<long long>(index),
+              static_cast<long long>(selected));
+  EXPECT_LT(index, whole);
+  EXPECT_GT(selected, index);
+  EXPECT_LT(selected, whole);
+
+  auto full = ReadRecordedTake(dir_ + "/whole.mcap");
+  auto part = ReadRecordedTake(dir_ + "/selected.mcap");
+  ASSERT_TRUE(full.ok() && part.ok()) << full.status() << part.status();
+  ASSERT_EQ(part->frames.size(), full->frames.size());
+  ASSERT_EQ(part->frame_sets.size(), full->frame_sets.size());
+  for (size_t i = 0; i < part->frames.size(); ++i) {
+    const SensorFrame& p = part->frames[i];
+    const SensorFrame& f = full->frames[i];
+    ASSERT_TRUE(p.depth && p.color && f.depth && f.color);
+    const bool kept = p.frame_index < 2;
+    EXPECT_EQ(p.depth->data, kept ? f.depth->data : "") << p.frame_index;
+    EXPECT_EQ(p.color->data, kept ? f.color->data : "") << p.frame_index;
+    EXPECT_EQ(p.depth->host_stamp_ns, f.depth->host_stamp_ns);
+  }
+
+  // Bad selections, and a selection of an input.
+  v1::TakeSelection unknown = first_two;
+  unknown.mutable_depth(0)->set_sensor_id("no-such-sensor");
+  EXPECT_EQ(read(&unknown, "", dir_ + "/bad.mcap", &status), -1);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  EXPECT_EQ(read(&nothing, "prepare", dir_ + "/bad.mcap", &status), -1);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  EXPECT_EQ(read(&nothing, "", dir_ + "/bad.mcap", &status), index) << "the lease still reads";
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  // Nothing the selections made is left in the server's data folder.
+  for (const auto& entry : fs::recursive_directory_iterator(dir_ + "/data")) {
+    EXPECT_EQ(entry.path().filename().string().rfind("selection-", 0), std::string::npos)
+        << entry.path();
+  }
+
+  const v1::Job running = Get(job.job_id());
+  ASSERT_FALSE(running.attempt_history().empty());
+  EXPECT_EQ(running.attempt_history().rbegin()->read_bytes(), whole + 2 * index + selected);
+  // A lease that ended reads nothing.
+  grpc::ClientContext context;
+  v1::FailRequest fail;
+  fail.set_lease_id(lease_id);
+  fail.set_error("enough");
+  v1::FailResponse failed;
+  ASSERT_TRUE(work_->Fail(&context, fail, &failed).ok());
+  EXPECT_EQ(read(&nothing, "", dir_ + "/bad.mcap", &status), -1);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED) << status.error_message();
 }
 
 TEST_F(Work, ACancelledJobStopsItsWorkersJob) {

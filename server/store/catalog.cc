@@ -111,7 +111,8 @@ std::string AttemptsToJson(const google::protobuf::RepeatedPtrField<v1::JobAttem
                  {"worker", a.worker()},
                  {"started_unix_ns", a.started_unix_ns()},
                  {"ended_unix_ns", a.ended_unix_ns()},
-                 {"outcome", a.outcome()}});
+                 {"outcome", a.outcome()},
+                 {"read_bytes", a.read_bytes()}});
   }
   return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
@@ -129,6 +130,7 @@ void AttemptsFromJson(const std::string& text,
     attempt->set_started_unix_ns(a.value("started_unix_ns", int64_t{0}));
     attempt->set_ended_unix_ns(a.value("ended_unix_ns", int64_t{0}));
     attempt->set_outcome(a.value("outcome", ""));
+    attempt->set_read_bytes(a.value("read_bytes", int64_t{0}));
   }
 }
 

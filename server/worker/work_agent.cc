@@ -207,22 +207,26 @@ class Heartbeats {
   std::thread thread_;
 };
 
-// Writes the lease's take (`input` empty) or one of its inputs, of `bytes`
-// bytes, to `path`, checking offsets and the size.
+// Writes the lease's take (`input` empty; with `selection`, the part of it
+// the selection names) or one of its inputs to `path`, checking offsets
+// and the size: `bytes`, or the size the chunks state (bytes < 0).
 absl::Status FetchFile(v1::Work::Stub* stub, const v1::WorkLease& lease, const std::string& input,
-                       int64_t bytes, const std::string& path) {
-  const std::string what = input.empty() ? "take" : "input " + input;
+                       const v1::TakeSelection* selection, int64_t bytes, const std::string& path) {
+  const std::string what =
+      input.empty() ? (selection != nullptr ? "take selection" : "take") : "input " + input;
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return absl::InternalError(absl::StrCat("cannot write ", path));
   grpc::ClientContext context;
   v1::ReadTakeRequest request;
   request.set_lease_id(lease.lease_id());
   request.set_input(input);
+  if (selection != nullptr) *request.mutable_selection() = *selection;
   std::unique_ptr<grpc::ClientReader<v1::TakeChunk>> reader = stub->ReadTake(&context, request);
   v1::TakeChunk chunk;
   int64_t received = 0;
   while (reader->Read(&chunk)) {
-    if (chunk.offset() != received ||
+    if (bytes < 0 && received == 0 && chunk.file_bytes() > 0) bytes = chunk.file_bytes();
+    if (chunk.offset() != received || bytes < 0 ||
         received + static_cast<int64_t>(chunk.data().size()) > bytes) {
       context.TryCancel();
       (void)reader->Finish();
@@ -243,17 +247,38 @@ absl::Status FetchFile(v1::Work::Stub* stub, const v1::WorkLease& lease, const s
 }
 
 // The lease's take, then each of its inputs, into `dir`; their paths
-// (the take first).
+// (the take first). A phase of a segmented job with `select_take` reads the
+// take without image bytes first and then only the images `select_take`
+// names; an error of `select_take` is the job's (`*job_error`).
 absl::StatusOr<std::vector<std::string>> FetchInputs(v1::Work::Stub* stub,
                                                      const v1::WorkLease& lease,
                                                      const std::string& dir,
-                                                     const std::optional<std::string>& local_take) {
+                                                     const std::optional<std::string>& local_take,
+                                                     const TakeSelector& select_take,
+                                                     bool* job_error) {
   std::vector<std::string> paths;
   if (local_take.has_value()) {
     paths.push_back(*local_take);
+  } else if (select_take && !lease.part().empty()) {
+    const std::string index = (fs::path(dir) / "take-index.mcap").string();
+    const v1::TakeSelection nothing;
+    RETURN_IF_ERROR(FetchFile(stub, lease, "", &nothing, -1, index));
+    absl::StatusOr<v1::TakeSelection> selection = select_take(lease, index);
+    if (!selection.ok()) {
+      *job_error = true;
+      return selection.status();
+    }
+    if (selection->depth_size() + selection->color_size() == 0) {
+      paths.push_back(index);
+    } else {
+      paths.push_back((fs::path(dir) / "take.mcap").string());
+      RETURN_IF_ERROR(FetchFile(stub, lease, "", &*selection, -1, paths.back()));
+      std::error_code ignored;
+      fs::remove(index, ignored);
+    }
   } else {
     paths.push_back((fs::path(dir) / "take.mcap").string());
-    RETURN_IF_ERROR(FetchFile(stub, lease, "", lease.take_bytes(), paths.back()));
+    RETURN_IF_ERROR(FetchFile(stub, lease, "", nullptr, lease.take_bytes(), paths.back()));
   }
   for (const v1::WorkInput& input : lease.inputs()) {
     // Names are the server's ("prepare", "segment-2"); kept to a safe set.
@@ -262,7 +287,7 @@ absl::StatusOr<std::vector<std::string>> FetchInputs(v1::Work::Stub* stub,
       if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
     }
     paths.push_back((fs::path(dir) / (file + ".part")).string());
-    RETURN_IF_ERROR(FetchFile(stub, lease, input.name(), input.bytes(), paths.back()));
+    RETURN_IF_ERROR(FetchFile(stub, lease, input.name(), nullptr, input.bytes(), paths.back()));
   }
   return paths;
 }
@@ -400,11 +425,20 @@ class Agent {
             .string();
     const std::optional<std::string> local =
         options_.local_take ? options_.local_take(lease.lease_id()) : std::nullopt;
-    absl::StatusOr<std::vector<std::string>> inputs = FetchInputs(stub_.get(), lease, dir, local);
+    bool job_error = false;
+    absl::StatusOr<std::vector<std::string>> inputs =
+        FetchInputs(stub_.get(), lease, dir, local, options_.select_take, &job_error);
     if (!inputs.ok()) {
       beats.Stop(false);
       if (absl::IsAborted(inputs.status())) {
         return Lost(lease, std::string(inputs.status().message()));
+      }
+      if (job_error) {
+        SendFail(
+            lease,
+            absl::StrCat("the job's phase cannot name its frames: ", inputs.status().message()), {},
+            /*give_back=*/false);
+        return false;
       }
       SendFail(lease,
                absl::StrCat("the worker could not fetch its inputs: ", inputs.status().message()),

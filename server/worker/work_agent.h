@@ -27,8 +27,16 @@
 
 #include "absl/status/statusor.h"
 #include "common/rpc/channel.h"
+#include "reenact/v1/work_service.pb.h"
 
 namespace reenact::server {
+
+// The part of the take a phase of a segmented job reads: given the lease
+// and the take without any image bytes (ReadTake with an empty selection),
+// the frames whose images to stream (reenact-worker asks the job's method,
+// ReconstructionMethod::Needs).
+using TakeSelector = std::function<absl::StatusOr<v1::TakeSelection>(
+    const v1::WorkLease& lease, const std::string& index_path)>;
 
 struct WorkAgentOptions {
   // The server: HOST:PORT, or unix:PATH.
@@ -40,6 +48,9 @@ struct WorkAgentOptions {
   // Where a leased job's take can be read without streaming it (a server's
   // own workers: the take file itself); empty, or none: ReadTake.
   std::function<std::optional<std::string>(const std::string& lease_id)> local_take;
+  // Phases of segmented jobs stream only the frames this names (when the
+  // take is streamed); null: the whole take.
+  TakeSelector select_take;
   // The program that runs one job (reenact-worker; tests give a fake).
   std::string job_program;
   // Methods this worker runs; empty: all the server lists.

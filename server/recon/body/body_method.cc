@@ -6,6 +6,7 @@
 #include <cmath>
 #include <memory>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <string>
 #include <vector>
@@ -122,13 +123,32 @@ using CloudSource = std::function<absl::StatusOr<const bodyfit::PointCloud*>(int
 // the clouds of instants looked at are asked for, so that a segmented run
 // need not build them all; when every instant is usable the targets
 // themselves are chosen.
+// False when a sensor's depth at `instant` came without its bytes (a take
+// streamed for the prepare phase holds only the instants BodyNeeds names).
+bool HasDepthBytes(const Instant& instant) {
+  for (const SensorView& view : instant.views) {
+    if (view.present && view.depth_data.empty()) return false;
+  }
+  return true;
+}
+
+// The instants whose clouds the shape may be fitted on, in the order
+// ChooseShapeInstants looks at them: per target, the first
+// kShapeSearchInstants instants with a torso outward from it.
+constexpr int kShapeSearchInstants = 8;
+
+int ShapeTarget(int k, int count, int n) {
+  return static_cast<int>(int64_t{2 * k + 1} * n / (2 * count));
+}
+
 absl::StatusOr<std::vector<int>> ChooseShapeInstants(const TakeFrames& take, int shape_frames,
                                                      const CloudSource& cloud_of) {
   const int n = take.num_instants();
   std::vector<int8_t> usable(n, -1);  // -1: not looked at yet.
   auto is_usable = [&](int i) -> absl::StatusOr<bool> {
     if (usable[i] < 0) {
-      bool ok = bodyfit::HasTorso(take.instant(i).joints_in_world_m);
+      bool ok =
+          bodyfit::HasTorso(take.instant(i).joints_in_world_m) && HasDepthBytes(take.instant(i));
       if (ok) {
         ASSIGN_OR_RETURN(const bodyfit::PointCloud* cloud, cloud_of(i));
         ok = cloud->size() >= kMinPoints;
@@ -141,7 +161,7 @@ absl::StatusOr<std::vector<int>> ChooseShapeInstants(const TakeFrames& take, int
   std::vector<int> chosen;
   std::vector<bool> taken(n, false);
   for (int k = 0; k < count; ++k) {
-    const int target = static_cast<int>(int64_t{2 * k + 1} * n / (2 * count));
+    const int target = ShapeTarget(k, count, n);
     for (int d = 0; d < n; ++d) {
       int found = -1;
       for (const int i : {target + d, target - d}) {
@@ -686,6 +706,59 @@ absl::StatusOr<Reenactment> StitchBody(const TakeFrames& take, const BodyMethodO
   }
   return data;
 }
+absl::StatusOr<TakeNeeds> BodyNeeds(const TakeFrames& take, const BodyMethodOptions& o,
+                                    MethodPhase phase, int index, int count) {
+  RETURN_IF_ERROR(o.Validate());
+  TakeNeeds needs;
+  const int n = take.num_instants();
+  switch (phase) {
+    case MethodPhase::kWhole:
+      return TakeNeeds::All(take);
+    case MethodPhase::kPrepare: {
+      // The shape's instants are chosen by their clouds, outward from each
+      // target (ChooseShapeInstants): the depth of the first
+      // kShapeSearchInstants instants with a torso around each. A take
+      // where all of them have too few points gets its shape from farther
+      // instants in a whole run, and from fewer here. No colour.
+      const int count = std::min(o.fit.shape_frames, n);
+      std::vector<bool> added(n, false);
+      for (int k = 0; k < count; ++k) {
+        const int target = ShapeTarget(k, count, n);
+        int found = 0;
+        for (int d = 0; d < n && found < kShapeSearchInstants; ++d) {
+          for (int side = 0; side < (d == 0 ? 1 : 2) && found < kShapeSearchInstants; ++side) {
+            const int i = side == 0 ? target + d : target - d;
+            if (i < 0 || i >= n || !bodyfit::HasTorso(take.instant(i).joints_in_world_m)) continue;
+            ++found;
+            if (!added[i]) needs.depth.push_back(i);
+            added[i] = true;
+          }
+        }
+      }
+      std::sort(needs.depth.begin(), needs.depth.end());
+      return needs;
+    }
+    case MethodPhase::kSegment: {
+      if (count < 1 || index < 0 || index >= count) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("segment ", index, " of ", count, " does not exist"));
+      }
+      // As FitBodySegment: the clouds from the warm-up on, the colour of
+      // the atlas's instants (every k-th of the whole take) in the segment.
+      const int warmup = static_cast<int>(std::lround(o.segment_warmup_s * take.fps()));
+      const SegmentRange range = SegmentOf(n, index, count, warmup);
+      for (int i = range.warmup_first; i < range.end; ++i) needs.depth.push_back(i);
+      for (int i = range.first; i < range.end; ++i) {
+        if (i % o.atlas.every == 0) needs.color.push_back(i);
+      }
+      return needs;
+    }
+    case MethodPhase::kStitch:
+      return needs;  // Part files and the instants' stamps alone.
+  }
+  return needs;
+}
+
 const ReconstructionMethod& BodyMethod() {
   static const TypedMethod<BodyMethodOptions> method(
       {"body",
@@ -695,7 +768,7 @@ const ReconstructionMethod& BodyMethod() {
        methods::TextureMode::kBodyAtlas,
        {}},
       &RunBody, methods::DescribeOptions<LiveBodyOptions>(),
-      SegmentFunctions<BodyMethodOptions>{&PrepareBody, &FitBodySegment, &StitchBody});
+      SegmentFunctions<BodyMethodOptions>{&PrepareBody, &FitBodySegment, &StitchBody, &BodyNeeds});
   return method;
 }
 

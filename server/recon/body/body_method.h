@@ -95,6 +95,13 @@ absl::StatusOr<Reenactment> StitchBody(const TakeFrames& take, const BodyMethodO
                                        const MethodContext& context, const std::string& prepared,
                                        const std::vector<std::string>& segments);
 
+// What each phase decodes (ReconstructionMethod::Needs): prepare every
+// instant's depth (the shape's instants are chosen by their clouds),
+// segment K the depth from its warm-up on and the colour of the atlas's
+// instants in it, the stitch no image at all.
+absl::StatusOr<TakeNeeds> BodyNeeds(const TakeFrames& take, const BodyMethodOptions& options,
+                                    MethodPhase phase, int index, int count);
+
 // The method "body" for the registry (registry.cc); it can follow a take
 // live (live_body.h, LiveBodyOptions).
 const ReconstructionMethod& BodyMethod();

@@ -7,14 +7,18 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "absl/strings/str_cat.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/jpeg.h"
 #include "common/io/proto_convert.h"
+#include "common/io/take.h"
+#include "common/io/take_selection.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 #include "reenact/v1/segments.pb.h"
@@ -156,6 +160,108 @@ TEST_F(BodySegments, ThreeSegmentsEqualTheWholeRun) {
   EXPECT_LE(vertex_mm, 1.0);
   // Equal sums but for the order of float additions and the JPEG coding.
   EXPECT_GE(atlas_psnr, 40.0);
+}
+
+// The take with the image bytes of only what `needs` names (as a worker
+// that streams it gets it: ReadTake's selection), loaded.
+std::unique_ptr<TakeFrames> Selected(const std::string& path, const TakeFrames& take,
+                                     const TakeNeeds& needs, const std::string& out) {
+  v1::TakeSelection selection;
+  const auto add = [&](const std::vector<int>& instants,
+                       google::protobuf::RepeatedPtrField<v1::FrameRange>* ranges) {
+    for (const int i : instants) {
+      for (int s = 0; s < take.num_sensors(); ++s) {
+        const SensorView& view = take.instant(i).views[s];
+        if (!view.present) continue;
+        v1::FrameRange* range = ranges->Add();
+        range->set_sensor_id(take.sensors()[s].sensor_id);
+        range->set_first(view.frame_index);
+        range->set_end(view.frame_index + 1);
+      }
+    }
+  };
+  add(needs.depth, selection.mutable_depth());
+  add(needs.color, selection.mutable_color());
+  auto reader = TakeReader::Open(path);
+  EXPECT_TRUE(reader.ok()) << reader.status();
+  if (!reader.ok()) return nullptr;
+  const absl::Status written = WriteTakeSelection(**reader, selection, out);
+  EXPECT_TRUE(written.ok()) << written;
+  auto loaded = TakeFrames::Load(out);
+  EXPECT_TRUE(loaded.ok()) << loaded.status();
+  return loaded.ok() ? std::move(*loaded) : nullptr;
+}
+
+TEST_F(BodySegments, EachPhaseOnlyDecodesTheFramesItNames) {
+  const BodyMethodOptions options = Options();
+  const std::string dir = reenact::testing::MakeTempDir("body_segments_needs");
+  constexpr int kCount = 2;
+  const int n = take_->num_instants();
+
+  // Prepare: the depth near the shape's targets, no colour.
+  auto prepare_needs = BodyNeeds(*take_, options, MethodPhase::kPrepare, 0, kCount);
+  ASSERT_TRUE(prepare_needs.ok()) << prepare_needs.status();
+  EXPECT_TRUE(prepare_needs->color.empty());
+  EXPECT_LT(prepare_needs->depth.size(), static_cast<size_t>(n));
+  auto prepare_take = Selected(*path_, *take_, *prepare_needs, dir + "/prepare.mcap");
+  ASSERT_NE(prepare_take, nullptr);
+  ASSERT_EQ(prepare_take->num_instants(), n) << "the same instants";
+  auto whole_prepared = PrepareBody(*take_, options);
+  auto prepared = PrepareBody(*prepare_take, options);
+  ASSERT_TRUE(whole_prepared.ok() && prepared.ok()) << prepared.status();
+  v1::BodyShapePart a, b;
+  ASSERT_TRUE(a.ParseFromString(*whole_prepared) && b.ParseFromString(*prepared));
+  EXPECT_EQ(std::vector<int>(a.shape_instants().begin(), a.shape_instants().end()),
+            std::vector<int>(b.shape_instants().begin(), b.shape_instants().end()));
+  ASSERT_EQ(a.shape_size(), b.shape_size());
+  for (int k = 0; k < a.shape_size(); ++k) EXPECT_EQ(a.shape(k), b.shape(k)) << k;
+
+  // Each segment: its frames' depth from the warm-up on, the atlas's colour.
+  std::vector<std::string> segments;
+  for (int k = 0; k < kCount; ++k) {
+    auto needs = BodyNeeds(*take_, options, MethodPhase::kSegment, k, kCount);
+    ASSERT_TRUE(needs.ok()) << needs.status();
+    EXPECT_LT(needs->depth.size(), static_cast<size_t>(n));
+    EXPECT_LE(needs->color.size(), needs->depth.size() / 2 + 1) << "every other instant's colour";
+    auto segment_take =
+        Selected(*path_, *take_, *needs, absl::StrCat(dir, "/segment-", k, ".mcap"));
+    ASSERT_NE(segment_take, nullptr);
+    auto whole_segment = FitBodySegment(*take_, options, {}, *prepared, k, kCount);
+    auto segment = FitBodySegment(*segment_take, options, {}, *prepared, k, kCount);
+    ASSERT_TRUE(whole_segment.ok() && segment.ok()) << segment.status();
+    v1::BodySegmentPart x, y;
+    ASSERT_TRUE(x.ParseFromString(*whole_segment) && y.ParseFromString(*segment));
+    ASSERT_EQ(x.frames_size(), y.frames_size());
+    for (int f = 0; f < x.frames_size(); ++f) {
+      EXPECT_EQ(x.frames(f).SerializeAsString(), y.frames(f).SerializeAsString()) << f;
+    }
+    EXPECT_EQ(x.atlas_views(), y.atlas_views()) << "the same colour images";
+    segments.push_back(*std::move(segment));
+  }
+
+  // The stitch: no image at all.
+  auto stitch_needs = BodyNeeds(*take_, options, MethodPhase::kStitch, 0, kCount);
+  ASSERT_TRUE(stitch_needs.ok());
+  EXPECT_TRUE(stitch_needs->depth.empty() && stitch_needs->color.empty());
+  auto index = Selected(*path_, *take_, *stitch_needs, dir + "/index.mcap");
+  ASSERT_NE(index, nullptr);
+  auto stitched = StitchBody(*index, options, {}, *prepared, segments);
+  auto whole_stitched = StitchBody(*take_, options, {}, *prepared, segments);
+  ASSERT_TRUE(stitched.ok() && whole_stitched.ok()) << stitched.status();
+  EXPECT_EQ(stitched->body->atlas_jpeg, whole_stitched->body->atlas_jpeg);
+  ASSERT_EQ(stitched->frames.size(), whole_stitched->frames.size());
+  for (size_t i = 0; i < stitched->frames.size(); ++i) {
+    EXPECT_EQ(stitched->frames[i].stamp_ns, whole_stitched->frames[i].stamp_ns);
+  }
+  std::printf(
+      "body, %d instants in %d segments: prepare decodes the depth of %zu instants, the "
+      "segments depth of %zu and %zu and colour of %zu and %zu, the stitch none; every phase's "
+      "result equals its result on the whole take\n",
+      n, kCount, prepare_needs->depth.size(),
+      BodyNeeds(*take_, options, MethodPhase::kSegment, 0, kCount)->depth.size(),
+      BodyNeeds(*take_, options, MethodPhase::kSegment, 1, kCount)->depth.size(),
+      BodyNeeds(*take_, options, MethodPhase::kSegment, 0, kCount)->color.size(),
+      BodyNeeds(*take_, options, MethodPhase::kSegment, 1, kCount)->color.size());
 }
 
 TEST_F(BodySegments, PartsThatDoNotFitAreRefused) {

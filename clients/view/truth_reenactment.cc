@@ -14,7 +14,8 @@
 #include "common/base/status_macros.h"
 #include "common/io/mask_codec.h"
 #include "common/io/proto_convert.h"
-#include "common/io/reenactment_convert.h"
+#include "common/io/reenactment_file.h"
+#include "common/io/take_convert.h"
 #include "common/render/mesh_data.h"
 #include "common/render/offscreen_renderer.h"
 
@@ -298,10 +299,7 @@ absl::StatusOr<Reenactment> MakeTruthBodyReenactment(const TakeReader& take,
   info.frame_count = static_cast<int>(bodies.size());
   info.fps = take.info().fps();
   info.generator = "truth_reenactment (test)";
-  for (const auto& [id, calibration] : take.sensors()) {
-    ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
-    info.sensors.push_back(std::move(sensor));
-  }
+  ASSIGN_OR_RETURN(info.sensors, TakeSensorCalibrations(take));
   ASSIGN_OR_RETURN(data.body, BuildBodyMesh(model, shape, std::move(atlas)));
   for (size_t f = 0; f < bodies.size(); ++f) {
     const auto truth = meshes.find(static_cast<int64_t>(f));
@@ -342,10 +340,7 @@ absl::StatusOr<Reenactment> MakeTruthReenactment(const TakeReader& take,
   info.fps = take.info().fps();
   info.generator = "truth_reenactment (test)";
   info.part_names.assign(kPartNames.begin(), kPartNames.end());
-  for (const auto& [id, calibration] : take.sensors()) {
-    ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
-    info.sensors.push_back(std::move(sensor));
-  }
+  ASSIGN_OR_RETURN(info.sensors, TakeSensorCalibrations(take));
   Parts parts = CutParts(model, posed[0]);
   data.parts = parts.meshes;
   for (size_t f = 0; f < bodies.size(); ++f) {

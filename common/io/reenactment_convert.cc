@@ -32,103 +32,6 @@ std::vector<float> FlatFloats(const float* data, Eigen::Index count) {
   return std::vector<float>(data, data + count);
 }
 
-absl::StatusOr<PartMesh> PartMeshFromProto(const v1::PartMesh& m) {
-  PartMesh mesh;
-  mesh.part = m.part();
-  mesh.name = m.name();
-  ASSIGN_OR_RETURN(const std::vector<float> positions, UnpackFloats(m.positions_in_part_m_f32()));
-  ASSIGN_OR_RETURN(const std::vector<float> normals, UnpackFloats(m.normals_in_part_f32()));
-  ASSIGN_OR_RETURN(const std::vector<float> uvs, UnpackFloats(m.uvs_f32()));
-  const auto n = static_cast<Eigen::Index>(positions.size() / 3);
-  mesh.positions_in_part_m = Eigen::Map<const Eigen::Matrix3Xf>(positions.data(), 3, n);
-  if (!normals.empty()) {
-    mesh.normals_in_part = Eigen::Map<const Eigen::Matrix3Xf>(normals.data(), 3, n);
-  }
-  if (!uvs.empty()) mesh.uvs = Eigen::Map<const Eigen::Matrix2Xf>(uvs.data(), 2, n);
-  mesh.triangles.reserve(static_cast<size_t>(m.triangle_indices_size() / 3));
-  for (int i = 0; i + 2 < m.triangle_indices_size(); i += 3) {
-    mesh.triangles.emplace_back(static_cast<int>(m.triangle_indices(i)),
-                                static_cast<int>(m.triangle_indices(i + 1)),
-                                static_cast<int>(m.triangle_indices(i + 2)));
-  }
-  mesh.baked_texture_jpeg = m.baked_texture_jpeg();
-  mesh.radius_rate = m.radius_rate();
-  mesh.reference_length_m = m.reference_length_m();
-  return mesh;
-}
-
-v1::PartMesh PartMeshToProto(const PartMesh& mesh) {
-  v1::PartMesh m;
-  m.set_part(mesh.part);
-  m.set_name(mesh.name);
-  m.set_positions_in_part_m_f32(
-      PackFloats(FlatFloats(mesh.positions_in_part_m.data(), mesh.positions_in_part_m.size())));
-  m.set_normals_in_part_f32(
-      PackFloats(FlatFloats(mesh.normals_in_part.data(), mesh.normals_in_part.size())));
-  m.set_uvs_f32(PackFloats(FlatFloats(mesh.uvs.data(), mesh.uvs.size())));
-  m.mutable_triangle_indices()->Reserve(static_cast<int>(3 * mesh.triangles.size()));
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    for (int c = 0; c < 3; ++c) m.add_triangle_indices(static_cast<uint32_t>(t[c]));
-  }
-  m.set_baked_texture_jpeg(mesh.baked_texture_jpeg);
-  m.set_radius_rate(mesh.radius_rate);
-  m.set_reference_length_m(mesh.reference_length_m);
-  return m;
-}
-
-PartPose PartPoseFromProto(const v1::PartPose& m) {
-  // A hidden part keeps the pose it was given where that pose is a rigid
-  // transform (a method may hide a part it did pose).
-  PartPose pose;
-  const Eigen::Quaterniond q = FromProto(m.world_from_part().rotation());
-  const Eigen::Vector3d t = FromProto(m.world_from_part().translation_m());
-  if (!(q.norm() > 1e-9) || !std::isfinite(q.norm()) || !t.allFinite()) return pose;
-  pose.world_from_part.linear() = q.normalized().toRotationMatrix();
-  pose.world_from_part.translation() = t;
-  pose.scale = m.scale() > 0 ? m.scale() : 1.0;
-  pose.valid = m.valid();
-  return pose;
-}
-
-v1::PartPose PartPoseToProto(const PartPose& pose) {
-  v1::PartPose m;
-  *m.mutable_world_from_part()->mutable_rotation() =
-      ToProto(Eigen::Quaterniond(pose.world_from_part.linear()));
-  *m.mutable_world_from_part()->mutable_translation_m() =
-      ToProto(Eigen::Vector3d(pose.world_from_part.translation()));
-  m.set_scale(static_cast<float>(pose.scale));
-  m.set_valid(pose.valid);
-  return m;
-}
-
-TextureKeyframe KeyframeFromProto(const v1::TextureKeyframe& m) {
-  TextureKeyframe k;
-  k.frame_index = m.frame_index();
-  k.sensor_id = m.sensor_id();
-  k.stamp_ns = m.stamp_ns();
-  k.color_jpeg = m.color_jpeg();
-  k.crop_x_px = m.crop_x_px();
-  k.crop_y_px = m.crop_y_px();
-  k.mask_rle = m.mask_rle();
-  k.vertex_visible_bits.assign(m.vertex_visible_bits().begin(), m.vertex_visible_bits().end());
-  k.crop_scale = m.crop_scale();
-  return k;
-}
-
-v1::TextureKeyframe KeyframeToProto(const TextureKeyframe& k) {
-  v1::TextureKeyframe m;
-  m.set_frame_index(k.frame_index);
-  m.set_sensor_id(k.sensor_id);
-  m.set_stamp_ns(k.stamp_ns);
-  m.set_color_jpeg(k.color_jpeg);
-  m.set_crop_x_px(k.crop_x_px);
-  m.set_crop_y_px(k.crop_y_px);
-  m.set_mask_rle(k.mask_rle);
-  for (const std::string& bits : k.vertex_visible_bits) m.add_vertex_visible_bits(bits);
-  m.set_crop_scale(k.crop_scale);
-  return m;
-}
-
 std::optional<methods::TextureMode> TextureModeFromProto(v1::TextureMode mode) {
   switch (mode) {
     case v1::TEXTURE_MODE_POSE_CLOSEST:
@@ -183,6 +86,107 @@ v1::ReenactmentInfo InfoToProto(const ReenactmentInfo& info) {
 }
 
 }  // namespace
+
+absl::StatusOr<PartMesh> PartMeshFromProto(const v1::PartMesh& m) {
+  PartMesh mesh;
+  mesh.part = m.part();
+  mesh.name = m.name();
+  ASSIGN_OR_RETURN(const std::vector<float> positions, UnpackFloats(m.positions_in_part_m_f32()));
+  ASSIGN_OR_RETURN(const std::vector<float> normals, UnpackFloats(m.normals_in_part_f32()));
+  ASSIGN_OR_RETURN(const std::vector<float> uvs, UnpackFloats(m.uvs_f32()));
+  const auto n = static_cast<Eigen::Index>(positions.size() / 3);
+  mesh.positions_in_part_m = Eigen::Map<const Eigen::Matrix3Xf>(positions.data(), 3, n);
+  if (!normals.empty()) {
+    mesh.normals_in_part = Eigen::Map<const Eigen::Matrix3Xf>(normals.data(), 3, n);
+  }
+  if (!uvs.empty()) mesh.uvs = Eigen::Map<const Eigen::Matrix2Xf>(uvs.data(), 2, n);
+  mesh.triangles.reserve(static_cast<size_t>(m.triangle_indices_size() / 3));
+  for (int i = 0; i + 2 < m.triangle_indices_size(); i += 3) {
+    mesh.triangles.emplace_back(static_cast<int>(m.triangle_indices(i)),
+                                static_cast<int>(m.triangle_indices(i + 1)),
+                                static_cast<int>(m.triangle_indices(i + 2)));
+  }
+  mesh.baked_texture_jpeg = m.baked_texture_jpeg();
+  mesh.radius_rate = m.radius_rate();
+  mesh.reference_length_m = m.reference_length_m();
+  return mesh;
+}
+
+v1::PartMesh PartMeshToProto(const PartMesh& mesh) {
+  v1::PartMesh m;
+  m.set_part(mesh.part);
+  m.set_name(mesh.name);
+  m.set_positions_in_part_m_f32(
+      PackFloats(FlatFloats(mesh.positions_in_part_m.data(), mesh.positions_in_part_m.size())));
+  m.set_normals_in_part_f32(
+      PackFloats(FlatFloats(mesh.normals_in_part.data(), mesh.normals_in_part.size())));
+  m.set_uvs_f32(PackFloats(FlatFloats(mesh.uvs.data(), mesh.uvs.size())));
+  m.mutable_triangle_indices()->Reserve(static_cast<int>(3 * mesh.triangles.size()));
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int c = 0; c < 3; ++c) m.add_triangle_indices(static_cast<uint32_t>(t[c]));
+  }
+  m.set_baked_texture_jpeg(mesh.baked_texture_jpeg);
+  m.set_radius_rate(mesh.radius_rate);
+  m.set_reference_length_m(mesh.reference_length_m);
+  return m;
+}
+
+namespace {
+
+PartPose PartPoseFromProto(const v1::PartPose& m) {
+  // A hidden part keeps the pose it was given where that pose is a rigid
+  // transform (a method may hide a part it did pose).
+  PartPose pose;
+  const Eigen::Quaterniond q = FromProto(m.world_from_part().rotation());
+  const Eigen::Vector3d t = FromProto(m.world_from_part().translation_m());
+  if (!(q.norm() > 1e-9) || !std::isfinite(q.norm()) || !t.allFinite()) return pose;
+  pose.world_from_part.linear() = q.normalized().toRotationMatrix();
+  pose.world_from_part.translation() = t;
+  pose.scale = m.scale() > 0 ? m.scale() : 1.0;
+  pose.valid = m.valid();
+  return pose;
+}
+
+v1::PartPose PartPoseToProto(const PartPose& pose) {
+  v1::PartPose m;
+  *m.mutable_world_from_part()->mutable_rotation() =
+      ToProto(Eigen::Quaterniond(pose.world_from_part.linear()));
+  *m.mutable_world_from_part()->mutable_translation_m() =
+      ToProto(Eigen::Vector3d(pose.world_from_part.translation()));
+  m.set_scale(static_cast<float>(pose.scale));
+  m.set_valid(pose.valid);
+  return m;
+}
+
+}  // namespace
+
+TextureKeyframe KeyframeFromProto(const v1::TextureKeyframe& m) {
+  TextureKeyframe k;
+  k.frame_index = m.frame_index();
+  k.sensor_id = m.sensor_id();
+  k.stamp_ns = m.stamp_ns();
+  k.color_jpeg = m.color_jpeg();
+  k.crop_x_px = m.crop_x_px();
+  k.crop_y_px = m.crop_y_px();
+  k.mask_rle = m.mask_rle();
+  k.vertex_visible_bits.assign(m.vertex_visible_bits().begin(), m.vertex_visible_bits().end());
+  k.crop_scale = m.crop_scale();
+  return k;
+}
+
+v1::TextureKeyframe KeyframeToProto(const TextureKeyframe& k) {
+  v1::TextureKeyframe m;
+  m.set_frame_index(k.frame_index);
+  m.set_sensor_id(k.sensor_id);
+  m.set_stamp_ns(k.stamp_ns);
+  m.set_color_jpeg(k.color_jpeg);
+  m.set_crop_x_px(k.crop_x_px);
+  m.set_crop_y_px(k.crop_y_px);
+  m.set_mask_rle(k.mask_rle);
+  for (const std::string& bits : k.vertex_visible_bits) m.add_vertex_visible_bits(bits);
+  m.set_crop_scale(k.crop_scale);
+  return m;
+}
 
 absl::StatusOr<SensorCalibration> SensorCalibrationFromProto(const v1::SensorCalibration& m) {
   SensorCalibration s;

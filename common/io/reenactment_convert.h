@@ -52,4 +52,13 @@ v1::BodyPose BodyFramePoseToProto(const BodyFramePose& pose);
 absl::StatusOr<ReenactmentFrame> FrameFromProto(const v1::PartFrame& message, int num_vertices);
 v1::PartFrame FrameToProto(const ReenactmentFrame& frame);
 
+// One part's mesh and one texture keyframe on their own (a split job's
+// parts carry them). Neither is validated here: the reenactment they end up
+// in is (ValidateReenactment). PartMeshFromProto: InvalidArgument for float
+// arrays whose byte length is not a whole number of floats.
+absl::StatusOr<PartMesh> PartMeshFromProto(const v1::PartMesh& message);
+v1::PartMesh PartMeshToProto(const PartMesh& mesh);
+TextureKeyframe KeyframeFromProto(const v1::TextureKeyframe& message);
+v1::TextureKeyframe KeyframeToProto(const TextureKeyframe& keyframe);
+
 }  // namespace reenact

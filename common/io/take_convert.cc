@@ -372,11 +372,18 @@ absl::StatusOr<GroundTruth> ReadGroundTruth(const TakeReader& take,
         }
         return absl::OkStatus();
       }));
+  ASSIGN_OR_RETURN(truth.sensors, TakeSensorCalibrations(take));
+  return truth;
+}
+
+absl::StatusOr<std::vector<SensorCalibration>> TakeSensorCalibrations(const TakeReader& take) {
+  std::vector<SensorCalibration> sensors;
+  sensors.reserve(take.sensors().size());
   for (const auto& [id, calibration] : take.sensors()) {
     ASSIGN_OR_RETURN(SensorCalibration sensor, SensorCalibrationFromProto(calibration));
-    truth.sensors.push_back(std::move(sensor));
+    sensors.push_back(std::move(sensor));
   }
-  return truth;
+  return sensors;
 }
 
 }  // namespace reenact

@@ -8,10 +8,12 @@
 #include <cstdint>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
 #include "common/model/ground_truth.h"
+#include "common/model/sensor_calibration.h"
 #include "common/model/take.h"
 #include "reenact/v1/frame.pb.h"
 #include "reenact/v1/sensor.pb.h"
@@ -50,6 +52,10 @@ absl::StatusOr<RecordedTake> ReadRecordedTake(const std::string& path,
                                               const ProgressCallback& progress = {});
 
 class TakeReader;
+
+// The calibrations of `take`'s sensors as plain values, in sensor-id order.
+// InvalidArgument for a sensor transform that is zero or not finite.
+absl::StatusOr<std::vector<SensorCalibration>> TakeSensorCalibrations(const TakeReader& take);
 
 // The ground truth of the synthetic take `take`: its topology, the true
 // meshes of the frames in `mesh_frames` (none when empty; a take holds one

@@ -24,6 +24,19 @@ SegmentRange SegmentOf(int num_instants, int index, int count, int warmup) {
   return range;
 }
 
+absl::Status CheckSegmentPart(int index, int count, int num_instants, int next_first,
+                              int part_index, int part_count, int part_first, int part_end) {
+  const SegmentRange range = SegmentOf(num_instants, index, count, 0);
+  if (part_index != index || part_count != count || part_first != range.first ||
+      part_end != range.end || part_first != next_first) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("segment ", index, " of ", count, " holds instants [", part_first, ", ",
+                     part_end, ") as segment ", part_index, " of ", part_count, "; expected [",
+                     range.first, ", ", range.end, ")"));
+  }
+  return absl::OkStatus();
+}
+
 TakeNeeds TakeNeeds::All(const TakeFrames& take) {
   TakeNeeds all;
   all.depth.resize(take.num_instants());

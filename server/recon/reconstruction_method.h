@@ -62,6 +62,14 @@ struct SegmentRange {
 // `warmup` instants before its first (none before the take's start).
 SegmentRange SegmentOf(int num_instants, int index, int count, int warmup);
 
+// A stitch's check of one segment's part file, which says it is segment
+// `part_index` of `part_count` holding the instants [part_first, part_end):
+// InvalidArgument unless it is segment `index` of `count` of a take of
+// `num_instants` instants (SegmentOf without warm-up) and starts at
+// `next_first`, where the one before it ended.
+absl::Status CheckSegmentPart(int index, int count, int num_instants, int next_first,
+                              int part_index, int part_count, int part_first, int part_end);
+
 // Which part of a job a run makes (ReconstructionMethod::Prepare): the
 // whole reenactment, or one phase of a take split across several workers.
 enum class MethodPhase {

@@ -248,6 +248,7 @@ class TakeFramesBuilder {
     if (f.color && options_.load_color && color_ok_[sensor]) {
       view.color_jpeg = std::move(f.color->data);
       view.color_host_stamp_ns = f.color->host_stamp_ns;
+      view.has_color = true;
     }
     SetSkeleton(f.skeletons, frames_->sensors_[sensor], &view, skeleton);
     return view;

@@ -74,7 +74,10 @@ struct SensorView {
   std::string depth_data;
   std::string mask_encoding;  // ActorMask.encoding / .data; empty data: no mask.
   std::string mask_data;
-  std::string color_jpeg;  // ColorImage.data; empty: no colour frame.
+  std::string color_jpeg;  // ColorImage.data; empty: no colour frame (or no bytes).
+  // The take has a colour frame here, even where its bytes were left out
+  // (a take read with a selection, common/io/take_selection.h).
+  bool has_color = false;
   int64_t color_host_stamp_ns = 0;
   // The skeleton of the actor (of several bodies, the one with the most
   // tracked joints), in the depth camera frame and in the world frame.

@@ -653,14 +653,8 @@ absl::StatusOr<Reenactment> StitchBody(const TakeFrames& take, const BodyMethodO
     if (!part.ParseFromString(segments[k])) {
       return absl::DataLossError(absl::StrCat("segment ", k, " does not parse"));
     }
-    const SegmentRange range = SegmentOf(n, k, count, 0);
-    if (part.index() != k || part.count() != count || part.first() != range.first ||
-        part.end() != range.end || part.first() != next_first) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("segment ", k, " of ", count, " holds instants [", part.first(), ", ",
-                       part.end(), ") as segment ", part.index(), " of ", part.count(),
-                       "; expected [", range.first, ", ", range.end, ")"));
-    }
+    RETURN_IF_ERROR(CheckSegmentPart(k, count, n, next_first, part.index(), part.count(),
+                                     part.first(), part.end()));
     next_first = part.end();
     for (const v1::PartFrame& message : part.frames()) {
       const int i = message.frame_index();

@@ -6,7 +6,6 @@
 // atlas itself, so the PSNR between the two bounds any difference).
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,11 +18,12 @@
 #include "common/io/proto_convert.h"
 #include "common/io/take.h"
 #include "common/io/take_selection.h"
-#include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 #include "reenact/v1/segments.pb.h"
 #include "server/recon/body/body_method.h"
 #include "server/recon/take_frames.h"
+#include "server/recon/testing/selected_take.h"
+#include "server/recon/testing/suite_take.h"
 
 namespace reenact::recon {
 namespace {
@@ -31,44 +31,19 @@ namespace {
 class BodySegments : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const std::string clip = reenact::testing::TestDataPath("mocap/cmu/131_03.bvh");
-    if (!std::filesystem::exists(clip)) return;
-    const std::string dir = reenact::testing::MakeTempDir("body_segments");
-    synth::SynthOptions options;
-    options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
-    options.motion = clip;
-    options.body = "procedural";
-    options.shape = "random:11";
-    options.num_sensors = 2;
-    options.seconds = 4.0;
-    options.fps = 15.0;
-    options.color_width = 640;
-    options.color_height = 360;
-    path_ = new std::string(dir + "/take.mcap");
-    auto summary = synth::SynthesizeTake(options, *path_);
-    if (!summary.ok()) {
-      status_ = new absl::Status(summary.status());
-      return;
-    }
-    auto take = TakeFrames::Load(*path_);
-    if (!take.ok()) {
-      status_ = new absl::Status(take.status());
-      return;
-    }
-    take_ = take->release();
+    suite_ = new testing::SuiteTake(testing::MakeSuiteTake("body_segments", "131_03.bvh",
+                                                           "random:11", 4.0,
+                                                           /*truth_meshes=*/false));
+    path_ = &suite_->path;
+    take_ = suite_->take.get();
   }
   static void TearDownTestSuite() {
-    delete take_;
+    delete suite_;
+    suite_ = nullptr;
     take_ = nullptr;
   }
 
-  void SetUp() override {
-    if (path_ == nullptr) GTEST_SKIP() << "no CMU clip 131_03 under the test data";
-    if (status_ != nullptr && status_->code() == absl::StatusCode::kUnavailable) {
-      GTEST_SKIP() << *status_;
-    }
-    ASSERT_EQ(status_, nullptr) << *status_;
-  }
+  void SetUp() override { RECON_REQUIRE_SUITE_TAKE(*suite_); }
 
   static BodyMethodOptions Options() {
     BodyMethodOptions o;
@@ -76,9 +51,9 @@ class BodySegments : public ::testing::Test {
     return o;
   }
 
-  static inline std::string* path_ = nullptr;
-  static inline absl::Status* status_ = nullptr;
-  static inline TakeFrames* take_ = nullptr;
+  static inline testing::SuiteTake* suite_ = nullptr;
+  static inline const std::string* path_ = nullptr;
+  static inline const TakeFrames* take_ = nullptr;
 };
 
 // PSNR of two RGB images of the same size, dB.
@@ -162,32 +137,10 @@ TEST_F(BodySegments, ThreeSegmentsEqualTheWholeRun) {
   EXPECT_GE(atlas_psnr, 40.0);
 }
 
-// The take with the image bytes of only what `needs` names (as a worker
-// that streams it gets it: ReadTake's selection), loaded.
+// The take with the image bytes of only what `needs` names, loaded.
 std::unique_ptr<TakeFrames> Selected(const std::string& path, const TakeFrames& take,
                                      const TakeNeeds& needs, const std::string& out) {
-  v1::TakeSelection selection;
-  const auto add = [&](const std::vector<int>& instants,
-                       google::protobuf::RepeatedPtrField<v1::FrameRange>* ranges) {
-    for (const int i : instants) {
-      for (int s = 0; s < take.num_sensors(); ++s) {
-        const SensorView& view = take.instant(i).views[s];
-        if (!view.present) continue;
-        v1::FrameRange* range = ranges->Add();
-        range->set_sensor_id(take.sensors()[s].sensor_id);
-        range->set_first(view.frame_index);
-        range->set_end(view.frame_index + 1);
-      }
-    }
-  };
-  add(needs.depth, selection.mutable_depth());
-  add(needs.color, selection.mutable_color());
-  auto reader = TakeReader::Open(path);
-  EXPECT_TRUE(reader.ok()) << reader.status();
-  if (!reader.ok()) return nullptr;
-  const absl::Status written = WriteTakeSelection(**reader, selection, out);
-  EXPECT_TRUE(written.ok()) << written;
-  auto loaded = TakeFrames::Load(out);
+  auto loaded = testing::SelectedTake(path, take, needs, out);
   EXPECT_TRUE(loaded.ok()) << loaded.status();
   return loaded.ok() ? std::move(*loaded) : nullptr;
 }

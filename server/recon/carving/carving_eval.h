@@ -137,10 +137,12 @@ inline absl::StatusOr<CarvedAccuracy> Evaluate(const Reenactment& data, const Tr
     }
     for (int p = 0; p < kNumBodyParts; ++p) {
       if (!poses[p].valid) continue;
+      // Scaled parts (rigid-cylinders) too; carved parts have scale 1.
+      const Eigen::Affine3d world_from_part = poses[p].WorldFromPartScaled();
       const int base = static_cast<int>(carved_vertices.size());
       for (Eigen::Index v = 0; v < parts[p].positions_in_part_m.cols(); ++v) {
         const Eigen::Vector3d world =
-            poses[p].world_from_part * parts[p].positions_in_part_m.col(v).cast<double>();
+            world_from_part * parts[p].positions_in_part_m.col(v).cast<double>();
         carved_vertices.push_back(world);
         const double d = truth_surface.Distance(world);
         distances.push_back(d);
@@ -154,8 +156,8 @@ inline absl::StatusOr<CarvedAccuracy> Evaluate(const Reenactment& data, const Tr
       const Eigen::Vector3d& proximal = joints->second[body::Index(info.proximal)];
       const Eigen::Vector3d& distal = joints->second[body::Index(info.distal)];
       const double length = data.parts[p].reference_length_m;
-      joint_sum += (poses[p].world_from_part * Eigen::Vector3d::Zero() - proximal).norm() +
-                   (poses[p].world_from_part * Eigen::Vector3d(0, length, 0) - distal).norm();
+      joint_sum += (world_from_part * Eigen::Vector3d::Zero() - proximal).norm() +
+                   (world_from_part * Eigen::Vector3d(0, length, 0) - distal).norm();
       skeleton_sum += (fused[body::Index(info.proximal)] - proximal).norm() +
                       (fused[body::Index(info.distal)] - distal).norm();
       joint_count += 2;

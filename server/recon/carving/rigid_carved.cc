@@ -294,6 +294,19 @@ struct SensorFrame {
   std::vector<int32_t> flow_targets;
 };
 
+// What registration, fusion and meshing make: the reenactment up to its
+// texturing (a split run's prepared part, RigidCarvedPart).
+struct RegisteredTrack {
+  bool started = false;
+  double reference_length_m = 0.0;
+  std::vector<std::optional<Rigid3d>> world_from_part;  // Per instant.
+};
+struct CarvedParts {
+  std::vector<PartMesh> meshes;  // kNumBodyParts, part-id order, before baking.
+  std::array<RegisteredTrack, kNumBodyParts> tracks;
+  std::map<std::string, double> figures;
+};
+
 class RigidCarved {
  public:
   RigidCarved(const TakeFrames& take, const RigidCarvedOptions& options,
@@ -306,7 +319,7 @@ class RigidCarved {
                          ? options.fuse_stride
                          : std::max(1, static_cast<int>(std::lround(take.fps() / 15.0)))) {}
 
-  absl::StatusOr<Reenactment> Run();
+  absl::StatusOr<CarvedParts> Carve();
 
  private:
   absl::Status MakeCameras();
@@ -777,7 +790,7 @@ absl::StatusOr<std::vector<PartMesh>> RigidCarved::Mesh(
   return meshes;
 }
 
-absl::StatusOr<Reenactment> RigidCarved::Run() {
+absl::StatusOr<CarvedParts> RigidCarved::Carve() {
   if (take_.num_valid_instants() == 0) {
     return absl::InvalidArgumentError("the take has no instant with a skeleton");
   }
@@ -785,31 +798,17 @@ absl::StatusOr<Reenactment> RigidCarved::Run() {
   RETURN_IF_ERROR(Register());
   std::vector<std::optional<TsdfVolume>> volumes;
   RETURN_IF_ERROR(Fuse(&volumes));
-  Reenactment data;
-  ASSIGN_OR_RETURN(data.parts, Mesh(volumes));
+  CarvedParts carved;
+  ASSIGN_OR_RETURN(carved.meshes, Mesh(volumes));
   volumes.clear();
-
-  const int n = take_.num_instants();
-  for (int i = 0; i < n; ++i) {
-    PartPoses poses;
-    for (int p = 0; p < kNumBodyParts; ++p) {
-      const std::optional<Rigid3d>& pose = parts_[p].world_from_part[i];
-      if (!pose) continue;
-      poses[p].world_from_part = ToIsometry(*pose);
-      poses[p].length_m = parts_[p].reference_length_m;
-      poses[p].valid = true;
-    }
-    std::array<double, kNumBodyParts> scales;
-    scales.fill(1.0);
-    data.frames.push_back(MakePartFrame(i, take_.instant(i).stamp_ns, poses, scales,
-                                        take_.instant(i).joints_in_world_m));
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    carved.tracks[p].started = parts_[p].started;
+    carved.tracks[p].reference_length_m = parts_[p].reference_length_m;
+    carved.tracks[p].world_from_part = std::move(parts_[p].world_from_part);
   }
 
-  ASSIGN_OR_RETURN(
-      const RigidTexturingSummary texturing,
-      AddRigidTextures(take_, options_.texturing, &data, stages_.ForStage("texture"), log_));
-
-  auto& figures = data.info.figures;
+  const int n = take_.num_instants();
+  auto& figures = carved.figures;
   const double registrations = std::max<int64_t>(1, registrations_);
   figures["registration_rms_mm"] = 1e3 * plane_rms_sum_m_ / registrations;
   figures["flow_rms_mm"] = 1e3 * flow_rms_sum_m_ / registrations;
@@ -826,21 +825,41 @@ absl::StatusOr<Reenactment> RigidCarved::Run() {
   figures["fuse_stride"] = fuse_stride_;
   figures["carve_instants_per_second"] =
       n / std::max(1e-9, register_seconds_ + fuse_seconds_ + mesh_seconds_);
-  figures["keyframes"] = texturing.keyframes;
-  figures["keyframe_stride"] = texturing.keyframe_stride;
-  figures["texture_seconds"] = texturing.seconds;
-  if (texturing.bake.triangles > 0) {
-    figures["baked_unobserved_fraction"] =
-        static_cast<double>(texturing.bake.triangles_unobserved) / texturing.bake.triangles;
-  }
   if (log_) {
     log_(absl::StrCat("rigid-carved: ", n, " instants, registration rms ",
                       figures["registration_rms_mm"], " mm, ", figures["mean_iterations"],
                       " iterations, register ", register_seconds_, " s, fuse ", fuse_seconds_,
                       " s, mesh ", mesh_seconds_, " s, ", triangles_, " triangles"));
   }
+  return carved;
+}
+
+// The reenactment of carved parts, untextured: the meshes, one frame per
+// instant of the take (its registered poses, scale 1, and its fused
+// skeleton), frame_count, fps, part names and the carving figures.
+Reenactment AssembleCarved(const TakeFrames& take, const CarvedParts& carved) {
+  Reenactment data;
+  data.parts = carved.meshes;
+  const int n = take.num_instants();
+  for (int i = 0; i < n; ++i) {
+    PartPoses poses;
+    for (int p = 0; p < kNumBodyParts; ++p) {
+      const RegisteredTrack& track = carved.tracks[p];
+      if (static_cast<int>(track.world_from_part.size()) <= i) continue;
+      const std::optional<Rigid3d>& pose = track.world_from_part[i];
+      if (!pose) continue;
+      poses[p].world_from_part = ToIsometry(*pose);
+      poses[p].length_m = track.reference_length_m;
+      poses[p].valid = true;
+    }
+    std::array<double, kNumBodyParts> scales;
+    scales.fill(1.0);
+    data.frames.push_back(MakePartFrame(i, take.instant(i).stamp_ns, poses, scales,
+                                        take.instant(i).joints_in_world_m));
+  }
+  data.info.figures = carved.figures;
   data.info.frame_count = static_cast<int>(data.frames.size());
-  data.info.fps = take_.fps();
+  data.info.fps = take.fps();
   data.info.part_names = BodyPartNames();
   return data;
 }
@@ -913,8 +932,35 @@ absl::StatusOr<Reenactment> RunRigidCarved(const TakeFrames& take,
   const StageProgress stages(context.progress,
                              {{"register", 0.3}, {"fuse", 0.2}, {"mesh", 0.05}, {"texture", 0.45}});
   RigidCarved method(take, options, stages, context.log);
-  return method.Run();
+  ASSIGN_OR_RETURN(const CarvedParts carved, method.Carve());
+  Reenactment data = AssembleCarved(take, carved);
+  RETURN_IF_ERROR(
+      AddRigidTextures(take, options.texturing, &data, stages.ForStage("texture"), context.log)
+          .status());
+  return data;
 }
+
+absl::StatusOr<std::string> PrepareRigidCarved(const TakeFrames& take,
+                                               const RigidCarvedOptions& options,
+                                               const MethodContext& context) {
+  RETURN_IF_ERROR(options.Validate());
+  const StageProgress stages(context.progress, {{"register", 0.3}, {"fuse", 0.2}, {"mesh", 0.05}});
+  RigidCarved method(take, options, stages, context.log);
+  ASSIGN_OR_RETURN(const CarvedParts carved, method.Carve());
+  return PackUntexturedRigid(AssembleCarved(take, carved), KeyframeStride(take, options.texturing));
+}
+
+namespace {
+
+// Registration and fusion: every instant's depth, and its colour for the
+// optical flow.
+TakeNeeds CarvedPrepareNeeds(const TakeFrames& take, const RigidCarvedOptions& options) {
+  TakeNeeds needs = TakeNeeds::All(take);
+  if (!options.use_flow) needs.color.clear();
+  return needs;
+}
+
+}  // namespace
 
 const ReconstructionMethod& RigidCarvedMethod() {
   static const TypedMethod<RigidCarvedOptions> method(
@@ -925,7 +971,11 @@ const ReconstructionMethod& RigidCarvedMethod() {
        /*live=*/false,
        methods::TextureMode::kRotationClosest,
        {}},
-      &RunRigidCarved);
+      &RunRigidCarved, {},
+      SegmentFunctions<RigidCarvedOptions>{
+          &PrepareRigidCarved, &RigidSegmentPhase<RigidCarvedOptions>,
+          &RigidStitchPhase<RigidCarvedOptions>,
+          &RigidPhaseNeeds<RigidCarvedOptions, &CarvedPrepareNeeds>});
   return method;
 }
 

@@ -5,6 +5,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "common/base/progress.h"
@@ -105,6 +106,21 @@ struct RigidCarvedOptions {
 absl::StatusOr<Reenactment> RunRigidCarved(const TakeFrames& take,
                                            const RigidCarvedOptions& options = {},
                                            const MethodContext& context = {});
+
+// One take split across several workers (ReconstructionMethod::Prepare).
+// Registration is a chain from each part's first instant (Eq. 3.7: T_{b,n}
+// = dT T_{b,n-1}) and fusion adds every instant into one volume per part
+// in the frames that chain defines, so both stay in the prepare phase:
+// PrepareRigidCarved registers, fuses and meshes the whole take and packs
+// the untextured reenactment (rigid_texturing.h PackUntexturedRigid).
+// Texturing is split as rigid_texturing.h says: each segment makes its
+// instants' keyframes against the prepared meshes, the stitch bakes. The
+// stitched reenactment equals RunRigidCarved's but for the texturing's
+// timing and the figure "segments". Prepare decodes every instant's depth
+// and (with use_flow) colour. Errors as RunRigidCarved's.
+absl::StatusOr<std::string> PrepareRigidCarved(const TakeFrames& take,
+                                               const RigidCarvedOptions& options,
+                                               const MethodContext& context = {});
 
 // The method "rigid-carved" for the registry (registry.cc).
 const ReconstructionMethod& RigidCarvedMethod();

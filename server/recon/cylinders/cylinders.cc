@@ -486,14 +486,14 @@ absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
   return model;
 }
 
-absl::StatusOr<Reenactment> RunRigidCylinders(const TakeFrames& take,
-                                              const CylinderOptions& options,
-                                              const MethodContext& context) {
-  RETURN_IF_ERROR(options.Validate());
-  const ProgressCallback& progress = context.progress;
-  const LogCallback& log = context.log;
-  const StageProgress stages(progress, {{"shape", 0.05}, {"pose", 0.05}, {"texture", 0.9}});
+namespace {
 
+// The method up to texturing: the cylinders (Eq. 3.3-3.5) and every
+// instant's poses, with their figures, frame_count, fps and part names.
+absl::StatusOr<Reenactment> UntexturedCylinders(const TakeFrames& take,
+                                                const CylinderOptions& options,
+                                                const StageProgress& stages,
+                                                const LogCallback& log) {
   // Shape: Eq. 3.3-3.5, rectangles, radius rates.
   RETURN_IF_ERROR(stages.Report("shape", 0, 1));
   ASSIGN_OR_RETURN(const CylinderModel model, FitCylinderModel(take, options));
@@ -542,28 +542,53 @@ absl::StatusOr<Reenactment> RunRigidCylinders(const TakeFrames& take,
     if (i % 64 == 0 || i + 1 == n) RETURN_IF_ERROR(stages.Report("pose", i + 1, n));
   }
 
-  // Texture keyframes and baking.
-  ASSIGN_OR_RETURN(
-      const RigidTexturingSummary texturing,
-      AddRigidTextures(take, options.texturing, &data, stages.ForStage("texture"), log));
-
   auto& figures = data.info.figures;
   figures["representative_frame"] = model.representative.instant;
   figures["representative_sensor"] = model.representative.sensor;
   figures["representative_score"] = model.representative.score.e;
   figures["parts_measured"] = fitted;
-  figures["keyframes"] = texturing.keyframes;
-  figures["keyframe_stride"] = texturing.keyframe_stride;
-  figures["texture_seconds"] = texturing.seconds;
-  if (texturing.bake.triangles > 0) {
-    figures["baked_unobserved_fraction"] =
-        static_cast<double>(texturing.bake.triangles_unobserved) / texturing.bake.triangles;
-  }
   data.info.frame_count = static_cast<int>(data.frames.size());
   data.info.fps = take.fps();
   data.info.part_names = BodyPartNames();
   return data;
 }
+
+}  // namespace
+
+absl::StatusOr<Reenactment> RunRigidCylinders(const TakeFrames& take,
+                                              const CylinderOptions& options,
+                                              const MethodContext& context) {
+  RETURN_IF_ERROR(options.Validate());
+  const StageProgress stages(context.progress, {{"shape", 0.05}, {"pose", 0.05}, {"texture", 0.9}});
+  ASSIGN_OR_RETURN(Reenactment data, UntexturedCylinders(take, options, stages, context.log));
+  // Texture keyframes and baking.
+  RETURN_IF_ERROR(
+      AddRigidTextures(take, options.texturing, &data, stages.ForStage("texture"), context.log)
+          .status());
+  return data;
+}
+
+absl::StatusOr<std::string> PrepareRigidCylinders(const TakeFrames& take,
+                                                  const CylinderOptions& options,
+                                                  const MethodContext& context) {
+  RETURN_IF_ERROR(options.Validate());
+  const StageProgress stages(context.progress, {{"shape", 0.5}, {"pose", 0.5}});
+  ASSIGN_OR_RETURN(const Reenactment data, UntexturedCylinders(take, options, stages, context.log));
+  return PackUntexturedRigid(data, KeyframeStride(take, options.texturing));
+}
+
+namespace {
+
+// The representative frame is chosen by the skeletons alone (Eq. 3.5): only
+// its depth and actor mask are decoded.
+TakeNeeds CylindersPrepareNeeds(const TakeFrames& take, const CylinderOptions& options) {
+  TakeNeeds needs;
+  const absl::StatusOr<RepresentativeFrame> representative = FindRepresentativeFrame(take, options);
+  if (representative.ok()) needs.depth.push_back(representative->instant);
+  return needs;
+}
+
+}  // namespace
 
 const ReconstructionMethod& RigidCylindersMethod() {
   static const TypedMethod<CylinderOptions> method(
@@ -574,7 +599,10 @@ const ReconstructionMethod& RigidCylindersMethod() {
        /*live=*/false,
        methods::TextureMode::kPoseClosest,
        {}},
-      &RunRigidCylinders);
+      &RunRigidCylinders, {},
+      SegmentFunctions<CylinderOptions>{&PrepareRigidCylinders, &RigidSegmentPhase<CylinderOptions>,
+                                        &RigidStitchPhase<CylinderOptions>,
+                                        &RigidPhaseNeeds<CylinderOptions, &CylindersPrepareNeeds>});
   return method;
 }
 

@@ -50,6 +50,7 @@
 #include <array>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -171,6 +172,18 @@ absl::StatusOr<CylinderModel> FitCylinderModel(const TakeFrames& take,
 absl::StatusOr<Reenactment> RunRigidCylinders(const TakeFrames& take,
                                               const CylinderOptions& options = {},
                                               const MethodContext& context = {});
+
+// One take split across several workers (ReconstructionMethod::Prepare):
+// the prepare phase fits the cylinders and poses every instant (it decodes
+// the representative frame's depth and mask alone: Eq. 3.5 chooses that
+// frame by its skeleton) and packs the untextured reenactment
+// (rigid_texturing.h PackUntexturedRigid); the segments make their
+// instants' keyframes, the stitch bakes, as rigid_texturing.h says. The
+// stitched reenactment equals RunRigidCylinders' but for the texturing's
+// timing and the figure "segments".
+absl::StatusOr<std::string> PrepareRigidCylinders(const TakeFrames& take,
+                                                  const CylinderOptions& options,
+                                                  const MethodContext& context = {});
 
 // The method "rigid-cylinders" for the registry (registry.cc).
 const ReconstructionMethod& RigidCylindersMethod();

@@ -242,7 +242,7 @@ constexpr int kPoseValues = 13;  // Rotation (row-major), translation, scale.
 absl::Status ValidateWithSensors(const TakeFrames& take, Reenactment* data) {
   data->info.sensors.clear();
   for (const TakeSensor& sensor : take.sensors()) data->info.sensors.push_back(sensor.calibration);
-  const absl::Status status = ValidateReenactment(*data);
+  absl::Status status = ValidateReenactment(*data);
   data->info.sensors.clear();  // RunMethod fills the bookkeeping.
   return status;
 }

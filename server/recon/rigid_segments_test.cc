@@ -35,7 +35,8 @@ namespace {
 class RigidSegments : public ::testing::TestWithParam<std::string> {
  protected:
   static void SetUpTestSuite() {
-    suite_ = new testing::SuiteTake(testing::MakeSuiteTake("rigid_segments", "131_03.bvh", "random:23", 2.4));
+    suite_ = new testing::SuiteTake(
+        testing::MakeSuiteTake("rigid_segments", "131_03.bvh", "random:23", 2.4));
     path_ = &suite_->path;
     take_ = suite_->take.get();
   }
@@ -105,8 +106,8 @@ TEST_P(RigidSegments, ThreeSegmentsEqualTheWholeRun) {
     for (size_t p = 0; p < whole->frames[i].parts.size(); ++p) {
       const reenact::PartPose& a = whole->frames[i].parts[p];
       const reenact::PartPose& b = stitched->frames[i].parts[p];
-      EXPECT_TRUE(a.world_from_part.matrix() == b.world_from_part.matrix() &&
-                  a.scale == b.scale && a.valid == b.valid)
+      EXPECT_TRUE(a.world_from_part.matrix() == b.world_from_part.matrix() && a.scale == b.scale &&
+                  a.valid == b.valid)
           << "instant " << i << " part " << p;
     }
   }
@@ -126,8 +127,8 @@ TEST_P(RigidSegments, ThreeSegmentsEqualTheWholeRun) {
       "%s, %d instants in %d segments (CMU 131_03, random shape): whole run surface %.3f mm, "
       "part frames to the true joints %.3f mm; split run %.3f mm and %.3f mm; %zu keyframes "
       "and %zu baked textures byte-identical\n",
-      GetParam().c_str(), take_->num_instants(), kCount, a->mean_mm, a->joint_error_mm,
-      b->mean_mm, b->joint_error_mm, stitched->keyframes.size(), stitched->parts.size());
+      GetParam().c_str(), take_->num_instants(), kCount, a->mean_mm, a->joint_error_mm, b->mean_mm,
+      b->joint_error_mm, stitched->keyframes.size(), stitched->parts.size());
   EXPECT_NEAR(a->mean_mm, b->mean_mm, 1.0);
   EXPECT_NEAR(a->joint_error_mm, b->joint_error_mm, 1.0);
   EXPECT_LT(b->mean_mm, 30.0) << "the parts are off the true surface";
@@ -140,8 +141,7 @@ TEST_P(RigidSegments, EachPhaseOnlyDecodesTheFramesItNames) {
 
   auto prepare_needs = method_->Needs(*take_, Options(), MethodPhase::kPrepare, 0, kCount);
   ASSERT_TRUE(prepare_needs.ok()) << prepare_needs.status();
-  auto prepare_take =
-      testing::SelectedTake(*path_, *take_, *prepare_needs, dir + "/prepare.mcap");
+  auto prepare_take = testing::SelectedTake(*path_, *take_, *prepare_needs, dir + "/prepare.mcap");
   ASSERT_TRUE(prepare_take.ok()) << prepare_take.status();
   ASSERT_EQ((*prepare_take)->num_instants(), n) << "the same instants";
   auto whole_prepared = method_->Prepare(*take_, Options(), {});
@@ -165,8 +165,8 @@ TEST_P(RigidSegments, EachPhaseOnlyDecodesTheFramesItNames) {
     EXPECT_EQ(needs->depth.back(), range.end - 1);
     EXPECT_EQ(needs->color, needs->depth);
     segment_instants += needs->depth.size();
-    auto segment_take = testing::SelectedTake(*path_, *take_, *needs,
-                                              absl::StrCat(dir, "/segment-", k, ".mcap"));
+    auto segment_take =
+        testing::SelectedTake(*path_, *take_, *needs, absl::StrCat(dir, "/segment-", k, ".mcap"));
     ASSERT_TRUE(segment_take.ok()) << segment_take.status();
     auto whole_segment = method_->Segment(*take_, Options(), {}, *prepared, k, kCount);
     auto segment = method_->Segment(**segment_take, Options(), {}, *prepared, k, kCount);

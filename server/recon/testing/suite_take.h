@@ -29,8 +29,7 @@ struct SuiteTake {
 // truth's meshes when `truth_meshes`; written into a temporary folder named
 // `name`.
 inline SuiteTake MakeSuiteTake(const std::string& name, const std::string& clip,
-                               const std::string& shape, double seconds,
-                               bool truth_meshes = true) {
+                               const std::string& shape, double seconds, bool truth_meshes = true) {
   SuiteTake made;
   const std::string motion = reenact::testing::TestDataPath("mocap/cmu/" + clip);
   if (!std::filesystem::exists(motion)) {
@@ -70,9 +69,9 @@ inline SuiteTake MakeSuiteTake(const std::string& name, const std::string& clip,
 }  // namespace reenact::recon::testing
 
 // In a fixture's SetUp: skips the test, or fails it, as `suite_take` says.
-#define RECON_REQUIRE_SUITE_TAKE(suite_take)                                        \
-  do {                                                                              \
-    if (!(suite_take).skip.empty()) GTEST_SKIP() << (suite_take).skip;              \
-    ASSERT_TRUE((suite_take).error.ok()) << (suite_take).error;                     \
-    ASSERT_NE((suite_take).take, nullptr) << "the suite's take was not made";       \
+#define RECON_REQUIRE_SUITE_TAKE(suite_take)                                  \
+  do {                                                                        \
+    if (!(suite_take).skip.empty()) GTEST_SKIP() << (suite_take).skip;        \
+    ASSERT_TRUE((suite_take).error.ok()) << (suite_take).error;               \
+    ASSERT_NE((suite_take).take, nullptr) << "the suite's take was not made"; \
   } while (false)

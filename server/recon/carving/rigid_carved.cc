@@ -294,10 +294,9 @@ struct SensorFrame {
   std::vector<int32_t> flow_targets;
 };
 
-// What registration, fusion and meshing make: the reenactment up to its
-// texturing (a split run's prepared part, RigidCarvedPart).
+// What registration, fusion and meshing make (AssembleCarved turns it into
+// the untextured reenactment).
 struct RegisteredTrack {
-  bool started = false;
   double reference_length_m = 0.0;
   std::vector<std::optional<Rigid3d>> world_from_part;  // Per instant.
 };
@@ -802,7 +801,6 @@ absl::StatusOr<CarvedParts> RigidCarved::Carve() {
   ASSIGN_OR_RETURN(carved.meshes, Mesh(volumes));
   volumes.clear();
   for (int p = 0; p < kNumBodyParts; ++p) {
-    carved.tracks[p].started = parts_[p].started;
     carved.tracks[p].reference_length_m = parts_[p].reference_length_m;
     carved.tracks[p].world_from_part = std::move(parts_[p].world_from_part);
   }

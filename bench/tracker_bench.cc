@@ -1,11 +1,13 @@
-// The body tracker per 512x424 Kinect v2 depth frame on one core: the forest
-// alone (discriminative step) and with the body-model refinement, on a
-// sequence of a held-out motion (CMU 131_03, not in the training motions)
-// seen 2.5 m away. Needs ../shared/data and the shipped forest.
+// The body tracker per 512x424 Kinect v2 depth frame: the network (the
+// default) and the forest, each alone and with the body-model refinement, on
+// a sequence of a held-out motion (CMU 131_03, not in the training motions)
+// seen 2.5 m away. Needs ../shared/data and the shipped models. For one
+// core: taskset -c 0 build/bench/tracker_bench.
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "common/testing/test_data.h"
@@ -37,6 +39,7 @@ void BM_Track(benchmark::State& state) {
   }
   BodyTrackerOptions options;
   options.refine = state.range(0) != 0;
+  options.method = state.range(1) != 0 ? TrackerMethod::kForest : TrackerMethod::kNetwork;
   auto tracker = BodyTracker::Create(options);
   if (!tracker.ok()) {
     state.SkipWithError(std::string(tracker.status().message()).c_str());
@@ -48,9 +51,16 @@ void BM_Track(benchmark::State& state) {
     auto people = (*tracker)->Track(frame.full_depth_mm, frame.full_intrinsics, &frame.full_mask);
     benchmark::DoNotOptimize(people);
   }
-  state.SetLabel(options.refine ? "forest + body-model refinement" : "forest only");
+  const char* method = options.method == TrackerMethod::kNetwork ? "network" : "forest";
+  state.SetLabel(options.refine ? std::string(method) + " + body-model refinement" : method);
 }
-BENCHMARK(BM_Track)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Track)
+    ->Args({0, 0})
+    ->Args({1, 0})
+    ->Args({0, 1})
+    ->Args({1, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 }  // namespace reenact::tracking

@@ -18,34 +18,13 @@ namespace reenact::capture {
 
 namespace {
 
-const std::set<std::string> kValueFlags = {"server",
-                                           "control",
-                                           "control-port-file",
-                                           "spool",
-                                           "spool-max-mb",
-                                           "take-name",
-                                           "daemon-id",
-                                           "sync-tolerance-ms",
-                                           "segmentation",
-                                           "registration",
-                                           "tracker",
-                                           "tracker-forest",
-                                           "tracker-refine",
-                                           "config",
-                                           "stats-json",
-                                           "max-seconds",
-                                           "drain-timeout-s",
-                                           "anchor",
-                                           "anchor-timeout-s",
-                                           "tls-ca",
-                                           "token-file",
-                                           "tls-cert",
-                                           "tls-key",
-                                           "tls-client-ca",
-                                           "auth",
-                                           "metrics",
-                                           "log-format",
-                                           "log-level"};
+const std::set<std::string> kValueFlags = {
+    "server",     "control",       "control-port-file", "spool",          "spool-max-mb",
+    "take-name",  "daemon-id",     "sync-tolerance-ms", "segmentation",   "registration",
+    "tracker",    "tracker-model", "tracker-forest",    "tracker-refine", "config",
+    "stats-json", "max-seconds",   "drain-timeout-s",   "anchor",         "anchor-timeout-s",
+    "tls-ca",     "token-file",    "tls-cert",          "tls-key",        "tls-client-ca",
+    "auth",       "metrics",       "log-format",        "log-level"};
 const std::set<std::string> kBoolFlags = {"fast", "loop", "once", "verbose", "help", "insecure"};
 
 // "--anchor board[:SPEC]" (or "none") into `anchor`.
@@ -166,11 +145,12 @@ std::string ReenactdUsage() {
          "  --registration M        auto|on|off (default auto)\n"
          "  --tracker M             body tracking on depth: auto (sensors that give no\n"
          "                          skeleton) | on (every sensor, replacing its own) | off\n"
-         "  --tracker-forest FILE   the tracker's forest (default the shipped\n"
-         "                          models/tracker/body_parts.rtf)\n"
+         "  --tracker-model FILE    the tracker's network (default the shipped\n"
+         "                          models/tracker/pose_net.onnx)\n"
+         "  --tracker-forest FILE   track with a body-part forest instead of the network\n"
+         "                          (models/tracker/body_parts.rtf)\n"
          "  --tracker-refine on|off also fit the body model to each person's points\n"
-         "                          (default off: the forest alone, 5 ms a frame, keeps\n"
-         "                          2 sensors at 30 fps on a 2-core host; on: 18 ms)\n"
+         "                          (default off)\n"
          "  --drain-timeout-s S     wait at shutdown for the take to be durable (default 10)\n"
          "  --anchor board[:SPEC]   at each take's start, find the printed board (default\n"
          "                          aruco:DICT_4X4_50:3x2:110:22) in every sensor's colour\n"
@@ -237,7 +217,11 @@ absl::StatusOr<DaemonOptions> ParseReenactdFlags(const std::vector<std::string>&
   ASSIGN_OR_RETURN(options.processing.segmentation, ParseMode(flags, "segmentation"));
   ASSIGN_OR_RETURN(options.processing.registration, ParseMode(flags, "registration"));
   ASSIGN_OR_RETURN(options.processing.tracking, ParseMode(flags, "tracker"));
-  options.processing.tracker.forest_path = flags.GetOr("tracker-forest", "");
+  options.processing.tracker.model_path = flags.GetOr("tracker-model", "");
+  if (const std::optional<std::string> forest = flags.Get("tracker-forest")) {
+    options.processing.tracker.method = tracking::TrackerMethod::kForest;
+    options.processing.tracker.forest_path = *forest;
+  }
   if (const std::string refine = flags.GetOr("tracker-refine", "off"); refine == "on") {
     options.processing.tracker.refine = true;
   } else if (refine == "off") {

@@ -583,11 +583,17 @@ TEST(FrameProcessor, TrackingAFrameWithNobodyOrGarbageKeepsStreaming) {
   small.frame.mutable_depth()->set_data(*EncodeDepth(DepthImageMm(8, 8, 1500), {}));
   const absl::Status s = (*processor)->Process(small);
   EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << s;
-  // A forest that does not exist fails Create with the path.
-  options.tracker.forest_path = "/nonexistent/forest.rtf";
+  // A network that does not exist fails Create with the path.
+  options.tracker.model_path = "/nonexistent/pose_net.onnx";
   auto missing = FrameProcessor::Create(info, options);
   ASSERT_FALSE(missing.ok());
-  EXPECT_NE(missing.status().message().find("/nonexistent/forest.rtf"), std::string::npos);
+  EXPECT_NE(missing.status().message().find("/nonexistent/pose_net.onnx"), std::string::npos);
+  // So does a forest, when the forest is asked for.
+  options.tracker.method = tracking::TrackerMethod::kForest;
+  options.tracker.forest_path = "/nonexistent/forest.rtf";
+  auto missing_forest = FrameProcessor::Create(info, options);
+  ASSERT_FALSE(missing_forest.ok());
+  EXPECT_NE(missing_forest.status().message().find("/nonexistent/forest.rtf"), std::string::npos);
 }
 
 }  // namespace

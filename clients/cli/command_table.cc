@@ -62,8 +62,8 @@ std::vector<Command> BuildCommandTable() {
        "down-weighted); --track: of skeletons tracked afresh from the take's depth",
        RunTakeSkeletons},
       {{"track"},
-       "--depth FILE [--size WxH] --intrinsics kinect1|kinect2|FX,FY,CX,CY [--forest F] "
-       "[--no-refine] [--json]",
+       "--depth FILE [--size WxH] --intrinsics kinect1|kinect2|FX,FY,CX,CY [--model F.onnx | "
+       "--forest F.rtf] [--refine] [--json]",
        "the people in one depth image (16-bit PNG in mm, or raw little-endian uint16 mm with "
        "--size), each with the 25 Kinect v2 joints: position in the camera frame, pixel, "
        "confidence and state",
@@ -78,13 +78,27 @@ std::vector<Command> BuildCommandTable() {
        "at random in front of the body, default 0.3)",
        RunTrackerTrain},
       {{"tracker", "eval"},
-       "[--forest F] [--data DIR] [--images N] [--seed S] [--bodies ...] [--min-distance M] "
-       "[--max-distance M] [--stride N] [--motions-dir DIR] [--sequence [--frame-stride K]] "
-       "[--no-refine] [--json]",
-       "measure the tracker on frames of held-out motions (DIR/mocap/cmu) and shapes: MPJPE, "
-       "PCK@10cm, per-joint errors, time per frame (--sequence: consecutive frames of one "
-       "motion seen by a fixed camera, as in a take; --no-refine: the forest alone)",
+       "[--real DIR [--sequences NAME,...] [--no-history] [--segment] [--joints-out F.jsonl] "
+       "[--model F.onnx | --forest F.rtf] [--refine]] | [--forest F] [--data DIR] [--images N] "
+       "[--seed S] [--bodies ...] [--min-distance M] [--max-distance M] [--stride N] "
+       "[--motions-dir DIR] [--sequence [--frame-stride K]] [--no-refine] [--json]",
+       "measure the tracker. --real DIR: on recorded depth sequences laid out like "
+       "shared/data/rgbd-seq (one, or every sub-folder with a meta.json), each tracked as a take "
+       "(previous frames included; --no-history: each frame alone) against the skeleton stored "
+       "per frame: MPJPE and PCK@10cm over the 20 body joints, the share of frames with left and "
+       "right swapped, per joint, per sequence and overall; --joints-out writes one JSON line "
+       "per frame. Otherwise on frames synthesised from held-out motions (DIR/mocap/cmu) and "
+       "shapes (--sequence: consecutive frames of one motion seen by a fixed camera)",
        RunTrackerEval},
+      {{"tracker", "synth"},
+       "--out DIR [--images N] [--seed S] [--held-out] [--sequence --motion F.bvh] "
+       "[--min-distance M] [--max-distance M] [--arm-poses FRACTION] [--structured-light "
+       "FRACTION] [--bodies ...] [--shapes N] [--data DIR] [--json]",
+       "synthesise depth of posed bodies with their true joints, written as a folder laid out "
+       "like shared/data/rgbd-seq (the tracker network's training data; --held-out: motions of "
+       "DIR/mocap/cmu, never trained on; --sequence: one motion seen by a fixed camera, whole "
+       "frames)",
+       RunTrackerSynth},
       {{"auth", "add"},
        "--file TOKENS.json --role viewer|capture|coach|worker|admin --name NAME",
        "mint a random token for reenact-server --auth TOKENS.json (or reenactd --auth): appends "

@@ -6,7 +6,9 @@
 #include <string>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "clients/cli/command.h"
+#include "common/base/image.h"
 
 namespace reenact::cli {
 
@@ -70,9 +72,14 @@ int RunEval(const std::vector<std::string>& args, std::ostream& out, std::ostrea
 
 // track_command.cc
 int RunTrack(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// A single-channel 16-bit PNG in millimetres (at most 4096 px a side).
+absl::StatusOr<DepthImageMm> ReadPngDepth(const std::string& path);
 
 // tracker_commands.cc
 int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTrackerEval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// tracker_real_commands.cc
+int RunTrackerEvalReal(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunTrackerSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace reenact::cli

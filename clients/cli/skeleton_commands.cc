@@ -461,17 +461,25 @@ absl::StatusOr<nlohmann::json> TakeSkeletons(
 }  // namespace
 
 int RunTakeSkeletons(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"truth", "forest"}, {"json", "track", "no-refine"});
+  auto flags =
+      Flags::Parse(args, {"truth", "forest", "model"}, {"json", "track", "refine", "no-refine"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto truth = flags->Required("truth");
   if (!truth.ok()) return ReportError(truth.status(), err);
   std::optional<tracking::BodyTrackerOptions> track;
   if (flags->Has("track")) {
     track.emplace();
-    track->forest_path = flags->Get("forest").value_or("");
-    track->refine = !flags->Has("no-refine");
-  } else if (flags->Has("no-refine") || flags->Has("forest")) {
-    return ReportError(absl::InvalidArgumentError("--no-refine and --forest go with --track"), err);
+    if (const std::optional<std::string> forest = flags->Get("forest")) {
+      track->method = tracking::TrackerMethod::kForest;
+      track->forest_path = *forest;
+    }
+    track->model_path = flags->Get("model").value_or("");
+    track->refine = flags->Has("refine") && !flags->Has("no-refine");
+  } else if (flags->Has("no-refine") || flags->Has("refine") || flags->Has("forest") ||
+             flags->Has("model")) {
+    return ReportError(
+        absl::InvalidArgumentError("--refine, --no-refine, --model and --forest go with --track"),
+        err);
   }
   if (flags->positional().size() != 1) {
     return ReportError(absl::InvalidArgumentError("take skeletons needs exactly one TAKE file"),

@@ -59,30 +59,6 @@ absl::StatusOr<DepthImageMm> ReadRawDepth(const std::string& path, int width, in
   return depth;
 }
 
-// A single-channel 16-bit PNG in millimetres.
-absl::StatusOr<DepthImageMm> ReadPngDepth(const std::string& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) return absl::NotFoundError(absl::StrCat("no file ", path));
-  const cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
-  if (image.empty()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(path, " is not a readable image (a 16-bit PNG in mm, or raw with --size)"));
-  }
-  if (image.type() != CV_16UC1) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(path, " is not a 16-bit single-channel image (depth in millimetres)"));
-  }
-  if (image.cols > kMaxSide || image.rows > kMaxSide) {
-    return absl::InvalidArgumentError(absl::StrCat(path, " is larger than ", kMaxSide, " px"));
-  }
-  DepthImageMm depth(image.cols, image.rows);
-  for (int y = 0; y < image.rows; ++y) {
-    const uint16_t* row = image.ptr<uint16_t>(y);
-    std::copy(row, row + image.cols, depth.data.begin() + static_cast<size_t>(y) * image.cols);
-  }
-  return depth;
-}
-
 // kinect1 | kinect2 (nominal, scaled to the image) | FX,FY,CX,CY.
 absl::StatusOr<CameraIntrinsics> ParseIntrinsics(const std::string& text, int width, int height) {
   CameraIntrinsics k;
@@ -128,8 +104,32 @@ nlohmann::json PersonToJson(const tracking::TrackedPerson& person) {
 
 }  // namespace
 
+absl::StatusOr<DepthImageMm> ReadPngDepth(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return absl::NotFoundError(absl::StrCat("no file ", path));
+  const cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
+  if (image.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, " is not a readable image (a 16-bit PNG in mm, or raw with --size)"));
+  }
+  if (image.type() != CV_16UC1) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, " is not a 16-bit single-channel image (depth in millimetres)"));
+  }
+  if (image.cols > kMaxSide || image.rows > kMaxSide) {
+    return absl::InvalidArgumentError(absl::StrCat(path, " is larger than ", kMaxSide, " px"));
+  }
+  DepthImageMm depth(image.cols, image.rows);
+  for (int y = 0; y < image.rows; ++y) {
+    const uint16_t* row = image.ptr<uint16_t>(y);
+    std::copy(row, row + image.cols, depth.data.begin() + static_cast<size_t>(y) * image.cols);
+  }
+  return depth;
+}
+
 int RunTrack(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args, {"depth", "size", "intrinsics", "forest"}, {"json", "no-refine"});
+  auto flags = Flags::Parse(args, {"depth", "size", "intrinsics", "model", "forest"},
+                            {"json", "refine", "no-refine"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto path = flags->Required("depth");
   if (!path.ok()) return ReportError(path.status(), err);
@@ -148,8 +148,13 @@ int RunTrack(const std::vector<std::string>& args, std::ostream& out, std::ostre
   if (!intrinsics.ok()) return ReportError(intrinsics.status(), err);
 
   tracking::BodyTrackerOptions options;
-  options.forest_path = flags->GetOr("forest", "");
-  options.refine = !flags->Has("no-refine");
+  if (flags->Has("forest")) {
+    options.method = tracking::TrackerMethod::kForest;
+    options.forest_path = *flags->Get("forest");
+  }
+  options.model_path = flags->GetOr("model", "");
+  // --no-refine is the default now; kept so that older command lines run.
+  options.refine = flags->Has("refine") && !flags->Has("no-refine");
   auto tracker = tracking::BodyTracker::Create(options);
   if (!tracker.ok()) return ReportError(tracker.status(), err);
   auto people = (*tracker)->Track(*depth, *intrinsics);

@@ -185,10 +185,14 @@ int RunTrackerTrain(const std::vector<std::string>& args, std::ostream& out, std
 }
 
 int RunTrackerEval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(args,
-                            {"forest", "data", "images", "seed", "shapes", "bodies", "min-distance",
-                             "max-distance", "stride", "motions-dir", "frame-stride"},
-                            {"json", "quiet", "sequence", "no-refine"});
+  for (const std::string& a : args) {
+    if (a == "--real" || a.rfind("--real=", 0) == 0) return RunTrackerEvalReal(args, out, err);
+  }
+  auto flags =
+      Flags::Parse(args,
+                   {"forest", "model", "data", "images", "seed", "shapes", "bodies", "min-distance",
+                    "max-distance", "stride", "motions-dir", "frame-stride"},
+                   {"json", "quiet", "sequence", "refine", "no-refine"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto common = ParseCommon(*flags, 300, 1001);
   if (!common.ok()) return ReportError(common.status(), err);
@@ -207,9 +211,13 @@ int RunTrackerEval(const std::vector<std::string>& args, std::ostream& out, std:
     HeldOutMotions(common->data, &common->images);
   }
   tracking::BodyTrackerOptions options;
-  options.forest_path = flags->GetOr("forest", "");
+  if (const std::optional<std::string> forest = flags->Get("forest")) {
+    options.method = tracking::TrackerMethod::kForest;
+    options.forest_path = *forest;
+  }
+  options.model_path = flags->GetOr("model", "");
   options.pixel_stride = *stride;
-  options.refine = !flags->Has("no-refine");
+  options.refine = flags->Has("refine") && !flags->Has("no-refine");
   common->images.sequence = flags->Has("sequence");
   auto frame_stride = flags->GetInt("frame-stride", common->images.frame_stride);
   if (!frame_stride.ok()) return ReportError(frame_stride.status(), err);

@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
 #include "common/tracking/body_part_forest.h"
+#include "common/tracking/pose_net.h"
 
 namespace reenact::tracking {
 namespace {
@@ -185,6 +186,7 @@ absl::Status BodyTrackerOptions::Validate() const {
 struct BodyTracker::Impl {
   BodyTrackerOptions options;
   std::shared_ptr<const BodyPartForest> forest;
+  std::unique_ptr<PoseNet> net;
   RayCache rays;
   std::vector<TrackedPerson> previous;
   int next_id = 1;
@@ -192,6 +194,9 @@ struct BodyTracker::Impl {
 
   TrackedPerson TrackPerson(const PersonView& view, const DepthImageMm& depth,
                             const MaskImage& labels, const CameraIntrinsics& k);
+  absl::StatusOr<TrackedPerson> TrackPersonNet(const PersonView& view, const DepthImageMm& depth,
+                                               const MaskImage& labels, const CameraIntrinsics& k);
+  void KeepSides(TrackedPerson* person) const;
   void AssignIds(std::vector<TrackedPerson>* people);
   void SetState(const DepthImageMm& depth, const MaskImage& labels, const CameraIntrinsics& k,
                 int label, TrackedJoint* joint) const;
@@ -306,6 +311,96 @@ TrackedPerson BodyTracker::Impl::TrackPerson(const PersonView& view, const Depth
   return person;
 }
 
+// The person's centroid and pixel count from every `stride`-th pixel.
+void Measure(const PersonView& view, const std::vector<Eigen::Vector2f>& ray,
+             const CameraIntrinsics& k, int stride, TrackedPerson* person) {
+  for (int cy = 0; cy < view.depth_m.height; cy += stride) {
+    for (int cx = 0; cx < view.depth_m.width; cx += stride) {
+      const float z = view.depth_m.at(cx, cy);
+      if (z >= kBackgroundDepthM) continue;
+      const Eigen::Vector2f& r = ray[static_cast<size_t>(cy + view.y0) * k.width + cx + view.x0];
+      person->centroid_in_camera_m += Eigen::Vector3d(r.x() * z, r.y() * z, z);
+      ++person->num_pixels;
+    }
+  }
+  if (person->num_pixels > 0) person->centroid_in_camera_m /= person->num_pixels;
+}
+
+absl::StatusOr<TrackedPerson> BodyTracker::Impl::TrackPersonNet(const PersonView& view,
+                                                                const DepthImageMm& depth,
+                                                                const MaskImage& labels,
+                                                                const CameraIntrinsics& k) {
+  TrackedPerson person;
+  person.mask_label = view.label;
+  Measure(view, rays.Get(k), k, options.pixel_stride, &person);
+  const std::optional<PoseNetCrop> crop = ChoosePoseNetCrop(depth, &labels, view.label, k);
+  if (!crop) return person;  // Too few pixels: no joints.
+  ASSIGN_OR_RETURN(const auto found,
+                   net->Run(PoseNetInput(depth, &labels, view.label, *crop), *crop));
+  for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+    if (!(found[j].depth_m > 0.05)) continue;
+    const std::optional<Eigen::Vector3d> p = k.Unproject(found[j].pixel, found[j].depth_m);
+    if (!p || !p->allFinite()) continue;
+    TrackedJoint& joint = person.joints[j];
+    joint.position_in_camera_m = *p;
+    joint.confidence = found[j].confidence;
+    joint.state = JointState::kInferred;
+  }
+  return person;
+}
+
+// Left and right joints of the limbs, paired.
+constexpr std::array<std::pair<body::KinectV2Joint, body::KinectV2Joint>, 10> kSides = {{
+    {body::KinectV2Joint::kShoulderLeft, body::KinectV2Joint::kShoulderRight},
+    {body::KinectV2Joint::kElbowLeft, body::KinectV2Joint::kElbowRight},
+    {body::KinectV2Joint::kWristLeft, body::KinectV2Joint::kWristRight},
+    {body::KinectV2Joint::kHandLeft, body::KinectV2Joint::kHandRight},
+    {body::KinectV2Joint::kHipLeft, body::KinectV2Joint::kHipRight},
+    {body::KinectV2Joint::kKneeLeft, body::KinectV2Joint::kKneeRight},
+    {body::KinectV2Joint::kAnkleLeft, body::KinectV2Joint::kAnkleRight},
+    {body::KinectV2Joint::kFootLeft, body::KinectV2Joint::kFootRight},
+    {body::KinectV2Joint::kHandTipLeft, body::KinectV2Joint::kHandTipRight},
+    {body::KinectV2Joint::kThumbLeft, body::KinectV2Joint::kThumbRight},
+}};
+
+// A limb whose left and right joints lie closer to the other side's in the
+// person's previous frame than to their own, by a clear margin, was read
+// with its sides swapped: swap them back. Arms and legs are decided each as
+// a whole (shoulder to hand tip, hip to foot).
+void BodyTracker::Impl::KeepSides(TrackedPerson* person) const {
+  const TrackedPerson* before = nullptr;
+  for (const TrackedPerson& p : previous) {
+    if (p.person_id == person->person_id) before = &p;
+  }
+  if (before == nullptr) return;
+  const auto limb = [&](std::initializer_list<int> pairs) {
+    double same = 0, swapped = 0;
+    int n = 0;
+    for (int i : pairs) {
+      const int l = body::Index(kSides[i].first), r = body::Index(kSides[i].second);
+      const auto& now = person->joints;
+      const auto& was = before->joints;
+      if (now[l].state == JointState::kNotTracked || now[r].state == JointState::kNotTracked ||
+          was[l].state == JointState::kNotTracked || was[r].state == JointState::kNotTracked) {
+        continue;
+      }
+      same += (now[l].position_in_camera_m - was[l].position_in_camera_m).norm() +
+              (now[r].position_in_camera_m - was[r].position_in_camera_m).norm();
+      swapped += (now[l].position_in_camera_m - was[r].position_in_camera_m).norm() +
+                 (now[r].position_in_camera_m - was[l].position_in_camera_m).norm();
+      ++n;
+    }
+    // Swapped only when that is closer by half and by 5 cm a joint.
+    if (n == 0 || !(swapped < 0.5 * same && same - swapped > 0.05 * 2 * n)) return;
+    for (int i : pairs) {
+      std::swap(person->joints[body::Index(kSides[i].first)],
+                person->joints[body::Index(kSides[i].second)]);
+    }
+  };
+  limb({0, 1, 2, 3, 8, 9});
+  limb({4, 5, 6, 7});
+}
+
 void BodyTracker::Impl::SetState(const DepthImageMm& depth, const MaskImage& labels,
                                  const CameraIntrinsics& k, int label, TrackedJoint* joint) const {
   joint->state = JointState::kInferred;
@@ -348,6 +443,16 @@ BodyTracker::~BodyTracker() = default;
 absl::StatusOr<std::unique_ptr<BodyTracker>> BodyTracker::Create(
     const BodyTrackerOptions& options) {
   RETURN_IF_ERROR(options.Validate());
+  if (options.method == TrackerMethod::kNetwork) {
+    const std::string path = options.model_path.empty() ? DefaultPoseNetPath() : options.model_path;
+    auto impl = std::make_unique<Impl>();
+    impl->options = options;
+    ASSIGN_OR_RETURN(impl->net, PoseNet::Load(path));
+    if (options.refine) {
+      ASSIGN_OR_RETURN(impl->refiner, BodyModelRefiner::Create(options.refinement));
+    }
+    return std::unique_ptr<BodyTracker>(new BodyTracker(std::move(impl)));
+  }
   const std::string path = options.forest_path.empty() ? DefaultForestPath() : options.forest_path;
   ASSIGN_OR_RETURN(BodyPartForest forest, BodyPartForest::Load(path));
   return Create(std::make_shared<const BodyPartForest>(std::move(forest)), options);
@@ -359,6 +464,7 @@ absl::StatusOr<std::unique_ptr<BodyTracker>> BodyTracker::Create(
   if (!forest) return absl::InvalidArgumentError("tracker: no forest");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
+  impl->options.method = TrackerMethod::kForest;
   impl->forest = std::move(forest);
   if (options.refine) {
     ASSIGN_OR_RETURN(impl->refiner, BodyModelRefiner::Create(options.refinement));
@@ -371,6 +477,14 @@ absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm
                                                               const MaskImage* labels,
                                                               MaskImage* own_labels_out) {
   RETURN_IF_ERROR(intrinsics.Validate());
+  // No depth camera gives more; larger images are refused before the ray
+  // cache (8 bytes a pixel) is made for them.
+  constexpr int kMaxSide = 4096;
+  if (depth.width > kMaxSide || depth.height > kMaxSide) {
+    return absl::InvalidArgumentError(absl::StrCat("tracker: depth images up to ", kMaxSide, "x",
+                                                   kMaxSide, " px, not ", depth.width, "x",
+                                                   depth.height));
+  }
   if (depth.width != intrinsics.width || depth.height != intrinsics.height ||
       depth.data.size() != depth.num_pixels()) {
     return absl::InvalidArgumentError(absl::StrCat("tracker: the depth image is ", depth.width, "x",
@@ -391,9 +505,18 @@ absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm
   std::vector<TrackedPerson> people;
   people.reserve(views.size());
   for (const PersonView& view : views) {
-    people.push_back(impl_->TrackPerson(view, depth, *labels, intrinsics));
+    if (impl_->net) {
+      ASSIGN_OR_RETURN(TrackedPerson person,
+                       impl_->TrackPersonNet(view, depth, *labels, intrinsics));
+      people.push_back(std::move(person));
+    } else {
+      people.push_back(impl_->TrackPerson(view, depth, *labels, intrinsics));
+    }
   }
   impl_->AssignIds(&people);
+  if (impl_->options.keep_sides) {
+    for (TrackedPerson& person : people) impl_->KeepSides(&person);
+  }
   std::vector<int> ids;
   for (size_t i = 0; i < people.size(); ++i) {
     TrackedPerson& person = people[i];

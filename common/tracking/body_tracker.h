@@ -1,7 +1,13 @@
 // Skeletons from depth on the CPU: the 25 Kinect v2 joints of every person in
 // a depth image, with no vendor SDK.
 //
-// Discriminative step after Shotton et al., "Real-Time Human Pose Recognition
+// By default a small convolutional network finds the joints of each person
+// (pose_net.h), trained on the project's own synthetic depth and on real
+// Kinect recordings with the Kinect SDK's skeleton
+// (models/tracker/README.md). The forest below remains as
+// TrackerMethod::kForest.
+//
+// The forest's discriminative step after Shotton et al., "Real-Time Human Pose Recognition
 // in Parts from Single Depth Images", CVPR 2011, and Girshick et al.,
 // "Efficient Regression of General-Activity Human Poses from Depth Images",
 // ICCV 2011: a randomised decision forest (body_part_forest.h) reads
@@ -34,8 +40,17 @@ namespace reenact::tracking {
 
 class BodyPartForest;
 
+// What finds the joints in a person's depth.
+enum class TrackerMethod {
+  kNetwork,  // The convolutional network of pose_net.h (the default).
+  kForest,   // The body-part forest and its joint votes (body_part_forest.h).
+};
+
 struct BodyTrackerOptions {
-  // The trained forest (.rtf); empty: DefaultForestPath().
+  TrackerMethod method = TrackerMethod::kNetwork;
+  // The trained network (.onnx); empty: DefaultPoseNetPath().
+  std::string model_path;
+  // The trained forest (.rtf) of kForest; empty: DefaultForestPath().
   std::string forest_path;
   // Every `pixel_stride`-th pixel in x and y is classified (1: all).
   int pixel_stride = 2;
@@ -60,8 +75,15 @@ struct BodyTrackerOptions {
   // that keeps their id, metres.
   double max_id_jump_m = 0.5;
   // The generative step (model_refinement.h): the body model fitted to each
-  // person's points from the forest's joints and the person's previous fit.
-  bool refine = true;
+  // person's points from the joints found and the person's previous fit.
+  // Off by default: on real depth it moved joints away from the Kinect
+  // SDK's (models/tracker/README.md).
+  bool refine = false;
+  // Over time: a person's left and right limbs keep their sides from one
+  // frame to the next unless the joints found say otherwise by a clear
+  // margin (people do not swap arms between frames; a depth image alone
+  // often cannot tell).
+  bool keep_sides = true;
   ModelRefinementOptions refinement;
   // Forest joints below this confidence do not enter the fit as priors
   // (their position comes from the points and the previous frame).
@@ -76,8 +98,8 @@ std::string DefaultForestPath();
 
 class BodyTracker {
  public:
-  // Loads the forest: NotFound / DataLoss / InvalidArgument with the path
-  // when it is missing, corrupt or of another version.
+  // Loads the network (or the forest): NotFound / DataLoss / InvalidArgument
+  // with the path when it is missing, corrupt or of another version.
   static absl::StatusOr<std::unique_ptr<BodyTracker>> Create(
       const BodyTrackerOptions& options = {});
   // Wraps an already loaded forest (tests, benchmarks).

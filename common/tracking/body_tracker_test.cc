@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -10,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/testing/test_data.h"
+#include "common/tracking/pose_net.h"
 #include "common/tracking/tracker_evaluation.h"
 #include "common/tracking/training_data.h"
 
@@ -84,9 +87,11 @@ int ExpectHeadOnThePerson(const DepthImageMm& depth, const TrackedPerson& person
   return hands;
 }
 
-std::unique_ptr<BodyTracker> MakeTracker(bool refine = true) {
+std::unique_ptr<BodyTracker> MakeTracker(bool refine = false,
+                                         TrackerMethod method = TrackerMethod::kNetwork) {
   BodyTrackerOptions options;
   options.refine = refine;
+  options.method = method;
   auto tracker = BodyTracker::Create(options);
   EXPECT_TRUE(tracker.ok()) << tracker.status();
   return tracker.ok() ? std::move(*tracker) : nullptr;
@@ -180,21 +185,29 @@ TEST(BodyTracker, HeldOutSequenceIsTrackedWithinItsMeasuredError) {
   const TrainingDataOptions o = SequenceOptions(motion, 40, 2.0, 3.0, 4242);
   auto images = SynthesizeTrainingImages(o, /*keep_full_frames=*/true);
   ASSERT_TRUE(images.ok()) << images.status();
-  for (const bool refine : {false, true}) {
-    auto tracker = MakeTracker(refine);
+  struct Case {
+    TrackerMethod method;
+    bool refine;
+    const char* name;
+    double max_mpjpe_mm, min_pck, max_spine_base_mm;
+  };
+  // Bounds: what each measured, with a margin (the figures print).
+  for (const Case& c :
+       {Case{TrackerMethod::kNetwork, false, "network", 60.0, 0.85, 60.0},
+        Case{TrackerMethod::kForest, false, "forest alone", 110.0, 0.70, 60.0},
+        Case{TrackerMethod::kForest, true, "forest + refinement", 95.0, 0.70, 60.0}}) {
+    auto tracker = MakeTracker(c.refine, c.method);
     ASSERT_NE(tracker, nullptr);
     auto result = EvaluateTracker(*tracker, *images, /*sequence=*/true);
     ASSERT_TRUE(result.ok()) << result.status();
-    std::printf("held-out sequence, %s: %d frames, MPJPE %.1f mm, PCK@10cm %.1f %%\n",
-                refine ? "forest + refinement" : "forest alone", result->all.frames,
-                result->all.mpjpe_mm, 100.0 * result->all.pck);
+    std::printf("held-out sequence, %s: %d frames, MPJPE %.1f mm, PCK@10cm %.1f %%\n", c.name,
+                result->all.frames, result->all.mpjpe_mm, 100.0 * result->all.pck);
     EXPECT_EQ(result->all.frames, 40);
-    // Measured with the shipped forest: 85.0 mm / 80.1 % alone, 69.2 mm /
-    // 81.8 % refined.
-    EXPECT_LT(result->all.mpjpe_mm, refine ? 95.0 : 110.0);
-    EXPECT_GT(result->all.pck, 0.70);
-    // The torso is where the forest is sure: SpineBase within 6 cm.
-    EXPECT_LT(result->all.joint_mean_mm[body::Index(KinectV2Joint::kSpineBase)], 60.0);
+    EXPECT_LT(result->all.mpjpe_mm, c.max_mpjpe_mm) << c.name;
+    EXPECT_GT(result->all.pck, c.min_pck) << c.name;
+    EXPECT_LT(result->all.joint_mean_mm[body::Index(KinectV2Joint::kSpineBase)],
+              c.max_spine_base_mm)
+        << c.name;
   }
 }
 
@@ -223,12 +236,48 @@ TEST(BodyTracker, BadInputIsAnErrorOrNobody) {
   auto wall = tracker->Track(DepthImageMm(64, 48, 3000), k);
   ASSERT_TRUE(wall.ok()) << wall.status();
   EXPECT_TRUE(wall->empty());
-  // A missing forest names its path.
+  // A 1x1 image, and one too large to be a depth camera's.
+  auto tiny = tracker->Track(DepthImageMm(1, 1, 2000), Intrinsics(1, 1, 1.0, 0.0, 0.0));
+  ASSERT_TRUE(tiny.ok()) << tiny.status();
+  EXPECT_TRUE(tiny->empty());
+  EXPECT_EQ(tracker->Track(DepthImageMm(8192, 8192, 0), Intrinsics(8192, 8192, 5000, 4096, 4096))
+                .status()
+                .code(),
+            absl::StatusCode::kInvalidArgument);
+  // A missing network or forest names its path.
   BodyTrackerOptions options;
-  options.forest_path = "/nonexistent/forest.rtf";
+  options.model_path = "/nonexistent/pose_net.onnx";
   auto missing = BodyTracker::Create(options);
   ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_NE(missing.status().message().find("/nonexistent/pose_net.onnx"), std::string::npos);
+  options.method = TrackerMethod::kForest;
+  options.forest_path = "/nonexistent/forest.rtf";
+  missing = BodyTracker::Create(options);
+  ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.status().message().find("/nonexistent/forest.rtf"), std::string::npos);
+  // A corrupt network: a truncated copy of the shipped one, and noise.
+  const std::string dir = testing::MakeTempDir("tracker_corrupt_model");
+  std::string shipped;
+  {
+    std::ifstream in(DefaultPoseNetPath(), std::ios::binary);
+    shipped.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_GT(shipped.size(), 1000u);
+  for (const auto& [name, bytes] :
+       {std::pair{"truncated.onnx", shipped.substr(0, shipped.size() / 2)},
+        std::pair{"noise.onnx", std::string(4096, '\x5a')}}) {
+    const std::string path = dir + "/" + name;
+    std::ofstream(path, std::ios::binary) << bytes;
+    BodyTrackerOptions corrupt;
+    corrupt.model_path = path;
+    auto bad = BodyTracker::Create(corrupt);
+    ASSERT_FALSE(bad.ok()) << name;
+    EXPECT_TRUE(bad.status().code() == absl::StatusCode::kDataLoss ||
+                bad.status().code() == absl::StatusCode::kInvalidArgument)
+        << bad.status();
+    EXPECT_NE(bad.status().message().find(path), std::string::npos) << bad.status();
+  }
 }
 
 TEST(BodyTracker, PersonCutByTheBorderGivesFiniteJoints) {

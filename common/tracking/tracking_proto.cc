@@ -37,7 +37,8 @@ v1::Skeleton TrackedPersonToProto(const TrackedPerson& person) {
 }
 
 absl::StatusOr<std::map<int64_t, std::vector<v1::Skeleton>>> TrackTakeSensor(
-    const TakeReader& take, const std::string& sensor_id, const BodyTrackerOptions& options) {
+    const TakeReader& take, const std::string& sensor_id, const BodyTrackerOptions& options,
+    const std::function<bool()>& frame_done) {
   const auto calibration = take.sensors().find(sensor_id);
   if (calibration == take.sensors().end()) {
     return absl::NotFoundError(absl::StrCat("the take has no sensor '", sensor_id, "'"));
@@ -73,6 +74,10 @@ absl::StatusOr<std::map<int64_t, std::vector<v1::Skeleton>>> TrackTakeSensor(
           }
         }
         auto people = tracker->Track(*depth, *k, mask ? &*mask : nullptr);
+        if (frame_done && !frame_done()) {
+          return absl::CancelledError(
+              absl::StrCat("tracking sensor ", sensor_id, " stopped at frame ", m.frame_index()));
+        }
         if (!people.ok()) return absl::OkStatus();  // A frame without skeleton, as in reenactd.
         for (const TrackedPerson& person : *people) {
           v1::Skeleton skeleton = TrackedPersonToProto(person);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -33,8 +34,11 @@ v1::Skeleton TrackedPersonToProto(const TrackedPerson& person);
 // by frame index, each Skeleton stamped as its depth frame. A frame without
 // anybody has no entry. NotFound for an unknown sensor, InvalidArgument for
 // bad depth intrinsics, DataLoss for a depth frame that does not decode;
-// the tracker's errors for a bad forest.
+// the tracker's errors for a bad forest. `frame_done`, when set, is called
+// after each depth frame; returning false stops the run (Cancelled), so a
+// long take can be tracked behind a progress bar with a cancel button.
 absl::StatusOr<std::map<int64_t, std::vector<v1::Skeleton>>> TrackTakeSensor(
-    const TakeReader& take, const std::string& sensor_id, const BodyTrackerOptions& options = {});
+    const TakeReader& take, const std::string& sensor_id, const BodyTrackerOptions& options = {},
+    const std::function<bool()>& frame_done = {});
 
 }  // namespace reenact::tracking

@@ -10,9 +10,12 @@
 #include "common/base/files.h"
 #include "common/base/status_macros.h"
 #include "common/io/reenactment_convert.h"
+#include "common/io/take.h"
+#include "reenact/v1/sensor.pb.h"
 #include "server/recon/body_parts.h"
 #include "server/recon/registry.h"
 #include "server/recon/take_frames.h"
+#include "server/recon/take_tracking.h"
 
 namespace reenact::recon {
 namespace {
@@ -115,9 +118,17 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   // Reject bad options before the (slow) load.
   RETURN_IF_ERROR(method->CheckOptions(method_options));
 
-  // Load.
+  // Load; a take without skeletons is tracked first (take_tracking.h), its
+  // first job in [0.15, 0.5] of the run.
+  bool tracked = false;
+  const ProgressCallback track_range = SubRange(progress, 0.15, 0.5);
+  const ProgressCallback track_progress = [&tracked, &track_range](const Progress& p) {
+    tracked = true;
+    return !track_range || track_range(p);
+  };
   ASSIGN_OR_RETURN(std::unique_ptr<TakeFrames> take,
-                   TakeFrames::Load(input.take_path, load.frames, SubRange(progress, 0.0, 0.15)));
+                   LoadTakeForMethod(input.take_path, load.frames, SubRange(progress, 0.0, 0.15),
+                                     track_progress, log));
   if (take->num_valid_instants() == 0) {
     return absl::InvalidArgumentError(
         absl::StrCat(input.take_path, ": no instant of the take has a skeleton"));
@@ -133,7 +144,8 @@ absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::stri
   }
 
   // The method.
-  const MethodContext context{input.asset_roots, SubRange(progress, 0.15, 0.95), log};
+  const MethodContext context{input.asset_roots, SubRange(progress, tracked ? 0.5 : 0.15, 0.95),
+                              log};
   if (input.phase == MethodPhase::kPrepare || input.phase == MethodPhase::kSegment) {
     return RunPartPhase(input, *method, *take, method_options, context, out_path, start);
   }
@@ -211,8 +223,6 @@ absl::StatusOr<std::vector<SensorFrameNeeds>> FramesNeeded(const MethodInput& in
   RETURN_IF_ERROR(method->CheckOptions(method_options));
   ASSIGN_OR_RETURN(const std::unique_ptr<TakeFrames> take,
                    TakeFrames::Load(input.take_path, load.frames));
-  ASSIGN_OR_RETURN(const TakeNeeds needs, method->Needs(*take, method_options, input.phase,
-                                                        input.segment_index, input.segment_count));
   std::vector<SensorFrameNeeds> out(take->num_sensors());
   for (int s = 0; s < take->num_sensors(); ++s) out[s].sensor_id = take->sensors()[s].sensor_id;
   const auto add = [&](const std::vector<int>& instants, bool color) -> absl::Status {
@@ -229,8 +239,32 @@ absl::StatusOr<std::vector<SensorFrameNeeds>> FramesNeeded(const MethodInput& in
     }
     return absl::OkStatus();
   };
-  RETURN_IF_ERROR(add(needs.depth, false));
-  RETURN_IF_ERROR(add(needs.color, true));
+  if (take->num_valid_instants() == 0) {
+    // No skeleton: the run tracks the take first (take_tracking.h), which
+    // reads every depth frame of every sensor, instants or not, and what
+    // the method needs is known only after that: every image. (This is the
+    // take without image bytes, so skeletons kept beside the stored take
+    // are not at hand here.)
+    ASSIGN_OR_RETURN(const std::unique_ptr<TakeReader> reader, TakeReader::Open(input.take_path));
+    for (SensorFrameNeeds& sensor : out) {
+      RETURN_IF_ERROR(reader->ForEach<v1::DepthImage>(
+          SensorTopic(sensor.sensor_id, "depth"), [&sensor](const v1::DepthImage& m) {
+            sensor.depth_frames.push_back(m.frame_index());
+            return absl::OkStatus();
+          }));
+      RETURN_IF_ERROR(reader->ForEach<v1::ColorImage>(
+          SensorTopic(sensor.sensor_id, "color"), [&sensor](const v1::ColorImage& m) {
+            sensor.color_frames.push_back(m.frame_index());
+            return absl::OkStatus();
+          }));
+    }
+  } else {
+    ASSIGN_OR_RETURN(const TakeNeeds needs,
+                     method->Needs(*take, method_options, input.phase, input.segment_index,
+                                   input.segment_count));
+    RETURN_IF_ERROR(add(needs.depth, false));
+    RETURN_IF_ERROR(add(needs.color, true));
+  }
   for (SensorFrameNeeds& sensor : out) {
     for (std::vector<int64_t>* frames : {&sensor.depth_frames, &sensor.color_frames}) {
       std::sort(frames->begin(), frames->end());

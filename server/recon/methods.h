@@ -76,9 +76,13 @@ struct MethodResult {
 // Runs `input.method` on the take and writes the reenactment to `out_path`
 // (through a temporary name: on failure nothing is left at `out_path`);
 // the phases kPrepare and kSegment write their part file there instead.
+// A take that holds no skeleton is tracked from its depth first, or gets
+// the skeletons an earlier run tracked and kept beside it (take_tracking.h;
+// progress stage "track", a log line "track: ...").
 // InvalidArgument for an unknown method, unknown or malformed options, or a
-// take the method cannot use (no skeleton, no depth); Cancelled when
-// `progress` returned false; DataLoss for a corrupt take.
+// take the method cannot use (no depth; "no person in this take" when the
+// tracker found nobody); Cancelled when `progress` returned false; DataLoss
+// for a corrupt take.
 absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::string& out_path,
                                        const ProgressCallback& progress = {},
                                        const LogCallback& log = {});

@@ -527,6 +527,11 @@ absl::StatusOr<int64_t> TakeStore::DeleteTake(const std::string& take_id) {
         return absl::UnavailableError(
             absl::StrCat("take ", take_id, ": its file could not be removed: ", ec.message()));
       }
+      // The skeletons a job tracked from the take's depth and kept beside it
+      // (TrackedSkeletonsPath, server/recon/take_tracking.h) go with it; a
+      // file left there would be ignored anyway, as made from another take.
+      std::error_code ignored;
+      fs::remove(path + ".skeletons", ignored);
       return SyncDirectory(fs::path(path).parent_path().string());
     };
     if (absl::Status forgotten = catalog_->Delete(take_id); !forgotten.ok()) {

@@ -20,6 +20,7 @@
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 #include "server/recon/methods.h"
+#include "server/recon/testing/short_take.h"
 
 namespace reenact::recon {
 namespace {
@@ -66,14 +67,10 @@ struct NoSkeletonTake {
 const NoSkeletonTake& GetNoSkeletonTake() {
   static const NoSkeletonTake* made = [] {
     auto* t = new NoSkeletonTake;
-    synth::SynthOptions options;
+    // The recon tests' shared take, shorter and without sensor skeletons.
+    synth::SynthOptions options = recon::testing::SharedTakeOptions();
     options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kNone;
-    options.motion = "builtin:arm-raise";
-    options.num_sensors = 2;
     options.seconds = 1.0;
-    options.fps = 15.0;
-    options.color_width = 640;
-    options.color_height = 360;
     t->path = reenact::testing::MakeTempDir("recon_take_tracking") + "/take.mcap";
     absl::StatusOr<synth::SynthSummary> summary = synth::SynthesizeTake(options, t->path);
     if (!summary.ok()) {

@@ -55,7 +55,7 @@ std::vector<Command> BuildCommandTable() {
        "format follows from the name unless --format",
        RunImport},
       {{"take", "skeletons"},
-       "TAKE.mcap --truth SYNTH.mcap [--track [--forest F] [--no-refine]] [--json]",
+       "TAKE.mcap --truth SYNTH.mcap [--track [--model F.onnx | --forest F] [--refine]] [--json]",
        "measure a take's skeletons against a synthetic take's ground truth (TAKE itself, or the "
        "synthetic take a daemon streamed into the stored TAKE): MPJPE, PCK@10cm and per-joint "
        "errors per sensor and fused over the sensors (left/right swaps fixed, lost joints "

@@ -529,7 +529,7 @@ int RunTrackerSynth(const std::vector<std::string>& args, std::ostream& out, std
   nlohmann::json meta = {
       {"dataset", "reenact tracker synth"},
       {"description",
-       absl::StrCat(o.sequence ? "one motion seen by a fixed camera" : "shuffled crops of ",
+       absl::StrCat(o.sequence ? "one motion seen by a fixed camera, " : "shuffled crops of ",
                     flags->Has("held-out") ? "held-out motions" : "training motions", ", seed ",
                     o.seed, ", bodies ", bodies, " x ", o.shapes_per_body, " shapes")},
       {"coordinate_frame", "camera frame, OpenCV axes (x right, y down, z forward), metres"},

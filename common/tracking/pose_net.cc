@@ -136,15 +136,19 @@ absl::StatusOr<std::array<PoseNetJoint, body::kNumKinectV2Joints>> PoseNet::Run(
     for (int i = 0; i < kM * kM; ++i)
       total += p[i] = std::exp(static_cast<double>(logits[i] - top));
     double u = 0, v = 0, z = 0;
+    // Cell i lies in column i % kM and row i / kM (whole cells); its
+    // centre is half a cell further.
     for (int i = 0; i < kM * kM; ++i) {
+      const int column = i % kM, row = i / kM;
       p[i] /= total;
-      u += p[i] * ((i % kM) + 0.5);
-      v += p[i] * ((i / kM) + 0.5);
+      u += p[i] * (column + 0.5);
+      v += p[i] * (row + 0.5);
       z += p[i] * depth[i];
     }
     double near = 0;
     for (int i = 0; i < kM * kM; ++i) {
-      const double du = (i % kM) + 0.5 - u, dv = (i / kM) + 0.5 - v;
+      const int column = i % kM, row = i / kM;
+      const double du = column + 0.5 - u, dv = row + 0.5 - v;
       if (du * du + dv * dv <= 1.5 * 1.5) near += p[i];
     }
     PoseNetJoint& joint = joints[j];

@@ -175,6 +175,8 @@ def main():
     ap.add_argument('--train', default='kinect2:1,2;mhad:1,2,3', help='real subjects to train on')
     ap.add_argument('--val', default='kinect2:3;mhad:4', help='real subjects to validate on')
     ap.add_argument('--synthetic', default='', help='folders of `reenact tracker synth`, comma-separated')
+    ap.add_argument('--synthetic-val', default='',
+                    help='a folder of `reenact tracker synth --held-out`, reported, never trained on')
     ap.add_argument('--out', default='models/tracker/pose_net.onnx')
     ap.add_argument('--steps', type=int, default=6000)
     ap.add_argument('--batch', type=int, default=32)
@@ -191,7 +193,7 @@ def main():
     torch.set_num_threads(args.threads)
     start = time.time()
 
-    real_train, real_val, synth = Frames(), Frames(), Frames()
+    real_train, real_val, synth, synth_val = Frames(), Frames(), Frames(), Frames()
     train_subjects, val_subjects = parse_subjects(args.train), parse_subjects(args.val)
     if args.real:
         for name in sorted(os.listdir(args.real)):
@@ -205,7 +207,10 @@ def main():
                 read_folder(folder, real_val, frame_step=2)
     for folder in filter(None, args.synthetic.split(',')):
         read_folder(folder, synth, weight_extremities=1.0)
-    print(f'frames: real train {len(real_train)}, real val {len(real_val)}, synthetic {len(synth)}; '
+    if args.synthetic_val:
+        read_folder(args.synthetic_val, synth_val, weight_extremities=1.0)
+    print(f'frames: real train {len(real_train)}, real val {len(real_val)}, synthetic {len(synth)}, '
+          f'synthetic val {len(synth_val)}; '
           f'read in {time.time() - start:.0f} s', flush=True)
     if len(real_train) + len(synth) == 0:
         raise SystemExit('nothing to train on')
@@ -250,6 +255,9 @@ def main():
             if len(real_val):
                 mpjpe, pck = evaluate(ema, real_val)
                 msg += f', held-out real {mpjpe:.1f} mm, PCK@10cm {pck:.1f} %'
+            if len(synth_val):
+                mpjpe, pck = evaluate(ema, synth_val)
+                msg += f', held-out synthetic {mpjpe:.1f} mm, PCK@10cm {pck:.1f} %'
             print(f'{msg} ({time.time() - start:.0f} s)', flush=True)
 
     model = ema

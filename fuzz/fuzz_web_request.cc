@@ -3,11 +3,15 @@
 // glTF download. The input's first line is the target, the rest the Range
 // header; the resource size comes from the target's length. Checks: a
 // decoded path starts with '/' and holds no NUL, a parsed range lies within
-// the resource, and decoding never grows the text.
+// the resource, decoding never grows the text, and the error answer that
+// quotes the path or a query value (which need not be UTF-8) is JSON that
+// reads back, without throwing, and IsUtf8 agrees with the JSON library.
 #include <cstddef>
 #include <cstdint>
 #include <map>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "fuzz/fuzz_util.h"
 #include "server/http/web_request.h"
@@ -25,6 +29,27 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (path.empty() || path.front() != '/') reenact::fuzz::Fail("a parsed path must start with /");
     if (path.find('\0') != std::string::npos) reenact::fuzz::Fail("a parsed path holds a NUL");
     if (path.size() > target.size()) reenact::fuzz::Fail("decoding grew the path");
+    std::string quoted = "no such file: " + path;
+    for (const auto& [key, value] : query) quoted += " " + key + "=" + value;
+    const std::string body = reenact::server::http::ErrorBody("NOT_FOUND", quoted);
+    const nlohmann::json read = nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
+    if (!read.is_object() || !read["error"]["message"].is_string()) {
+      reenact::fuzz::Fail("an error answer is not JSON");
+    }
+    // IsUtf8 against nlohmann's own UTF-8 decoder, which throws on what is
+    // not UTF-8 when asked to.
+    bool strict_ok = true;
+    try {
+      (void)nlohmann::json(quoted).dump();
+    } catch (const nlohmann::json::exception&) {
+      strict_ok = false;
+    }
+    if (strict_ok != reenact::server::http::IsUtf8(quoted)) {
+      reenact::fuzz::Fail("IsUtf8 disagrees with the JSON library");
+    }
+    if (strict_ok && read["error"]["message"].get<std::string>() != quoted) {
+      reenact::fuzz::Fail("an error answer changed a UTF-8 message");
+    }
   }
   for (const int64_t resource :
        {int64_t{0}, int64_t{1}, static_cast<int64_t>(target.size()), int64_t{1} << 40}) {

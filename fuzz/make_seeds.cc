@@ -617,6 +617,9 @@ void WebRequestSeeds() {
   Seed("fuzz_web_request", "follow.txt", "/api/v1/jobs/j-1/follow?access_token=abc+def\n");
   Seed("fuzz_web_request", "deep-link.txt",
        "/?reenactment=r-1&t=1.5&paused=1&yaw=-90&mirror=1\nbytes=0-0,5-9");
+  // Not UTF-8, escaped and raw: the error answers quote them.
+  Seed("fuzz_web_request", "not-utf8.txt", "/%ff?page_size=%ff&live=%c0%ae\n");
+  Seed("fuzz_web_request", "raw-byte.txt", "/api/v1/reenactments/\xff\xfe/model.glb\nbytes=0-");
 }
 
 }  // namespace

@@ -32,6 +32,9 @@ namespace {
 
 // Largest --max-message-mb: gRPC sizes are int bytes.
 constexpr int kMaxMessageMb = 2047;
+// Time for a new connection's TLS and HTTP/2 handshake; a client on a slow
+// link does it in well under a second.
+constexpr int kHandshakeTimeoutMs = 10'000;
 
 }  // namespace
 
@@ -176,6 +179,11 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5'000);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  // A connection that has not finished its TLS and HTTP/2 handshake in this
+  // time is closed (gRPC's default waits 120 s): connections that never
+  // start TLS hold a descriptor for seconds, not minutes
+  // (server/listener_guard.h).
+  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, kHandshakeTimeoutMs);
   int port = 0;
   std::string host;
   if (!options.listen_address.empty()) {
@@ -184,6 +192,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   }
   for (const auto& service : server->services_) builder.RegisterService(service.get());
   // No token needed (common/rpc/health_service.h): probes hold none.
+  server->health_->SetClientLimits(server->client_limits_.get());
   builder.RegisterService(server->health_.get());
   auto interceptors = rpc::RequestMetricsInterceptors(CountedMethods());
   interceptors.push_back(server->client_limits_->InterceptorFactory());

@@ -2,12 +2,17 @@
 // `reenact-server --help`. SIGINT/SIGTERM stop it gracefully (exit 0); usage
 // errors exit 2, an unusable data folder or address exits 1. Usage errors go
 // to stderr as text; everything after the flags are read is an event of the
-// structured log (common/log/log.h, --log-format, --log-level).
+// structured log (common/log/log.h, --log-format, --log-level). When the
+// gRPC listener stops accepting (out of descriptors), it stops gracefully
+// and starts itself again on the same ports (server/listener_guard.h); exit
+// 75 when it cannot.
 #include <pthread.h>
 #include <signal.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -15,6 +20,7 @@
 #include "common/log/log.h"
 #include "server/http/http_front.h"
 #include "server/jobs/slurm_launcher.h"
+#include "server/listener_guard.h"
 #include "server/live/live_body_follower.h"
 #include "server/recon/methods.h"
 #include "server/recon/registry.h"
@@ -25,6 +31,8 @@ namespace {
 
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
+// EX_TEMPFAIL: stopped to start again, and could not; a supervisor may.
+constexpr int kExitRestartFailed = 75;
 
 int Fail(const absl::Status& status, int code) {
   std::cerr << "reenact-server: " << status.message() << "\n";
@@ -51,6 +59,8 @@ int main(int argc, char** argv) {
   sigemptyset(&stop_signals);
   sigaddset(&stop_signals, SIGINT);
   sigaddset(&stop_signals, SIGTERM);
+  // Raised by the process itself when its gRPC listener has stopped.
+  sigaddset(&stop_signals, SIGUSR1);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
 
   const absl::StatusOr<ServerCommandLine> command_line =
@@ -61,6 +71,8 @@ int main(int argc, char** argv) {
     return 0;
   }
   reenact::log::Configure(command_line->log);
+  const int64_t descriptor_limit = RaiseDescriptorLimit();
+  WatchGrpcLog([] { ::kill(::getpid(), SIGUSR1); });
   ServerOptions options = command_line->options;
   // Live jobs of method body.
   options.live.factory = MakeLiveBodyFollowerFactory(options.jobs.asset_roots);
@@ -87,7 +99,8 @@ int main(int argc, char** argv) {
                       {"data_dir", options.data_dir},
                       {"tls", options.tls.enabled()},
                       {"auth", !options.auth_file.empty()},
-                      {"jobs", (*server)->jobs().concurrency()}},
+                      {"jobs", (*server)->jobs().concurrency()},
+                      {"descriptor_limit", descriptor_limit}},
                      absl::StrCat("listening on ", (*server)->address()));
   if (!command_line->port_file.empty()) {
     if (absl::Status written = WritePortFile(command_line->port_file, (*server)->address());
@@ -132,6 +145,33 @@ int main(int argc, char** argv) {
   }
   int signal_number = 0;
   sigwait(&stop_signals, &signal_number);
+  if (signal_number == SIGUSR1) {
+    // The gRPC listener accepts no more (listener_guard.h): probes hear
+    // NOT_SERVING, the server drains as for SIGTERM, then starts again on
+    // the ports it had.
+    (*server)->health().SetProblem("grpc_listener_stopped", true);
+    reenact::log::Error("grpc_listener_stopped",
+                        {{"address", (*server)->address()},
+                         {"open_descriptors", OpenDescriptorCount()},
+                         {"descriptor_limit", descriptor_limit}},
+                        "the gRPC listener stopped accepting (out of descriptors?); stopping "
+                        "gracefully to start again");
+    std::map<std::string, std::string> pinned = {{"--listen", (*server)->address()}};
+    if (!(*server)->metrics_address().empty()) {
+      pinned["--metrics"] = (*server)->metrics_address();
+    }
+    if (web != nullptr) pinned["--http"] = web->address();
+    (*server)->Shutdown();
+    if (web != nullptr) web->Stop();
+    const std::vector<std::string> again =
+        PinnedArguments(std::vector<std::string>(argv, argv + argc), pinned);
+    reenact::log::Info("server_restarting", {{"address", pinned["--listen"]}},
+                       "starting again in this process");
+    const std::string why = ExecSelf(again);
+    reenact::log::Error("server_restart_failed", {{"error", why}},
+                        absl::StrCat("could not start again: ", why));
+    return kExitRestartFailed;
+  }
   const char* const signal_name = signal_number == SIGINT ? "SIGINT" : "SIGTERM";
   reenact::log::Info("server_stopping", {{"signal", signal_name}},
                      absl::StrCat(signal_name, ", shutting down"));

@@ -17,6 +17,7 @@
 #include "common/base/time.h"
 #include "common/io/depth_codec.h"
 #include "common/io/jpeg.h"
+#include "server/listener_guard.h"
 #include "server/server_flags.h"
 #include "server/testing/test_server.h"
 #include "server/testing/test_takes.h"
@@ -171,6 +172,23 @@ TEST(ServerMain, FlagsParseIntoOptions) {
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(ParseServerCommandLine({"--data", "/d", "--listen", "h:70000"}).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+TEST(ServerMain, RestartKeepsTheBoundPortsAndEveryOtherArgument) {
+  const std::vector<std::string> argv = {"reenact-server", "--data",    "/d",
+                                         "--listen",       "0.0.0.0:0", "--http=127.0.0.1:0",
+                                         "--port-file",    "/p",        "--listen-x"};
+  const std::vector<std::string> expected = {
+      "reenact-server",         "--data",      "/d", "--listen",  "0.0.0.0:41000",
+      "--http=127.0.0.1:41001", "--port-file", "/p", "--listen-x"};
+  EXPECT_EQ(PinnedArguments(argv, {{"--listen", "0.0.0.0:41000"},
+                                   {"--http", "127.0.0.1:41001"},
+                                   {"--metrics", "127.0.0.1:41002"}}),
+            expected);
+  EXPECT_TRUE(IsListenerFailure("Failed accept4: Too many open files"));
+  EXPECT_FALSE(IsListenerFailure("Handshake failed with fatal error SSL_ERROR_SSL"));
+  EXPECT_GT(OpenDescriptorCount(), 2);
+  EXPECT_GT(RaiseDescriptorLimit(), 0);
 }
 
 TEST(ServerMain, SigtermStopsGracefullyAndKeepsTheTake) {

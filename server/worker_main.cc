@@ -61,6 +61,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "common/base/flags.h"
+#include "common/base/json_text.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/log/log.h"
@@ -369,7 +370,7 @@ int WorkerMain(int argc, char** argv) {
       nlohmann::json::parse(flags->GetOr("options-json", "{}"), nullptr, false);
   if (!options.is_object()) return Usage(out, "--options-json is not a JSON object");
   for (const auto& [key, value] : options.items()) {
-    input.options[key] = value.is_string() ? value.get<std::string>() : value.dump();
+    input.options[key] = value.is_string() ? value.get<std::string>() : reenact::JsonText(value);
   }
   if (const std::string error = ReadPhase(*flags, input); !error.empty()) return Usage(out, error);
   const std::string out_path = *flags->Get("out");

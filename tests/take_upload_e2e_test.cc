@@ -113,26 +113,12 @@ class TakeUploadE2e : public ::testing::Test {
 
   // Starts reenact-server on `port` (0: any) with `data`; returns its address.
   std::string StartServer(const std::string& data, int port = 0) {
-    SubprocessOptions options;
-    options.stdout_path = options.stderr_path = data + ".log";
-    const std::string port_file = data + ".port";
-    fs::remove(port_file);
-    auto server = Subprocess::Start(
-        {Bin("reenact-server"), "--data", data, "--listen", "127.0.0.1:" + std::to_string(port),
-         "--port-file", port_file, "--workers", "none"},
-        options);
-    EXPECT_TRUE(server.ok()) << server.status();
-    if (!server.ok()) return "";
-    server_ = std::move(*server);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      const std::string text = ReadText(port_file);
-      if (const auto nl = text.find('\n'); nl != std::string::npos) return text.substr(0, nl);
-      if (!server_->Running()) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    ADD_FAILURE() << "the server did not start: " << ReadText(data + ".log");
-    return "";
+    std::string error;
+    const std::string address = testing::StartServerForTest(
+        data, {"--listen", "127.0.0.1:" + std::to_string(port), "--workers", "none"}, &server_,
+        &error);
+    if (address.empty()) ADD_FAILURE() << error;
+    return address;
   }
 
   void TearDown() override {

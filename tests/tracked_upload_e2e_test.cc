@@ -37,6 +37,7 @@ using testing::Bin;
 using testing::CommandResult;
 using testing::ReadText;
 using testing::RunCommand;
+using testing::StartServerForTest;
 
 constexpr int kFrames = 45;
 // The 20 body joints the tracker's figures use (no hand tips, thumbs or
@@ -63,24 +64,11 @@ class TrackedUploadE2e : public ::testing::Test {
 
   // Starts reenact-server with one job slot; returns its address.
   std::string StartServer() {
-    SubprocessOptions options;
-    options.stdout_path = options.stderr_path = dir_ + "/server.log";
-    auto server =
-        Subprocess::Start({Bin("reenact-server"), "--data", dir_ + "/data", "--listen",
-                           "127.0.0.1:0", "--port-file", dir_ + "/server.port", "--jobs", "1"},
-                          options);
-    EXPECT_TRUE(server.ok()) << server.status();
-    if (!server.ok()) return "";
-    server_ = std::move(*server);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      const std::string text = ReadText(dir_ + "/server.port");
-      if (const auto nl = text.find('\n'); nl != std::string::npos) return text.substr(0, nl);
-      if (!server_->Running()) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    ADD_FAILURE() << "the server did not start: " << ReadText(dir_ + "/server.log");
-    return "";
+    std::string error;
+    const std::string address = StartServerForTest(
+        dir_ + "/data", {"--listen", "127.0.0.1:0", "--jobs", "1"}, &server_, &error);
+    if (address.empty()) ADD_FAILURE() << error;
+    return address;
   }
 
   // `reenact takes upload FILE --json`: the stored take's id, "" on failure.
@@ -161,7 +149,7 @@ TEST_F(TrackedUploadE2e, AnImportedRecordingOfAPersonGetsSkeletonsAndABodyJob) {
       dir_, "submit-body",
       {Bin("reenact"), "jobs", "submit", "--server", address, "--take", take_id, "--method", "body",
        "--model", "procedural", "--option", "atlas_px=256", "--wait", "--logs", "--json"});
-  ASSERT_EQ(submit.exit_code, 0) << submit.err << "\n" << ReadText(dir_ + "/server.log");
+  ASSERT_EQ(submit.exit_code, 0) << submit.err << "\n" << ReadText(dir_ + "/data.log");
   // The job's log says the take was tracked from its depth.
   const size_t track = submit.err.find("track: ");
   ASSERT_NE(track, std::string::npos) << submit.err;

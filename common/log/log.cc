@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/json_text.h"
 
 namespace reenact::log {
 namespace {
@@ -51,7 +52,7 @@ std::string JsonValue(const Value& value) {
           return JsonString(v);
         } else {
           // Non-finite doubles come out as null, which JSON allows.
-          return nlohmann::json(v).dump();
+          return JsonText(nlohmann::json(v));
         }
       },
       value.variant());

@@ -11,6 +11,21 @@ namespace reenact::rpc {
 using grpc::health::v1::HealthCheckRequest;
 using grpc::health::v1::HealthCheckResponse;
 
+namespace {
+
+// A Watch refused before it started.
+class RefusedWatch final : public grpc::ServerWriteReactor<HealthCheckResponse> {
+ public:
+  explicit RefusedWatch(const grpc::Status& status) { Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+grpc::Status ToGrpc(const absl::Status& status) {
+  return grpc::Status(static_cast<grpc::StatusCode>(status.code()), std::string(status.message()));
+}
+
+}  // namespace
+
 // One Watch call. It re-reads the service's status whenever told to
 // (Refresh), so a late notice can never send an older status after a newer
 // one. Owned by itself from the start until OnDone; the service holds weak
@@ -78,9 +93,9 @@ class HealthWatch final : public PumpedWriteReactor<HealthCheckResponse> {
   std::optional<HealthService::ServingStatus> pending_;
 };
 
-HealthService::HealthService(std::vector<std::string> services)
-    : services_(std::make_move_iterator(services.begin()),
-                std::make_move_iterator(services.end())) {}
+HealthService::HealthService(std::vector<std::string> services, int max_watches)
+    : services_(std::make_move_iterator(services.begin()), std::make_move_iterator(services.end())),
+      max_watches_(std::max(1, max_watches)) {}
 
 HealthService::~HealthService() = default;
 
@@ -121,6 +136,17 @@ grpc::ServerUnaryReactor* HealthService::Check(grpc::CallbackServerContext* cont
                                                const HealthCheckRequest* request,
                                                HealthCheckResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const ClientLimits* limits = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    limits = limits_;
+  }
+  if (limits != nullptr) {
+    if (const absl::Status allowed = limits->Check(*context, /*stream=*/false); !allowed.ok()) {
+      reactor->Finish(ToGrpc(allowed));
+      return reactor;
+    }
+  }
   const ServingStatus status = StatusFor(request->service());
   if (status == HealthCheckResponse::SERVICE_UNKNOWN) {
     reactor->Finish(grpc::Status(grpc::StatusCode::NOT_FOUND,
@@ -134,15 +160,42 @@ grpc::ServerUnaryReactor* HealthService::Check(grpc::CallbackServerContext* cont
 
 grpc::ServerWriteReactor<HealthCheckResponse>* HealthService::Watch(
     grpc::CallbackServerContext* context, const HealthCheckRequest* request) {
+  const ClientLimits* limits = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    limits = limits_;
+    // Forget the watches that ended, so the list is as long as the live ones.
+    watches_.erase(std::remove_if(watches_.begin(), watches_.end(),
+                                  [](const std::weak_ptr<HealthWatch>& w) { return w.expired(); }),
+                   watches_.end());
+    if (static_cast<int>(watches_.size()) >= max_watches_) {
+      return new RefusedWatch(grpc::Status(
+          grpc::StatusCode::RESOURCE_EXHAUSTED,
+          "too many health watches are open on this server; use Check, or watch later"));
+    }
+  }
+  if (limits != nullptr) {
+    if (const absl::Status allowed = limits->Check(*context, /*stream=*/true); !allowed.ok()) {
+      return new RefusedWatch(ToGrpc(allowed));
+    }
+  }
   return HealthWatch::Start(this, request->service());
+}
+
+void HealthService::SetClientLimits(const ClientLimits* limits) {
+  std::lock_guard<std::mutex> lock(mu_);
+  limits_ = limits;
+}
+
+int HealthService::watches() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return static_cast<int>(
+      std::count_if(watches_.begin(), watches_.end(),
+                    [](const std::weak_ptr<HealthWatch>& w) { return !w.expired(); }));
 }
 
 bool HealthService::AddWatch(const std::shared_ptr<HealthWatch>& watch) {
   std::lock_guard<std::mutex> lock(mu_);
-  // Forget the watches that ended, so the list stays as long as the live ones.
-  watches_.erase(std::remove_if(watches_.begin(), watches_.end(),
-                                [](const std::weak_ptr<HealthWatch>& w) { return w.expired(); }),
-                 watches_.end());
   watches_.push_back(watch);
   return !shut_down_;
 }

@@ -10,7 +10,10 @@
 //
 // The service needs no token: probes (load balancers, systemd, Kubernetes)
 // hold none, and it tells nothing but up or down. Its handlers call no
-// authorizer, so a server with --auth still answers it.
+// authorizer, so a server with --auth still answers it. Its calls count
+// under the server's per-client caps (SetClientLimits), and Watch streams
+// under a cap of their own for all clients together (max_watches): past
+// either, RESOURCE_EXHAUSTED.
 //
 // Thread-safe. Must outlive the gRPC server it is registered with.
 #pragma once
@@ -22,6 +25,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/rpc/client_limits.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 
 namespace reenact::rpc {
@@ -32,10 +36,19 @@ class HealthService final : public grpc::health::v1::Health::CallbackService {
  public:
   using ServingStatus = grpc::health::v1::HealthCheckResponse::ServingStatus;
 
+  // Watch streams open at once, all clients together, by default.
+  static constexpr int kDefaultMaxWatches = 1024;
+
   // `services`: the fully qualified names of the server's services
   // ("reenact.v1.Ingest"); "" is always known.
-  explicit HealthService(std::vector<std::string> services);
+  explicit HealthService(std::vector<std::string> services, int max_watches = kDefaultMaxWatches);
   ~HealthService() override;
+
+  // The server's per-client caps, which Check and Watch ask before they
+  // answer; null (the default): none. Must outlive the service's calls.
+  void SetClientLimits(const ClientLimits* limits);
+  // Watch streams open now.
+  int watches() const;
 
   // Sets or clears a named reason not to serve. Watchers hear the change.
   void SetProblem(std::string_view problem, bool present);
@@ -64,7 +77,9 @@ class HealthService final : public grpc::health::v1::Health::CallbackService {
   void NotifyWatches(bool end);
 
   const std::set<std::string, std::less<>> services_;
+  const int max_watches_;
   mutable std::mutex mu_;
+  const ClientLimits* limits_ = nullptr;
   std::set<std::string, std::less<>> problems_;
   bool shut_down_ = false;
   std::vector<std::weak_ptr<HealthWatch>> watches_;

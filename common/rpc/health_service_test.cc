@@ -5,6 +5,8 @@
 #include <chrono>
 #include <memory>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
@@ -21,11 +23,22 @@ struct Served {
   std::unique_ptr<grpc::Server> server;
   std::unique_ptr<Health::Stub> stub;
 
-  Served() {
-    health = std::make_unique<HealthService>(std::vector<std::string>{"reenact.v1.Takes"});
+  std::unique_ptr<ClientLimits> limits;
+
+  explicit Served(int max_watches = HealthService::kDefaultMaxWatches,
+                  const ClientLimitOptions* caps = nullptr) {
+    health =
+        std::make_unique<HealthService>(std::vector<std::string>{"reenact.v1.Takes"}, max_watches);
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+    if (caps != nullptr) {
+      limits = std::make_unique<ClientLimits>(*caps);
+      health->SetClientLimits(limits.get());
+      std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> counted;
+      counted.push_back(limits->InterceptorFactory());
+      builder.experimental().SetInterceptorCreators(std::move(counted));
+    }
     builder.RegisterService(health.get());
     server = builder.BuildAndStart();
     EXPECT_GT(port, 0);
@@ -140,6 +153,59 @@ TEST(HealthService, ManyWatchersAllHearTheChange) {
   }
   for (auto& context : contexts) context->TryCancel();
   for (auto& reader : readers) (void)reader->Finish();
+}
+
+TEST(HealthService, WatchesPastTheCapsAreRefusedAndTheOthersGoOn) {
+  // One client may hold 3 streams and 5 calls; the server 4 watches in all.
+  ClientLimitOptions caps;
+  caps.max_calls = 5;
+  caps.max_streams = 3;
+  Served served(/*max_watches=*/4, &caps);
+  std::vector<std::unique_ptr<grpc::ClientContext>> contexts;
+  std::vector<std::unique_ptr<grpc::ClientReader<HealthCheckResponse>>> readers;
+  const HealthCheckRequest request;
+  const auto watch = [&]() -> grpc::Status {
+    contexts.push_back(std::make_unique<grpc::ClientContext>());
+    contexts.back()->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+    readers.push_back(served.stub->Watch(contexts.back().get(), request));
+    HealthCheckResponse first;
+    if (readers.back()->Read(&first)) return grpc::Status::OK;
+    return readers.back()->Finish();
+  };
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(watch().ok()) << i;
+  const grpc::Status fourth = watch();
+  EXPECT_EQ(fourth.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(fourth.error_message().find("stream"), std::string::npos) << fourth.error_message();
+  // Check still answers: unary calls have room left under max_calls.
+  HealthCheckResponse response;
+  EXPECT_TRUE(served.Check("", &response).ok());
+  EXPECT_EQ(served.health->watches(), 3);
+  for (int i = 0; i < 3; ++i) contexts[i]->TryCancel();
+  for (int i = 0; i < 3; ++i) (void)readers[i]->Finish();
+  // Once they end, the cap frees.
+  for (int i = 0; i < 50 && served.health->watches() > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(served.health->watches(), 0);
+}
+
+TEST(HealthService, WatchesPastTheServerCapAreRefused) {
+  Served served(/*max_watches=*/2);
+  std::vector<std::unique_ptr<grpc::ClientContext>> contexts;
+  std::vector<std::unique_ptr<grpc::ClientReader<HealthCheckResponse>>> readers;
+  const HealthCheckRequest request;
+  std::vector<grpc::StatusCode> codes;
+  for (int i = 0; i < 3; ++i) {
+    contexts.push_back(std::make_unique<grpc::ClientContext>());
+    readers.push_back(served.stub->Watch(contexts.back().get(), request));
+    HealthCheckResponse first;
+    codes.push_back(readers.back()->Read(&first) ? grpc::StatusCode::OK
+                                                 : readers.back()->Finish().error_code());
+  }
+  EXPECT_EQ(codes, (std::vector<grpc::StatusCode>{grpc::StatusCode::OK, grpc::StatusCode::OK,
+                                                  grpc::StatusCode::RESOURCE_EXHAUSTED}));
+  for (int i = 0; i < 2; ++i) contexts[i]->TryCancel();
+  for (int i = 0; i < 2; ++i) (void)readers[i]->Finish();
 }
 
 }  // namespace

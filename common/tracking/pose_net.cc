@@ -145,17 +145,10 @@ absl::StatusOr<std::array<PoseNetJoint, body::kNumKinectV2Joints>> PoseNet::Run(
       v += p[i] * (row + 0.5);
       z += p[i] * depth[i];
     }
-    double near = 0;
-    for (int i = 0; i < kM * kM; ++i) {
-      const int column = i % kM, row = i / kM;
-      const double du = column + 0.5 - u, dv = row + 0.5 - v;
-      if (du * du + dv * dv <= 1.5 * 1.5) near += p[i];
-    }
     PoseNetJoint& joint = joints[j];
     joint.pixel = {crop.center_x + (u / kM - 0.5) * crop.width_px,
                    crop.center_y + (v / kM - 0.5) * crop.height_px};
     joint.depth_m = crop.median_depth_m + z * kPoseNetZScaleM;
-    joint.confidence = std::clamp(std::isfinite(near) ? near : 0.0, 0.0, 1.0);
     if (!std::isfinite(joint.pixel.x()) || !std::isfinite(joint.pixel.y()) ||
         !std::isfinite(joint.depth_m)) {
       joint = PoseNetJoint{};

@@ -9,8 +9,9 @@
 // depth map on a kPoseNetOutput^2 grid; the joint is the expectation under
 // the heat map's softmax and its depth the depth map averaged with the same
 // weights (integral regression: Sun et al., "Integral Human Pose
-// Regression", ECCV 2018). The heat map's mass near that expectation is the
-// joint's confidence.
+// Regression", ECCV 2018). The heat maps carry no measure of how right a
+// joint is, so the tracker sets confidences from the depth instead
+// (body_tracker.cc).
 //
 // The network is trained by models/tracker/train_pose_net.py, whose
 // pose_net.py implements the same crop; the constants here must equal its.
@@ -60,7 +61,6 @@ std::vector<float> PoseNetInput(const DepthImageMm& depth, const MaskImage* labe
 struct PoseNetJoint {
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // In the depth image.
   double depth_m = 0;
-  double confidence = 0;  // Heat-map mass within 1.5 cells of the joint.
 };
 
 class PoseNet {

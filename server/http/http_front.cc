@@ -214,7 +214,14 @@ void HttpFront::Impl::AcceptLoop() {
       continue;
     }
     std::thread([this, socket = std::move(socket), connection]() mutable {
-      Serve(std::move(socket), connection);
+      try {
+        Serve(std::move(socket), connection);
+      } catch (const std::exception& e) {
+        // A defect of ours, never the client's to trigger: the connection
+        // ends; the server and every other connection go on.
+        log::Error("http_connection_failed", {{"what", e.what()}},
+                   "an HTTP connection ended on an exception");
+      }
       std::lock_guard<std::mutex> lock(mutex);
       for (auto it = connections.begin(); it != connections.end(); ++it) {
         if (it->second == connection) {

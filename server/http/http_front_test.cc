@@ -357,6 +357,40 @@ TEST_F(HttpFrontTest, ErrorsAreJsonWithTheStatusName) {
   EXPECT_EQ(Request(port_, "/api/v1/info", {{"X-Big", std::string(20000, 'x')}}).status, 431);
 }
 
+TEST_F(HttpFrontTest, TargetsThatAreNotUtf8GetJsonErrorsAndTheServerStaysUp) {
+  // An app root, so that a path outside the API is answered "no such file".
+  const std::string web = dir_ + "/web";
+  std::filesystem::create_directories(web);
+  std::ofstream(web + "/index.html") << "<!doctype html><title>app</title>";
+  HttpFrontOptions front;
+  front.web_root = web;
+  ASSERT_NO_FATAL_FAILURE(Start({}, front));
+  const std::string kReplacement = "\xEF\xBF\xBD";  // U+FFFD in UTF-8.
+  for (const auto& [target, status] :
+       std::vector<std::pair<std::string, int>>{{"/%ff", 404},
+                                                {"/%c0%ae/index.html", 404},
+                                                {"/api/v1/%ff", 400},
+                                                {"/api/v1/jobs/%ff/follow", 400},
+                                                {"/api/v1/reenactments?page_size=%ff", 400},
+                                                {"/api/v1/jobs?live=%c0%ae", 400},
+                                                {"/api/v1/reenactments/%fe%ff/model.glb", 400}}) {
+    const Reply reply = Request(port_, target);
+    ASSERT_FALSE(reply.failed) << target << ": the server did not answer";
+    EXPECT_EQ(reply.status, status) << target << ": " << reply.body;
+    const json body = reply.Json();
+    ASSERT_TRUE(body.is_object()) << target << ": " << reply.body;
+    EXPECT_NE(body["error"]["message"].get<std::string>().find(kReplacement), std::string::npos)
+        << target << ": " << reply.body;
+  }
+  // A raw byte that is not UTF-8 in the target: refused or answered, never
+  // the end of the server.
+  const Reply raw = Request(port_, "/\xff\xfe");
+  if (!raw.failed) {
+    EXPECT_GE(raw.status, 400) << raw.body;
+  }
+  EXPECT_EQ(Request(port_, "/api/v1/info").status, 200);
+}
+
 TEST_F(HttpFrontTest, ServesTheAppFilesAndNothingOutsideThem) {
   const std::string web = dir_ + "/web";
   std::filesystem::create_directories(web + "/assets");

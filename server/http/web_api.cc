@@ -23,6 +23,7 @@
 #include "absl/strings/str_split.h"
 #include "clients/sdk/reenactments_client.h"
 #include "common/base/files.h"
+#include "common/base/json_text.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
 #include "common/io/body_reenactment.h"
@@ -63,7 +64,7 @@ int64_t WallNowNs() {
 WebResponse JsonResponse(const json& value, int status = 200) {
   WebResponse response;
   response.status = status;
-  response.body = value.dump();
+  response.body = JsonText(value);
   response.headers.emplace_back("Cache-Control", "no-store");
   return response;
 }
@@ -195,10 +196,10 @@ int HttpStatusOf(absl::StatusCode code) {
 }
 
 WebResponse ErrorResponse(const absl::Status& status) {
-  WebResponse response = JsonResponse(json{{"error",
-                                            {{"code", absl::StatusCodeToString(status.code())},
-                                             {"message", std::string(status.message())}}}},
-                                      HttpStatusOf(status.code()));
+  WebResponse response;
+  response.status = HttpStatusOf(status.code());
+  response.body = ErrorBody(absl::StatusCodeToString(status.code()), status.message());
+  response.headers.emplace_back("Cache-Control", "no-store");
   if (status.code() == absl::StatusCode::kUnauthenticated) {
     response.headers.emplace_back("WWW-Authenticate", "Bearer realm=\"reenact\"");
   }
@@ -213,7 +214,7 @@ bool WebApi::IsApiPath(absl::string_view path) {
 }
 
 std::string WebApi::FollowJobId(absl::string_view path) {
-  if (!absl::StartsWith(path, kJobsPath)) return "";
+  if (!absl::StartsWith(path, kJobsPath) || !IsUtf8(path)) return "";
   const std::vector<absl::string_view> parts = absl::StrSplit(path.substr(kJobsPath.size()), '/');
   if (parts.size() != 3 || !parts[0].empty() || parts[1].empty() || parts[2] != "follow") {
     return "";
@@ -230,6 +231,17 @@ WebResponse WebApi::Handle(const WebRequest& request) {
     return response;
   }
   const absl::string_view path = request.path;
+  // Ids and page tokens go on as protobuf strings, which must be UTF-8.
+  if (!IsUtf8(path)) {
+    return ErrorResponse(
+        absl::InvalidArgumentError(absl::StrCat("the request's path is not UTF-8: ", path)));
+  }
+  for (const auto& [key, value] : request.query) {
+    if (!IsUtf8(key) || !IsUtf8(value)) {
+      return ErrorResponse(absl::InvalidArgumentError(
+          absl::StrCat("the request's query is not UTF-8: ", key, "=", value)));
+    }
+  }
   if (path == "/api/v1/info") return Info();
   if (path == kReenactmentsPath) return ListReenactments(request);
   if (path == kJobsPath) return ListJobs(request);
@@ -483,7 +495,7 @@ int WebApi::Follow(const std::string& job_id, const std::string& token, const Se
   Eigen::Vector3d rest_root = Eigen::Vector3d::Zero();
   const auto send_json = [&](const json& message) {
     if (client_gone) return false;
-    if (!send(false, message.dump())) client_gone = true;
+    if (!send(false, JsonText(message))) client_gone = true;
     return !client_gone;
   };
   const auto on_event = [&](const v1::FollowEvent& event) -> bool {

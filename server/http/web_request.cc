@@ -6,6 +6,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "common/base/json_text.h"
 
 namespace reenact::server::http {
 
@@ -92,6 +93,46 @@ bool ParseByteRange(absl::string_view header, int64_t size, int64_t* first, int6
   *first = x;
   *last = b.empty() ? size - 1 : std::min(y, size - 1);
   return true;
+}
+
+bool IsUtf8(absl::string_view text) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
+  const size_t n = text.size();
+  size_t i = 0;
+  while (i < n) {
+    const unsigned char lead = bytes[i];
+    if (lead < 0x80) {
+      ++i;
+      continue;
+    }
+    size_t length = 0;
+    unsigned char low = 0x80, high = 0xBF;  // The second byte's range.
+    if (lead >= 0xC2 && lead <= 0xDF) {
+      length = 2;
+    } else if (lead >= 0xE0 && lead <= 0xEF) {
+      length = 3;
+      if (lead == 0xE0) low = 0xA0;   // No overlong forms.
+      if (lead == 0xED) high = 0x9F;  // No surrogates.
+    } else if (lead >= 0xF0 && lead <= 0xF4) {
+      length = 4;
+      if (lead == 0xF0) low = 0x90;   // No overlong forms.
+      if (lead == 0xF4) high = 0x8F;  // Nothing above U+10FFFF.
+    } else {
+      return false;
+    }
+    if (n - i < length) return false;
+    if (bytes[i + 1] < low || bytes[i + 1] > high) return false;
+    for (size_t k = 2; k < length; ++k) {
+      if (bytes[i + k] < 0x80 || bytes[i + k] > 0xBF) return false;
+    }
+    i += length;
+  }
+  return true;
+}
+
+std::string ErrorBody(absl::string_view code, absl::string_view message) {
+  return JsonText(
+      nlohmann::json{{"error", {{"code", std::string(code)}, {"message", std::string(message)}}}});
 }
 
 }  // namespace reenact::server::http

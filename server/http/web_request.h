@@ -1,6 +1,6 @@
 // Parsing of what an HTTP client sends the HTTP front (server/http/): the
 // request target's path and query, and a Range header. Untrusted bytes: no
-// input makes these allocate more than a few times its own size, and
+// input makes these allocate more than a few times its own size or throw, and
 // fuzz/fuzz_web_request.cc runs them on arbitrary input.
 #pragma once
 
@@ -32,5 +32,16 @@ bool ParseTarget(absl::string_view target, std::string* path,
 // allows.
 bool ParseByteRange(absl::string_view header, int64_t size, int64_t* first, int64_t* last,
                     bool* ignore);
+
+// Whether `text` is well-formed UTF-8 (RFC 3629: shortest forms only, no
+// surrogates, nothing above U+10FFFF). Ids, names and page tokens reach the
+// services as protobuf strings, which must be.
+bool IsUtf8(absl::string_view text);
+
+// The JSON body of an error answer: {"error": {"code": CODE, "message":
+// MESSAGE}}. The message often quotes what the client sent (a path, a query
+// value), which need not be UTF-8: such bytes become U+FFFD, so any request
+// gets a well-formed answer.
+std::string ErrorBody(absl::string_view code, absl::string_view message);
 
 }  // namespace reenact::server::http

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_join.h"
+#include "common/base/json_text.h"
 
 namespace reenact::server {
 namespace {
@@ -33,7 +34,7 @@ bool IsLiveOnly(const methods::MethodSpec* spec, const std::string& key) {
 std::string OptionsJson(const std::map<std::string, std::string>& options) {
   nlohmann::json j = nlohmann::json::object();
   for (const auto& [key, value] : options) j[key] = value;
-  return j.dump();
+  return JsonText(j);
 }
 
 }  // namespace

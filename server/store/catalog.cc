@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
+#include "common/base/json_text.h"
 #include "common/base/status_macros.h"
 
 namespace reenact::server {
@@ -92,7 +93,7 @@ static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 std::string OptionsToJson(const google::protobuf::Map<std::string, std::string>& options) {
   nlohmann::json j = nlohmann::json::object();
   for (const auto& [key, value] : options) j[key] = value;
-  return j.dump();
+  return JsonText(j);
 }
 
 void OptionsFromJson(const std::string& text,
@@ -100,7 +101,7 @@ void OptionsFromJson(const std::string& text,
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (!j.is_object()) return;
   for (const auto& [key, value] : j.items()) {
-    (*out)[key] = value.is_string() ? value.get<std::string>() : value.dump();
+    (*out)[key] = value.is_string() ? value.get<std::string>() : JsonText(value);
   }
 }
 

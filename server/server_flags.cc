@@ -43,6 +43,7 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                                     "http-port-file",
                                                     "web",
                                                     "http-max-connections",
+                                                    "http-max-connections-per-client",
                                                     "log-format",
                                                     "log-level"},
                                                    {"help", "insecure", "keep-derived"}));
@@ -100,6 +101,12 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                    flags.GetInt("http-max-connections", out.http.max_connections));
   if (out.http.max_connections < 1) {
     return absl::InvalidArgumentError("--http-max-connections must be >= 1");
+  }
+  ASSIGN_OR_RETURN(
+      out.http.max_connections_per_client,
+      flags.GetInt("http-max-connections-per-client", out.http.max_connections_per_client));
+  if (out.http.max_connections_per_client < 1) {
+    return absl::InvalidArgumentError("--http-max-connections-per-client must be >= 1");
   }
   if (out.http.address.empty() && (!out.http.port_file.empty() || flags.Has("web"))) {
     return absl::InvalidArgumentError("--http-port-file and --web need --http HOST:PORT");

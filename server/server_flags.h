@@ -52,6 +52,7 @@ inline constexpr char kServerUsage[] =
     "tokens as gRPC; loopback unless TLS and --auth, or --insecure; default off)] "
     "[--http-port-file FILE] [--web DIR (the built app; default: beside the program)] "
     "[--http-max-connections N (default 256)] "
+    "[--http-max-connections-per-client N (from one IP address; default 32)] "
     "[--log-format text|json (one line per event on stderr; default text)] "
     "[--log-level debug|info|warn|error (default info)]";
 
@@ -65,6 +66,8 @@ struct HttpFlags {
   std::string web_root;
   // --http-max-connections.
   int max_connections = 256;
+  // --http-max-connections-per-client.
+  int max_connections_per_client = 32;
 };
 
 struct ServerCommandLine {

@@ -118,6 +118,7 @@ int main(int argc, char** argv) {
                                                                : command_line->http.web_root;
     web_options.tls = options.tls;
     web_options.max_connections = command_line->http.max_connections;
+    web_options.max_connections_per_client = command_line->http.max_connections_per_client;
     absl::StatusOr<std::unique_ptr<http::HttpFront>> started =
         http::HttpFront::Start(web_options, server->get());
     if (!started.ok()) {

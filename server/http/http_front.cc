@@ -118,6 +118,9 @@ absl::Status HttpFrontOptions::Validate() const {
   if (max_connections < 1) {
     return absl::InvalidArgumentError("--http-max-connections must be >= 1");
   }
+  if (max_connections_per_client < 1) {
+    return absl::InvalidArgumentError("--http-max-connections-per-client must be >= 1");
+  }
   if (!(idle_timeout_s > 0)) return absl::InvalidArgumentError("the idle timeout must be > 0");
   return tls.Validate();
 }
@@ -152,13 +155,25 @@ struct HttpFront::Impl {
   // max: none, e.g. between the frames of a follow).
   struct Connection {
     int fd = -1;
+    std::string client;  // The peer's IP address.
     std::atomic<int64_t> deadline_ns{std::numeric_limits<int64_t>::max()};
   };
   std::mutex mutex;
   std::condition_variable changed;
   std::map<uint64_t, std::shared_ptr<Connection>> connections;
+  std::map<std::string, int> per_client;  // Open connections by peer address.
   uint64_t next_connection = 0;
   bool stopping = false;
+  // Refusals by limit since its last log line, and when that was (steady ns).
+  struct Refusals {
+    int64_t count = 0;
+    int64_t logged_ns = std::numeric_limits<int64_t>::min();
+  };
+  std::map<std::string, Refusals> refusals;
+
+  // Logs a refusal by `limit` unless one was logged in the last
+  // kRefusalLogPeriodS; the line counts those not logged. Under `mutex`.
+  void LogRefusalLocked(const std::string& limit, int max, const std::string& client);
 
   void AcceptLoop();
   void ReaperLoop();
@@ -180,6 +195,23 @@ struct HttpFront::Impl {
   }
 };
 
+void HttpFront::Impl::LogRefusalLocked(const std::string& limit, int max,
+                                       const std::string& client) {
+  Refusals& r = refusals[limit];
+  ++r.count;
+  const int64_t now = SteadyNowNs();
+  if (r.logged_ns != std::numeric_limits<int64_t>::min() &&
+      now - r.logged_ns < static_cast<int64_t>(kRefusalLogPeriodS * 1e9)) {
+    return;
+  }
+  log::Warn("limit_hit", {{"limit", limit}, {"max", max}, {"client", client}, {"refused", r.count}},
+            limit == "http_connections_per_client"
+                ? "HTTP connections refused: one client holds --http-max-connections-per-client"
+                : "HTTP connections refused: --http-max-connections are open");
+  r.count = 0;
+  r.logged_ns = now;
+}
+
 void HttpFront::Impl::AcceptLoop() {
   for (;;) {
     beast::error_code error;
@@ -196,20 +228,28 @@ void HttpFront::Impl::AcceptLoop() {
     }
     auto connection = std::make_shared<Connection>();
     connection->fd = socket.native_handle();
+    const tcp::endpoint peer = socket.remote_endpoint(error);
+    connection->client = error ? std::string("?") : peer.address().to_string();
     bool refused = false;
     {
       std::lock_guard<std::mutex> lock(mutex);
       if (stopping) return;  // The socket closes with this frame.
+      int& from_client = per_client[connection->client];
       if (static_cast<int>(connections.size()) >= options.max_connections) {
         refused = true;
+        LogRefusalLocked("http_connections", options.max_connections, connection->client);
+      } else if (from_client >= options.max_connections_per_client) {
+        refused = true;
+        LogRefusalLocked("http_connections_per_client", options.max_connections_per_client,
+                         connection->client);
       } else {
+        ++from_client;
         connections.emplace(next_connection++, connection);
       }
+      if (from_client == 0) per_client.erase(connection->client);
     }
     if (refused) {
       // Plain text even on a TLS port would be noise; just close.
-      log::Warn("limit_hit", {{"limit", "http_connections"}, {"max", options.max_connections}},
-                "an HTTP connection was refused: --http-max-connections are open");
       socket.close(error);
       continue;
     }
@@ -228,6 +268,9 @@ void HttpFront::Impl::AcceptLoop() {
           connections.erase(it);
           break;
         }
+      }
+      if (auto it = per_client.find(connection->client); it != per_client.end()) {
+        if (--it->second <= 0) per_client.erase(it);
       }
       changed.notify_all();
     }).detach();

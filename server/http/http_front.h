@@ -7,8 +7,11 @@
 // The app's files need no token: they hold no data.
 //
 // Threads: one per connection (a request is a few gRPC calls in process, a
-// follow lasts as long as its take), at most `max_connections` of them; a
-// connection past that gets 503 and is closed. Requests are bounded (16 KiB
+// follow lasts as long as its take), at most `max_connections` of them, and
+// at most `max_connections_per_client` from one client address, so that one
+// client holding idle connections cannot take every slot; a connection past
+// either is closed at once. Refusals are logged at most once per
+// kRefusalLogPeriodS per limit, with how many there were since. Requests are bounded (16 KiB
 // of header, no body), and a connection idle for `idle_timeout_s` (or a
 // client that does not take its answer) is closed, so a client cannot hold
 // a thread for long; a WebSocket follow is held until its job's follow ends
@@ -23,6 +26,9 @@
 
 namespace reenact::server::http {
 
+// At most one log line per this many seconds for each refusing limit.
+inline constexpr double kRefusalLogPeriodS = 10.0;
+
 struct HttpFrontOptions {
   // "HOST:PORT" (port 0 picks a free one).
   std::string address;
@@ -32,6 +38,9 @@ struct HttpFrontOptions {
   // present a certificate it signed). Off when empty.
   rpc::ServerTlsFiles tls{};
   int max_connections = 256;
+  // Connections from one IP address at once (a browser opens ~6, and one
+  // more per followed job).
+  int max_connections_per_client = 32;
   double idle_timeout_s = 30.0;
 
   // InvalidArgument naming the first bad field.

@@ -544,6 +544,51 @@ TEST_F(HttpFrontTest, FollowRelaysALiveJobOverAWebSocket) {
   EXPECT_EQ(unknown.close_code, 4404);
 }
 
+TEST_F(HttpFrontTest, OneClientCannotTakeEverySlotAndRefusalsAreLoggedSparingly) {
+  HttpFrontOptions front;
+  front.max_connections = 8;
+  front.max_connections_per_client = 2;
+  ASSERT_NO_FATAL_FAILURE(Start({}, front));
+  asio::io_context io;
+  const tcp::endpoint endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_));
+  // Two idle connections from 127.0.0.1 fill its share.
+  tcp::socket first(io), second(io);
+  first.connect(endpoint);
+  second.connect(endpoint);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  ::testing::internal::CaptureStderr();
+  int refused = 0;
+  for (int i = 0; i < 20; ++i) refused += Request(port_, "/api/v1/info").failed ? 1 : 0;
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(refused, 20);
+  // One line for the twenty refusals (one per kRefusalLogPeriodS).
+  size_t lines = 0;
+  for (size_t at = log.find("limit_hit"); at != std::string::npos;
+       at = log.find("limit_hit", at + 1)) {
+    ++lines;
+  }
+  EXPECT_EQ(lines, 1u) << log;
+  EXPECT_NE(log.find("http_connections_per_client"), std::string::npos) << log;
+  // Another client (another loopback address) is served.
+  tcp::socket other(io);
+  beast::error_code error;
+  other.open(tcp::v4(), error);
+  ASSERT_FALSE(error) << error.message();
+  other.bind(tcp::endpoint(asio::ip::make_address("127.0.0.2"), 0), error);
+  ASSERT_FALSE(error) << error.message();
+  other.connect(endpoint, error);
+  ASSERT_FALSE(error) << error.message();
+  bhttp::request<bhttp::empty_body> request{bhttp::verb::get, "/api/v1/info", 11};
+  request.set(bhttp::field::host, "127.0.0.1");
+  bhttp::write(other, request, error);
+  ASSERT_FALSE(error) << error.message();
+  beast::flat_buffer buffer;
+  bhttp::response<bhttp::string_body> response;
+  bhttp::read(other, buffer, response, error);
+  ASSERT_FALSE(error) << error.message();
+  EXPECT_EQ(response.result_int(), 200u);
+}
+
 TEST_F(HttpFrontTest, ConnectionsPastTheCapAreClosedAndStopEndsIdleOnes) {
   HttpFrontOptions front;
   front.max_connections = 2;

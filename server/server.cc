@@ -119,6 +119,12 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     }
   }
   server->auth_ = std::make_unique<rpc::Authorizer>(std::move(tokens), ServerMethodAccess());
+  if (options.tls.enabled() && server->auth_->enabled()) {
+    // Calls without a valid token end before their messages are read
+    // (common/rpc/auth.h); the health service needs none.
+    credentials->SetAuthMetadataProcessor(
+        rpc::MakeTokenMetadataProcessor(server->auth_.get(), {"/grpc.health.v1.Health/"}));
+  }
   // Workers run in their job's folder: every path handed to them (the take,
   // the output) must not depend on the server's working directory.
   std::error_code error;

@@ -8,12 +8,17 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <grpcpp/generic/generic_stub.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -47,6 +52,14 @@ std::vector<int> OpenIdleConnections(int port, int count) {
   return fds;
 }
 
+// The peak resident memory of process `pid` (VmHWM), in MiB; -1 unknown.
+double PeakResidentMib(int pid) {
+  const std::string status = ReadText("/proc/" + std::to_string(pid) + "/status");
+  const size_t at = status.find("VmHWM:");
+  if (at == std::string::npos) return -1;
+  return std::strtod(status.c_str() + at + 6, nullptr) / 1024.0;
+}
+
 class AttackE2e : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -65,15 +78,26 @@ class AttackE2e : public ::testing::Test {
     }
   }
 
-  // reenact-server under `ulimit -n descriptors`; returns its address.
-  std::string StartServer(int descriptors) {
+  // reenact-server under `ulimit -n descriptors` with `flags`; returns its
+  // address.
+  std::string StartServer(int descriptors, const std::vector<std::string>& flags = {}) {
     SubprocessOptions options;
     options.stdout_path = options.stderr_path = dir_ + "/server.log";
-    auto started = Subprocess::Start(
-        {"/bin/sh", "-c", "ulimit -n \"$0\" && exec \"$@\"", std::to_string(descriptors),
-         Bin("reenact-server"), "--data", dir_ + "/data", "--listen", "127.0.0.1:0", "--port-file",
-         dir_ + "/server.port", "--workers", "none"},
-        options);
+    std::vector<std::string> argv = {"/bin/sh",
+                                     "-c",
+                                     "ulimit -n \"$0\" && exec \"$@\"",
+                                     std::to_string(descriptors),
+                                     Bin("reenact-server"),
+                                     "--data",
+                                     dir_ + "/data",
+                                     "--listen",
+                                     "127.0.0.1:0",
+                                     "--port-file",
+                                     dir_ + "/server.port",
+                                     "--workers",
+                                     "none"};
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    auto started = Subprocess::Start(argv, options);
     EXPECT_TRUE(started.ok()) << started.status();
     if (!started.ok()) return "";
     server_ = std::move(*started);
@@ -150,6 +174,68 @@ TEST_F(AttackE2e, IdleConnectionsThatExhaustDescriptorsDoNotStopTheGrpcPort) {
   const std::string log = ReadText(dir_ + "/server.log");
   EXPECT_NE(log.find("grpc_listener_stopped"), std::string::npos) << log;
   EXPECT_NE(log.find("server_restarting"), std::string::npos) << log;
+}
+
+TEST_F(AttackE2e, CallsWithoutATokenAreRefusedBeforeTheirMessagesAreRead) {
+  ASSERT_EQ(RunCommand(dir_, "certs", {"bash", "deploy/make-certs.sh", dir_ + "/tls"}).exit_code,
+            0);
+  const CommandResult added =
+      RunCommand(dir_, "add",
+                 {Bin("reenact"), "auth", "add", "--file", dir_ + "/tokens.json", "--role",
+                  "viewer", "--name", "v"});
+  ASSERT_EQ(added.exit_code, 0) << added.err;
+  const std::string address =
+      StartServer(4096, {"--tls-cert", dir_ + "/tls/server.pem", "--tls-key",
+                         dir_ + "/tls/server.key", "--auth", dir_ + "/tokens.json"});
+  ASSERT_FALSE(address.empty());
+  const int pid = server_->pid();
+  const double before_mib = PeakResidentMib(pid);
+  grpc::SslCredentialsOptions tls;
+  tls.pem_root_certs = ReadText(dir_ + "/tls/ca.pem");
+  grpc::ChannelArguments args;
+  args.SetMaxSendMessageSize(-1);
+  const auto channel = grpc::CreateCustomChannel(address, grpc::SslCredentials(tls), args);
+  grpc::GenericStub stub(channel);
+  // A call of `method` with `bytes` as its request and no token.
+  const auto call = [&stub](const std::string& method, const std::string& bytes) {
+    grpc::Slice slice(bytes);
+    grpc::ByteBuffer request(&slice, 1);
+    grpc::ByteBuffer response;
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+    std::mutex mutex;
+    std::condition_variable done;
+    bool finished = false;
+    grpc::Status status;
+    stub.UnaryCall(&context, method, grpc::StubOptions(), &request, &response, [&](grpc::Status s) {
+      std::lock_guard<std::mutex> lock(mutex);
+      status = std::move(s);
+      finished = true;
+      done.notify_all();
+    });
+    std::unique_lock<std::mutex> lock(mutex);
+    done.wait(lock, [&] { return finished; });
+    return status;
+  };
+  // Eight calls at once, each with a 60 MiB request and no token.
+  const std::string bytes(60u << 20, 'x');
+  std::vector<std::thread> callers;
+  std::vector<grpc::StatusCode> codes(8, grpc::StatusCode::OK);
+  for (int i = 0; i < 8; ++i) {
+    callers.emplace_back(
+        [&, i] { codes[i] = call("/reenact.v1.Jobs/Submit", bytes).error_code(); });
+  }
+  for (std::thread& caller : callers) caller.join();
+  const double after_mib = PeakResidentMib(pid);
+  std::printf("8 calls of 60 MiB without a token: server peak memory %.0f -> %.0f MiB\n",
+              before_mib, after_mib);
+  for (const grpc::StatusCode code : codes) EXPECT_EQ(code, grpc::StatusCode::UNAUTHENTICATED);
+  // Reading them would have taken 480 MiB.
+  EXPECT_LT(after_mib - before_mib, 100.0);
+  // Health needs no token and still answers (an empty request is a valid
+  // HealthCheckRequest).
+  const grpc::Status health = call("/grpc.health.v1.Health/Check", "");
+  EXPECT_TRUE(health.ok()) << health.error_message();
 }
 
 }  // namespace

@@ -19,12 +19,15 @@
 #include <atomic>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
-#include "absl/strings/string_view.h"
 
+#include <grpcpp/security/auth_metadata_processor.h>
 #include <grpcpp/server_context.h>
+
+#include "absl/strings/string_view.h"
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -136,5 +139,16 @@ class Authorizer {
   MethodTable methods_;
   mutable std::atomic<int64_t> refusals_{0};
 };
+
+// For a server with TLS and tokens (grpc::ServerCredentials::
+// SetAuthMetadataProcessor): checks each call's token and role as its
+// metadata arrives, so that a call that would be refused is refused before
+// gRPC reads its request messages (up to --max-message-mb each) into
+// memory. Methods under `open_prefixes` (the health service: probes hold no
+// token) pass without one. The handlers still authorise every call, as
+// they must for the in-process and plain-text channels, which have no
+// processor. `authorizer` must outlive the server.
+std::shared_ptr<grpc::AuthMetadataProcessor> MakeTokenMetadataProcessor(
+    const Authorizer* authorizer, std::vector<std::string> open_prefixes);
 
 }  // namespace reenact::rpc

@@ -119,6 +119,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     }
   }
   server->auth_ = std::make_unique<rpc::Authorizer>(std::move(tokens), ServerMethodAccess());
+  server->local_token_ = local_token;
   if (options.tls.enabled() && server->auth_->enabled()) {
     // Calls without a valid token end before their messages are read
     // (common/rpc/auth.h); the health service needs none.
@@ -260,6 +261,21 @@ void Server::CollectMetrics(metrics::Snapshot& out) const {
 }
 
 Server::~Server() { Shutdown(); }
+
+absl::Status Server::ReloadTokens() {
+  if (options_.auth_file.empty() || !auth_enabled()) {
+    return absl::FailedPreconditionError("the server was started without --auth");
+  }
+  ASSIGN_OR_RETURN(rpc::TokenTable tokens, rpc::TokenTable::Load(options_.auth_file));
+  if (!local_token_.empty()) {
+    RETURN_IF_ERROR(tokens.Add("reenact-server local workers", rpc::Role::kWorker, local_token_));
+  }
+  const size_t count = tokens.size();
+  RETURN_IF_ERROR(auth_->ReplaceTokens(std::move(tokens)));
+  log::Info("tokens_reloaded", {{"file", options_.auth_file}, {"tokens", count}},
+            absl::StrCat("read ", options_.auth_file, " again"));
+  return absl::OkStatus();
+}
 
 std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
   grpc::ChannelArguments args;

@@ -102,6 +102,11 @@ class Server {
   std::shared_ptr<grpc::Channel> InProcessChannel(const std::string& token);
   // Whether calls need a token (--auth).
   bool auth_enabled() const { return auth_ != nullptr && auth_->enabled(); }
+  // Reads the --auth token file again (SIGHUP): tokens added since work and
+  // removed ones are refused from the next call on; the server's own
+  // workers keep theirs. FailedPrecondition without --auth; the file's
+  // errors leave the tokens as they were.
+  absl::Status ReloadTokens();
   // Takes that Start() recovered after a crash.
   const std::vector<RecoveredTake>& recovered() const { return recovered_; }
   TakeStore& takes() { return *store_; }
@@ -150,6 +155,7 @@ class Server {
   std::unique_ptr<JobScheduler> jobs_;
   std::unique_ptr<ThreadPool> blocking_;
   std::unique_ptr<rpc::Authorizer> auth_;
+  std::string local_token_;  // Its own workers' token (memory only); "" none.
   // Before the gRPC server, whose interceptor refers to it.
   std::unique_ptr<rpc::ClientLimits> client_limits_;
   ServerContext context_;

@@ -2,7 +2,8 @@
 // `reenact-server --help`. SIGINT/SIGTERM stop it gracefully (exit 0); usage
 // errors exit 2, an unusable data folder or address exits 1. Usage errors go
 // to stderr as text; everything after the flags are read is an event of the
-// structured log (common/log/log.h, --log-format, --log-level). When the
+// structured log (common/log/log.h, --log-format, --log-level). SIGHUP reads
+// the --auth token file again (tokens added or removed). When the
 // gRPC listener stops accepting (out of descriptors), it stops gracefully
 // and starts itself again on the same ports (server/listener_guard.h); exit
 // 75 when it cannot.
@@ -61,6 +62,8 @@ int main(int argc, char** argv) {
   sigaddset(&stop_signals, SIGTERM);
   // Raised by the process itself when its gRPC listener has stopped.
   sigaddset(&stop_signals, SIGUSR1);
+  // Reads the token file again (systemctl reload).
+  sigaddset(&stop_signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
 
   const absl::StatusOr<ServerCommandLine> command_line =
@@ -145,7 +148,15 @@ int main(int argc, char** argv) {
     }
   }
   int signal_number = 0;
-  sigwait(&stop_signals, &signal_number);
+  for (;;) {
+    sigwait(&stop_signals, &signal_number);
+    if (signal_number != SIGHUP) break;
+    if (absl::Status reloaded = (*server)->ReloadTokens(); !reloaded.ok()) {
+      reenact::log::Error("tokens_not_reloaded",
+                          {{"status", absl::StatusCodeToString(reloaded.code())}},
+                          absl::StrCat("SIGHUP: ", reloaded.message()));
+    }
+  }
   if (signal_number == SIGUSR1) {
     // The gRPC listener accepts no more (listener_guard.h): probes hear
     // NOT_SERVING, the server drains as for SIGTERM, then starts again on

@@ -26,13 +26,18 @@ TEST(TrustEndToEnd, TheCliMintsTokensAndTheServerRefusesWhatARoleMayNotDo) {
   const std::string dir = MakeTempDir("trust_e2e");
   ASSERT_EQ(RunCommand(dir, "certs", {"bash", "deploy/make-certs.sh", dir + "/tls"}).exit_code, 0);
   for (const std::string role : {"viewer", "coach", "capture"}) {
+    // As `reenact auth add ... > ROLE.token`: the file the token lands in
+    // becomes 0600 whatever the umask made it.
     const CommandResult added =
-        RunCommand(dir, "add-" + role,
+        RunCommand(dir, role,
                    {Bin("reenact"), "auth", "add", "--file", dir + "/tokens.json", "--role", role,
                     "--name", "demo-" + role});
     ASSERT_EQ(added.exit_code, 0) << added.err;
     ASSERT_EQ(Trim(added.out).size(), 68u) << added.out;
-    ASSERT_TRUE(WriteFileAtomically(dir + "/" + role + ".token", added.out).ok());
+    std::filesystem::rename(dir + "/" + role + ".out", dir + "/" + role + ".token");
+    EXPECT_EQ(std::filesystem::status(dir + "/" + role + ".token").permissions() &
+                  std::filesystem::perms::all,
+              std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
   }
   // A name that exists already, and a role that does not.
   EXPECT_EQ(RunCommand(dir, "add-again",
@@ -74,6 +79,16 @@ TEST(TrustEndToEnd, TheCliMintsTokensAndTheServerRefusesWhatARoleMayNotDo) {
       reenact("no-ca", {"takes", "list", "--token-file", dir + "/coach.token"});
   EXPECT_EQ(no_ca.exit_code, 1);
   EXPECT_NE(no_ca.err.find("UNAVAILABLE"), std::string::npos) << no_ca.err;
+  // A token file others may read is refused, before anything is sent.
+  ASSERT_TRUE(WriteFileAtomically(dir + "/open.token", ReadText(dir + "/coach.token")).ok());
+  std::filesystem::permissions(dir + "/open.token", std::filesystem::perms::owner_read |
+                                                        std::filesystem::perms::owner_write |
+                                                        std::filesystem::perms::group_read |
+                                                        std::filesystem::perms::others_read);
+  const CommandResult open_file =
+      reenact("open-token", {"takes", "list", "--tls-ca", ca, "--token-file", dir + "/open.token"});
+  EXPECT_NE(open_file.exit_code, 0);
+  EXPECT_NE(open_file.err.find("chmod 600"), std::string::npos) << open_file.err;
   const CommandResult listed = reenact(
       "coach-list", {"takes", "list", "--tls-ca", ca, "--token-file", dir + "/coach.token"});
   EXPECT_EQ(listed.exit_code, 0) << listed.err;
@@ -90,6 +105,33 @@ TEST(TrustEndToEnd, TheCliMintsTokensAndTheServerRefusesWhatARoleMayNotDo) {
   auto by_env = Subprocess::Start({Bin("reenact"), "takes", "list", "--server", address}, env);
   ASSERT_TRUE(by_env.ok());
   EXPECT_EQ((*by_env)->Wait(60)->exit_code, 0) << ReadText(dir + "/env.err");
+  // Revoking: `auth list` shows names and roles (never a token), `auth
+  // remove` drops the coach, and SIGHUP makes the running server forget it
+  // while the viewer still works.
+  const CommandResult names = RunCommand(
+      dir, "auth-list", {Bin("reenact"), "auth", "list", "--file", dir + "/tokens.json"});
+  EXPECT_EQ(names.exit_code, 0) << names.err;
+  EXPECT_NE(names.out.find("demo-coach"), std::string::npos) << names.out;
+  EXPECT_EQ(names.out.find(Trim(ReadText(dir + "/coach.token"))), std::string::npos);
+  const CommandResult removed = RunCommand(
+      dir, "auth-remove",
+      {Bin("reenact"), "auth", "remove", "--file", dir + "/tokens.json", "--name", "demo-coach"});
+  EXPECT_EQ(removed.exit_code, 0) << removed.err;
+  ASSERT_TRUE((*server)->Signal(SIGHUP).ok());
+  CommandResult revoked;
+  for (int i = 0; i < 50; ++i) {
+    revoked = reenact("coach-revoked",
+                      {"takes", "list", "--tls-ca", ca, "--token-file", dir + "/coach.token"});
+    if (revoked.exit_code != 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(revoked.exit_code, 1);
+  EXPECT_NE(revoked.err.find("UNAUTHENTICATED"), std::string::npos) << revoked.err;
+  EXPECT_TRUE((*server)->Running());
+  EXPECT_EQ(reenact("viewer-after",
+                    {"takes", "list", "--tls-ca", ca, "--token-file", dir + "/viewer.token"})
+                .exit_code,
+            0);
   // The server logs refusals without the token.
   ASSERT_TRUE((*server)->Signal(SIGTERM).ok());
   (*server)->Wait(30).IgnoreError();

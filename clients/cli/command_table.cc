@@ -103,8 +103,18 @@ std::vector<Command> BuildCommandTable() {
        "--file TOKENS.json --role viewer|capture|coach|worker|admin --name NAME",
        "mint a random token for reenact-server --auth TOKENS.json (or reenactd --auth): appends "
        "its SHA-256 with the role and name to the file (made 0600 when new) and prints the token "
-       "once; clients send it with --token-file FILE or REENACT_TOKEN",
+       "once (a file it is redirected to becomes 0600); clients send it with --token-file FILE "
+       "(0600) or REENACT_TOKEN",
        RunAuthAdd},
+      {{"auth", "list"},
+       "--file TOKENS.json [--json]",
+       "the names and roles in a token file (never a token: the file holds only their SHA-256)",
+       RunAuthList},
+      {{"auth", "remove"},
+       "--file TOKENS.json --name NAME",
+       "revoke a token: deletes its entry from the file; a running reenact-server reads the file "
+       "again on SIGHUP",
+       RunAuthRemove},
       {{"takes", "list"},
        "[--server HOST:PORT] [--state recording|complete|interrupted|all] [--page-size N] [--json]",
        "takes stored on a reenact-server, newest first (all of them, N a call)",

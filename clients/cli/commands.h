@@ -37,6 +37,8 @@ int RunTakeSkeletons(const std::vector<std::string>& args, std::ostream& out, st
 
 // auth_command.cc
 int RunAuthAdd(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunAuthList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int RunAuthRemove(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 // remote_commands.cc
 int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

@@ -27,6 +27,7 @@
 #include "clients/cli/remote_flags.h"
 #include "clients/sdk/jobs_client.h"
 #include "common/base/flags.h"
+#include "common/base/terminal_text.h"
 #include "common/base/time.h"
 
 namespace reenact::cli {
@@ -119,7 +120,7 @@ class JobProgressLine {
     if (show_logs) {
       for (const std::string& line : event.log_lines()) {
         line_.EndLine();
-        err_ << "  " << line << "\n";
+        err_ << "  " << TerminalSafe(line) << "\n";
       }
     }
     const v1::Job& job = event.job();
@@ -153,7 +154,7 @@ class JobProgressLine {
 int JobExit(const v1::Job& job, std::ostream& err) {
   if (job.state() == v1::JOB_STATE_SUCCEEDED) return kExitOk;
   err << "reenact: job " << job.job_id() << " " << client::JobStateName(job.state())
-      << (job.error().empty() ? "" : ": ") << job.error() << "\n";
+      << (job.error().empty() ? "" : ": ") << TerminalSafe(job.error()) << "\n";
   return kExitFailure;
 }
 
@@ -312,7 +313,7 @@ int RunJobsList(const std::vector<std::string>& args, std::ostream& out, std::os
                          "STATE", "PROGRESS", "SUBMITTED (UTC)", "RESULT");
   for (const auto& job : *jobs) {
     const std::string result =
-        job.state() == v1::JOB_STATE_SUCCEEDED ? job.reenactment_id() : job.error();
+        job.state() == v1::JOB_STATE_SUCCEEDED ? job.reenactment_id() : TerminalSafe(job.error());
     out << absl::StrFormat("%-24s %-24s %-16s %-10s %7.1f%%  %-20s  %s\n", job.job_id(),
                            job.take_id(), job.method(), client::JobStateName(job.state()),
                            job.progress().fraction() * 100.0, UtcTime(job.submitted_unix_ns()),

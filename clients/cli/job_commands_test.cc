@@ -67,7 +67,8 @@ class FakeJobs final : public v1::Jobs::Service {
       job->set_reenactment_id("r-20260101-000000-abcd");
     } else {
       job->set_state(v1::JOB_STATE_FAILED);
-      job->set_error("worker killed by signal 11 (SIGSEGV); last log: boom");
+      // The last log line is the worker's, whatever it printed.
+      job->set_error("worker killed by signal 11 (SIGSEGV); last log: boom\x1b[2J\x1b]0;pwned\x07");
     }
     writer->Write(event);
     return grpc::Status::OK;
@@ -179,6 +180,9 @@ TEST_F(JobCommands, SubmitWaitReportsAFailedJob) {
   EXPECT_NE(err_.str().find("reenact: job j-bad failed: worker killed by signal 11 (SIGSEGV)"),
             std::string::npos)
       << err_.str();
+  // Terminal escapes in what a worker wrote are printed as text, not obeyed.
+  EXPECT_EQ(err_.str().find('\x1b'), std::string::npos) << err_.str();
+  EXPECT_NE(err_.str().find("boom\\x1b[2J\\x1b]0;pwned\\x07"), std::string::npos) << err_.str();
   EXPECT_EQ(
       Run({"jobs", "submit", "--take", "bad", "--method", "rigid-cylinders", "--wait", "--json"}),
       kExitFailure);

@@ -21,6 +21,7 @@
 #include "clients/sdk/follow_stats.h"
 #include "clients/sdk/reenactments_client.h"
 #include "common/base/flags.h"
+#include "common/base/terminal_text.h"
 #include "common/base/time.h"
 #include "common/body/motion.h"
 #include "common/io/body_reenactment_motion.h"
@@ -135,9 +136,9 @@ void PrintSummary(const v1::ReenactmentSummary& s, const BodyFacts* body, std::o
         << " sensor(s)\n";
   }
   out << "size        " << HumanBytes(s.file_bytes()) << "\n"
-      << "generator   " << info.generator() << "\n";
+      << "generator   " << TerminalSafe(info.generator()) << "\n";
   for (const auto& [key, value] : info.options()) {
-    out << "option      " << key << " = " << value << "\n";
+    out << "option      " << TerminalSafe(key) << " = " << TerminalSafe(value) << "\n";
   }
   for (const auto& [key, value] : info.figures()) {
     out << "figure      " << key << " = " << value << "\n";

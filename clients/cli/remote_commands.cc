@@ -15,6 +15,7 @@
 #include "clients/cli/remote_flags.h"
 #include "clients/sdk/takes_client.h"
 #include "common/base/flags.h"
+#include "common/base/terminal_text.h"
 #include "common/base/time.h"
 
 namespace reenact::cli {
@@ -74,9 +75,10 @@ int RunTakesList(const std::vector<std::string>& args, std::ostream& out, std::o
                          "SENSORS", "FRAMESETS", "SECONDS", "SIZE", "CREATED (UTC)");
   for (const auto& take : *takes) {
     out << absl::StrFormat("%-36s %-12s %-11s %7d %10d %9.2f %10s  %s\n", take.take_id(),
-                           take.name(), client::TakeStateName(take.state()), take.sensors_size(),
-                           take.frame_set_count(), NsToSeconds(take.duration_ns()),
-                           HumanBytes(take.size_bytes()), UtcTime(take.created_unix_ns()));
+                           TerminalSafe(take.name()), client::TakeStateName(take.state()),
+                           take.sensors_size(), take.frame_set_count(),
+                           NsToSeconds(take.duration_ns()), HumanBytes(take.size_bytes()),
+                           UtcTime(take.created_unix_ns()));
   }
   if (takes->empty()) out << "(no takes)\n";
   return kExitOk;
@@ -97,7 +99,7 @@ int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::o
     return kExitOk;
   }
   out << "take        " << take->take_id() << "\n"
-      << "name        " << take->name() << "\n"
+      << "name        " << TerminalSafe(take->name()) << "\n"
       << "state       " << client::TakeStateName(take->state()) << "\n"
       << "created     " << UtcTime(take->created_unix_ns()) << "\n"
       << "duration    " << absl::StrFormat("%.3f s", NsToSeconds(take->duration_ns())) << "\n"
@@ -105,7 +107,8 @@ int RunTakesShow(const std::vector<std::string>& args, std::ostream& out, std::o
       << take->durable_sequence() << ")\n"
       << "size        " << HumanBytes(take->size_bytes()) << "\n"
       << "fps         " << take->fps() << "\n"
-      << "generator   " << take->generator() << (take->synthetic() ? " (synthetic)" : "") << "\n"
+      << "generator   " << TerminalSafe(take->generator())
+      << (take->synthetic() ? " (synthetic)" : "") << "\n"
       << "daemon      " << take->daemon_id() << "\n";
   for (const auto& s : take->sensors()) {
     out << "sensor      " << s.sensor_id() << "  " << s.model() << "  " << s.frame_count()

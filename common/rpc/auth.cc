@@ -19,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/files.h"
+#include "common/base/json_text.h"
 #include "common/log/log.h"
 #include "common/metrics/metrics.h"
 
@@ -215,6 +216,13 @@ absl::Status TokenTable::Add(const std::string& name, Role role, absl::string_vi
   return absl::OkStatus();
 }
 
+std::vector<std::pair<std::string, Role>> TokenTable::Names() const {
+  std::vector<std::pair<std::string, Role>> names;
+  names.reserve(entries_.size());
+  for (const Entry& entry : entries_) names.emplace_back(entry.name, entry.role);
+  return names;
+}
+
 std::optional<Principal> TokenTable::Find(absl::string_view token) const {
   const std::string hash = Sha256Hex(token);
   std::optional<Principal> found;
@@ -276,15 +284,46 @@ absl::StatusOr<std::string> AddToken(const std::string& path, Role role, const s
   return *token;
 }
 
+absl::Status RemoveToken(const std::string& path, const std::string& name) {
+  auto table = TokenTable::Load(path);  // Checks the file before changing it.
+  if (!table.ok()) return table.status();
+  auto text = ReadFileToString(path, kMaxTokenFileBytes);
+  if (!text.ok()) return text.status();
+  nlohmann::json doc = nlohmann::json::parse(*text, nullptr, /*allow_exceptions=*/false);
+  if (!doc.is_object() || !doc["tokens"].is_array()) {
+    return absl::InvalidArgumentError(absl::StrCat("token file ", path, " is not a token file"));
+  }
+  nlohmann::json kept = nlohmann::json::array();
+  bool found = false;
+  for (const nlohmann::json& entry : doc["tokens"]) {
+    if (entry.value("name", std::string()) == name) {
+      found = true;
+    } else {
+      kept.push_back(entry);
+    }
+  }
+  if (!found) {
+    return absl::NotFoundError(absl::StrCat("token file ", path, " has no token named ", name));
+  }
+  doc["tokens"] = std::move(kept);
+  const mode_t old_mask = ::umask(077);
+  const absl::Status written = WriteFileAtomically(path, JsonText(doc, 2) + "\n");
+  ::umask(old_mask);
+  return written;
+}
+
 Authorizer::Authorizer(std::optional<TokenTable> tokens, MethodTable methods)
-    : tokens_(std::move(tokens)), methods_(std::move(methods)) {
+    : enabled_(tokens.has_value()),
+      tokens_(tokens.has_value() ? std::make_shared<const TokenTable>(*std::move(tokens))
+                                 : nullptr),
+      methods_(std::move(methods)) {
   // Every reason shows in the metrics from the start, at 0.
   for (const char* reason : {kNoToken, kUnknownToken, kRole}) RefusalCounter(reason);
 }
 
 absl::StatusOr<Principal> Authorizer::Authorize(const grpc::ServerContextBase& context,
                                                 absl::string_view method) const {
-  if (!tokens_.has_value()) return Principal{};
+  if (!enabled_) return Principal{};
   const auto& metadata = context.client_metadata();
   const auto it = metadata.find("authorization");
   std::optional<absl::string_view> authorization;
@@ -300,7 +339,12 @@ absl::StatusOr<Principal> Authorizer::Authorize(std::optional<absl::string_view>
 absl::StatusOr<Principal> Authorizer::Check(std::optional<absl::string_view> authorization,
                                             absl::string_view method,
                                             const std::string& peer) const {
-  if (!tokens_.has_value()) return Principal{};
+  if (!enabled_) return Principal{};
+  std::shared_ptr<const TokenTable> tokens;
+  {
+    std::lock_guard<std::mutex> lock(tokens_mutex_);
+    tokens = tokens_;
+  }
   auto refuse = [&](const char* reason, absl::Status status,
                     const std::optional<Principal>& principal) -> absl::Status {
     refusals_.fetch_add(1, std::memory_order_relaxed);
@@ -315,7 +359,7 @@ absl::StatusOr<Principal> Authorizer::Check(std::optional<absl::string_view> aut
             method, " needs a token (--token-file FILE or REENACT_TOKEN); none was sent")),
         std::nullopt);
   }
-  const std::optional<Principal> principal = tokens_->Find(authorization->substr(kBearer.size()));
+  const std::optional<Principal> principal = tokens->Find(authorization->substr(kBearer.size()));
   if (!principal.has_value()) {
     return refuse(kUnknownToken,
                   absl::UnauthenticatedError(
@@ -334,6 +378,17 @@ absl::StatusOr<Principal> Authorizer::Check(std::optional<absl::string_view> aut
         principal);
   }
   return *principal;
+}
+
+absl::Status Authorizer::ReplaceTokens(TokenTable tokens) {
+  if (!enabled_) {
+    return absl::FailedPreconditionError(
+        "this server started without tokens; restart it with --auth to use them");
+  }
+  auto table = std::make_shared<const TokenTable>(std::move(tokens));
+  std::lock_guard<std::mutex> lock(tokens_mutex_);
+  tokens_ = std::move(table);
+  return absl::OkStatus();
 }
 
 int64_t Authorizer::refusals() const { return refusals_.load(std::memory_order_relaxed); }

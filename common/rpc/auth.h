@@ -20,8 +20,10 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <grpcpp/security/auth_metadata_processor.h>
@@ -82,6 +84,8 @@ class TokenTable {
   // AlreadyExists when the name is taken.
   absl::Status Add(const std::string& name, Role role, absl::string_view token);
   size_t size() const { return entries_.size(); }
+  // Each entry's name and role, in the file's order.
+  std::vector<std::pair<std::string, Role>> Names() const;
 
  private:
   struct Entry {
@@ -101,6 +105,11 @@ absl::StatusOr<std::string> NewToken();
 // returns the token, which is stored nowhere in clear. AlreadyExists when
 // the name is taken; the file's own errors otherwise.
 absl::StatusOr<std::string> AddToken(const std::string& path, Role role, const std::string& name);
+
+// `reenact auth remove`: deletes the entry named `name` from the token file
+// (checked as Load does, rewritten 0600 atomically). NotFound when it has
+// none. A running server forgets the token on SIGHUP or its next start.
+absl::Status RemoveToken(const std::string& path, const std::string& name);
 
 // Checks each call against the token table and the access its method needs.
 class Authorizer {
@@ -123,7 +132,11 @@ class Authorizer {
   absl::StatusOr<Principal> Authorize(std::optional<absl::string_view> authorization,
                                       absl::string_view method) const;
 
-  bool enabled() const { return tokens_.has_value(); }
+  bool enabled() const { return enabled_; }
+  // Replaces the token table (the token file read again, on SIGHUP); calls
+  // already authorised go on. FailedPrecondition for an authorizer made
+  // without tokens: tokens cannot be switched on while serving.
+  absl::Status ReplaceTokens(TokenTable tokens);
   // Calls refused so far (an operator's counter). Each refusal is also
   // counted in reenact_auth_refusals_total{reason} and logged (event
   // auth_refused, with the caller's address when known, never the token).
@@ -135,7 +148,9 @@ class Authorizer {
   absl::StatusOr<Principal> Check(std::optional<absl::string_view> authorization,
                                   absl::string_view method, const std::string& peer) const;
 
-  std::optional<TokenTable> tokens_;
+  const bool enabled_;
+  mutable std::mutex tokens_mutex_;
+  std::shared_ptr<const TokenTable> tokens_;  // Null without tokens.
   MethodTable methods_;
   mutable std::atomic<int64_t> refusals_{0};
 };

@@ -1,5 +1,7 @@
 #include "common/rpc/channel.h"
 
+#include <sys/stat.h>
+
 #include <cstdlib>
 #include <vector>
 
@@ -9,8 +11,10 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/strip.h"
 #include "common/base/files.h"
+#include "common/log/log.h"
 
 namespace reenact::rpc {
 namespace {
@@ -164,6 +168,13 @@ absl::StatusOr<ClientSecurity> LoadClientSecurity(absl::string_view tls_ca_file,
       return absl::InvalidArgumentError(
           absl::StrCat("--token-file ", token_file, ": cannot be read: ", text.status().message()));
     }
+    struct stat info {};
+    if (::stat(std::string(token_file).c_str(), &info) == 0 && (info.st_mode & 077) != 0) {
+      return absl::InvalidArgumentError(absl::StrFormat(
+          "--token-file %s can be read by other users (mode %04o); a token is a password: "
+          "chmod 600 %s",
+          token_file, info.st_mode & 07777, token_file));
+    }
     token = std::string(absl::StripAsciiWhitespace(*text));
   } else if (const char* env = std::getenv("REENACT_TOKEN"); env != nullptr) {
     token = std::string(absl::StripAsciiWhitespace(env));
@@ -181,6 +192,10 @@ absl::StatusOr<ClientSecurity> LoadClientSecurity(absl::string_view tls_ca_file,
   return security;
 }
 
+bool TokenMayTravel(absl::string_view address, const ClientSecurity& security) {
+  return security.token.empty() || !security.ca_pem.empty() || IsLoopbackAddress(address);
+}
+
 std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
                                                  const grpc::ChannelArguments& args,
                                                  const ClientSecurity& security) {
@@ -195,6 +210,13 @@ std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
     credentials = grpc::SslCredentials(options);
   }
   if (security.token.empty()) return grpc::CreateCustomChannel(address, credentials, args);
+  if (!TokenMayTravel(address, security)) {
+    log::Warn("token_withheld", {{"server", address}},
+              absl::StrCat("not sending the token to ", address,
+                           " in plain text, where others on the network could read it: give "
+                           "--tls-ca (the CA of the server's certificate) to send it over TLS"));
+    return grpc::CreateCustomChannel(address, credentials, args);
+  }
   std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
   interceptors.push_back(std::make_unique<TokenInterceptorFactory>(security.token));
   return grpc::experimental::CreateCustomChannelWithInterceptors(address, credentials, args,

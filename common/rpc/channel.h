@@ -68,14 +68,24 @@ struct ClientSecurity {
 // `tls_ca_file` else $REENACT_TLS_CA, `token_file` else $REENACT_TOKEN (the
 // token itself), `cert_file`/`key_file` else $REENACT_TLS_CERT and
 // $REENACT_TLS_KEY. InvalidArgument naming a file that cannot be read, is
-// not PEM, or a token file that is empty or holds more than one line.
+// not PEM, a token file that is empty or holds more than one line, or a
+// token file that other users may read (like ssh with a private key: the
+// message says to chmod 600 it).
 absl::StatusOr<ClientSecurity> LoadClientSecurity(absl::string_view tls_ca_file,
                                                   absl::string_view token_file,
                                                   absl::string_view cert_file = {},
                                                   absl::string_view key_file = {});
 
+// Whether the token may go to `address` with `security`: there is none,
+// the channel has TLS, or the address is loopback (only this machine sees
+// the bytes).
+bool TokenMayTravel(absl::string_view address, const ClientSecurity& security);
+
 // A channel to `address` with `args`: TLS when security.ca_pem is set, and
-// the token on every call when security.token is set.
+// the token on every call when security.token is set and TokenMayTravel.
+// A token that may not travel (plain text off this machine) is not sent:
+// a warning (event token_withheld) says why, and the server refuses the
+// calls as it would without one.
 std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
                                                  const grpc::ChannelArguments& args,
                                                  const ClientSecurity& security);

@@ -1,5 +1,7 @@
 #include "common/rpc/channel.h"
 
+#include <sys/stat.h>
+
 #include <stdlib.h>
 
 #include <chrono>
@@ -107,6 +109,7 @@ TEST(Tls, BadFilesAreClearErrors) {
 TEST(ClientSecurity, TokenFromFileOrEnvironment) {
   const std::string dir = reenact::testing::MakeTempDir("rpc_token");
   ASSERT_TRUE(WriteFileAtomically(dir + "/token", "rnt_abc\n").ok());
+  ASSERT_EQ(::chmod((dir + "/token").c_str(), 0600), 0);
   ::unsetenv("REENACT_TOKEN");
   ::unsetenv("REENACT_TLS_CA");
   EXPECT_EQ(LoadClientSecurity("", dir + "/token")->token, "rnt_abc");
@@ -115,14 +118,35 @@ TEST(ClientSecurity, TokenFromFileOrEnvironment) {
   EXPECT_EQ(LoadClientSecurity("", "")->token, "rnt_env");
   EXPECT_EQ(LoadClientSecurity("", dir + "/token")->token, "rnt_abc");  // The flag wins.
   ::unsetenv("REENACT_TOKEN");
+  // A token file other users may read is refused, and says how to mend it.
+  ASSERT_TRUE(WriteFileAtomically(dir + "/shared", "rnt_abc\n").ok());
+  ASSERT_EQ(::chmod((dir + "/shared").c_str(), 0644), 0);
+  const auto shared = LoadClientSecurity("", dir + "/shared");
+  EXPECT_EQ(shared.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(shared.status().message().find("chmod 600"), std::string::npos) << shared.status();
   ASSERT_TRUE(WriteFileAtomically(dir + "/two", "a b\n").ok());
+  ASSERT_EQ(::chmod((dir + "/two").c_str(), 0600), 0);
   EXPECT_EQ(LoadClientSecurity("", dir + "/two").status().code(),
             absl::StatusCode::kInvalidArgument);
   ASSERT_TRUE(WriteFileAtomically(dir + "/empty", "\n").ok());
+  ASSERT_EQ(::chmod((dir + "/empty").c_str(), 0600), 0);
   EXPECT_EQ(LoadClientSecurity("", dir + "/empty").status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(LoadClientSecurity("", dir + "/missing").status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+TEST(ClientSecurity, TheTokenGoesInPlainTextOnlyToThisMachine) {
+  ClientSecurity plain;
+  plain.token = "rnt_abc";
+  EXPECT_TRUE(TokenMayTravel("127.0.0.1:50051", plain));
+  EXPECT_TRUE(TokenMayTravel("[::1]:50051", plain));
+  EXPECT_FALSE(TokenMayTravel("192.168.1.2:50051", plain));
+  EXPECT_FALSE(TokenMayTravel("studio:50051", plain));
+  ClientSecurity tls = plain;
+  tls.ca_pem = "-----BEGIN CERTIFICATE-----";
+  EXPECT_TRUE(TokenMayTravel("studio:50051", tls));
+  EXPECT_TRUE(TokenMayTravel("studio:50051", ClientSecurity{}));
 }
 
 TEST(IsLoopbackAddress, KnowsWhatOnlyThisMachineReaches) {

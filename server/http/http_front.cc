@@ -16,6 +16,8 @@
 #include <thread>
 #include <utility>
 
+#include <openssl/ssl.h>
+
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/ssl.hpp>
@@ -29,6 +31,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/strip.h"
 #include "common/base/files.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
@@ -54,11 +57,20 @@ constexpr int64_t kMaxStaticFileBytes = int64_t{64} << 20;
 constexpr double kMinClientBytesPerSecond = 64.0 * 1024;
 
 constexpr char kServerName[] = "reenact-server";
+// With TLS: browsers that have seen the app over HTTPS never try it in
+// plain text for a year.
+constexpr char kStrictTransportSecurity[] = "max-age=31536000";
+// TLS 1.2 suites with forward secrecy and authenticated encryption only (TLS
+// 1.3's are all AEAD): no CBC, no RSA key exchange; the gRPC port's choice.
+constexpr char kTls12Ciphers[] =
+    "ECDHE-ECDSA-AES128-GCM-SHA256:ECDHE-RSA-AES128-GCM-SHA256:ECDHE-ECDSA-AES256-GCM-SHA384:"
+    "ECDHE-RSA-AES256-GCM-SHA384:ECDHE-ECDSA-CHACHA20-POLY1305:ECDHE-RSA-CHACHA20-POLY1305";
 // The app's files: its own scripts and styles only; textures decode from
-// blob: URLs; the API and the follow socket are this origin's.
+// blob: URLs; the API and the follow socket are this origin's ('self' covers
+// ws: and wss: to the same host).
 constexpr char kContentSecurityPolicy[] =
     "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
-    "img-src 'self' blob: data:; connect-src 'self' ws: wss: blob: data:; "
+    "img-src 'self' blob: data:; connect-src 'self' blob: data:; "
     "worker-src 'self' blob:; frame-ancestors 'none'; base-uri 'none'";
 
 int64_t SteadyNowNs() {
@@ -111,6 +123,29 @@ std::string HeaderOf(const bhttp::request<bhttp::empty_body>& request, bhttp::fi
   return it == request.end() ? std::string() : std::string(it->value());
 }
 
+// The host of a Host header or of an origin's authority: "[::1]:8080" ->
+// "::1", "Example.org:80" -> "example.org".
+std::string HostOf(absl::string_view authority) {
+  absl::string_view host = authority;
+  if (absl::ConsumePrefix(&host, "[")) {
+    host = host.substr(0, host.find(']'));
+  } else if (const size_t colon = host.rfind(':'); colon != absl::string_view::npos) {
+    host = host.substr(0, colon);
+  }
+  return absl::AsciiStrToLower(host);
+}
+
+bool IsLoopbackHost(const std::string& host) {
+  return host == "localhost" || host == "::1" || absl::StartsWith(host, "127.");
+}
+
+// "https://host:port" -> "host:port" (lower case); "" when not a URL.
+std::string AuthorityOfOrigin(absl::string_view origin) {
+  const size_t scheme = origin.find("://");
+  if (scheme == absl::string_view::npos) return "";
+  return absl::AsciiStrToLower(origin.substr(scheme + 3));
+}
+
 }  // namespace
 
 absl::Status HttpFrontOptions::Validate() const {
@@ -144,6 +179,9 @@ struct HttpFront::Impl {
   Server* server = nullptr;
   std::unique_ptr<WebApi> api;
   std::string web_root;  // Canonical; empty: no app.
+  // The --http host in lower case when it names one address (not 0.0.0.0
+  // or ::): requests addressed to it pass the Host check.
+  std::string bound_host;
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
   std::optional<ssl::context> tls;
@@ -185,6 +223,14 @@ struct HttpFront::Impl {
                     const bhttp::request<bhttp::empty_body>& request, const std::string& job_id,
                     const std::string& token);
   bhttp::response<bhttp::string_body> Respond(const bhttp::request<bhttp::empty_body>& request);
+  // A refusal when the request may not be served before anything else is
+  // looked at: without tokens, a Host that is not this machine's (a page
+  // elsewhere reaching us through DNS rebinding); nullopt to go on.
+  std::optional<WebResponse> RefuseHost(const bhttp::request<bhttp::empty_body>& request) const;
+  // An answer as an HTTP response to `request`.
+  bhttp::response<bhttp::string_body> ToResponse(const bhttp::request<bhttp::empty_body>& request,
+                                                 const std::string& method,
+                                                 WebResponse answer) const;
   WebResponse StaticFile(const WebRequest& request) const;
 
   void ExpireAfter(Connection& connection, double seconds) const {
@@ -336,18 +382,35 @@ void HttpFront::Impl::Session(Stream& stream, Connection& connection) {
       return;  // End of stream, timeout, a malformed request.
     }
     bhttp::request<bhttp::empty_body> request = parser.release();
-    if (websocket::is_upgrade(request)) {
+    std::optional<WebResponse> refused = RefuseHost(request);
+    if (!refused.has_value() && websocket::is_upgrade(request)) {
       std::string path;
       std::map<std::string, std::string> query;
       const bool parsed = ParseTarget(
           absl::string_view(request.target().data(), request.target().size()), &path, &query);
       const std::string job_id = parsed ? WebApi::FollowJobId(path) : "";
       if (!job_id.empty()) {
-        FollowSocket(stream, connection, request, job_id, TokenOf(request, query));
-        return;
+        // A page of another origin may not open the follow (browsers send
+        // Origin with every WebSocket); then the token and the job are
+        // checked before the socket is accepted.
+        const std::string origin = HeaderOf(request, bhttp::field::origin);
+        const std::string host = absl::AsciiStrToLower(HeaderOf(request, bhttp::field::host));
+        if (!origin.empty() && AuthorityOfOrigin(origin) != host) {
+          refused = ErrorResponse(absl::PermissionDeniedError(
+              "a follow must come from a page of this server (the Origin is another)"));
+        } else if (absl::Status allowed = api->CheckFollow(job_id, TokenOf(request, query));
+                   !allowed.ok()) {
+          refused = ErrorResponse(allowed);
+        } else {
+          FollowSocket(stream, connection, request, job_id, TokenOf(request, query));
+          return;
+        }
       }
     }
-    bhttp::response<bhttp::string_body> response = Respond(request);
+    bhttp::response<bhttp::string_body> response =
+        refused.has_value()
+            ? ToResponse(request, std::string(request.method_string()), *std::move(refused))
+            : Respond(request);
     ExpireAfter(connection, WriteSeconds(response.body().size()));
     bhttp::write(stream, response, error);
     if (error || !response.keep_alive()) return;
@@ -384,6 +447,18 @@ void HttpFront::Impl::FollowSocket(Stream& stream, Connection& connection,
   socket.close(websocket::close_reason(static_cast<uint16_t>(code)), error);
 }
 
+std::optional<WebResponse> HttpFront::Impl::RefuseHost(
+    const bhttp::request<bhttp::empty_body>& request) const {
+  if (server->auth_enabled()) return std::nullopt;  // Tokens decide.
+  const std::string host = HostOf(HeaderOf(request, bhttp::field::host));
+  if (IsLoopbackHost(host) || (!bound_host.empty() && host == bound_host)) return std::nullopt;
+  WebResponse refused = ErrorResponse(absl::PermissionDeniedError(
+      absl::StrCat("this server has no tokens and answers only requests addressed to it (Host ",
+                   bound_host, " or a loopback name); the Host was \"", host, "\"")));
+  refused.status = 421;  // Misdirected Request.
+  return refused;
+}
+
 bhttp::response<bhttp::string_body> HttpFront::Impl::Respond(
     const bhttp::request<bhttp::empty_body>& request) {
   WebRequest web;
@@ -407,12 +482,20 @@ bhttp::response<bhttp::string_body> HttpFront::Impl::Respond(
       answer = StaticFile(web);
     }
   }
+  return ToResponse(request, web.method, std::move(answer));
+}
+
+bhttp::response<bhttp::string_body> HttpFront::Impl::ToResponse(
+    const bhttp::request<bhttp::empty_body>& request, const std::string& method,
+    WebResponse answer) const {
   bhttp::response<bhttp::string_body> response{static_cast<bhttp::status>(answer.status),
                                                request.version()};
   response.set(bhttp::field::server, kServerName);
   response.set(bhttp::field::content_type, answer.content_type);
   response.set("X-Content-Type-Options", "nosniff");
   response.set("Referrer-Policy", "no-referrer");
+  if (tls.has_value())
+    response.set(bhttp::field::strict_transport_security, kStrictTransportSecurity);
   bool has_length = false;
   for (const auto& [name, value] : answer.headers) {
     response.set(name, value);
@@ -425,7 +508,7 @@ bhttp::response<bhttp::string_body> HttpFront::Impl::Respond(
   }
   response.body() = std::move(answer.body);
   response.prepare_payload();
-  if (web.method == "HEAD") response.body().clear();
+  if (method == "HEAD") response.body().clear();
   return response;
 }
 
@@ -494,6 +577,9 @@ absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptio
     impl.tls->set_options(ssl::context::default_workarounds | ssl::context::no_sslv2 |
                           ssl::context::no_sslv3 | ssl::context::no_tlsv1 |
                           ssl::context::no_tlsv1_1);
+    if (SSL_CTX_set_cipher_list(impl.tls->native_handle(), kTls12Ciphers) != 1) {
+      return absl::InternalError("OpenSSL knows none of the TLS 1.2 AEAD suites");
+    }
     beast::error_code error;
     impl.tls->use_certificate_chain_file(options.tls.cert_file, error);
     if (error) {
@@ -546,6 +632,7 @@ absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptio
         absl::StrCat("cannot listen on --http ", options.address, ": ", error.message()));
   }
   front->port_ = impl.acceptor.local_endpoint().port();
+  if (!endpoint.address().is_unspecified()) impl.bound_host = absl::AsciiStrToLower(host);
   front->address_ = JoinHostPort(host, front->port_);
   impl.accept_thread = std::thread([&impl] { impl.AcceptLoop(); });
   impl.reaper_thread = std::thread([&impl] { impl.ReaperLoop(); });

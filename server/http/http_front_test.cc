@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <openssl/ssl.h>
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -116,14 +117,19 @@ struct FollowReply {
   bool upgraded = false;
 };
 
-FollowReply FollowOverWebSocket(int port, const std::string& target) {
+FollowReply FollowOverWebSocket(int port, const std::string& target,
+                                const std::string& origin = "") {
   FollowReply out;
   asio::io_context io;
   websocket::stream<tcp::socket> socket(io);
   beast::error_code error;
   socket.next_layer().connect(
       tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port)), error);
-  if (!error) socket.handshake("127.0.0.1", target, error);
+  if (!origin.empty()) {
+    socket.set_option(websocket::stream_base::decorator(
+        [origin](websocket::request_type& request) { request.set(bhttp::field::origin, origin); }));
+  }
+  if (!error) socket.handshake("127.0.0.1:" + std::to_string(port), target, error);
   if (error) return out;
   out.upgraded = true;
   for (;;) {
@@ -460,6 +466,28 @@ TEST_F(HttpFrontTest, TokensAndRolesAreTheGrpcOnesOverTls) {
   const Reply info = Request(port_, "/api/v1/info", {}, bhttp::verb::get, ca);
   EXPECT_EQ(info.Json()["auth"], true);
   EXPECT_EQ(info.Json()["tls"], true);
+  EXPECT_EQ(info.Header("Strict-Transport-Security"), "max-age=31536000");
+  // With tokens, the token decides, whatever the Host.
+  EXPECT_EQ(
+      Request(port_, "/api/v1/info", {{"Host", "studio.example"}}, bhttp::verb::get, ca).status,
+      200);
+  // TLS 1.2 with a CBC suite is refused; an AEAD suite is served.
+  for (const auto& [suites, served] : std::vector<std::pair<std::string, bool>>{
+           {"ECDHE-ECDSA-AES128-SHA:ECDHE-ECDSA-AES256-SHA:ECDHE-ECDSA-AES128-SHA256", false},
+           {"ECDHE-ECDSA-AES128-GCM-SHA256", true}}) {
+    asio::io_context io;
+    ssl::context context(ssl::context::tlsv12_client);
+    context.load_verify_file(ca);
+    SSL_CTX_set_max_proto_version(context.native_handle(), TLS1_2_VERSION);
+    ASSERT_EQ(SSL_CTX_set_cipher_list(context.native_handle(), suites.c_str()), 1);
+    beast::ssl_stream<tcp::socket> stream(io, context);
+    beast::error_code error;
+    stream.next_layer().connect(
+        tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_)), error);
+    ASSERT_FALSE(error);
+    stream.handshake(ssl::stream_base::client, error);
+    EXPECT_EQ(!error, served) << suites << ": " << error.message();
+  }
   // Plain HTTP on the TLS port gets no answer.
   EXPECT_TRUE(Request(port_, list).failed || Request(port_, list).status == 0);
 }
@@ -534,14 +562,42 @@ TEST_F(HttpFrontTest, FollowRelaysALiveJobOverAWebSocket) {
   EXPECT_EQ(end["frames_received"].get<int>(), static_cast<int>(kSets)) << end.dump();
   EXPECT_EQ(follow.close_code, 1000);
 
-  // An unknown job: one error line, closed with 4000 + 404.
-  const FollowReply unknown =
-      FollowOverWebSocket(port_, "/api/v1/jobs/j-20990101-000000-none/follow");
-  ASSERT_TRUE(unknown.upgraded);
-  ASSERT_EQ(unknown.texts.size(), 1u);
-  EXPECT_EQ(unknown.texts[0]["type"], "error");
-  EXPECT_EQ(unknown.texts[0]["code"], "NOT_FOUND");
-  EXPECT_EQ(unknown.close_code, 4404);
+  // Refusals come before any socket is accepted, as plain HTTP answers.
+  const auto upgrade = [&](const std::string& target, const std::string& origin) {
+    std::vector<std::pair<std::string, std::string>> headers = {
+        {"Connection", "Upgrade"},
+        {"Upgrade", "websocket"},
+        {"Sec-WebSocket-Version", "13"},
+        {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}};
+    if (!origin.empty()) headers.emplace_back("Origin", origin);
+    return Request(port_, target, headers);
+  };
+  // An unknown job: 404.
+  const Reply unknown = upgrade("/api/v1/jobs/j-20990101-000000-none/follow", "");
+  EXPECT_EQ(unknown.status, 404) << unknown.body;
+  EXPECT_EQ(unknown.Json()["error"]["code"], "NOT_FOUND");
+  // A page of another origin may not follow a job, even one that exists.
+  const Reply elsewhere =
+      upgrade("/api/v1/jobs/" + job.job_id() + "/follow", "http://evil.example");
+  EXPECT_EQ(elsewhere.status, 403) << elsewhere.body;
+  EXPECT_EQ(elsewhere.Json()["error"]["code"], "PERMISSION_DENIED");
+  const FollowReply same_origin =
+      FollowOverWebSocket(port_, "/api/v1/jobs/" + job.job_id() + "/follow",
+                          "http://127.0.0.1:" + std::to_string(port_));
+  EXPECT_TRUE(same_origin.upgraded);
+}
+
+TEST_F(HttpFrontTest, WithoutTokensOnlyRequestsAddressedToThisMachineAreServed) {
+  ASSERT_NO_FATAL_FAILURE(Start());
+  // DNS rebinding: a page of evil.example whose name now points here.
+  const Reply rebound = Request(port_, "/api/v1/reenactments", {{"Host", "evil.example"}});
+  EXPECT_EQ(rebound.status, 421) << rebound.body;
+  EXPECT_EQ(rebound.Json()["error"]["code"], "PERMISSION_DENIED");
+  EXPECT_EQ(Request(port_, "/api/v1/info", {{"Host", "localhost:" + std::to_string(port_)}}).status,
+            200);
+  EXPECT_EQ(Request(port_, "/api/v1/info", {{"Host", "[::1]:8080"}}).status, 200);
+  // Plain HTTP: no HSTS.
+  EXPECT_EQ(Request(port_, "/api/v1/info").Header("Strict-Transport-Security"), "");
 }
 
 TEST_F(HttpFrontTest, OneClientCannotTakeEverySlotAndRefusalsAreLoggedSparingly) {

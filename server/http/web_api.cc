@@ -490,6 +490,16 @@ WebResponse WebApi::ListJobs(const WebRequest& request) {
   return response;
 }
 
+absl::Status WebApi::CheckFollow(const std::string& job_id, const std::string& token) {
+  grpc::ClientContext context;
+  SetDeadline(context, options_.call_timeout_s);
+  v1::GetJobRequest request;
+  request.set_job_id(job_id);
+  v1::Job job;
+  const grpc::Status status = v1::Jobs::NewStub(channel_for_(token))->Get(&context, request, &job);
+  return status.ok() ? absl::OkStatus() : FromGrpcStatus(status);
+}
+
 int WebApi::Follow(const std::string& job_id, const std::string& token, const SendFunction& send) {
   bool client_gone = false;
   Eigen::Vector3d rest_root = Eigen::Vector3d::Zero();

@@ -112,6 +112,10 @@ class WebApi {
   // status after an error (4404 unknown job, 4401, 4403, 4503, ...), 1001
   // when the client went away.
   int Follow(const std::string& job_id, const std::string& token, const SendFunction& send);
+  // OK when `token` may follow job `job_id` and the job exists (Jobs.Get
+  // with the token): checked before a WebSocket is accepted, so that a
+  // refused client gets an HTTP answer and never an open socket.
+  absl::Status CheckFollow(const std::string& job_id, const std::string& token);
 
  private:
   WebResponse Info() const;

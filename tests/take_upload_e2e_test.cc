@@ -177,6 +177,8 @@ TEST_F(TakeUploadE2e, AnAzureRecordingBecomesAStoredTakeFrameForFrame) {
               j["frame_sets"].get<int>(), j["frames"].get<int>(),
               j["size_bytes"].get<double>() / (1 << 20), j["seconds"].get<double>());
   EXPECT_FALSE(fs::exists(*dir_ + "/spool-a/" + take_id)) << "the spool is removed once stored";
+  // The spool holds people's frames: its user's alone.
+  EXPECT_EQ(fs::status(*dir_ + "/spool-a").permissions() & fs::perms::all, fs::perms::owner_all);
 
   const std::string stored = *dir_ + "/stored-a.mcap";
   const auto down = RunCommand(*dir_, "download-a",

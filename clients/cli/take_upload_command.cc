@@ -82,6 +82,8 @@ class UploadLock {
       return absl::UnavailableError(
           absl::StrCat("cannot create the upload spool ", spool_root, ": ", ec.message()));
     }
+    // The spool holds people's frames: its user's alone, even if it existed.
+    std::filesystem::permissions(spool_root, std::filesystem::perms::owner_all, ec);
     const std::string path = (std::filesystem::path(spool_root) / (take_id + ".lock")).string();
     const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
     if (fd < 0) return absl::UnavailableError(absl::StrCat("cannot open ", path));

@@ -121,7 +121,11 @@ class RemoteSource final : public ReenactmentSource {
       // only (WriteReenactment leaves no partial file).
       std::error_code ec;
       fs::create_directories(options_.cache_dir, ec);
+      // A cache made before (or by another program) may be open to others:
+      // it holds people's reenactments.
+      fs::permissions(options_.cache_dir, fs::perms::owner_all, ec);
       (void)WriteReenactment(data, cached);
+      fs::permissions(cached, fs::perms::owner_read | fs::perms::owner_write, ec);
     }
     return data;
   }

@@ -40,6 +40,11 @@
 namespace reenact::body {
 namespace {
 
+// The largest offset, position or angle a file may hold: 1e6 is 10 km in
+// centimetres or thousands of turns in degrees; past it joints overflow to
+// infinity once scaled and posed.
+constexpr double kMaxMagnitude = 1e6;
+
 // Deepest joint nesting accepted (guards the recursive parser).
 constexpr int kMaxDepth = 256;
 
@@ -148,6 +153,10 @@ class BvhParser {
     double value = 0.0;
     if (!absl::SimpleAtod(t->text, &value) || !std::isfinite(value)) {
       return Error(t->line, absl::StrCat("bad number '", t->text, "' for ", what));
+    }
+    if (std::abs(value) > kMaxMagnitude) {
+      return Error(t->line, absl::StrCat("number '", t->text, "' for ", what,
+                                         " is out of range (|x| <= 1e6)"));
     }
     return value;
   }
@@ -287,6 +296,10 @@ class BvhParser {
         double value = 0.0;
         if (!absl::SimpleAtod(w, &value) || !std::isfinite(value)) {
           return Error(line, absl::StrCat("bad number '", w, "' in frame ", frame));
+        }
+        if (std::abs(value) > kMaxMagnitude) {
+          return Error(line, absl::StrCat("number '", w, "' in frame ", frame,
+                                          " is out of range (|x| <= 1e6)"));
         }
         values_.push_back(value);
       }

@@ -398,6 +398,15 @@ TEST(ReadBvh, MalformedFilesNameFileAndLine) {
   path = WriteTemp("nan.bvh", nan);
   ExpectErrorAt(ReadBvh(path).status(), path, LineOf(nan, "nan"), "bad number 'nan'");
 
+  // Finite, but posed joints would overflow to infinity.
+  const std::string huge = TinyBvh("Frames: 1\nFrame Time: 0.1\n1e308 0 0 0 0 0 0 0 0\n");
+  path = WriteTemp("huge.bvh", huge);
+  ExpectErrorAt(ReadBvh(path).status(), path, LineOf(huge, "1e308"), "out of range");
+  std::string huge_offset = text;
+  huge_offset.replace(huge_offset.find("OFFSET 0 1 0"), 12, "OFFSET 0 1e300 0");
+  path = WriteTemp("huge_offset.bvh", huge_offset);
+  ExpectErrorAt(ReadBvh(path).status(), path, 8, "out of range");
+
   const std::string short_line = TinyBvh("Frames: 2\nFrame Time: 0.1\n0 0 0 0 0 0 0 0 0\n0 0 0\n");
   path = WriteTemp("short_line.bvh", short_line);
   ExpectErrorAt(ReadBvh(path).status(), path, LineOf(short_line, "0 0 0\n") + 1,

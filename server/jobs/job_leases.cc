@@ -2,7 +2,11 @@
 // queued jobs to workers that connect over the network, their heartbeats,
 // uploads and failures, and the expiry that queues a job again when its
 // worker stops answering.
+#include <sys/random.h>
+
 #include <algorithm>
+#include <array>
+#include <cerrno>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -28,15 +32,25 @@ constexpr double kMaxLeaseWaitS = 60.0;
 // Longest worker name kept.
 constexpr size_t kMaxWorkerNameChars = 128;
 
+// A lease id holds 128 bits from the kernel's CSPRNG (getrandom): a worker
+// cannot guess another's lease from its own, as it could from a seeded
+// generator's outputs.
 std::string NewLeaseId(const std::string& job_id, int attempt) {
-  static std::mutex mu;
-  static std::mt19937_64 random{std::random_device{}()};
-  uint64_t salt = 0;
-  {
-    std::lock_guard<std::mutex> lock(mu);
-    salt = random();
+  std::array<uint64_t, 2> salt{};
+  size_t got = 0;
+  auto* bytes = reinterpret_cast<unsigned char*>(salt.data());
+  while (got < sizeof(salt)) {
+    const ssize_t n = ::getrandom(bytes + got, sizeof(salt) - got, 0);
+    if (n > 0) {
+      got += static_cast<size_t>(n);
+    } else if (n < 0 && errno != EINTR) {
+      // No kernel source (never on Linux >= 3.17): the device instead.
+      std::random_device device("/dev/urandom");
+      for (uint64_t& word : salt) word = (uint64_t{device()} << 32) | device();
+      break;
+    }
   }
-  return absl::StrFormat("%s.%d.%016x", job_id, attempt, salt);
+  return absl::StrFormat("%s.%d.%016x%016x", job_id, attempt, salt[0], salt[1]);
 }
 
 absl::Status NoLease(const std::string& lease_id) {

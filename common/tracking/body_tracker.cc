@@ -167,6 +167,9 @@ std::vector<JointMode> VoteModes(const std::vector<Vote>& votes, float total, fl
 
 std::string DefaultForestPath() {
   if (const char* env = std::getenv("REENACT_TRACKER_FOREST"); env && *env) return env;
+  if (std::string installed = InstalledTrackerFile("body_parts.rtf"); !installed.empty()) {
+    return installed;
+  }
   return REENACT_DEFAULT_TRACKER_FOREST;
 }
 

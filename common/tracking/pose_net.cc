@@ -157,8 +157,20 @@ absl::StatusOr<std::array<PoseNetJoint, body::kNumKinectV2Joints>> PoseNet::Run(
   return joints;
 }
 
+std::string InstalledTrackerFile(const std::string& file) {
+  std::error_code error;
+  const std::filesystem::path program = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (error) return "";
+  const std::filesystem::path installed =
+      program.parent_path().parent_path() / "share" / "reenact" / "models" / "tracker" / file;
+  return std::filesystem::is_regular_file(installed, error) ? installed.string() : "";
+}
+
 std::string DefaultPoseNetPath() {
   if (const char* env = std::getenv("REENACT_TRACKER_MODEL"); env && *env) return env;
+  if (std::string installed = InstalledTrackerFile("pose_net.onnx"); !installed.empty()) {
+    return installed;
+  }
   return REENACT_DEFAULT_TRACKER_MODEL;
 }
 

@@ -84,8 +84,14 @@ class PoseNet {
   std::unique_ptr<Impl> impl_;
 };
 
-// The network shipped with the source tree (models/tracker/pose_net.onnx), or
-// $REENACT_TRACKER_MODEL when set.
+// The network: $REENACT_TRACKER_MODEL when set, else the installed one
+// (PREFIX/share/reenact/models/tracker/pose_net.onnx beside PREFIX/bin of
+// the running program, as `cmake --install` lays it out), else the source
+// tree's (models/tracker/pose_net.onnx).
 std::string DefaultPoseNetPath();
+
+// PREFIX/share/reenact/models/tracker/`file` for the running program in
+// PREFIX/bin when that file exists; "" otherwise.
+std::string InstalledTrackerFile(const std::string& file);
 
 }  // namespace reenact::tracking

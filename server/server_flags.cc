@@ -33,6 +33,7 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                                     "max-calls-per-client",
                                                     "max-streams-per-client",
                                                     "job-retention-days",
+                                                    "max-queued-jobs",
                                                     "tls-cert",
                                                     "tls-key",
                                                     "tls-client-ca",
@@ -145,6 +146,11 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                    flags.GetDouble("lease-ttl", out.options.jobs.lease_ttl_s));
   ASSIGN_OR_RETURN(out.options.jobs.job_retention_days,
                    flags.GetDouble("job-retention-days", out.options.jobs.job_retention_days));
+  ASSIGN_OR_RETURN(out.options.jobs.max_queued_jobs,
+                   flags.GetInt("max-queued-jobs", out.options.jobs.max_queued_jobs));
+  if (out.options.jobs.max_queued_jobs < 1) {
+    return absl::InvalidArgumentError("--max-queued-jobs must be >= 1");
+  }
   if (const std::string assets = flags.GetOr("assets", ""); !assets.empty()) {
     out.options.jobs.asset_roots = absl::StrSplit(assets, ',', absl::SkipEmpty());
     for (const std::string& root : out.options.jobs.asset_roots) {

@@ -39,6 +39,7 @@ inline constexpr char kServerUsage[] =
     "[--max-notes-bytes N (a take's notes, default 16384)] "
     "[--max-frame-pixels N (width x height of one ingested image, default 16777216)] "
     "[--max-calls-per-client N (default 256)] [--max-streams-per-client N (default 64)] "
+    "[--max-queued-jobs N (jobs waiting at once; default 1000)] "
     "[--job-retention-days D (finished jobs' logs and rows are deleted after D days; default "
     "30, 0: never)] "
     "[--tls-cert PEM --tls-key PEM [--tls-client-ca PEM (clients need a certificate it signed)]] "

@@ -227,6 +227,9 @@ TEST_F(TrackedUploadE2e, ARecordingWithNobodyInItFailsClearly) {
   EXPECT_NE(submit.exit_code, 0);
   EXPECT_NE((submit.out + submit.err).find("no person in this take"), std::string::npos)
       << submit.out << submit.err;
+  // Where the server keeps its data is not the client's to know.
+  EXPECT_EQ((submit.out + submit.err).find(dir_ + "/data"), std::string::npos)
+      << submit.out << submit.err;
   // The take itself is kept.
   const CommandResult show = RunCommand(
       dir_, "show", {Bin("reenact"), "takes", "show", take_id, "--server", address, "--json"});

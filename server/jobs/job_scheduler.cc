@@ -268,6 +268,18 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
         busy.message());
     return busy;
   }
+  if (options_.max_queued_jobs > 0) {
+    const std::map<v1::JobState, int64_t> counts = jobs_->CountByState();
+    const auto queued = counts.find(v1::JOB_STATE_QUEUED);
+    if (queued != counts.end() && queued->second >= options_.max_queued_jobs) {
+      const absl::Status full = absl::ResourceExhaustedError(
+          absl::StrCat("the job queue is full (", queued->second,
+                       " jobs wait, --max-queued-jobs); submit once some have run"));
+      LimitHit("queued_jobs", {{"take_id", request.take_id()}, {"max", options_.max_queued_jobs}},
+               full.message());
+      return full;
+    }
+  }
   if (options_.min_free_bytes > 0) {
     const double free_bytes = metrics::FreeDiskBytes(jobs_dir_);
     if (free_bytes >= 0 && free_bytes < static_cast<double>(options_.min_free_bytes)) {
@@ -460,10 +472,22 @@ void JobScheduler::Unwatch(uint64_t watch_id) {
   watchers_.erase(watch_id);
 }
 
+std::string JobScheduler::WithoutServerPaths(std::string text) const {
+  // The data folder (takes, jobs, scratch) is the server's business: a
+  // client reads "DATA/takes/ID.mcap", never where the server keeps it.
+  const std::string root = std::filesystem::path(jobs_dir_).parent_path().string();
+  if (root.size() <= 1) return text;
+  for (size_t at = text.find(root); at != std::string::npos; at = text.find(root, at + 4)) {
+    text.replace(at, root.size(), "DATA");
+  }
+  return text;
+}
+
 void JobScheduler::Publish(const v1::Job& job, std::vector<std::string> logs, bool last) {
   v1::JobEvent event;
   *event.mutable_job() = job;
-  for (std::string& line : logs) event.add_log_lines(std::move(line));
+  event.mutable_job()->set_error(WithoutServerPaths(job.error()));
+  for (std::string& line : logs) event.add_log_lines(WithoutServerPaths(std::move(line)));
   std::lock_guard<std::mutex> lock(watch_mu_);
   for (auto it = watchers_.begin(); it != watchers_.end();) {
     if (it->second.job_id != job.job_id()) {
@@ -607,7 +631,7 @@ void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const s
     }
     j.set_state(state);
     j.set_finished_unix_ns(WallNowNs());
-    j.set_error(error);
+    j.set_error(WithoutServerPaths(error));
     j.set_reenactment_id(reenactment_id);
     v1::JobProgress* p = j.mutable_progress();
     if (state == v1::JOB_STATE_SUCCEEDED) {
@@ -623,7 +647,7 @@ void JobScheduler::EndJob(const std::string& job_id, v1::JobState state, const s
     absl::StatusOr<v1::Job> current = jobs_->Get(job_id);
     if (!current.ok()) return;
     change(*current);
-    current->set_error(absl::StrCat(error, error.empty() ? "" : "; ",
+    current->set_error(absl::StrCat(WithoutServerPaths(error), error.empty() ? "" : "; ",
                                     "the end could not be stored: ", job.status().message()));
     job = std::move(current);
   }

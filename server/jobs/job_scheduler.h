@@ -133,6 +133,10 @@ struct JobSchedulerOptions {
   // its row, its folder, its log and then its reenactment. 0: no check
   // beyond the store's own write errors.
   int64_t min_free_bytes = int64_t{1} << 20;
+  // Submit refuses a job (RESOURCE_EXHAUSTED) while this many wait in the
+  // queue (--max-queued-jobs): a client in a loop cannot grow the catalog
+  // and the jobs folder without bound.
+  int max_queued_jobs = 1000;
   // Whether the server runs workers of its own (reenact-server --workers
   // local:N; the N is `concurrency`). False (--workers none): queued jobs
   // wait for workers that lease them over the Work service; `concurrency`
@@ -377,6 +381,9 @@ class JobScheduler {
   void Publish(const v1::Job& job, std::vector<std::string> logs, bool last);
 
   const JobSchedulerOptions options_;
+  // `text` with the server's data folder written "DATA" (job errors and
+  // worker log lines reach clients).
+  std::string WithoutServerPaths(std::string text) const;
   const std::string jobs_dir_;
   JobStore* const jobs_;
   TakeStore* const takes_;

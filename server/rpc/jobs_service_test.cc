@@ -381,6 +381,31 @@ TEST(JobsService, WorkerErrorsFailTheJobNotTheServer) {
   EXPECT_NE(missing.error().find("cannot start the worker"), std::string::npos) << missing.error();
 }
 
+TEST(JobsService, AFullQueueRefusesMoreJobsUntilOneRuns) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_queue_bound");
+  ServerOptions options = JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1);
+  options.jobs.max_queued_jobs = 2;
+  auto t = TestServer::Start(dir + "/data", options);
+  ASSERT_NE(t, nullptr);
+  RecordTake(*t, "take1");
+  Jobs jobs(*t);
+  const std::map<std::string, std::string> forever = {{"fake_steps", "100000"},
+                                                      {"fake_step_ms", "20"}};
+  const v1::Job running = jobs.SubmitOk("take1", forever);
+  jobs.WaitFor(running.job_id(), [](const v1::Job& j) { return j.progress().fraction() > 0; });
+  jobs.SubmitOk("take1", forever);
+  const v1::Job second = jobs.SubmitOk("take1", forever);
+  v1::Job job;
+  const grpc::Status full = jobs.Submit("take1", "rigid-carved", forever, &job);
+  EXPECT_EQ(full.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(full.error_message().find("--max-queued-jobs"), std::string::npos)
+      << full.error_message();
+  // A queued job that goes makes room.
+  ASSERT_TRUE(jobs.Cancel(second.job_id(), &job).ok());
+  EXPECT_TRUE(jobs.Submit("take1", "rigid-carved", forever, &job).ok());
+  ASSERT_TRUE(jobs.Cancel(running.job_id(), &job).ok());
+}
+
 TEST(JobsService, CancelStopsRunningAndQueuedJobs) {
   const std::string dir = reenact::testing::MakeTempDir("jobs_cancel");
   auto t = TestServer::Start(dir + "/data", JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1));

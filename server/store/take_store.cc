@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <utility>
@@ -23,6 +24,9 @@
 
 namespace reenact::server {
 namespace {
+
+// The highest frame rate a take may state (depth sensors run at 5-90 Hz).
+constexpr double kMaxTakeFps = 1000.0;
 
 namespace fs = std::filesystem;
 
@@ -200,6 +204,13 @@ absl::StatusOr<TakeOpenResult> TakeStore::OpenTake(const TakeOpenRequest& reques
   if (request.info.start_stamp_ns() < 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("OpenTake.info.start_stamp_ns is negative: ", request.info.start_stamp_ns()));
+  }
+  // 0: not stated; otherwise a frame rate a sensor can have.
+  if (!std::isfinite(request.info.fps()) || request.info.fps() < 0 ||
+      request.info.fps() > kMaxTakeFps) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("OpenTake.info.fps must be 0 (not stated) or in (0, ", kMaxTakeFps, "]; got ",
+                     request.info.fps()));
   }
   const std::string& id = request.take_id;
   {

@@ -1,8 +1,10 @@
 #include "server/store/take_store.h"
 
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <filesystem>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <random>
@@ -411,6 +413,16 @@ TEST(TakeStore, OversizedNamesAndNotesAreRefusedAndTheCatalogStillLists) {
     EXPECT_NE(opened.status().message().find(std::to_string(8 << 20)), std::string::npos);
     EXPECT_LT(opened.status().message().size(), 200u);
     EXPECT_EQ((*store)->GetTake(request.take_id).status().code(), absl::StatusCode::kNotFound);
+  }
+  // A frame rate that is not a number (or absurd) is the client's error,
+  // named as such, never a catalog constraint with the server's path.
+  for (const double fps : {std::nan(""), -1.0, 1e9, std::numeric_limits<double>::infinity()}) {
+    TakeOpenRequest request = Request("bad-fps", "d", 1);
+    request.info.set_fps(fps);
+    const auto opened = (*store)->OpenTake(request, &watcher);
+    EXPECT_EQ(opened.status().code(), absl::StatusCode::kInvalidArgument) << fps;
+    EXPECT_NE(opened.status().message().find("fps"), std::string::npos) << opened.status();
+    EXPECT_EQ(opened.status().message().find(dir), std::string::npos) << opened.status();
   }
   TakeOpenRequest at_limit = Request("at-limit", "d", 1);
   at_limit.info.set_name(std::string(limits.max_name_bytes, 'a'));

@@ -14,6 +14,7 @@
 #include <grpc/support/log.h>
 
 #include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
 #include "common/log/log.h"
 
 namespace reenact::server {
@@ -95,7 +96,7 @@ std::vector<std::string> PinnedArguments(const std::vector<std::string>& argv,
         ++i;
         replaced = true;
       } else if (i > 0 && absl::StartsWith(arg, flag + "=")) {
-        out.push_back(flag + "=" + value);
+        out.push_back(absl::StrCat(flag, "=", value));
         replaced = true;
       }
       if (replaced) break;

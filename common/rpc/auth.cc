@@ -307,7 +307,7 @@ absl::Status RemoveToken(const std::string& path, const std::string& name) {
   }
   doc["tokens"] = std::move(kept);
   const mode_t old_mask = ::umask(077);
-  const absl::Status written = WriteFileAtomically(path, JsonText(doc, 2) + "\n");
+  absl::Status written = WriteFileAtomically(path, JsonText(doc, 2) + "\n");
   ::umask(old_mask);
   return written;
 }

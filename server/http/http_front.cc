@@ -139,6 +139,14 @@ bool IsLoopbackHost(const std::string& host) {
   return host == "localhost" || host == "::1" || absl::StartsWith(host, "127.");
 }
 
+// An address written as such ("192.168.1.20", "fe80::1"): no name that an
+// attacker's DNS could point at this machine.
+bool IsAddressLiteral(const std::string& host) {
+  beast::error_code error;
+  (void)asio::ip::make_address(host, error);
+  return !error;
+}
+
 // "https://host:port" -> "host:port" (lower case); "" when not a URL.
 std::string AuthorityOfOrigin(absl::string_view origin) {
   const size_t scheme = origin.find("://");
@@ -224,8 +232,10 @@ struct HttpFront::Impl {
                     const std::string& token);
   bhttp::response<bhttp::string_body> Respond(const bhttp::request<bhttp::empty_body>& request);
   // A refusal when the request may not be served before anything else is
-  // looked at: without tokens, a Host that is not this machine's (a page
-  // elsewhere reaching us through DNS rebinding); nullopt to go on.
+  // looked at: without tokens, a Host that names another site (a page
+  // elsewhere reaching us through DNS rebinding: only a name can be
+  // rebound, so IP addresses, loopback names and the --http host pass);
+  // nullopt to go on.
   std::optional<WebResponse> RefuseHost(const bhttp::request<bhttp::empty_body>& request) const;
   // An answer as an HTTP response to `request`.
   bhttp::response<bhttp::string_body> ToResponse(const bhttp::request<bhttp::empty_body>& request,
@@ -451,10 +461,14 @@ std::optional<WebResponse> HttpFront::Impl::RefuseHost(
     const bhttp::request<bhttp::empty_body>& request) const {
   if (server->auth_enabled()) return std::nullopt;  // Tokens decide.
   const std::string host = HostOf(HeaderOf(request, bhttp::field::host));
-  if (IsLoopbackHost(host) || (!bound_host.empty() && host == bound_host)) return std::nullopt;
-  WebResponse refused = ErrorResponse(absl::PermissionDeniedError(
-      absl::StrCat("this server has no tokens and answers only requests addressed to it (Host ",
-                   bound_host, " or a loopback name); the Host was \"", host, "\"")));
+  if (IsLoopbackHost(host) || IsAddressLiteral(host) ||
+      (!bound_host.empty() && host == bound_host)) {
+    return std::nullopt;
+  }
+  WebResponse refused = ErrorResponse(absl::PermissionDeniedError(absl::StrCat(
+      "this server has no tokens and answers only requests addressed to it (an IP address, a "
+      "loopback name",
+      bound_host.empty() ? "" : " or " + bound_host, "); the Host was \"", host, "\"")));
   refused.status = 421;  // Misdirected Request.
   return refused;
 }

@@ -596,6 +596,9 @@ TEST_F(HttpFrontTest, WithoutTokensOnlyRequestsAddressedToThisMachineAreServed) 
   EXPECT_EQ(Request(port_, "/api/v1/info", {{"Host", "localhost:" + std::to_string(port_)}}).status,
             200);
   EXPECT_EQ(Request(port_, "/api/v1/info", {{"Host", "[::1]:8080"}}).status, 200);
+  // A tablet on the network that uses the machine's address (no name to
+  // rebind).
+  EXPECT_EQ(Request(port_, "/api/v1/info", {{"Host", "192.168.1.20:8443"}}).status, 200);
   // Plain HTTP: no HSTS.
   EXPECT_EQ(Request(port_, "/api/v1/info").Header("Strict-Transport-Security"), "");
 }

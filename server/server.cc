@@ -14,6 +14,8 @@
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/log/log.h"
+#include "common/rpc/channel.h"
+#include "common/rpc/client_limits.h"
 #include "common/rpc/request_metrics.h"
 #include "reenact/v1/ingest_service.grpc.pb.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
@@ -284,13 +286,17 @@ std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
   return grpc_server_->InProcessChannel(args);
 }
 
-std::shared_ptr<grpc::Channel> Server::InProcessChannel(const std::string& token) {
-  if (token.empty()) return InProcessChannel();
+std::shared_ptr<grpc::Channel> Server::InProcessChannel(const std::string& token,
+                                                        const std::string& client) {
+  if (token.empty() && client.empty()) return InProcessChannel();
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(options_.max_message_mb << 20);
   args.SetMaxSendMessageSize(-1);
+  std::vector<std::pair<std::string, std::string>> metadata;
+  if (!token.empty()) metadata.emplace_back("authorization", absl::StrCat("Bearer ", token));
+  if (!client.empty()) metadata.emplace_back(rpc::kForwardedClientKey, client);
   std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
-  interceptors.push_back(rpc::MakeTokenInterceptorFactory(token));
+  interceptors.push_back(rpc::MakeMetadataInterceptorFactory(std::move(metadata)));
   return grpc_server_->experimental().InProcessChannelWithInterceptors(args,
                                                                        std::move(interceptors));
 }
@@ -302,6 +308,7 @@ void Server::StartLocalWorkers(const std::string& token) {
   local.job_program = jobs_->worker_path();
   local.scratch_dir = options_.data_dir + "/scratch";
   local.asset_roots = jobs.asset_roots;
+  local.memory_limit_mb = jobs_->job_memory_mb();
   local.cancel_grace_s = jobs.cancel_grace_s;
   local.stop_grace_s = jobs.shutdown_grace_s;
   local.poll_period_s = jobs.poll_period_s;

@@ -98,8 +98,12 @@ class Server {
   std::shared_ptr<grpc::Channel> InProcessChannel();
   // The same, sending `token` with every call ("authorization: Bearer"), so
   // that the calls are authorised as that token's (the HTTP front's calls
-  // on behalf of its clients). Empty `token`: none is sent.
-  std::shared_ptr<grpc::Channel> InProcessChannel(const std::string& token);
+  // on behalf of its clients). Empty `token`: none is sent. A non-empty
+  // `client` (a web client's address) is sent as rpc::kForwardedClientKey,
+  // so that the calls count under that client's caps
+  // (--max-calls-per-client, --max-streams-per-client).
+  std::shared_ptr<grpc::Channel> InProcessChannel(const std::string& token,
+                                                  const std::string& client = {});
   // Whether calls need a token (--auth).
   bool auth_enabled() const { return auth_ != nullptr && auth_->enabled(); }
   // Reads the --auth token file again (SIGHUP): tokens added since work and

@@ -34,6 +34,8 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                                                     "max-streams-per-client",
                                                     "job-retention-days",
                                                     "max-queued-jobs",
+                                                    "max-queued-jobs-per-token",
+                                                    "job-memory-mb",
                                                     "tls-cert",
                                                     "tls-key",
                                                     "tls-client-ca",
@@ -150,6 +152,20 @@ absl::StatusOr<ServerCommandLine> ParseServerCommandLine(const std::vector<std::
                    flags.GetInt("max-queued-jobs", out.options.jobs.max_queued_jobs));
   if (out.options.jobs.max_queued_jobs < 1) {
     return absl::InvalidArgumentError("--max-queued-jobs must be >= 1");
+  }
+  ASSIGN_OR_RETURN(
+      out.options.jobs.max_queued_jobs_per_token,
+      flags.GetInt("max-queued-jobs-per-token", out.options.jobs.max_queued_jobs_per_token));
+  if (out.options.jobs.max_queued_jobs_per_token < 1) {
+    return absl::InvalidArgumentError("--max-queued-jobs-per-token must be >= 1");
+  }
+  if (flags.Has("job-memory-mb")) {
+    ASSIGN_OR_RETURN(const int job_memory_mb, flags.GetInt("job-memory-mb", 0));
+    if (job_memory_mb < 0) {
+      return absl::InvalidArgumentError(
+          "--job-memory-mb must be >= 0 (MiB a job may take; 0: no budget)");
+    }
+    out.options.jobs.job_memory_mb = job_memory_mb;
   }
   if (const std::string assets = flags.GetOr("assets", ""); !assets.empty()) {
     out.options.jobs.asset_roots = absl::StrSplit(assets, ',', absl::SkipEmpty());

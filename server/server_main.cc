@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <iostream>
 #include <map>
 #include <string>
@@ -82,6 +83,17 @@ int main(int argc, char** argv) {
   // The methods jobs may name: the registry's, checked as the worker will.
   options.jobs.methods = reenact::recon::MethodSpecs();
   options.jobs.check_job = reenact::recon::CheckJob;
+  // Jobs estimated over --job-memory-mb are refused at submit.
+  options.jobs.job_memory = [](const std::string& method,
+                               const std::map<std::string, std::string>& job_options,
+                               const reenact::v1::Take& take) {
+    reenact::recon::TakeSize size;
+    size.frame_sets = take.frame_set_count();
+    size.sensors = std::max(1, take.sensors_size());
+    size.file_bytes = take.size_bytes();
+    size.duration_s = static_cast<double>(take.duration_ns()) * 1e-9;
+    return reenact::recon::JobMemoryBytes(method, job_options, size);
+  };
   // --workers slurm: batch jobs that each run one network worker.
   if (!command_line->slurm_config.empty()) {
     absl::StatusOr<reenact::server::SlurmLauncherOptions> slurm =
@@ -103,6 +115,7 @@ int main(int argc, char** argv) {
                       {"tls", options.tls.enabled()},
                       {"auth", !options.auth_file.empty()},
                       {"jobs", (*server)->jobs().concurrency()},
+                      {"job_memory_mb", (*server)->jobs().job_memory_mb()},
                       {"descriptor_limit", descriptor_limit}},
                      absl::StrCat("listening on ", (*server)->address()));
   if (!command_line->port_file.empty()) {

@@ -7,6 +7,7 @@
 //   reenact-worker --server HOST:PORT [--token-file F] [--tls-ca PEM]
 //                  [--once | --loop] [--methods a,b] [--scratch DIR]
 //                  [--name NAME] [--wait S] [--assets DIR[,DIR...]]
+//                  [--memory-limit-mb N]
 //
 // One job (what the network mode runs as a child for each job, and what a
 // person can run by hand): server/jobs/worker_protocol.h describes the
@@ -16,9 +17,16 @@
 //                  [--options-json '{"key":"value"}'] [--reenactment-id RID]
 //                  [--take-id T] [--job-id J] [--assets DIR[,DIR...]]
 //                  [--log-format text|json] [--log-level debug|info|warn|error]
+//                  [--memory-limit-mb N]
 //                  [--part prepare | --part segment-K --segments N --prepared F
 //                   | --part stitch --segments N --prepared F
 //                     --segment-files F1,...,FN]
+//
+// --memory-limit-mb N: the job may allocate at most N MiB (its RLIMIT_DATA,
+// common/base/memory_limit.h); past it the job fails with a clear error
+// (exit 1) instead of taking the machine's memory. A network worker passes
+// its own to each job it runs: by default three quarters of its machine's
+// memory. A server's own workers pass the server's --job-memory-mb.
 //
 // --part runs one phase of a segmented job (one take split across several
 // workers; server/recon/methods.h MethodPhase): prepare writes the method's
@@ -48,6 +56,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -62,6 +71,7 @@
 #include "absl/strings/str_split.h"
 #include "common/base/flags.h"
 #include "common/base/json_text.h"
+#include "common/base/memory_limit.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/log/log.h"
@@ -84,17 +94,49 @@ constexpr char kUsage[] =
     "SIGTERM; the default)] [--methods a,b (only these methods)] [--scratch DIR (each job's "
     "folder; default $TMPDIR)] [--name NAME (in the server's logs)] [--wait S (--once: how "
     "long to wait for a job; default 60)] [--assets DIR[,DIR...]] [--log-format text|json] "
-    "[--log-level debug|info|warn|error]\n"
+    "[--log-level debug|info|warn|error] [--memory-limit-mb N (each job's memory ceiling; "
+    "default three quarters of the machine's)]\n"
     "   or: reenact-worker --take FILE --method METHOD --out FILE "
     "[--options-json '{\"key\":\"value\"}'] [--reenactment-id RID] [--take-id T] [--job-id J] "
     "[--assets DIR[,DIR...] (where model=makehuman:NAME is looked up)] "
     "[--log-format text|json (events on stderr; default text)] "
     "[--log-level debug|info|warn|error (default info)] "
+    "[--memory-limit-mb N (the job fails past N MiB)] "
     "[--part prepare | --part segment-K --segments N --prepared FILE | --part stitch "
     "--segments N --prepared FILE --segment-files F1,...,FN (one phase of a job split across "
     "workers)]";
 
 volatile sig_atomic_t g_stop_signal = 0;
+// The job's --memory-limit-mb once in force (0: none).
+std::atomic<int64_t> g_memory_limit_mb{0};
+
+// The job's error when it ran out of memory under its limit.
+std::string OverLimitError() {
+  return "the job needed more memory than its limit of " +
+         std::to_string(g_memory_limit_mb.load()) +
+         " MiB (--memory-limit-mb; a server's --job-memory-mb); ask for smaller textures, meshes "
+         "or voxels, or fewer frames (max_frames)";
+}
+
+// Whether `error` is an allocation that failed (new's, or OpenCV's and
+// Eigen's words for it) while a limit is in force.
+bool IsOverLimit(const std::string& error) {
+  return g_memory_limit_mb.load() > 0 &&
+         (absl::StrContains(error, "bad_alloc") || absl::StrContains(error, "Failed to allocate") ||
+          absl::StrContains(error, "Insufficient memory") ||
+          absl::StrContains(error, "out of memory"));
+}
+
+// --memory-limit-mb, or `fallback` without it; an error message for a bad
+// value.
+std::string ReadMemoryLimitMb(const reenact::Flags& flags, int64_t fallback, int64_t* mb) {
+  *mb = fallback;
+  if (!flags.Has("memory-limit-mb")) return "";
+  const absl::StatusOr<int> value = flags.GetInt("memory-limit-mb", 0);
+  if (!value.ok() || *value < 64) return "--memory-limit-mb takes MiB, at least 64";
+  *mb = *value;
+  return "";
+}
 std::atomic<bool> g_stop{false};
 
 void OnStopSignal(int signal) {
@@ -309,9 +351,17 @@ int RunNetworkWorker(const reenact::Flags& flags, const char* argv0) {
     return kExitUsage;
   }
   options.once_wait_s = *wait;
+  // Each job's ceiling: its own flag, else three quarters of this machine.
+  if (const std::string error = ReadMemoryLimitMb(
+          flags, (reenact::PhysicalMemoryBytes() >> 20) * 3 / 4, &options.memory_limit_mb);
+      !error.empty()) {
+    std::fprintf(stderr, "reenact-worker: %s\n", error.c_str());
+    return kExitUsage;
+  }
   reenact::log::Info("worker_started",
                      {{"server", options.server},
                       {"once", options.once},
+                      {"memory_limit_mb", options.memory_limit_mb},
                       {"methods", flags.GetOr("methods", "(all)")}},
                      "reenact-worker started: leasing jobs from " + options.server);
   const absl::StatusOr<reenact::server::WorkAgentSummary> summary =
@@ -339,10 +389,11 @@ int WorkerMain(int argc, char** argv) {
   Output out;
   const absl::StatusOr<reenact::Flags> flags = reenact::Flags::Parse(
       std::vector<std::string>(argv + 1, argv + argc),
-      {"take",     "method",   "options-json", "out",       "reenactment-id", "take-id",
-       "job-id",   "assets",   "log-format",   "log-level", "server",         "token-file",
-       "tls-ca",   "methods",  "scratch",      "name",      "wait",           "part",
-       "segments", "prepared", "segment-files"},
+      {"take",          "method",         "options-json", "out",        "reenactment-id",
+       "take-id",       "job-id",         "assets",       "log-format", "log-level",
+       "server",        "token-file",     "tls-ca",       "methods",    "scratch",
+       "name",          "wait",           "part",         "segments",   "prepared",
+       "segment-files", "memory-limit-mb"},
       {"help", "once", "loop"});
   if (!flags.ok()) return Usage(out, std::string(flags.status().message()));
   if (flags->Has("help")) {
@@ -378,6 +429,17 @@ int WorkerMain(int argc, char** argv) {
       flags->GetOr("log-format", "text"), flags->GetOr("log-level", "info"));
   if (!log_options.ok()) return Usage(out, std::string(log_options.status().message()));
   reenact::log::Configure(*log_options);
+  int64_t memory_limit_mb = 0;
+  if (const std::string error = ReadMemoryLimitMb(*flags, 0, &memory_limit_mb); !error.empty()) {
+    return Usage(out, error);
+  }
+  if (memory_limit_mb > 0) {
+    if (absl::Status limited = reenact::LimitDataMemory(memory_limit_mb << 20); !limited.ok()) {
+      out.Line({{"error", std::string(limited.message())}});
+      return kExitFailure;
+    }
+    g_memory_limit_mb.store(memory_limit_mb);
+  }
   reenact::log::Info("worker_started",
                      {{"job_id", input.job_id},
                       {"take_id", input.take_id},
@@ -396,9 +458,10 @@ int WorkerMain(int argc, char** argv) {
       });
   if (!result.ok()) {
     const bool stopped = g_stop_signal != 0;
-    const std::string error =
+    std::string error =
         stopped ? "stopped by " + std::string(g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM")
                 : std::string(result.status().ToString());
+    if (!stopped && IsOverLimit(error)) error = OverLimitError();
     out.Line({{"error", error}});
     reenact::log::Log(stopped ? reenact::log::Level::kInfo : reenact::log::Level::kError,
                       stopped ? "worker_stopped" : "worker_failed",
@@ -425,7 +488,8 @@ int WorkerMain(int argc, char** argv) {
 // stdout and worker_failed in the log.
 void ReportUncaught(const char* what) noexcept {
   try {
-    const std::string error = std::string("reenact-worker: uncaught exception: ") + what;
+    std::string error = std::string("reenact-worker: uncaught exception: ") + what;
+    if (IsOverLimit(error)) error = OverLimitError();
     Output().Line({{"error", error}});
     reenact::log::Error("worker_failed", {{"error", error}}, error);
   } catch (...) {
@@ -434,11 +498,28 @@ void ReportUncaught(const char* what) noexcept {
   }
 }
 
+// An exception that leaves a thread of the job (a decode or fit thread
+// past the memory limit): reported as the main thread's would be, exit 1.
+[[noreturn]] void OnTerminate() noexcept {
+  if (const std::exception_ptr current = std::current_exception(); current != nullptr) {
+    try {
+      std::rethrow_exception(current);
+    } catch (const std::exception& e) {
+      ReportUncaught(e.what());
+    } catch (...) {
+      ReportUncaught("an exception of unknown type");
+    }
+    std::_Exit(kExitFailure);
+  }
+  std::abort();
+}
+
 }  // namespace
 
 // An exception nothing else caught is a failed job (exit 1), not a
 // std::terminate.
 int main(int argc, char** argv) {
+  std::set_terminate(OnTerminate);
   try {
     return WorkerMain(argc, argv);
   } catch (const std::exception& e) {

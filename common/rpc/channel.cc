@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <cstdlib>
+#include <utility>
 #include <vector>
 
 #include <grpcpp/create_channel.h>
@@ -47,39 +48,49 @@ std::string FlagOrEnv(absl::string_view flag, const char* env) {
 
 namespace {
 
-// Adds "authorization: Bearer <token>" to every call's initial metadata.
-class TokenInterceptor final : public grpc::experimental::Interceptor {
+// Adds fixed (key, value) pairs to every call's initial metadata.
+class MetadataInterceptor final : public grpc::experimental::Interceptor {
  public:
-  explicit TokenInterceptor(const std::string* token) : token_(token) {}
+  explicit MetadataInterceptor(const std::vector<std::pair<std::string, std::string>>* entries)
+      : entries_(entries) {}
   void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
     if (methods->QueryInterceptionHookPoint(
             grpc::experimental::InterceptionHookPoints::PRE_SEND_INITIAL_METADATA)) {
-      methods->GetSendInitialMetadata()->emplace("authorization", absl::StrCat("Bearer ", *token_));
+      for (const auto& [key, value] : *entries_) {
+        methods->GetSendInitialMetadata()->emplace(key, value);
+      }
     }
     methods->Proceed();
   }
 
  private:
-  const std::string* token_;
+  const std::vector<std::pair<std::string, std::string>>* entries_;
 };
 
-class TokenInterceptorFactory final : public grpc::experimental::ClientInterceptorFactoryInterface {
+class MetadataInterceptorFactory final
+    : public grpc::experimental::ClientInterceptorFactoryInterface {
  public:
-  explicit TokenInterceptorFactory(std::string token) : token_(std::move(token)) {}
+  explicit MetadataInterceptorFactory(std::vector<std::pair<std::string, std::string>> entries)
+      : entries_(std::move(entries)) {}
   grpc::experimental::Interceptor* CreateClientInterceptor(
       grpc::experimental::ClientRpcInfo* /*info*/) override {
-    return new TokenInterceptor(&token_);
+    return new MetadataInterceptor(&entries_);
   }
 
  private:
-  const std::string token_;
+  const std::vector<std::pair<std::string, std::string>> entries_;
 };
 
 }  // namespace
 
+std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>
+MakeMetadataInterceptorFactory(std::vector<std::pair<std::string, std::string>> entries) {
+  return std::make_unique<MetadataInterceptorFactory>(std::move(entries));
+}
+
 std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface> MakeTokenInterceptorFactory(
     std::string token) {
-  return std::make_unique<TokenInterceptorFactory>(std::move(token));
+  return MakeMetadataInterceptorFactory({{"authorization", absl::StrCat("Bearer ", token)}});
 }
 
 absl::Status ServerTlsFiles::Validate() const {
@@ -218,7 +229,7 @@ std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
     return grpc::CreateCustomChannel(address, credentials, args);
   }
   std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
-  interceptors.push_back(std::make_unique<TokenInterceptorFactory>(security.token));
+  interceptors.push_back(MakeTokenInterceptorFactory(security.token));
   return grpc::experimental::CreateCustomChannelWithInterceptors(address, credentials, args,
                                                                  std::move(interceptors));
 }

@@ -10,6 +10,8 @@
 
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 #include "absl/strings/string_view.h"
 
 #include <grpcpp/channel.h>
@@ -95,5 +97,10 @@ std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
 // token, for channels made elsewhere, e.g. a server's in-process channel).
 std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface> MakeTokenInterceptorFactory(
     std::string token);
+
+// Adds the (key, value) pairs to the initial metadata of every call of the
+// channels it is given to (keys in lower case, as gRPC wants them).
+std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>
+MakeMetadataInterceptorFactory(std::vector<std::pair<std::string, std::string>> entries);
 
 }  // namespace reenact::rpc

@@ -43,7 +43,10 @@ class ClientCallCounter final : public grpc::experimental::Interceptor {
       const auto* metadata = methods->GetRecvInitialMetadata();
       const std::optional<std::string> authorization =
           metadata != nullptr ? Metadata(*metadata, kAuthorization) : std::nullopt;
-      key_ = ClientLimits::ClientKey(info_->server_context()->peer(), authorization.value_or(""));
+      const std::optional<std::string> forwarded =
+          metadata != nullptr ? Metadata(*metadata, kForwardedClientKey) : std::nullopt;
+      key_ = ClientLimits::ClientKey(info_->server_context()->peer(), authorization.value_or(""),
+                                     forwarded.value_or(""));
       limits_->Enter(key_, stream_);
       entered_ = true;
     }
@@ -90,10 +93,23 @@ ClientLimits::InterceptorFactory() {
   return std::make_unique<ClientCallCounterFactory>(this);
 }
 
-std::string ClientLimits::ClientKey(absl::string_view peer, absl::string_view authorization) {
+bool ClientLimits::IsNetworkPeer(absl::string_view peer) {
+  return absl::StartsWith(peer, "ipv4:") || absl::StartsWith(peer, "ipv6:") ||
+         absl::StartsWith(peer, "unix:");
+}
+
+std::string ClientLimits::ClientKey(absl::string_view peer, absl::string_view authorization,
+                                    absl::string_view forwarded_client) {
   // "ipv4:127.0.0.1:54321", "ipv6:[::1]:54321": the port changes with every
   // connection, the host does not.
   absl::string_view host = peer;
+  // The server's own front calls in process for a web client: it counts as
+  // that client (at most an address's length of it is taken).
+  std::string forwarded;
+  if (!forwarded_client.empty() && !IsNetworkPeer(peer)) {
+    forwarded = absl::StrCat("forwarded:", forwarded_client.substr(0, 64));
+    host = forwarded;
+  }
   if (absl::StartsWith(peer, "ipv4:") || absl::StartsWith(peer, "ipv6:")) {
     if (const size_t colon = peer.rfind(':'); colon > 5) host = peer.substr(0, colon);
   }
@@ -130,7 +146,8 @@ void ClientLimits::Leave(const std::string& key, bool stream) {
 absl::Status ClientLimits::Check(const grpc::CallbackServerContext& rpc, bool stream) const {
   const auto& metadata = rpc.client_metadata();
   const std::optional<std::string> authorization = Metadata(metadata, kAuthorization);
-  const std::string key = ClientKey(rpc.peer(), authorization.value_or(""));
+  const std::optional<std::string> forwarded = Metadata(metadata, kForwardedClientKey);
+  const std::string key = ClientKey(rpc.peer(), authorization.value_or(""), forwarded.value_or(""));
   std::lock_guard<std::mutex> lock(mu_);
   const auto it = counts_.find(key);
   if (it == counts_.end()) return absl::OkStatus();

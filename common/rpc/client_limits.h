@@ -23,6 +23,11 @@
 
 namespace reenact::rpc {
 
+// The metadata key in which a server's own front (the HTTP front) names the
+// web client a call is made for (its IP address), so that each web client
+// counts on its own under the caps, not every user of one token as one.
+inline constexpr char kForwardedClientKey[] = "x-reenact-forwarded-client";
+
 struct ClientLimitOptions {
   // Calls of one client running at once, streams included.
   int max_calls = 256;
@@ -53,8 +58,17 @@ class ClientLimits {
   int streams() const;
 
   // Who a call comes from: the peer's address without its port, and a hash
-  // of its authorization header (never the token itself).
-  static std::string ClientKey(absl::string_view peer, absl::string_view authorization);
+  // of its authorization header (never the token itself). A call over the
+  // in-process transport (the HTTP front's calls for its web clients, whose
+  // peer gRPC reports as no address) counts under the client that
+  // `forwarded_client` (metadata kForwardedClientKey) names; from the
+  // network that key is ignored, so no caller can pose as another.
+  static std::string ClientKey(absl::string_view peer, absl::string_view authorization,
+                               absl::string_view forwarded_client = {});
+
+  // Whether `peer` (grpc::ServerContext::peer()) is a network peer: an
+  // ipv4:, ipv6: or unix: address.
+  static bool IsNetworkPeer(absl::string_view peer);
 
  private:
   friend class ClientCallCounter;

@@ -230,7 +230,9 @@ struct HttpFront::Impl {
   void FollowSocket(Stream& stream, Connection& connection,
                     const bhttp::request<bhttp::empty_body>& request, const std::string& job_id,
                     const std::string& token);
-  bhttp::response<bhttp::string_body> Respond(const bhttp::request<bhttp::empty_body>& request);
+  // `client`: the connection's address (WebRequest::client).
+  bhttp::response<bhttp::string_body> Respond(const bhttp::request<bhttp::empty_body>& request,
+                                              const std::string& client);
   // A refusal when the request may not be served before anything else is
   // looked at: without tokens, a Host that names another site (a page
   // elsewhere reaching us through DNS rebinding: only a name can be
@@ -408,7 +410,8 @@ void HttpFront::Impl::Session(Stream& stream, Connection& connection) {
         if (!origin.empty() && AuthorityOfOrigin(origin) != host) {
           refused = ErrorResponse(absl::PermissionDeniedError(
               "a follow must come from a page of this server (the Origin is another)"));
-        } else if (absl::Status allowed = api->CheckFollow(job_id, TokenOf(request, query));
+        } else if (absl::Status allowed =
+                       api->CheckFollow(job_id, TokenOf(request, query), connection.client);
                    !allowed.ok()) {
           refused = ErrorResponse(allowed);
         } else {
@@ -420,7 +423,7 @@ void HttpFront::Impl::Session(Stream& stream, Connection& connection) {
     bhttp::response<bhttp::string_body> response =
         refused.has_value()
             ? ToResponse(request, std::string(request.method_string()), *std::move(refused))
-            : Respond(request);
+            : Respond(request, connection.client);
     ExpireAfter(connection, WriteSeconds(response.body().size()));
     bhttp::write(stream, response, error);
     if (error || !response.keep_alive()) return;
@@ -442,14 +445,15 @@ void HttpFront::Impl::FollowSocket(Stream& stream, Connection& connection,
   if (error) return;
   connection.deadline_ns = std::numeric_limits<int64_t>::max();
   log::Info("follow_opened", {{"job_id", job_id}}, "a web client follows a job");
-  const int code = api->Follow(job_id, token, [&](bool binary, const std::string& payload) {
-    socket.binary(binary);
-    ExpireAfter(connection, WriteSeconds(payload.size()));
-    beast::error_code write_error;
-    socket.write(asio::buffer(payload), write_error);
-    connection.deadline_ns = std::numeric_limits<int64_t>::max();
-    return !write_error;
-  });
+  const int code =
+      api->Follow(job_id, token, connection.client, [&](bool binary, const std::string& payload) {
+        socket.binary(binary);
+        ExpireAfter(connection, WriteSeconds(payload.size()));
+        beast::error_code write_error;
+        socket.write(asio::buffer(payload), write_error);
+        connection.deadline_ns = std::numeric_limits<int64_t>::max();
+        return !write_error;
+      });
   log::Info("follow_closed", {{"job_id", job_id}, {"close_code", code}},
             "a web client's follow ended");
   if (code == 1001) return;  // The client is gone.
@@ -474,8 +478,9 @@ std::optional<WebResponse> HttpFront::Impl::RefuseHost(
 }
 
 bhttp::response<bhttp::string_body> HttpFront::Impl::Respond(
-    const bhttp::request<bhttp::empty_body>& request) {
+    const bhttp::request<bhttp::empty_body>& request, const std::string& client) {
   WebRequest web;
+  web.client = client;
   web.method = std::string(request.method_string());
   WebResponse answer;
   if (!ParseTarget(absl::string_view(request.target().data(), request.target().size()), &web.path,
@@ -623,9 +628,10 @@ absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptio
   api_options.still_stored = [server](const std::string& id) {
     return server->reenactments().Get(id).ok();
   };
-  impl.api = std::make_unique<WebApi>(std::move(api_options), [server](const std::string& token) {
-    return server->InProcessChannel(token);
-  });
+  impl.api = std::make_unique<WebApi>(
+      std::move(api_options), [server](const std::string& token, const std::string& client) {
+        return server->InProcessChannel(token, client);
+      });
 
   beast::error_code error;
   tcp::resolver resolver(impl.io);

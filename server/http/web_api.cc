@@ -292,7 +292,7 @@ WebResponse WebApi::ListReenactments(const WebRequest& request) {
   if (const auto it = request.query.find("take_id"); it != request.query.end()) {
     list.set_take_id(it->second);
   }
-  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token);
+  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token, request.client);
   auto reenactments = v1::Reenactments::NewStub(channel);
   grpc::ClientContext context;
   SetDeadline(context, options_.call_timeout_s);
@@ -318,7 +318,7 @@ WebResponse WebApi::ListReenactments(const WebRequest& request) {
 }
 
 WebResponse WebApi::GetReenactment(const WebRequest& request, const std::string& id) {
-  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token);
+  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token, request.client);
   grpc::ClientContext context;
   SetDeadline(context, options_.call_timeout_s);
   v1::GetReenactmentRequest get;
@@ -331,9 +331,9 @@ WebResponse WebApi::GetReenactment(const WebRequest& request, const std::string&
   return JsonResponse(ReenactmentJson(summary, TakeName(channel, summary.info().take_id())));
 }
 
-absl::Status WebApi::EnsureGlb(const std::string& id, const std::string& token, std::string* path,
+absl::Status WebApi::EnsureGlb(const std::string& id, const WebRequest& request, std::string* path,
                                std::string* etag, int64_t* size) {
-  const std::shared_ptr<grpc::Channel> channel = channel_for_(token);
+  const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token, request.client);
   // Existence and the caller's right to read it, every time: a cached glb
   // is served only to whom the service would give the reenactment.
   {
@@ -407,7 +407,7 @@ absl::Status WebApi::EnsureGlb(const std::string& id, const std::string& token, 
 WebResponse WebApi::Model(const WebRequest& request, const std::string& id) {
   std::string path, etag;
   int64_t size = 0;
-  if (absl::Status status = EnsureGlb(id, request.token, &path, &etag, &size); !status.ok()) {
+  if (absl::Status status = EnsureGlb(id, request, &path, &etag, &size); !status.ok()) {
     return ErrorResponse(status);
   }
   WebResponse response;
@@ -474,8 +474,8 @@ WebResponse WebApi::ListJobs(const WebRequest& request) {
   grpc::ClientContext context;
   SetDeadline(context, options_.call_timeout_s);
   v1::ListJobsResponse listed;
-  if (grpc::Status status =
-          v1::Jobs::NewStub(channel_for_(request.token))->List(&context, list, &listed);
+  if (grpc::Status status = v1::Jobs::NewStub(channel_for_(request.token, request.client))
+                                ->List(&context, list, &listed);
       !status.ok()) {
     return ErrorResponse(FromGrpcStatus(status));
   }
@@ -490,17 +490,20 @@ WebResponse WebApi::ListJobs(const WebRequest& request) {
   return response;
 }
 
-absl::Status WebApi::CheckFollow(const std::string& job_id, const std::string& token) {
+absl::Status WebApi::CheckFollow(const std::string& job_id, const std::string& token,
+                                 const std::string& client) {
   grpc::ClientContext context;
   SetDeadline(context, options_.call_timeout_s);
   v1::GetJobRequest request;
   request.set_job_id(job_id);
   v1::Job job;
-  const grpc::Status status = v1::Jobs::NewStub(channel_for_(token))->Get(&context, request, &job);
+  const grpc::Status status =
+      v1::Jobs::NewStub(channel_for_(token, client))->Get(&context, request, &job);
   return status.ok() ? absl::OkStatus() : FromGrpcStatus(status);
 }
 
-int WebApi::Follow(const std::string& job_id, const std::string& token, const SendFunction& send) {
+int WebApi::Follow(const std::string& job_id, const std::string& token,
+                   const std::string& web_client, const SendFunction& send) {
   bool client_gone = false;
   Eigen::Vector3d rest_root = Eigen::Vector3d::Zero();
   const auto send_json = [&](const json& message) {
@@ -572,7 +575,8 @@ int WebApi::Follow(const std::string& job_id, const std::string& token, const Se
   client::ConnectionOptions connection;
   connection.timeout_s = options_.call_timeout_s;
   const absl::StatusOr<v1::FollowEnd> end =
-      client::ReenactmentsClient(channel_for_(token), connection).Follow(job_id, on_event);
+      client::ReenactmentsClient(channel_for_(token, web_client), connection)
+          .Follow(job_id, on_event);
   if (client_gone) return 1001;
   if (!end.ok()) {
     send_json(json{{"type", "error"},

@@ -56,6 +56,10 @@ struct WebRequest {
   std::string path;                          // Percent-decoded, without the query.
   std::map<std::string, std::string> query;  // Percent-decoded.
   std::string token;                         // Bearer token (header or access_token); empty: none.
+  // The web client's address: the API's calls count under its caps
+  // (Server::InProcessChannel's `client`), not under one for every user of
+  // the token. Empty: the front's own.
+  std::string client;
   std::string if_none_match;
   std::string range;
   std::string if_range;
@@ -89,9 +93,11 @@ struct WebApiOptions {
 
 class WebApi {
  public:
-  // `channel_for(token)`: a channel to the server whose calls carry `token`
-  // (Server::InProcessChannel(token)).
-  using ChannelFactory = std::function<std::shared_ptr<grpc::Channel>(const std::string& token)>;
+  // `channel_for(token, client)`: a channel to the server whose calls carry
+  // `token` and count under web client `client`'s caps
+  // (Server::InProcessChannel(token, client)).
+  using ChannelFactory = std::function<std::shared_ptr<grpc::Channel>(const std::string& token,
+                                                                      const std::string& client)>;
   WebApi(WebApiOptions options, ChannelFactory channel_for);
 
   // Whether `path` is the API's (/api/...).
@@ -111,11 +117,14 @@ class WebApi {
   // WebSocket close code to end with: 1000 after the end, 4000 + the HTTP
   // status after an error (4404 unknown job, 4401, 4403, 4503, ...), 1001
   // when the client went away.
-  int Follow(const std::string& job_id, const std::string& token, const SendFunction& send);
+  // `web_client`: the web client's address (WebRequest::client).
+  int Follow(const std::string& job_id, const std::string& token, const std::string& web_client,
+             const SendFunction& send);
   // OK when `token` may follow job `job_id` and the job exists (Jobs.Get
   // with the token): checked before a WebSocket is accepted, so that a
   // refused client gets an HTTP answer and never an open socket.
-  absl::Status CheckFollow(const std::string& job_id, const std::string& token);
+  absl::Status CheckFollow(const std::string& job_id, const std::string& token,
+                           const std::string& client);
 
  private:
   WebResponse Info() const;
@@ -128,7 +137,7 @@ class WebApi {
                        const std::string& take_id) const;
 
   // The glb of `id` on disk (built when missing) and its ETag.
-  absl::Status EnsureGlb(const std::string& id, const std::string& token, std::string* path,
+  absl::Status EnsureGlb(const std::string& id, const WebRequest& request, std::string* path,
                          std::string* etag, int64_t* size);
 
   WebApiOptions options_;

@@ -82,7 +82,8 @@ void JobScheduler::AppendWorkerLog(const std::string& job_id,
   for (const std::string& line : lines) log << line << "\n";
 }
 
-void JobScheduler::Lease(const v1::LeaseRequest& request, LeaseDone done) {
+void JobScheduler::Lease(const v1::LeaseRequest& request, const std::string& holder,
+                         LeaseDone done) {
   if (request.protocol() != v1::WORK_PROTOCOL_V1) {
     done(absl::FailedPreconditionError(
         absl::StrCat("this server speaks Work protocol 1; the worker asked for ",
@@ -109,11 +110,11 @@ void JobScheduler::Lease(const v1::LeaseRequest& request, LeaseDone done) {
       done(absl::UnavailableError("the server is shutting down"));
       return;
     }
-    lease = LeaseQueuedLocked(methods, worker_name);
+    lease = LeaseQueuedLocked(methods, worker_name, holder);
     if (!lease.has_value() && request.wait_s() > 0) {
       const double wait_s = std::min(request.wait_s(), kMaxLeaseWaitS);
-      lease_waiters_.push_back(
-          {std::move(methods), worker_name, SteadyNowNs() + SecondsToNs(wait_s), std::move(done)});
+      lease_waiters_.push_back({std::move(methods), worker_name, holder,
+                                SteadyNowNs() + SecondsToNs(wait_s), std::move(done)});
       return;
     }
   }
@@ -128,7 +129,8 @@ void JobScheduler::StopLeasing() {
 }
 
 std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std::string>& methods,
-                                                             const std::string& worker_name) {
+                                                             const std::string& worker_name,
+                                                             const std::string& holder) {
   auto runs = [&](const std::string& unit) {
     if (methods.empty()) return true;
     const absl::StatusOr<v1::Job> job = jobs_->Get(SplitUnit(unit).first);
@@ -194,6 +196,7 @@ std::optional<v1::WorkLease> JobScheduler::LeaseQueuedLocked(const std::set<std:
   }
   run.lease_id = NewLeaseId(unit, attempt);
   run.worker_name = worker_name;
+  run.holder = holder;
   run.local = local;
   if (local) ++local_leases_;
   if (run.part.empty() || run.part == "stitch") {
@@ -240,9 +243,10 @@ void JobScheduler::ServeLeaseWaiters() {
     std::lock_guard<std::mutex> lock(mu_);
     const int64_t now_ns = SteadyNowNs();
     for (auto it = lease_waiters_.begin(); it != lease_waiters_.end();) {
-      std::optional<v1::WorkLease> lease = queue_.empty() && !live_jobs_.HasHandoffLocked()
-                                               ? std::nullopt
-                                               : LeaseQueuedLocked(it->methods, it->worker_name);
+      std::optional<v1::WorkLease> lease =
+          queue_.empty() && !live_jobs_.HasHandoffLocked()
+              ? std::nullopt
+              : LeaseQueuedLocked(it->methods, it->worker_name, it->holder);
       if (!lease.has_value() && now_ns < it->deadline_ns) {
         ++it;
         continue;
@@ -274,6 +278,22 @@ absl::StatusOr<JobScheduler::Running*> JobScheduler::HeldLeaseLocked(
   const auto run = running_.find(lease->second);
   if (run == running_.end() || SteadyNowNs() > run->second->expires_ns) return NoLease(lease_id);
   return run->second.get();
+}
+
+absl::Status JobScheduler::CheckLeaseHolder(const std::string& lease_id,
+                                            const std::string& holder) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  ASSIGN_OR_RETURN(const Running* run, HeldLeaseLocked(lease_id));
+  if (run->holder != holder) {
+    log::Warn("lease_holder_refused",
+              {{"job_id", run->job_id}, {"holder", run->holder}, {"caller", holder}},
+              absl::StrCat("a call for a lease of job ", run->job_id,
+                           " came with another credential than the one it was given to"));
+    return absl::PermissionDeniedError(
+        "this lease was given to another worker's credential; a worker may only use the leases "
+        "it took");
+  }
+  return absl::OkStatus();
 }
 
 std::unique_ptr<JobScheduler::Running> JobScheduler::ReleaseLocked(const std::string& lease_id) {

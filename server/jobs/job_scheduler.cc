@@ -10,6 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "common/base/files.h"
+#include "common/base/memory_limit.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/body/model_spec.h"
@@ -174,6 +175,13 @@ absl::StatusOr<std::unique_ptr<JobScheduler>> JobScheduler::Start(
   scheduler->concurrency_ =
       options.concurrency > 0 ? options.concurrency
                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  if (options.job_memory_mb >= 0) {
+    scheduler->job_memory_mb_ = options.job_memory_mb;
+  } else {
+    const int64_t machine_mb = PhysicalMemoryBytes() >> 20;
+    scheduler->job_memory_mb_ =
+        std::max<int64_t>(1024, machine_mb * 3 / 4 / std::max(1, scheduler->concurrency_));
+  }
   RETURN_IF_ERROR(jobs->RequeueUnfinished().status());
   for (const v1::Job& job : jobs->Queued()) {
     if (job.segments() == 0) {
@@ -202,7 +210,8 @@ absl::StatusOr<std::unique_ptr<JobScheduler>> JobScheduler::Start(
 
 JobScheduler::~JobScheduler() { Shutdown(); }
 
-absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request) {
+absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request,
+                                             const std::string& submitter) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (stopping_) return absl::UnavailableError("the server is shutting down; submit later");
@@ -244,11 +253,33 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   }
   ASSIGN_OR_RETURN(const v1::Take take, takes_->GetTake(request.take_id()));
   const bool recording = take.state() == v1::TAKE_STATE_RECORDING;
+  if (job_memory_mb_ > 0 && options_.job_memory && !recording) {
+    // A take still recording has no size yet; its worker runs under the
+    // limit all the same.
+    ASSIGN_OR_RETURN(
+        const int64_t estimate,
+        options_.job_memory(request.method(), WorkerOptions(spec, request.options()), take));
+    const int64_t estimate_mb = (estimate + (int64_t{1} << 20) - 1) >> 20;
+    if (estimate_mb > job_memory_mb_) {
+      const absl::Status over = absl::ResourceExhaustedError(absl::StrCat(
+          "this job would take about ", estimate_mb, " MiB, over the server's ", job_memory_mb_,
+          " MiB a job (--job-memory-mb); ask for smaller textures, meshes or voxels, or fewer "
+          "frames (max_frames)"));
+      LimitHit("job_memory",
+               {{"take_id", request.take_id()},
+                {"method", request.method()},
+                {"estimate_mb", estimate_mb},
+                {"budget_mb", job_memory_mb_}},
+               over.message());
+      return over;
+    }
+  }
   if (recording) RETURN_IF_ERROR(live_jobs_.CheckFollowable(take.take_id(), live));
   v1::Job job;
   job.set_take_id(request.take_id());
   job.set_method(request.method());
   *job.mutable_options() = request.options();
+  job.set_submitted_by(submitter);
   if (segmented) {
     job.set_segments(request.segments());
     for (v1::JobPart& part : NewParts(request.segments())) *job.add_parts() = std::move(part);
@@ -276,6 +307,20 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
           absl::StrCat("the job queue is full (", queued->second,
                        " jobs wait, --max-queued-jobs); submit once some have run"));
       LimitHit("queued_jobs", {{"take_id", request.take_id()}, {"max", options_.max_queued_jobs}},
+               full.message());
+      return full;
+    }
+  }
+  if (!submitter.empty() && options_.max_queued_jobs_per_token > 0) {
+    const int64_t queued = jobs_->CountQueuedBy(submitter);
+    if (queued >= options_.max_queued_jobs_per_token) {
+      const absl::Status full = absl::ResourceExhaustedError(absl::StrCat(
+          "this token has ", queued, " jobs waiting, its most (--max-queued-jobs-per-token ",
+          options_.max_queued_jobs_per_token, "); submit once some have run"));
+      LimitHit("queued_jobs_per_token",
+               {{"take_id", request.take_id()},
+                {"token", submitter},
+                {"max", options_.max_queued_jobs_per_token}},
                full.message());
       return full;
     }

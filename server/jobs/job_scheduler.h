@@ -137,6 +137,23 @@ struct JobSchedulerOptions {
   // queue (--max-queued-jobs): a client in a loop cannot grow the catalog
   // and the jobs folder without bound.
   int max_queued_jobs = 1000;
+  // The same for the jobs of one token (--max-queued-jobs-per-token), so
+  // that one coach's loop cannot fill the queue for every other; the
+  // anonymous caller of a server without tokens has only the bound above.
+  int max_queued_jobs_per_token = 100;
+  // The memory one job may take, MiB (--job-memory-mb): Submit refuses a
+  // job whose estimate (`job_memory`) is over it (RESOURCE_EXHAUSTED,
+  // naming both), and the server's own workers run every job under it
+  // (reenact-worker --memory-limit-mb). -1: the jobs that run at once share
+  // three quarters of the machine's memory, at least 1024 MiB each; 0: no
+  // budget.
+  int64_t job_memory_mb = -1;
+  // A job's estimated memory, bytes, on take `take` (reenact-server:
+  // recon::JobMemoryBytes); empty: no estimate, only the workers' limit.
+  std::function<absl::StatusOr<int64_t>(const std::string& method,
+                                        const std::map<std::string, std::string>& options,
+                                        const v1::Take& take)>
+      job_memory;
   // Whether the server runs workers of its own (reenact-server --workers
   // local:N; the N is `concurrency`). False (--workers none): queued jobs
   // wait for workers that lease them over the Work service; `concurrency`
@@ -199,7 +216,12 @@ class JobScheduler {
   // body); NotFound for an unknown take; FailedPrecondition for a take still
   // recording, unless the job is live and the server has a live hub;
   // Unavailable after Shutdown, or while the take is being opened.
-  absl::StatusOr<v1::Job> Submit(const v1::SubmitJobRequest& request);
+  // `submitter`: the caller's token name (Job.submitted_by; empty: the
+  // anonymous caller of a server without tokens). ResourceExhausted past
+  // max_queued_jobs, past max_queued_jobs_per_token for a named submitter,
+  // or for a job estimated over the memory budget.
+  absl::StatusOr<v1::Job> Submit(const v1::SubmitJobRequest& request,
+                                 const std::string& submitter = {});
   // Cancels a QUEUED job, a live job that follows its take, or a RUNNING
   // job, whose lease ends (its worker stops it at its next heartbeat; a
   // launcher's batch job is cancelled too); returned CANCELLED. A finished job is returned as it
@@ -241,8 +263,16 @@ class JobScheduler {
   // at once, or when one is queued within wait_s (at most 60 s); else an
   // empty response. Calls `done` exactly once, from this thread or the
   // scheduler's, without a lock held. FailedPrecondition for an unknown
-  // protocol version, Unavailable while shutting down.
-  void Lease(const v1::LeaseRequest& request, LeaseDone done);
+  // protocol version, Unavailable while shutting down. `holder` names the
+  // worker's credential (its token's name; empty: the anonymous caller of a
+  // server without tokens): the lease is bound to it (CheckLeaseHolder).
+  void Lease(const v1::LeaseRequest& request, const std::string& holder, LeaseDone done);
+  // OK when lease `lease_id` is held and was given to credential `holder`;
+  // PermissionDenied when another credential holds it (a worker may not
+  // beat, read, upload or fail another's lease, whatever its id), Aborted
+  // when it is not held. The Work service asks before every call that
+  // names a lease.
+  absl::Status CheckLeaseHolder(const std::string& lease_id, const std::string& holder) const;
   // No more leases from now on (the server stops its own workers before
   // the rest); the other Work calls still answer.
   void StopLeasing();
@@ -279,6 +309,9 @@ class JobScheduler {
   absl::StatusOr<v1::Job> FailLease(const v1::FailRequest& request);
 
   int concurrency() const { return concurrency_; }
+  // The memory budget of one job, MiB (JobSchedulerOptions::job_memory_mb
+  // resolved); 0: none.
+  int64_t job_memory_mb() const { return job_memory_mb_; }
   const std::string& worker_path() const { return worker_path_; }
 
  private:
@@ -300,6 +333,8 @@ class JobScheduler {
     // One of this server's own workers (they share its job slots).
     bool local = false;
     std::string worker_name;
+    // The credential the lease was given to (CheckLeaseHolder).
+    std::string holder;
     // Steady time the lease ends unless renewed.
     int64_t expires_ns = 0;
     // The ETA from the worker's heartbeats.
@@ -327,7 +362,8 @@ class JobScheduler {
   // local workers) that one of `methods` runs, RUNNING under a new lease.
   // mu_ held.
   std::optional<v1::WorkLease> LeaseQueuedLocked(const std::set<std::string>& methods,
-                                                 const std::string& worker_name);
+                                                 const std::string& worker_name,
+                                                 const std::string& holder);
   // Queues again (or fails) the jobs of leases past their time.
   void ExpireLeases();
   // Queues a released lease's job again, first in line, or fails it when it
@@ -389,6 +425,7 @@ class JobScheduler {
   TakeStore* const takes_;
   ReenactmentStore* const reenactments_;
   int concurrency_ = 1;
+  int64_t job_memory_mb_ = 0;
   std::string worker_path_;
 
   mutable std::mutex mu_;
@@ -414,6 +451,7 @@ class JobScheduler {
   struct LeaseWaiter {
     std::set<std::string> methods;
     std::string worker_name;
+    std::string holder;
     int64_t deadline_ns = 0;
     LeaseDone done;
   };

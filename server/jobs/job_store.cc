@@ -184,6 +184,15 @@ std::map<v1::JobState, int64_t> JobStore::CountByState() const {
   return counts;
 }
 
+int64_t JobStore::CountQueuedBy(const std::string& submitter) const {
+  int64_t count = 0;
+  std::lock_guard<std::mutex> lock(mu_);
+  for (const auto& [id, job] : jobs_) {
+    count += job.state() == v1::JOB_STATE_QUEUED && job.submitted_by() == submitter ? 1 : 0;
+  }
+  return count;
+}
+
 absl::StatusOr<std::vector<std::string>> JobStore::RequeueUnfinished() {
   std::vector<v1::Job> running = List(v1::JOB_STATE_RUNNING);
   std::reverse(running.begin(), running.end());

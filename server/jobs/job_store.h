@@ -114,6 +114,8 @@ class JobStore {
   // How many jobs are in each state (the metrics endpoint reads it at every
   // scrape, so it copies no job).
   std::map<v1::JobState, int64_t> CountByState() const;
+  // QUEUED jobs submitted by `submitter` (Job.submitted_by).
+  int64_t CountQueuedBy(const std::string& submitter) const;
   // RUNNING -> QUEUED (attempts kept), or FAILED past max_attempts. Returns
   // the ids queued again, oldest first.
   absl::StatusOr<std::vector<std::string>> RequeueUnfinished();

@@ -31,6 +31,7 @@ void LocalWorkers::Run(int index) {
   agent.job_program = options_.job_program;
   agent.scratch_dir = options_.scratch_dir;
   agent.asset_roots = options_.asset_roots;
+  agent.memory_limit_mb = options_.memory_limit_mb;
   agent.name = absl::StrCat(kLocalWorkerPrefix, index);
   agent.cancel_grace_s = options_.cancel_grace_s;
   agent.stop_grace_s = options_.stop_grace_s;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -25,6 +26,8 @@ struct LocalWorkersOptions {
   // Each job's scratch folder is made below this one.
   std::string scratch_dir;
   std::vector<std::string> asset_roots;
+  // Each job's memory ceiling, MiB (WorkAgentOptions::memory_limit_mb).
+  int64_t memory_limit_mb = 0;
   double cancel_grace_s = 5;
   double stop_grace_s = 2;
   double poll_period_s = 0.1;

@@ -83,6 +83,9 @@ std::vector<std::string> WorkerArgs(const v1::Job& job, const methods::MethodSpe
                                                     invocation.input_paths.end(), ",")});
     }
   }
+  if (invocation.memory_limit_mb > 0) {
+    args.insert(args.end(), {"--memory-limit-mb", std::to_string(invocation.memory_limit_mb)});
+  }
   return args;
 }
 

@@ -47,6 +47,9 @@ struct WorkerInvocation {
   // the files of its inputs (WorkLease.inputs), in order.
   std::string part;
   std::vector<std::string> input_paths;
+  // The job's memory ceiling, MiB (--memory-limit-mb; reenact-server
+  // --job-memory-mb); 0: no argument.
+  int64_t memory_limit_mb = 0;
 };
 
 // The worker's argv for `job` (the job's method, take and id; its options
@@ -55,6 +58,7 @@ struct WorkerInvocation {
 //          --reenactment-id R --take-id ID --job-id J [--assets A,B]
 //          [--part prepare | --part segment-K --segments N --prepared P |
 //           --part stitch --segments N --prepared P --segment-files S1,...]
+//          [--memory-limit-mb M]
 // (a part: its inputs are the prepared file first, then the segments').
 std::vector<std::string> WorkerArgs(const v1::Job& job, const methods::MethodSpec* spec,
                                     const WorkerInvocation& invocation);

@@ -95,14 +95,46 @@ absl::Status LoadOptions::Read(methods::OptionReader& reader) {
                     "use at most this many instants of the take (0: all)");
 }
 
-absl::Status CheckJob(const std::string& method, const OptionMap& options) {
-  const ReconstructionMethod* found = FindMethod(method);
-  if (found == nullptr) return methods::UnknownMethodError(MethodSpecs(), method);
-  OptionMap load_options, method_options;
-  SplitLoadOptions(options, &load_options, &method_options);
+namespace {
+
+// A job's method, its load options (parsed) and its own options, or the
+// error CheckJob reports.
+struct ParsedJob {
+  const ReconstructionMethod* method = nullptr;
   LoadOptions load;
-  RETURN_IF_ERROR(methods::ParseOptions(load_options, &load));
-  return found->CheckOptions(method_options);
+  OptionMap method_options;
+};
+
+absl::StatusOr<ParsedJob> ParseJob(const std::string& method, const OptionMap& options) {
+  ParsedJob job;
+  job.method = FindMethod(method);
+  if (job.method == nullptr) return methods::UnknownMethodError(MethodSpecs(), method);
+  OptionMap load_options;
+  SplitLoadOptions(options, &load_options, &job.method_options);
+  RETURN_IF_ERROR(methods::ParseOptions(load_options, &job.load));
+  RETURN_IF_ERROR(job.method->CheckOptions(job.method_options));
+  return job;
+}
+
+}  // namespace
+
+absl::Status CheckJob(const std::string& method, const OptionMap& options) {
+  return ParseJob(method, options).status();
+}
+
+absl::StatusOr<int64_t> JobMemoryBytes(const std::string& method, const OptionMap& options,
+                                       const TakeSize& take) {
+  ASSIGN_OR_RETURN(const ParsedJob job, ParseJob(method, options));
+  TakeSize used = take;
+  used.frame_sets = take.Instants(job.load.frames.max_instants);
+  if (take.frame_sets > used.frame_sets && take.frame_sets > 0) {
+    used.duration_s = take.duration_s * static_cast<double>(used.frame_sets) / take.frame_sets;
+  }
+  ASSIGN_OR_RETURN(const int64_t own, job.method->MemoryBytes(job.method_options, used));
+  // A take without skeletons is tracked first: a depth frame and the
+  // tracker's buffers per thread, and the skeletons of every frame.
+  const int64_t tracking = used.frame_sets * std::max(used.sensors, 1) * 4096;
+  return memory::RunBytes(take, job.load.frames.num_threads, 1) + tracking + own;
 }
 
 absl::StatusOr<MethodResult> RunMethod(const MethodInput& input, const std::string& out_path,

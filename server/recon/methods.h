@@ -40,6 +40,15 @@ struct LoadOptions {
 // reject (naming the key, or the known keys for an unknown one).
 absl::Status CheckJob(const std::string& method, const OptionMap& options);
 
+// What a job of `method` with `options` is estimated to take of its
+// worker's memory on a take of `take`'s size, bytes (memory_estimate.h):
+// the program, the take's streams and decodes, and the method's own terms
+// (ReconstructionMethod::MemoryBytes). An upper bound, checked against
+// measured peaks; a server refuses jobs over its --job-memory-mb with it.
+// CheckJob's errors.
+absl::StatusOr<int64_t> JobMemoryBytes(const std::string& method, const OptionMap& options,
+                                       const TakeSize& take);
+
 // Longest part file a run reads (an atlas of 8192 px has 1 GiB of sums).
 inline constexpr uint64_t kMaxPartFileBytes = uint64_t{2} << 30;
 

@@ -50,6 +50,12 @@ absl::StatusOr<TakeNeeds> ReconstructionMethod::Needs(const TakeFrames& take, co
   return TakeNeeds::All(take);
 }
 
+absl::StatusOr<int64_t> ReconstructionMethod::MemoryBytes(const OptionMap& options,
+                                                          const TakeSize& /*take*/) const {
+  if (absl::Status status = CheckOptions(options); !status.ok()) return status;
+  return int64_t{0};
+}
+
 absl::StatusOr<std::string> ReconstructionMethod::Prepare(const TakeFrames&, const OptionMap&,
                                                           const MethodContext&) const {
   return NotSegmentable(*this);

@@ -30,6 +30,7 @@
 #include "common/methods/method_spec.h"
 #include "common/methods/option_reader.h"
 #include "common/model/reenactment.h"
+#include "server/recon/memory_estimate.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::recon {
@@ -101,6 +102,12 @@ class ReconstructionMethod {
   // the struct's Validate(). Cheap: jobs are checked before the take loads.
   virtual absl::Status CheckOptions(const OptionMap& options) const = 0;
 
+  // The method's own large terms of a job's memory on a take of `take`'s
+  // size (memory_estimate.h; recon::JobMemoryBytes adds what every run
+  // holds). CheckOptions' errors. By default 0: the method holds nothing
+  // that grows with its options or the take beyond the run's own terms.
+  virtual absl::StatusOr<int64_t> MemoryBytes(const OptionMap& options, const TakeSize& take) const;
+
   // Builds the reenactment from a loaded take: parts, frames, keyframes and
   // in `info` at least frame_count, fps and figures; RunMethod fills the
   // bookkeeping (ids, method, options, sensors, texture mode) and writes it.
@@ -155,7 +162,8 @@ struct SegmentFunctions {
 
 // A method whose options are the struct `Options`: default-constructible,
 // with `absl::Status Read(methods::OptionReader&)` and
-// `absl::Status Validate() const`.
+// `absl::Status Validate() const`, and, when the method holds memory that
+// grows with its options, `int64_t MemoryBytes(const TakeSize&) const`.
 template <typename Options>
 class TypedMethod final : public ReconstructionMethod {
  public:
@@ -187,6 +195,19 @@ class TypedMethod final : public ReconstructionMethod {
   absl::Status CheckOptions(const OptionMap& options) const override {
     Options parsed;
     return methods::ParseOptions(options, &parsed);
+  }
+
+  absl::StatusOr<int64_t> MemoryBytes(const OptionMap& options,
+                                      const TakeSize& take) const override {
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    if constexpr (requires { parsed.MemoryBytes(take); }) {
+      return static_cast<int64_t>(parsed.MemoryBytes(take));
+    } else {
+      return int64_t{0};
+    }
   }
 
   absl::StatusOr<Reenactment> Run(const TakeFrames& take, const OptionMap& options,

@@ -42,6 +42,29 @@ absl::Status RigidTexturingOptions::Validate() const {
   return absl::OkStatus();
 }
 
+int64_t RigidTexturingOptions::MemoryBytes(const TakeSize& take,
+                                           const std::vector<int64_t>& part_triangles,
+                                           int64_t vertices) const {
+  // DefaultKeyframeStride's rule, from the catalog's figures.
+  const int64_t views = std::max<int64_t>(take.frame_sets, 1) * std::max(take.sensors, 1);
+  int64_t keyframes = views;
+  if (keyframe_stride > 0) {
+    keyframes = (views + keyframe_stride - 1) / keyframe_stride;
+  } else if (take.duration_s > 20.0) {
+    keyframes = std::min<int64_t>(views, 600 + take.sensors);
+  }
+  int64_t bytes =
+      memory::KeyframesBytes(keyframes, color_scale, keyframe.max_crop_side_px, vertices);
+  if (bake) {
+    for (const int64_t triangles : part_triangles) {
+      bytes +=
+          memory::BakedTextureBytes(memory::GrownTextureSide(baking.texture_size_px, triangles)) +
+          memory::MeshBytes(triangles);
+    }
+  }
+  return bytes;
+}
+
 int DefaultKeyframeStride(const TakeFrames& take) {
   constexpr double kAllFramesUpToS = 20.0;
   constexpr int kMaxKeyframes = 600;

@@ -4,6 +4,7 @@
 // meshes and frames are done.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "common/base/progress.h"
 #include "common/base/status_macros.h"
 #include "common/model/reenactment.h"
+#include "server/recon/memory_estimate.h"
 #include "server/recon/method_util.h"
 #include "server/recon/reconstruction_method.h"
 #include "server/recon/take_frames.h"
@@ -38,6 +40,13 @@ struct RigidTexturingOptions {
   absl::Status Read(OptionReader& reader);
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
+
+  // The texturing's share of a job's memory on a take of `take`'s size
+  // (memory_estimate.h): its keyframes with the visibility bits of
+  // `vertices` (all parts) and, when baking, a texture grown for each part
+  // of `part_triangles` triangles and the split meshes.
+  int64_t MemoryBytes(const TakeSize& take, const std::vector<int64_t>& part_triangles,
+                      int64_t vertices) const;
 };
 
 // Every instant for takes up to 20 s; longer takes keep at most 600

@@ -468,6 +468,76 @@ TEST(ClientLimits, AClientGetsNoMoreStreamsThanAllowedAndTheNextAfterOneEnds) {
   EXPECT_TRUE(second.Finish().ok());
 }
 
+// The HTTP front calls in process for its web clients, naming each
+// (rpc::kForwardedClientKey): every web client counts on its own under the
+// caps, and a network caller cannot pose as several clients with that key.
+TEST(ClientLimits, TheFrontsCallsCountForEachOfItsClientsAndTheKeyMeansNothingFromTheNetwork) {
+  ServerOptions options;
+  options.client_limits.max_streams = 1;
+  auto t = TestServer::Start(reenact::testing::MakeTempDir("forwarded_clients"), options);
+  ASSERT_NE(t, nullptr);
+  const auto opened = [](v1::Ingest::Stub& stub, const std::string& take_id) {
+    auto client = std::make_unique<IngestClient>(stub);
+    client->Open(MakeOpenTake(take_id, "daemon-a", 1));
+    const bool ok = client->ReadOpened().has_value();
+    return std::make_pair(ok, std::move(client));
+  };
+  const auto close = [](IngestClient& client) {
+    client.Close(0);
+    return client.Finish();
+  };
+  const auto expect_refused = [](IngestClient& client) {
+    const grpc::Status refused = client.Finish();
+    EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+        << refused.error_message();
+    EXPECT_NE(refused.error_message().find("--max-streams-per-client"), std::string::npos)
+        << refused.error_message();
+  };
+
+  // In process: web client 10.0.0.1 holds its one stream; its second is
+  // refused, while 10.0.0.2 (same token: none) is served.
+  auto web_a = v1::Ingest::NewStub(t->server->InProcessChannel("", "10.0.0.1"));
+  auto web_a_again = v1::Ingest::NewStub(t->server->InProcessChannel("", "10.0.0.1"));
+  auto web_b = v1::Ingest::NewStub(t->server->InProcessChannel("", "10.0.0.2"));
+  auto [a_ok, a] = opened(*web_a, "fa");
+  ASSERT_TRUE(a_ok);
+  auto [a2_ok, a2] = opened(*web_a_again, "fa2");
+  EXPECT_FALSE(a2_ok);
+  expect_refused(*a2);
+  auto [b_ok, b] = opened(*web_b, "fb");
+  EXPECT_TRUE(b_ok);
+
+  // From the network the key is ignored: two callers that name two
+  // different clients are one client (127.0.0.1), so the second is refused.
+  grpc::ClientContext first_context, second_context;
+  first_context.AddMetadata(rpc::kForwardedClientKey, "10.0.0.3");
+  second_context.AddMetadata(rpc::kForwardedClientKey, "10.0.0.4");
+  auto first_stream = t->ingest->Ingest(&first_context);
+  v1::IngestRequest open;
+  *open.mutable_open() = MakeOpenTake("n1", "daemon-a", 1);
+  ASSERT_TRUE(first_stream->Write(open));
+  v1::IngestResponse first_answer;
+  ASSERT_TRUE(first_stream->Read(&first_answer));
+  auto second_stream = t->ingest->Ingest(&second_context);
+  *open.mutable_open() = MakeOpenTake("n2", "daemon-a", 1);
+  second_stream->Write(open);
+  second_stream->WritesDone();
+  v1::IngestResponse second_answer;
+  while (second_stream->Read(&second_answer)) {
+  }
+  const grpc::Status second_status = second_stream->Finish();
+  EXPECT_EQ(second_status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+      << second_status.error_message();
+
+  // Cleanly closed: the first network stream, then the web ones.
+  first_stream->WritesDone();
+  while (first_stream->Read(&first_answer)) {
+  }
+  (void)first_stream->Finish();
+  EXPECT_TRUE(close(*a).ok());
+  EXPECT_TRUE(close(*b).ok());
+}
+
 TEST(Ingest, ASensorLostFloodIsStoredWithinTheQueueBoundAndLongReasonsAreRefused) {
   ServerOptions options;
   options.ingest_queue_limit_bytes = 64 << 10;  // About 64 SensorLost records.

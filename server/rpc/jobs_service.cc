@@ -81,8 +81,8 @@ class WatchStream final : public PumpedWriteReactor<v1::JobEvent> {
 }  // namespace
 
 absl::Status SubmitJob(ServerContext& context, const v1::SubmitJobRequest& request,
-                       v1::Job* response) {
-  ASSIGN_OR_RETURN(*response, context.jobs->Submit(request));
+                       const std::string& submitter, v1::Job* response) {
+  ASSIGN_OR_RETURN(*response, context.jobs->Submit(request, submitter));
   return absl::OkStatus();
 }
 
@@ -136,11 +136,15 @@ v1::ListMethodsResponse ListMethods(const std::vector<methods::MethodSpec>& spec
 grpc::ServerUnaryReactor* JobsService::Submit(grpc::CallbackServerContext* rpc,
                                               const v1::SubmitJobRequest* request,
                                               v1::Job* response) {
-  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Jobs/Submit")) return refused;
+  const absl::StatusOr<rpc::Principal> who = Authorize(context_, *rpc, "/reenact.v1.Jobs/Submit");
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  if (!who.ok()) {
+    reactor->Finish(ToGrpcStatus(who.status()));
+    return reactor;
+  }
   // Storing the job commits (fsync) to the catalog: off gRPC's threads.
-  context_.blocking->Schedule([this, reactor, request, response] {
-    reactor->Finish(ToGrpcStatus(SubmitJob(context_, *request, response)));
+  context_.blocking->Schedule([this, reactor, request, response, submitter = who->name] {
+    reactor->Finish(ToGrpcStatus(SubmitJob(context_, *request, submitter, response)));
   });
   return reactor;
 }

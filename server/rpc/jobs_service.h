@@ -21,8 +21,9 @@
 namespace reenact::server {
 
 // The unary handlers that answer at once.
+// `submitter`: the caller's token name (Job.submitted_by).
 absl::Status SubmitJob(ServerContext& context, const v1::SubmitJobRequest& request,
-                       v1::Job* response);
+                       const std::string& submitter, v1::Job* response);
 absl::Status ListJobs(ServerContext& context, const v1::ListJobsRequest& request,
                       v1::ListJobsResponse* response);
 absl::Status GetJob(ServerContext& context, const v1::GetJobRequest& request, v1::Job* response);

@@ -11,6 +11,9 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -20,6 +23,9 @@
 
 #include "common/base/files.h"
 #include "common/base/time.h"
+#include "common/rpc/auth.h"
+#include "common/rpc/channel.h"
+#include "reenact/v1/ingest_service.grpc.pb.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "server/server_flags.h"
 #include "server/testing/test_server.h"
@@ -404,6 +410,151 @@ TEST(JobsService, AFullQueueRefusesMoreJobsUntilOneRuns) {
   ASSERT_TRUE(jobs.Cancel(second.job_id(), &job).ok());
   EXPECT_TRUE(jobs.Submit("take1", "rigid-carved", forever, &job).ok());
   ASSERT_TRUE(jobs.Cancel(running.job_id(), &job).ok());
+}
+
+// --job-memory-mb: a job whose estimate (from its options and the stored
+// take's size) is over the budget is refused, naming both figures; an
+// accepted job's worker runs under the budget (--memory-limit-mb).
+TEST(JobsService, AJobOverTheMemoryBudgetIsRefusedAndTheWorkerRunsUnderIt) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_memory_budget");
+  ServerOptions options = JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1);
+  options.jobs.job_memory_mb = 2048;
+  // A stand-in for recon::JobMemoryBytes: the take file and a MiB for each
+  // of the fake worker's steps; what it was given is kept to check.
+  auto seen = std::make_shared<std::vector<v1::Take>>();
+  auto seen_mu = std::make_shared<std::mutex>();
+  options.jobs.job_memory = [seen, seen_mu](const std::string&,
+                                            const std::map<std::string, std::string>& job_options,
+                                            const v1::Take& take) -> absl::StatusOr<int64_t> {
+    {
+      std::lock_guard<std::mutex> lock(*seen_mu);
+      seen->push_back(take);
+    }
+    const auto it = job_options.find("fake_steps");
+    const int64_t mb = it == job_options.end() ? 0 : std::stoll(it->second);
+    return take.size_bytes() + (mb << 20);
+  };
+  auto t = TestServer::Start(dir + "/data", options);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->server->jobs().job_memory_mb(), 2048);
+  RecordTake(*t, "take1", 4);
+  Jobs jobs(*t);
+
+  v1::Job job;
+  const grpc::Status refused = jobs.Submit("take1", "rigid-carved", {{"fake_steps", "4096"}}, &job);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  for (const char* part : {"about 4097 MiB", "2048 MiB a job", "--job-memory-mb"}) {
+    EXPECT_NE(refused.error_message().find(part), std::string::npos)
+        << part << " in " << refused.error_message();
+  }
+  {
+    // The estimate saw the stored take as the catalog knows it.
+    std::lock_guard<std::mutex> lock(*seen_mu);
+    ASSERT_EQ(seen->size(), 1u);
+    EXPECT_EQ(seen->front().take_id(), "take1");
+    EXPECT_EQ(seen->front().frame_set_count(), 4);
+    EXPECT_GT(seen->front().size_bytes(), 0);
+  }
+  v1::ListJobsResponse listed;
+  ASSERT_TRUE(jobs.List(v1::JOB_STATE_UNSPECIFIED, "take1", &listed).ok());
+  EXPECT_EQ(listed.jobs_size(), 0);
+
+  // Under the budget: queued, and its worker gets the budget as its limit.
+  const v1::Job accepted = jobs.SubmitOk("take1", {{"fake_steps", "5"}});
+  const v1::Job done = jobs.WaitEnd(accepted.job_id());
+  EXPECT_EQ(done.state(), v1::JOB_STATE_SUCCEEDED) << done.error();
+  const std::string log =
+      ReadFileToString(dir + "/data/jobs/" + accepted.job_id() + "/worker.log").value_or("");
+  EXPECT_NE(log.find("memory-limit-mb 2048"), std::string::npos) << log;
+}
+
+TEST(ServerFlags, JobMemoryBudget) {
+  auto parsed = ParseServerCommandLine({"--data", "d", "--listen", "127.0.0.1:1"});
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(parsed->options.jobs.job_memory_mb, -1);  // Shared from the machine's.
+  parsed =
+      ParseServerCommandLine({"--data", "d", "--listen", "127.0.0.1:1", "--job-memory-mb", "0"});
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(parsed->options.jobs.job_memory_mb, 0);
+  for (const char* bad : {"-1", "lots"}) {
+    EXPECT_EQ(
+        ParseServerCommandLine({"--data", "d", "--listen", "127.0.0.1:1", "--job-memory-mb", bad})
+            .status()
+            .code(),
+        absl::StatusCode::kInvalidArgument)
+        << bad;
+  }
+}
+
+// Each token has its own bound on waiting jobs: one coach's loop cannot
+// fill the queue for the others. A job names the token that submitted it,
+// also after a restart.
+TEST(JobsService, EachTokenHasItsOwnBoundOnWaitingJobs) {
+  const std::string dir = reenact::testing::MakeTempDir("jobs_token_bound");
+  std::map<std::string, std::string> tokens;
+  for (const auto& [name, role] :
+       std::vector<std::pair<std::string, rpc::Role>>{{"admin", rpc::Role::kAdmin},
+                                                      {"coach-a", rpc::Role::kCoach},
+                                                      {"coach-b", rpc::Role::kCoach}}) {
+    const absl::StatusOr<std::string> token = rpc::AddToken(dir + "/tokens.json", role, name);
+    ASSERT_TRUE(token.ok()) << token.status();
+    tokens[name] = *token;
+  }
+  ServerOptions options = JobOptions(REENACT_FAKE_WORKER, /*concurrency=*/1);
+  options.auth_file = dir + "/tokens.json";
+  options.jobs.max_queued_jobs_per_token = 2;
+  auto t = TestServer::Start(dir + "/data", options);
+  ASSERT_NE(t, nullptr);
+  const auto stub = [&](const std::string& name) {
+    rpc::ClientSecurity security;
+    security.token = tokens.at(name);
+    return v1::Jobs::NewStub(
+        rpc::MakeClientChannel(t->server->address(), grpc::ChannelArguments(), security));
+  };
+  {
+    rpc::ClientSecurity security;
+    security.token = tokens.at("admin");
+    auto ingest = v1::Ingest::NewStub(
+        rpc::MakeClientChannel(t->server->address(), grpc::ChannelArguments(), security));
+    IngestClient client(*ingest);
+    client.Open(MakeOpenTake("take1", "daemon-a", 1));
+    client.SendSets(1, 3, 1);
+    client.Close(3);
+    ASSERT_TRUE(client.Finish().ok());
+  }
+  Jobs coach_a(*t), coach_b(*t);
+  coach_a.stub = stub("coach-a");
+  coach_b.stub = stub("coach-b");
+  const std::map<std::string, std::string> forever = {{"fake_steps", "100000"},
+                                                      {"fake_step_ms", "20"}};
+  const v1::Job running = coach_a.SubmitOk("take1", forever);
+  EXPECT_EQ(running.submitted_by(), "coach-a");
+  coach_a.WaitFor(running.job_id(), [](const v1::Job& j) { return j.progress().fraction() > 0; });
+  const v1::Job first = coach_a.SubmitOk("take1", forever);
+  coach_a.SubmitOk("take1", forever);
+  v1::Job job;
+  const grpc::Status full = coach_a.Submit("take1", "rigid-carved", forever, &job);
+  EXPECT_EQ(full.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(full.error_message().find("--max-queued-jobs-per-token 2"), std::string::npos)
+      << full.error_message();
+  // Another coach is not held back by the first one's jobs.
+  const v1::Job other = coach_b.SubmitOk("take1", forever);
+  EXPECT_EQ(other.submitted_by(), "coach-b");
+  // One that goes makes room for its own token.
+  ASSERT_TRUE(coach_a.Cancel(first.job_id(), &job).ok());
+  EXPECT_TRUE(coach_a.Submit("take1", "rigid-carved", forever, &job).ok());
+  ASSERT_TRUE(coach_a.Cancel(running.job_id(), &job).ok());
+  // The submitter is kept in the catalog.
+  coach_a.stub.reset();
+  coach_b.stub.reset();
+  t.reset();
+  t = TestServer::Start(dir + "/data", options);
+  ASSERT_NE(t, nullptr);
+  Jobs again(*t);
+  again.stub = stub("admin");
+  v1::Job stored;
+  ASSERT_TRUE(again.Get(other.job_id(), &stored).ok());
+  EXPECT_EQ(stored.submitted_by(), "coach-b");
 }
 
 TEST(JobsService, CancelStopsRunningAndQueuedJobs) {

@@ -145,8 +145,9 @@ class TakeStream final : public grpc::ServerWriteReactor<v1::TakeChunk> {
 // Receives a reenactment into the path the scheduler gives and commits it.
 class UploadStream final : public grpc::ServerReadReactor<v1::UploadChunk> {
  public:
-  UploadStream(ServerContext& context, v1::UploadResponse* response)
-      : context_(context), response_(response) {
+  // `holder`: the caller's credential (JobScheduler::CheckLeaseHolder).
+  UploadStream(ServerContext& context, std::string holder, v1::UploadResponse* response)
+      : context_(context), holder_(std::move(holder)), response_(response) {
     StartRead(&chunk_);
   }
 
@@ -180,6 +181,7 @@ class UploadStream final : public grpc::ServerReadReactor<v1::UploadChunk> {
         return absl::InvalidArgumentError(
             absl::StrCat("result.file_bytes ", declared_, " is outside 1..", kMaxUploadBytes));
       }
+      RETURN_IF_ERROR(context_.jobs->CheckLeaseHolder(lease_id_, holder_));
       ASSIGN_OR_RETURN(path_, context_.jobs->BeginUpload(lease_id_));
       claimed_ = true;
       fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
@@ -248,6 +250,7 @@ class UploadStream final : public grpc::ServerReadReactor<v1::UploadChunk> {
   }
 
   ServerContext& context_;
+  const std::string holder_;
   v1::UploadResponse* const response_;
   v1::UploadChunk chunk_;
   std::string lease_id_;
@@ -264,19 +267,27 @@ class UploadStream final : public grpc::ServerReadReactor<v1::UploadChunk> {
 grpc::ServerUnaryReactor* WorkService::Lease(grpc::CallbackServerContext* rpc,
                                              const v1::LeaseRequest* request,
                                              v1::LeaseResponse* response) {
-  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Work/Lease")) return refused;
+  const absl::StatusOr<rpc::Principal> who = Authorize(context_, *rpc, "/reenact.v1.Work/Lease");
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
-  context_.jobs->Lease(*request, [reactor, response](absl::StatusOr<v1::LeaseResponse> leased) {
-    if (leased.ok()) *response = std::move(*leased);
-    reactor->Finish(ToGrpcStatus(leased.status()));
-  });
+  if (!who.ok()) {
+    reactor->Finish(ToGrpcStatus(who.status()));
+    return reactor;
+  }
+  context_.jobs->Lease(*request, who->name,
+                       [reactor, response](absl::StatusOr<v1::LeaseResponse> leased) {
+                         if (leased.ok()) *response = std::move(*leased);
+                         reactor->Finish(ToGrpcStatus(leased.status()));
+                       });
   return reactor;
 }
 
 grpc::ServerWriteReactor<v1::TakeChunk>* WorkService::ReadTake(grpc::CallbackServerContext* rpc,
                                                                const v1::ReadTakeRequest* request) {
-  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Work/ReadTake"); !who.ok()) {
-    return new rpc::RefusedWriter<v1::TakeChunk>(ToGrpcStatus(who.status()));
+  const absl::StatusOr<rpc::Principal> who = Authorize(context_, *rpc, "/reenact.v1.Work/ReadTake");
+  if (!who.ok()) return new rpc::RefusedWriter<v1::TakeChunk>(ToGrpcStatus(who.status()));
+  if (absl::Status holder = context_.jobs->CheckLeaseHolder(request->lease_id(), who->name);
+      !holder.ok()) {
+    return new rpc::RefusedWriter<v1::TakeChunk>(ToGrpcStatus(holder));
   }
   return new TakeStream(context_, *request);
 }
@@ -284,10 +295,18 @@ grpc::ServerWriteReactor<v1::TakeChunk>* WorkService::ReadTake(grpc::CallbackSer
 grpc::ServerUnaryReactor* WorkService::Heartbeat(grpc::CallbackServerContext* rpc,
                                                  const v1::HeartbeatRequest* request,
                                                  v1::HeartbeatResponse* response) {
-  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Work/Heartbeat")) {
-    return refused;
-  }
+  const absl::StatusOr<rpc::Principal> who =
+      Authorize(context_, *rpc, "/reenact.v1.Work/Heartbeat");
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
+  if (!who.ok()) {
+    reactor->Finish(ToGrpcStatus(who.status()));
+    return reactor;
+  }
+  if (absl::Status holder = context_.jobs->CheckLeaseHolder(request->lease_id(), who->name);
+      !holder.ok()) {
+    reactor->Finish(ToGrpcStatus(holder));
+    return reactor;
+  }
   absl::StatusOr<v1::HeartbeatResponse> beat = context_.jobs->Heartbeat(*request);
   if (beat.ok()) *response = std::move(*beat);
   reactor->Finish(ToGrpcStatus(beat.status()));
@@ -296,18 +315,26 @@ grpc::ServerUnaryReactor* WorkService::Heartbeat(grpc::CallbackServerContext* rp
 
 grpc::ServerReadReactor<v1::UploadChunk>* WorkService::Upload(grpc::CallbackServerContext* rpc,
                                                               v1::UploadResponse* response) {
-  if (auto who = Authorize(context_, *rpc, "/reenact.v1.Work/Upload"); !who.ok()) {
-    return new rpc::RefusedReader<v1::UploadChunk>(ToGrpcStatus(who.status()));
-  }
-  return new UploadStream(context_, response);
+  const absl::StatusOr<rpc::Principal> who = Authorize(context_, *rpc, "/reenact.v1.Work/Upload");
+  if (!who.ok()) return new rpc::RefusedReader<v1::UploadChunk>(ToGrpcStatus(who.status()));
+  return new UploadStream(context_, who->name, response);
 }
 
 grpc::ServerUnaryReactor* WorkService::Fail(grpc::CallbackServerContext* rpc,
                                             const v1::FailRequest* request,
                                             v1::FailResponse* response) {
-  if (auto* refused = RefuseUnlessAllowed(context_, rpc, "/reenact.v1.Work/Fail")) return refused;
+  const absl::StatusOr<rpc::Principal> who = Authorize(context_, *rpc, "/reenact.v1.Work/Fail");
   grpc::ServerUnaryReactor* reactor = rpc->DefaultReactor();
-  context_.blocking->Schedule([this, reactor, request, response] {
+  if (!who.ok()) {
+    reactor->Finish(ToGrpcStatus(who.status()));
+    return reactor;
+  }
+  context_.blocking->Schedule([this, reactor, request, response, holder = who->name] {
+    if (absl::Status held = context_.jobs->CheckLeaseHolder(request->lease_id(), holder);
+        !held.ok()) {
+      reactor->Finish(ToGrpcStatus(held));
+      return;
+    }
     const absl::StatusOr<v1::Job> job = context_.jobs->FailLease(*request);
     if (job.ok()) *response->mutable_job() = *job;
     reactor->Finish(ToGrpcStatus(job.status()));

@@ -22,7 +22,10 @@
 #include "common/io/reenactment_file.h"
 #include "common/io/take_convert.h"
 #include "common/io/testing/small_reenactment.h"
+#include "common/rpc/auth.h"
+#include "common/rpc/channel.h"
 #include "common/testing/test_data.h"
+#include "reenact/v1/ingest_service.grpc.pb.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "reenact/v1/work_service.grpc.pb.h"
@@ -306,6 +309,111 @@ TEST_F(Work, BadCallsGetClearStatusesAndStoreNothing) {
   for (const auto& entry : fs::directory_iterator(dir_ + "/data/reenactments")) {
     EXPECT_EQ(entry.path().extension(), ".reen") << entry.path();
   }
+}
+
+// A lease is bound to the credential that took it: another worker's token
+// can neither beat, read, upload nor fail it, whatever it knows of its id,
+// and the job goes on under its own worker.
+TEST_F(Work, ALeaseServesOnlyTheCredentialThatTookIt) {
+  std::map<std::string, std::string> tokens;
+  for (const auto& [name, role] :
+       std::vector<std::pair<std::string, rpc::Role>>{{"admin", rpc::Role::kAdmin},
+                                                      {"worker-a", rpc::Role::kWorker},
+                                                      {"worker-b", rpc::Role::kWorker}}) {
+    const absl::StatusOr<std::string> token = rpc::AddToken(dir_ + "/tokens.json", role, name);
+    ASSERT_TRUE(token.ok()) << token.status();
+    tokens[name] = *token;
+  }
+  ServerOptions options = NetworkOnly();
+  options.auth_file = dir_ + "/tokens.json";
+  t_ = TestServer::Start(dir_ + "/data", options);
+  ASSERT_NE(t_, nullptr);
+  const auto channel = [&](const std::string& name) {
+    rpc::ClientSecurity security;
+    security.token = tokens.at(name);
+    return rpc::MakeClientChannel(t_->server->address(), grpc::ChannelArguments(), security);
+  };
+  const auto admin = channel("admin");
+  {
+    auto ingest = v1::Ingest::NewStub(admin);
+    IngestClient client(*ingest);
+    client.Open(MakeOpenTake("take", "daemon-a", 1));
+    client.SendSets(1, 4, 1);
+    client.Close(4);
+    ASSERT_TRUE(client.Finish().ok());
+  }
+  jobs_ = v1::Jobs::NewStub(admin);
+  const v1::Job job = Submit({});
+  auto work_a = v1::Work::NewStub(channel("worker-a"));
+  auto work_b = v1::Work::NewStub(channel("worker-b"));
+  v1::LeaseResponse leased;
+  {
+    grpc::ClientContext context;
+    v1::LeaseRequest request;
+    request.set_protocol(v1::WORK_PROTOCOL_V1);
+    request.set_worker_name("a");
+    request.set_wait_s(5);
+    ASSERT_TRUE(work_a->Lease(&context, request, &leased).ok());
+  }
+  ASSERT_TRUE(leased.has_lease());
+  const std::string& id = leased.lease().lease_id();
+  const auto beat = [&](v1::Work::Stub& work) {
+    grpc::ClientContext context;
+    v1::HeartbeatRequest request;
+    request.set_lease_id(id);
+    request.mutable_progress()->set_stage("stolen");
+    request.mutable_progress()->set_fraction(0.9);
+    v1::HeartbeatResponse answer;
+    return work.Heartbeat(&context, request, &answer).error_code();
+  };
+  EXPECT_EQ(beat(*work_b), grpc::StatusCode::PERMISSION_DENIED);
+  {
+    grpc::ClientContext context;
+    v1::ReadTakeRequest request;
+    request.set_lease_id(id);
+    auto reader = work_b->ReadTake(&context, request);
+    v1::TakeChunk chunk;
+    int64_t read = 0;
+    while (reader->Read(&chunk)) read += static_cast<int64_t>(chunk.data().size());
+    EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::PERMISSION_DENIED);
+    EXPECT_EQ(read, 0);
+  }
+  const std::string file = SmallReenactmentBytes(dir_, leased.lease().reenactment_id());
+  const auto upload = [&](v1::Work::Stub& work, v1::UploadResponse* response) {
+    grpc::ClientContext context;
+    auto writer = work.Upload(&context, response);
+    v1::UploadChunk chunk;
+    chunk.set_lease_id(id);
+    chunk.mutable_result()->set_file_bytes(static_cast<int64_t>(file.size()));
+    chunk.set_data(file);
+    writer->Write(chunk);
+    writer->WritesDone();
+    return writer->Finish().error_code();
+  };
+  v1::UploadResponse response;
+  EXPECT_EQ(upload(*work_b, &response), grpc::StatusCode::PERMISSION_DENIED);
+  {
+    grpc::ClientContext context;
+    v1::FailRequest request;
+    request.set_lease_id(id);
+    request.set_error("another worker says it failed");
+    v1::FailResponse response;
+    EXPECT_EQ(work_b->Fail(&context, request, &response).error_code(),
+              grpc::StatusCode::PERMISSION_DENIED);
+  }
+  // Nothing of that reached the job; its own worker goes on and ends it.
+  v1::Job now = Get(job.job_id());
+  EXPECT_EQ(now.state(), v1::JOB_STATE_RUNNING);
+  EXPECT_NE(now.progress().stage(), "stolen");
+  {
+    grpc::ClientContext context;
+    v1::ListReenactmentsResponse listed;
+    ASSERT_TRUE(v1::Reenactments::NewStub(admin)->List(&context, {}, &listed).ok());
+    EXPECT_EQ(listed.reenactments_size(), 0);
+  }
+  EXPECT_EQ(beat(*work_a), grpc::StatusCode::OK);
+  ASSERT_EQ(upload(*work_a, &response), grpc::StatusCode::OK);
+  EXPECT_EQ(response.job().state(), v1::JOB_STATE_SUCCEEDED);
 }
 
 TEST_F(Work, ATakeSelectionStreamsOnlyTheFramesItNamesAndTheAttemptCountsTheBytes) {

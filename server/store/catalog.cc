@@ -85,6 +85,11 @@ ALTER TABLE jobs ADD COLUMN attempts_json TEXT NOT NULL DEFAULT '[]';
 ALTER TABLE jobs ADD COLUMN segments INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE jobs ADD COLUMN parts_json TEXT NOT NULL DEFAULT '[]';
 )sql",
+    // Version 6: the credential that submitted each job (Job.submitted_by);
+    // jobs from before belong to the anonymous caller.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN submitted_by TEXT NOT NULL DEFAULT '';
+)sql",
 };
 static_assert(std::size(kMigrations) == Catalog::kSchemaVersion);
 
@@ -248,7 +253,7 @@ TakeRow RowFromStatement(const Statement& s) {
 constexpr const char* kJobColumns =
     "job_id, take_id, method, options_json, state, stage, fraction, frames_done, frames_total, "
     "eta_s, submitted_unix_ns, started_unix_ns, finished_unix_ns, reenactment_id, error, attempts, "
-    "attempts_json, segments, parts_json";
+    "attempts_json, segments, parts_json, submitted_by";
 
 v1::Job JobFromStatement(const Statement& s) {
   v1::Job job;
@@ -272,6 +277,7 @@ v1::Job JobFromStatement(const Statement& s) {
   AttemptsFromJson(s.Text(16), job.mutable_attempt_history());
   job.set_segments(static_cast<int32_t>(s.Int(17)));
   PartsFromJson(s.Text(18), job.mutable_parts());
+  job.set_submitted_by(s.Text(19));
   return job;
 }
 
@@ -486,7 +492,7 @@ absl::Status Catalog::PutJob(const v1::Job& job) {
   const v1::JobProgress& p = job.progress();
   Statement s(db_, absl::StrCat("INSERT OR REPLACE INTO jobs (", kJobColumns,
                                 ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
-                                "?13, ?14, ?15, ?16, ?17, ?18, ?19)"));
+                                "?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20)"));
   s.Bind(1, job.job_id())
       .Bind(2, job.take_id())
       .Bind(3, job.method())
@@ -505,7 +511,8 @@ absl::Status Catalog::PutJob(const v1::Job& job) {
       .Bind(16, int64_t{job.attempts()})
       .Bind(17, AttemptsToJson(job.attempt_history()))
       .Bind(18, int64_t{job.segments()})
-      .Bind(19, PartsToJson(job.parts()));
+      .Bind(19, PartsToJson(job.parts()))
+      .Bind(20, job.submitted_by());
   s.Step();
   if (!s.ok()) return Error("storing job " + job.job_id());
   return absl::OkStatus();

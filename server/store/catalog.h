@@ -19,7 +19,8 @@
 //            4: a JSON list of {number, worker, started_unix_ns,
 //            ended_unix_ns, outcome}), segments and parts_json (version 5:
 //            a JSON list of {name, state ('waiting' or a job state),
-//            attempts, attempt_history, fraction, stage, file_bytes})
+//            attempts, attempt_history, fraction, stage, file_bytes}),
+//            submitted_by (version 6: the submitting token's name)
 // Every commit is fsync'ed (synchronous=FULL); the store writes a recording
 // take's progress about once a second and every state change at once.
 #pragma once
@@ -60,7 +61,7 @@ struct TakeRow {
 
 class Catalog {
  public:
-  static constexpr int kSchemaVersion = 5;
+  static constexpr int kSchemaVersion = 6;
 
   // Opens (creating when missing) the catalog at `path` and brings its schema
   // to kSchemaVersion. Unavailable when the file cannot be opened or WAL mode

@@ -451,6 +451,7 @@ class Agent {
     invocation.out_path = out_path;
     invocation.reenactment_id = lease.reenactment_id();
     invocation.asset_roots = options_.asset_roots;
+    invocation.memory_limit_mb = options_.memory_limit_mb;
     invocation.part = lease.part();
     invocation.input_paths.assign(inputs->begin() + 1, inputs->end());
     // The lease's options are the worker's already (no live-only ones).

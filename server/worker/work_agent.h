@@ -17,6 +17,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -59,6 +60,9 @@ struct WorkAgentOptions {
   std::string scratch_dir;
   // Body-model asset folders, passed to the job (--assets).
   std::vector<std::string> asset_roots;
+  // Each job's memory ceiling, MiB, passed to it (--memory-limit-mb;
+  // common/base/memory_limit.h); 0: none.
+  int64_t memory_limit_mb = 0;
   // For the server's logs and `jobs show`; empty: HOSTNAME/pid N.
   std::string name;
   // One job, then return (Slurm's sbatch runs one worker per job); else

@@ -50,9 +50,10 @@ int main(int argc, char** argv) {
   sigemptyset(&signals);
   sigaddset(&signals, SIGTERM);
   sigprocmask(SIG_UNBLOCK, &signals, nullptr);
-  auto flags = reenact::Flags::Parse(
-      std::vector<std::string>(argv + 1, argv + argc),
-      {"take", "method", "options-json", "out", "reenactment-id", "take-id", "job-id"}, {});
+  auto flags = reenact::Flags::Parse(std::vector<std::string>(argv + 1, argv + argc),
+                                     {"take", "method", "options-json", "out", "reenactment-id",
+                                      "take-id", "job-id", "memory-limit-mb"},
+                                     {});
   if (!flags.ok() || !flags->Has("take") || !flags->Has("out") || !flags->Has("method")) {
     std::fprintf(stderr, "fake-reenact-worker: bad command line\n");
     return 2;
@@ -78,7 +79,8 @@ int main(int argc, char** argv) {
     hang = true;
   }
   Line({{"log", "fake worker: method " + *flags->Get("method") + " take " + *flags->Get("take") +
-                    " job " + flags->GetOr("job-id", "")}});
+                    " job " + flags->GetOr("job-id", "") + " memory-limit-mb " +
+                    flags->GetOr("memory-limit-mb", "none")}});
   const std::string trace = option("fake_trace", "");
   auto trace_line = [&](const char* what) {
     if (trace.empty()) return;

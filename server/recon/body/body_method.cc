@@ -416,6 +416,27 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
                        "before its first instant, seconds (those fits are not kept)");
 }
 
+int64_t BodyMethodOptions::MemoryBytes(const TakeSize& take) const {
+  // A body model of up to 30,000 vertices (the MakeHuman assets have
+  // fewer), with its shape and pose blend data.
+  constexpr int64_t kVertices = 30000;
+  constexpr int64_t kModelBytes = 128 * memory::kMiB;
+  const int64_t instants = take.Instants(0);
+  const int64_t sensors = std::max(take.sensors, 1);
+  // Each instant's fit: pose, joints and the posed mesh with its vertex
+  // offsets (positions, normals, offsets).
+  const int64_t fits = instants * (kVertices * 36 + 16 * 1024);
+  // The shape's instants: every sensor's cloud (a point and a normal for
+  // each depth pixel) and the fit's correspondences.
+  const int64_t shape = int64_t{fit.shape_frames} * sensors * memory::kDepthPixels * 24 +
+                        int64_t{fit.max_points} * fit.rounds * 256;
+  // The atlas: colour sums and weights, the texel-to-surface map, the image
+  // and its JPEG; each thread decodes its colour at 1/texture_scale.
+  const int64_t side = atlas.size_px;
+  const int64_t atlas_bytes = side * side * 40;
+  return kModelBytes + fits + shape + atlas_bytes;
+}
+
 absl::Status BodyMethodOptions::Validate() const {
   if (!body::IsAssetModelSpec(model)) {
     return absl::InvalidArgumentError(absl::StrCat(

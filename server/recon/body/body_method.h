@@ -37,6 +37,7 @@
 // tolerances body_segments_test checks.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -67,6 +68,10 @@ struct BodyMethodOptions {
   // InvalidArgument for a model that is no asset name, or bad fit or atlas
   // options.
   absl::Status Validate() const;
+  // The method's own share of a job's memory (memory_estimate.h): the
+  // model, its posed mesh at every instant, the shape's clouds and the
+  // atlas.
+  int64_t MemoryBytes(const TakeSize& take) const;
 };
 
 // The frame of one fitted instant: its body pose (with the offsets of step

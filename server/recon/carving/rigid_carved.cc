@@ -914,6 +914,48 @@ absl::Status RigidCarvedOptions::Read(OptionReader& reader) {
   return texturing.Read(reader);
 }
 
+int64_t RigidCarvedOptions::MemoryBytes(const TakeSize& take) const {
+  // Bone lengths of a tall adult (1.95 m), metres, by BodyPart: the parts'
+  // volumes (StartParts) scale with them.
+  static constexpr double kTallBoneM[kNumBodyParts] = {
+      0.30, 0.32, 0.30, 0.36, 0.32, 0.12, 0.36, 0.32, 0.12, 0.52, 0.50, 0.20, 0.52, 0.50, 0.20};
+  const double voxel_m = voxel_mm * 1e-3;
+  const double margin = margin_mm * 1e-3;
+  int64_t voxels = 0, triangles = 0;
+  std::vector<int64_t> part_triangles;
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    const PartShape shape = ShapeOf(static_cast<BodyPart>(p));
+    const double length = kTallBoneM[p];
+    const double widest = std::max(shape.rx, shape.rz);
+    const double radius = 1.25 * widest * radius_scale * length + margin;
+    const double grow = 0.25 * widest * length + margin;
+    const double along = (shape.y1 - shape.y0) * length + 2 * grow;
+    const double nx = std::ceil(2 * radius / voxel_m) + 2;
+    const double ny = std::ceil(along / voxel_m) + 2;
+    voxels += static_cast<int64_t>(nx * nx * ny);
+    // Marching cubes: about two triangles for each voxel-sized patch of the
+    // surface; the surface taken as twice the nominal shape's (an elliptic
+    // cylinder and its caps), for floaters and a front and back that do
+    // not meet.
+    const double a = shape.rx * radius_scale * length, b = shape.rz * radius_scale * length;
+    const double perimeter = 2 * M_PI * std::sqrt(0.5 * (a * a + b * b));
+    const double area = perimeter * (shape.y1 - shape.y0) * length + 2 * M_PI * a * b;
+    const auto part = static_cast<int64_t>(2 * 2 * area / (voxel_m * voxel_m)) + 64;
+    triangles += part;
+    part_triangles.push_back(part);
+  }
+  // Each voxel: the running sums and counts of Eq. 3.11 (tsdf.h), the grid
+  // that is meshed (distance, observed) and the labels of its cells.
+  const int64_t volume_bytes = voxels * 20;
+  // Decoded depth and labels kept for fusion: at most cache_mb.
+  const int64_t depth = take.Instants(0) * std::max(take.sensors, 1) * memory::kDepthFrameBytes;
+  const int64_t cache = std::min<int64_t>(depth, int64_t{cache_mb} * memory::kMiB);
+  // Optical flow: two colour frames at flow width, and their pyramids.
+  const int64_t flow = use_flow ? int64_t{8} * flow_width_px * flow_width_px * 4 : 0;
+  return volume_bytes + cache + flow + memory::MeshBytes(triangles) +
+         texturing.MemoryBytes(take, part_triangles, triangles / 2);
+}
+
 absl::Status RigidCarvedOptions::Validate() const {
   if (mu_mm < voxel_mm) {
     return absl::InvalidArgumentError(

@@ -78,6 +78,10 @@ struct RigidCarvedOptions {
   // InvalidArgument naming the first bad field (mu_mm below voxel_mm, bad
   // registration or texturing options).
   absl::Status Validate() const;
+  // The method's own share of a job's memory (memory_estimate.h): every
+  // part's volume, the decoded depth it keeps (cache_mb), the meshes and
+  // their texturing.
+  int64_t MemoryBytes(const TakeSize& take) const;
 };
 
 // Runs rigid-carved on a loaded take: per-part registration (Eq. 3.7-3.9),

@@ -250,6 +250,19 @@ absl::Status CylinderOptions::Read(OptionReader& reader) {
   return Validate();
 }
 
+int64_t CylinderOptions::MemoryBytes(const TakeSize& take) const {
+  // As MakeCylinderMesh (below) lays them out, for each of the parts.
+  const int parts = static_cast<int>(BodyPartNames().size());
+  const int64_t part_triangles = int64_t{2} * segments * rings + int64_t{2} * segments;
+  const int64_t part_vertices = int64_t{rings + 1} * segments + int64_t{2} * (segments + 1);
+  // The representative frame: its colour and depth of every sensor.
+  const int64_t representative =
+      int64_t{std::max(take.sensors, 1)} * (memory::kColourFrameBytes + memory::kDepthFrameBytes);
+  return representative + memory::MeshBytes(parts * part_triangles) +
+         texturing.MemoryBytes(take, std::vector<int64_t>(parts, part_triangles),
+                               parts * part_vertices);
+}
+
 absl::Status CylinderOptions::Validate() const {
   if (!(lambda >= 0) || !std::isfinite(lambda)) {
     return absl::InvalidArgumentError("lambda must be a finite number >= 0");

@@ -48,6 +48,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -91,6 +92,9 @@ struct CylinderOptions {
   absl::Status Read(OptionReader& reader);
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
+  // The method's own share of a job's memory (memory_estimate.h): the
+  // representative frame's decode, the cylinders and their texturing.
+  int64_t MemoryBytes(const TakeSize& take) const;
 };
 
 // The terms of Eq. 3.3-3.4 for one skeleton.

@@ -4,7 +4,8 @@
 // procedural body (random shape) dancing CMU 131_01, 3 s at 30 fps, its
 // merged clouds, and the shape fitted on 5 instants. Each iteration fits the
 // next instant from the previous fit (as a job and the live option do),
-// wrapping round at the end. Single-threaded.
+// wrapping round at the end. Single-threaded. BM_FitNext fits as a job
+// does, with and without the hypotheses of body_fit.h.
 //
 //   build/bench/body_fit_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
@@ -88,20 +89,29 @@ const Setup& GetSetup() {
   return *setup;
 }
 
-// One frame per iteration; arg 0: the free-form mesh step off (0) or on (1).
-void BM_FitFrame(benchmark::State& state) {
-  const Setup& s = GetSetup();
+// A fitter of the setup's model with its shape; null (the benchmark
+// skipped) when the setup or the fitter failed.
+std::unique_ptr<BodyFitter> ShapedFitter(const Setup& s, const BodyFitOptions& options,
+                                         benchmark::State& state) {
   if (!s.ok) {
     state.SkipWithError("setup failed");
-    return;
+    return nullptr;
   }
-  BodyFitOptions options;
-  options.refine_vertices = state.range(0) != 0;
   auto fitter = BodyFitter::Create(s.model, options);
   if (!fitter.ok() || !(*fitter)->set_shape(s.shape).ok()) {
     state.SkipWithError("fitter");
-    return;
+    return nullptr;
   }
+  return *std::move(fitter);
+}
+
+// One frame per iteration; arg 0: the free-form mesh step off (0) or on (1).
+void BM_FitFrame(benchmark::State& state) {
+  const Setup& s = GetSetup();
+  BodyFitOptions options;
+  options.refine_vertices = state.range(0) != 0;
+  const std::unique_ptr<BodyFitter> fitter = ShapedFitter(s, options, state);
+  if (fitter == nullptr) return;
   const int n = s.take->num_instants();
   std::optional<body::BodyPose> previous;
   int i = 0;
@@ -111,12 +121,12 @@ void BM_FitFrame(benchmark::State& state) {
     FitInput input;
     input.cloud = &s.clouds[i];
     input.skeleton_m = s.take->instant(i).joints_in_world_m;
-    auto initial = (*fitter)->InitialPose(previous ? &*previous : nullptr, input.skeleton_m);
+    auto initial = fitter->InitialPose(previous ? &*previous : nullptr, input.skeleton_m);
     if (!initial.ok() || !initial->has_value()) {
       state.SkipWithError("no initial pose");
       return;
     }
-    auto fit = (*fitter)->FitFrame(input, **initial, previous ? &*previous : nullptr);
+    auto fit = fitter->FitFrame(input, **initial, previous ? &*previous : nullptr);
     if (!fit.ok()) {
       state.SkipWithError("fit failed");
       return;
@@ -134,6 +144,41 @@ void BM_FitFrame(benchmark::State& state) {
   state.counters["vertices"] = s.model.num_vertices();
 }
 BENCHMARK(BM_FitFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(5.0);
+
+// One frame per iteration as a job fits it (FitNext, the free-form mesh
+// step on); arg 0: one start (the previous fit carried to the skeleton),
+// 1: hypotheses (several starts screened, the two best fitted).
+void BM_FitNext(benchmark::State& state) {
+  const Setup& s = GetSetup();
+  BodyFitOptions options;
+  options.hypotheses = state.range(0) != 0;
+  const std::unique_ptr<BodyFitter> fitter = ShapedFitter(s, options, state);
+  if (fitter == nullptr) return;
+  const int n = s.take->num_instants();
+  std::optional<body::BodyPose> previous;
+  int i = 0;
+  double explained = 0.0;
+  int64_t frames = 0;
+  for (auto _ : state) {
+    FitInput input;
+    input.cloud = &s.clouds[i];
+    input.skeleton_m = s.take->instant(i).joints_in_world_m;
+    auto next = fitter->FitNext(input, previous ? &*previous : nullptr);
+    if (!next.ok() || !next->has_value()) {
+      state.SkipWithError("fit failed");
+      return;
+    }
+    explained += (*next)->fit.explained_fraction;
+    ++frames;
+    previous = (*next)->fit.pose;
+    if (++i == n) {
+      i = 0;
+      previous.reset();
+    }
+  }
+  state.counters["explained_fraction"] = frames > 0 ? explained / frames : 0.0;
+}
+BENCHMARK(BM_FitNext)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(5.0);
 
 }  // namespace
 }  // namespace reenact::bodyfit

@@ -27,18 +27,33 @@ std::vector<std::string> ExpandBareBoardFlag(std::vector<std::string> args) {
 }  // namespace
 
 int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(ExpandBareBoardFlag(args), {"motion",        "asf",
-                                                        "joint-map",     "metres-per-unit",
-                                                        "body",          "shape",
-                                                        "sensors",       "seconds",
-                                                        "fps",           "out",
-                                                        "color-width",   "color-height",
-                                                        "jpeg-quality",  "seed",
-                                                        "distance",      "yaw-deg",
-                                                        "lead-in-s",     "board",
-                                                        "board-x-m",     "board-z-m",
-                                                        "board-yaw-deg", "sensor-skeleton",
-                                                        "wardrobe"},
+  auto flags = Flags::Parse(ExpandBareBoardFlag(args),
+                            {"motion",
+                             "asf",
+                             "joint-map",
+                             "metres-per-unit",
+                             "body",
+                             "shape",
+                             "sensors",
+                             "seconds",
+                             "fps",
+                             "out",
+                             "color-width",
+                             "color-height",
+                             "jpeg-quality",
+                             "seed",
+                             "distance",
+                             "yaw-deg",
+                             "lead-in-s",
+                             "board",
+                             "board-x-m",
+                             "board-z-m",
+                             "board-yaw-deg",
+                             "sensor-skeleton",
+                             "wardrobe",
+                             "skeleton-limb-noise-mm",
+                             "skeleton-arm-swaps",
+                             "skeleton-leg-drop-s"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -57,11 +72,15 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto board_z_m = flags->GetDouble("board-z-m", options.board_z_m);
   auto board_yaw_deg = flags->GetDouble("board-yaw-deg", options.board_yaw_deg);
   auto metres_per_unit = flags->GetDouble("metres-per-unit", options.metres_per_unit);
+  auto limb_noise_mm = flags->GetDouble("skeleton-limb-noise-mm", 0.0);
+  auto arm_swaps = flags->GetDouble("skeleton-arm-swaps", 0.0);
+  auto leg_drop_s = flags->GetDouble("skeleton-leg-drop-s", 0.0);
   for (const absl::Status& s :
        {out_path.status(), motion.status(), sensors.status(), seconds.status(), fps.status(),
         width.status(), height.status(), quality.status(), distance.status(), yaw_deg.status(),
         lead_in_s.status(), board_x_m.status(), board_z_m.status(), board_yaw_deg.status(),
-        metres_per_unit.status()}) {
+        metres_per_unit.status(), limb_noise_mm.status(), arm_swaps.status(),
+        leg_drop_s.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   if (flags->Has("metres-per-unit") && !(*metres_per_unit > 0)) {
@@ -101,6 +120,9 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
                                    skeleton + "\""),
         err);
   }
+  options.skeleton_errors.limb_noise_m = *limb_noise_mm * 1e-3;
+  options.skeleton_errors.arm_swap_fraction = *arm_swaps;
+  options.skeleton_errors.leg_drop_s = *leg_drop_s;
   options.ground_truth_mesh = !flags->Has("no-mesh");
   const bool json = flags->Has("json");
   ProgressBar bar(err, !json && !flags->Has("quiet"));

@@ -196,6 +196,36 @@ std::vector<int> SamplePoints(size_t size, int count, int phase) {
   return out;
 }
 
+// ExplainPose's figures for a posed mesh: over `sample` points of the cloud
+// from `phase` (-1: every point).
+Explanation Explain(const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd& normals,
+                    const PointCloud& cloud, const BodyFitOptions& o, int sample, int phase) {
+  Explanation out;
+  if (cloud.size() == 0 || posed.cols() == 0) return out;
+  const VertexGrid grid(posed, normals, o.explained_m);
+  const double unexplained = o.explained_m * o.explained_m;
+  const auto visit = [&](size_t i) {
+    const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
+    const int v = grid.Nearest(z, cloud.normals[i].cast<double>(), o.normal_epsilon, o.explained_m,
+                               o.min_normal_dot);
+    ++out.points;
+    if (v < 0) {
+      out.cost += unexplained;
+      return;
+    }
+    ++out.explained;
+    const double plane = normals.col(v).dot(z - posed.col(v));
+    out.cost += std::min(plane * plane, unexplained);
+  };
+  if (sample < 0) {
+    for (size_t i = 0; i < cloud.size(); ++i) visit(i);
+  } else {
+    for (int i : SamplePoints(cloud.size(), sample, phase)) visit(static_cast<size_t>(i));
+  }
+  if (out.points > 0) out.cost /= out.points;
+  return out;
+}
+
 // Adds one frame's terms of Eq. 4.7 to `problem`: the point term over the
 // Eq. 4.8 correspondences of round `round`'s subset of the cloud (against
 // the posed mesh `posed`/`normals`), the skeleton prior and Eq. 4.6 towards
@@ -241,6 +271,49 @@ void AddFrameTerms(const ModelData& data, const BodyFitOptions& o, const PointCl
 
 }  // namespace
 
+const char* HypothesisName(Hypothesis hypothesis) {
+  switch (hypothesis) {
+    case Hypothesis::kFollowSkeleton:
+      return "follow_skeleton";
+    case Hypothesis::kPrevious:
+      return "previous";
+    case Hypothesis::kArmsSwapped:
+      return "arms_swapped";
+    case Hypothesis::kLegsSwapped:
+      return "legs_swapped";
+    case Hypothesis::kSkeleton:
+      return "skeleton";
+  }
+  return "unknown";
+}
+
+namespace {
+
+SkeletonJoints SwapPairs(const SkeletonJoints& skeleton_m,
+                         std::initializer_list<std::pair<KinectV2Joint, KinectV2Joint>> pairs) {
+  SkeletonJoints out = skeleton_m;
+  for (const auto& [left, right] : pairs)
+    std::swap(out[body::Index(left)], out[body::Index(right)]);
+  return out;
+}
+
+}  // namespace
+
+SkeletonJoints SwapArms(const SkeletonJoints& skeleton_m) {
+  return SwapPairs(skeleton_m, {{KinectV2Joint::kShoulderLeft, KinectV2Joint::kShoulderRight},
+                                {KinectV2Joint::kElbowLeft, KinectV2Joint::kElbowRight},
+                                {KinectV2Joint::kWristLeft, KinectV2Joint::kWristRight},
+                                {KinectV2Joint::kHandLeft, KinectV2Joint::kHandRight},
+                                {KinectV2Joint::kHandTipLeft, KinectV2Joint::kHandTipRight},
+                                {KinectV2Joint::kThumbLeft, KinectV2Joint::kThumbRight}});
+}
+
+SkeletonJoints SwapLegs(const SkeletonJoints& skeleton_m) {
+  return SwapPairs(skeleton_m, {{KinectV2Joint::kKneeLeft, KinectV2Joint::kKneeRight},
+                                {KinectV2Joint::kAnkleLeft, KinectV2Joint::kAnkleRight},
+                                {KinectV2Joint::kFootLeft, KinectV2Joint::kFootRight}});
+}
+
 SkeletonJoints NoSkeletonJoints() {
   SkeletonJoints out;
   out.fill(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
@@ -264,6 +337,7 @@ absl::Status BodyFitOptions::Validate() const {
   }
   if (!(normal_epsilon > 1)) return bad("normal_epsilon must be > 1 (Eq. 4.8)");
   if (!(lost_rms_mm > 0)) return bad("lost_rms_mm must be > 0");
+  if (!(explained_m > 0 && explained_m <= 1)) return bad("explained_m must be in (0, 1] m");
   if (!(max_distance_m > 0) || !(refine_max_distance_m > 0) || !(huber_m > 0)) {
     return bad("distances must be > 0");
   }
@@ -450,10 +524,18 @@ absl::StatusOr<std::optional<body::BodyPose>> BodyFitter::InitialPose(
 
 absl::StatusOr<std::optional<BodyFitter::SequenceFit>> BodyFitter::FitNext(
     const FitInput& input, const body::BodyPose* previous) {
+  if (input.cloud == nullptr) return absl::InvalidArgumentError("no point cloud");
+  if (options_.hypotheses && previous != nullptr && HasTorso(input.skeleton_m)) {
+    ASSIGN_OR_RETURN(SequenceFit fit, FitHypotheses(input, *previous));
+    return fit;
+  }
   ASSIGN_OR_RETURN(const std::optional<body::BodyPose> initial,
                    InitialPose(previous, input.skeleton_m));
   if (!initial.has_value()) return std::nullopt;
   SequenceFit out;
+  out.hypothesis = previous == nullptr          ? Hypothesis::kSkeleton
+                   : HasTorso(input.skeleton_m) ? Hypothesis::kFollowSkeleton
+                                                : Hypothesis::kPrevious;
   ASSIGN_OR_RETURN(out.fit, FitFrame(input, *initial, previous));
   if (previous == nullptr || !HasTorso(input.skeleton_m)) return out;
   if (!(out.fit.point_rms_mm > options_.lost_rms_mm)) return out;
@@ -463,8 +545,81 @@ absl::StatusOr<std::optional<BodyFitter::SequenceFit>> BodyFitter::FitNext(
   if (better) {
     out.fit = std::move(again);
     out.restarted = true;
+    out.hypothesis = Hypothesis::kSkeleton;
   }
   return out;
+}
+
+absl::StatusOr<BodyFitter::SequenceFit> BodyFitter::FitHypotheses(const FitInput& input,
+                                                                  const body::BodyPose& previous) {
+  // A fit explaining this share of its points is not bettered by a second.
+  constexpr double kExplainedEnough = 0.98;
+  struct Candidate {
+    Hypothesis hypothesis;
+    body::BodyPose initial;
+    SkeletonJoints skeleton_m;
+    double cost = 0.0;
+  };
+  std::vector<Candidate> candidates;
+  const auto add = [&](Hypothesis hypothesis, const SkeletonJoints& skeleton_m,
+                       const absl::StatusOr<body::BodyPose>& initial) {
+    // A start that cannot be made (a degenerate torso) is no candidate.
+    if (!initial.ok()) return;
+    candidates.push_back({hypothesis, *initial, skeleton_m, 0.0});
+  };
+  const SkeletonJoints& skeleton = input.skeleton_m;
+  add(Hypothesis::kFollowSkeleton, skeleton, FollowSkeleton(previous, skeleton));
+  add(Hypothesis::kPrevious, skeleton, previous);
+  const SkeletonJoints arms = SwapArms(skeleton);
+  add(Hypothesis::kArmsSwapped, arms, FollowSkeleton(previous, arms));
+  const SkeletonJoints legs = SwapLegs(skeleton);
+  add(Hypothesis::kLegsSwapped, legs, FollowSkeleton(previous, legs));
+  add(Hypothesis::kSkeleton, skeleton, PoseFromSkeleton(skeleton));
+  if (candidates.empty()) return absl::InternalError("no starting pose could be made");
+  // Screened by how much of the cloud each start explains; the best is
+  // fitted, and the second best too unless that fit explains nearly every
+  // point (the first-listed wins ties, so an unswapped start is kept when
+  // nothing tells them apart).
+  for (Candidate& candidate : candidates) {
+    candidate.cost = ExplainPose(candidate.initial, *input.cloud, options_.max_points).cost;
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.cost < b.cost; });
+  std::optional<SequenceFit> best;
+  const size_t fitted = std::min<size_t>(2, candidates.size());
+  for (size_t k = 0; k < fitted; ++k) {
+    if (best.has_value() && best->fit.explained_fraction >= kExplainedEnough) break;
+    const Candidate& candidate = candidates[k];
+    FitInput with_skeleton = input;
+    with_skeleton.skeleton_m = candidate.skeleton_m;
+    const bool restart = candidate.hypothesis == Hypothesis::kSkeleton;
+    ASSIGN_OR_RETURN(FrameFit fit,
+                     FitFrame(with_skeleton, candidate.initial, restart ? nullptr : &previous));
+    if (best.has_value() && !(fit.explanation_cost < best->fit.explanation_cost)) continue;
+    best.emplace();
+    best->fit = std::move(fit);
+    best->hypothesis = candidate.hypothesis;
+    best->restarted = restart;
+  }
+  return *std::move(best);
+}
+
+void BodyFitter::PoseMesh(const body::BodyPose& pose, Eigen::Matrix3Xd* posed,
+                          Eigen::Matrix3Xd* normals) const {
+  const PoseBlocks blocks(PoseParameters::FromPose(pose));
+  const auto pointers = blocks.AngleAxisPointers();
+  Kinematics kin;
+  ComputeKinematics(*data_, pointers.data(), blocks.translation.data(), nullptr, &rest_->joints_m,
+                    false, &kin);
+  PoseAllVertices(*data_, kin, rest_->vertices_m, posed);
+  VertexNormals(*posed, data_->triangles, normals);
+}
+
+Explanation BodyFitter::ExplainPose(const body::BodyPose& pose, const PointCloud& cloud,
+                                    int sample) const {
+  Eigen::Matrix3Xd posed, normals;
+  PoseMesh(pose, &posed, &normals);
+  return Explain(posed, normals, cloud, options_, sample, 0);
 }
 
 absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body::BodyPose& initial,
@@ -532,6 +687,9 @@ absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body:
   }
   fit.correspondences = used;
   fit.point_rms_mm = used > 0 ? 1000.0 * std::sqrt(sum2 / used) : 0.0;
+  const Explanation explained = Explain(posed, normals, cloud, options_, options_.max_points, 0);
+  fit.explained_fraction = explained.fraction();
+  fit.explanation_cost = explained.cost;
   fit.vertices_m = posed;
 
   if (options_.refine_vertices && count.sum() > 0) {

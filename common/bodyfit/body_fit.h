@@ -50,6 +50,17 @@
 //    current skeleton (FollowSkeleton), not from the previous pose alone:
 //    at 15 fps a dance moves limbs by 10 cm between frames, beyond the
 //    reach of nearest-vertex correspondences.
+//  - A tracker's skeleton can be wrong where the sensors see the body (an
+//    arm or a leg swapped left for right, a limb off by decimetres), and a
+//    fit started from it stays wrong: nearest-vertex correspondences cannot
+//    move an arm across the body. So FitNext starts from several poses
+//    (hypotheses: the previous fit carried to the skeleton, the previous
+//    fit as it was, the skeleton with its arms or its legs swapped, the
+//    skeleton alone), scores each by how much of the cloud it explains
+//    (ExplainPose: a truncated point-to-plane cost, unexplained points at
+//    the truncation), fits the two best and keeps the fit that explains the
+//    cloud best. Where sensors see the body the points decide; the
+//    skeleton still places what no sensor sees.
 #pragma once
 
 #include <array>
@@ -113,6 +124,14 @@ struct BodyFitOptions {
   double refine_max_distance_m = 0.03;
   // FitNext: a fit with a point RMS above this lost the body, mm.
   double lost_rms_mm = 25.0;
+  // FitNext tries several starting poses and keeps the fit that explains
+  // the cloud best (see the top of this file); false: the previous fit
+  // carried to the skeleton, started again from the skeleton when that
+  // lost the body (lost_rms_mm).
+  bool hypotheses = true;
+  // A point is explained when a model vertex lies within this distance
+  // (metres); an unexplained point costs this much (ExplainPose).
+  double explained_m = 0.03;
 
   absl::Status Validate() const;
 };
@@ -138,7 +157,39 @@ struct FrameFit {
   // RMS distance of the used points to their vertices' tangent planes, mm.
   double point_rms_mm = 0.0;
   int correspondences = 0;
+  // How well the fit explains the cloud (ExplainPose, over the points the
+  // RMS was measured on): the share of points within explained_m of a
+  // vertex, and the mean truncated squared point-to-plane distance, m^2.
+  double explained_fraction = 0.0;
+  double explanation_cost = 0.0;
 };
+
+// How well a posed mesh explains a cloud: over `sample` points of the
+// cloud (-1: all), each point's normal-aware nearest vertex (Eq. 4.8)
+// within `explained_m`; an explained point costs its squared distance to
+// the vertex's tangent plane, an unexplained one explained_m^2.
+struct Explanation {
+  int points = 0;
+  int explained = 0;
+  double cost = 0.0;  // Mean, m^2.
+  double fraction() const { return points > 0 ? static_cast<double>(explained) / points : 0.0; }
+};
+
+// Where a frame's fit started from (BodyFitter::FitNext).
+enum class Hypothesis {
+  kFollowSkeleton,  // The previous fit carried to the skeleton.
+  kPrevious,        // The previous fit as it was.
+  kArmsSwapped,     // The previous fit carried to the skeleton, its arms swapped.
+  kLegsSwapped,     // The same, its legs swapped.
+  kSkeleton,        // The skeleton alone (PoseFromSkeleton).
+};
+inline constexpr int kNumHypotheses = 5;
+const char* HypothesisName(Hypothesis hypothesis);
+
+// The skeleton with its left and right arms (shoulder to hand tip and
+// thumb), or legs (knee, ankle, foot), swapped.
+SkeletonJoints SwapArms(const SkeletonJoints& skeleton_m);
+SkeletonJoints SwapLegs(const SkeletonJoints& skeleton_m);
 
 // Per-pose parameters as Ceres sees them: an angle-axis per joint (local
 // rotation) and the root translation.
@@ -205,11 +256,23 @@ class BodyFitter {
   struct SequenceFit {
     FrameFit fit;
     bool restarted = false;  // The fit kept is the one started from the skeleton.
+    Hypothesis hypothesis = Hypothesis::kFollowSkeleton;  // Where the kept fit started.
   };
   absl::StatusOr<std::optional<SequenceFit>> FitNext(const FitInput& input,
                                                      const body::BodyPose* previous);
 
+  // How well the model in `pose` (the current shape, no offsets) explains
+  // `cloud` (Explanation; `sample` points spread over it, -1: all).
+  Explanation ExplainPose(const body::BodyPose& pose, const PointCloud& cloud, int sample) const;
+
  private:
+  // FitNext with hypotheses (options_.hypotheses, a previous fit and a
+  // skeleton with a torso).
+  absl::StatusOr<SequenceFit> FitHypotheses(const FitInput& input, const body::BodyPose& previous);
+  // The posed vertices and their normals of `pose` (current shape).
+  void PoseMesh(const body::BodyPose& pose, Eigen::Matrix3Xd* posed,
+                Eigen::Matrix3Xd* normals) const;
+
   BodyFitter(const body::BodyModel& model, const BodyFitOptions& options);
 
   const body::BodyModel& model_;

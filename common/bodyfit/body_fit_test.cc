@@ -255,6 +255,90 @@ TEST(BodyFitter, FitNextTurnsAPreviousFitRoundToTheSkeleton) {
   EXPECT_LT(error_mm, 5.0);
 }
 
+// The tracker swapped the arms: the skeleton puts the raised right arm on
+// the left. Started from that skeleton alone the fit crosses the arms and
+// stays there; with hypotheses the points outvote the skeleton (the start
+// with the arms swapped back explains the cloud, the other does not).
+TEST(BodyFitter, ThePointsOutvoteASkeletonWithItsArmsSwapped) {
+  std::mt19937 rng(21);
+  const auto arms = [](double right_rad, double left_rad) {
+    body::BodyPose pose;
+    pose.local_rotation[body::Index(KinectV2Joint::kShoulderRight)] =
+        Eigen::Quaterniond(Eigen::AngleAxisd(right_rad, Eigen::Vector3d::UnitZ()));
+    pose.local_rotation[body::Index(KinectV2Joint::kShoulderLeft)] =
+        Eigen::Quaterniond(Eigen::AngleAxisd(left_rad, Eigen::Vector3d::UnitZ()));
+    return pose;
+  };
+  const Eigen::VectorXd mean_shape = Eigen::VectorXd::Zero(Model().num_shape_components());
+  // The previous frame (fitted right) and this one: the right arm raised
+  // further, the left one a little out.
+  const body::BodyPose previous = arms(-1.1, 0.1);
+  auto posed = body::PoseBody(Model(), arms(-1.3, 0.25), mean_shape);
+  ASSERT_TRUE(posed.ok());
+  const PointCloud cloud = CloudOf(*posed, &rng);
+  FitInput input;
+  input.cloud = &cloud;
+  for (int j = 0; j < kJoints; ++j) input.skeleton_m[j] = posed->joints_m[j];
+  input.skeleton_m = SwapArms(input.skeleton_m);
+
+  const auto mpjpe_mm = [&](const FrameFit& fit) {
+    double sum = 0.0;
+    for (int j = 0; j < kJoints; ++j) sum += 1000.0 * (fit.joints_m[j] - posed->joints_m[j]).norm();
+    return sum / kJoints;
+  };
+  BodyFitOptions options;
+  options.refine_vertices = false;
+  options.hypotheses = false;
+  auto alone = BodyFitter::Create(Model(), options);
+  ASSERT_TRUE(alone.ok()) << alone.status();
+  auto from_skeleton = (*alone)->FitNext(input, &previous);
+  ASSERT_TRUE(from_skeleton.ok() && from_skeleton->has_value());
+  options.hypotheses = true;
+  auto voting = BodyFitter::Create(Model(), options);
+  ASSERT_TRUE(voting.ok()) << voting.status();
+  auto outvoted = (*voting)->FitNext(input, &previous);
+  ASSERT_TRUE(outvoted.ok()) << outvoted.status();
+  ASSERT_TRUE(outvoted->has_value());
+  const double before = mpjpe_mm((*from_skeleton)->fit);
+  const double after = mpjpe_mm((*outvoted)->fit);
+  std::printf(
+      "arms swapped by the tracker: MPJPE %.1f mm from the skeleton (%.0f%% of points "
+      "explained), %.1f mm with hypotheses (%s, %.0f%% explained)\n",
+      before, 100.0 * (*from_skeleton)->fit.explained_fraction, after,
+      HypothesisName((*outvoted)->hypothesis), 100.0 * (*outvoted)->fit.explained_fraction);
+  EXPECT_LT(after, 10.0);
+  EXPECT_GT(before, 3 * after);
+  EXPECT_NE((*outvoted)->hypothesis, Hypothesis::kFollowSkeleton);
+  EXPECT_GT((*outvoted)->fit.explained_fraction, 0.95);
+  EXPECT_GT((*outvoted)->fit.explained_fraction, (*from_skeleton)->fit.explained_fraction);
+}
+
+// ExplainPose: the true pose explains its own cloud; a pose with an arm
+// elsewhere leaves that arm's points unexplained.
+TEST(BodyFitter, ExplainPoseCountsThePointsTheBodyLeavesUnexplained) {
+  std::mt19937 rng(4);
+  body::BodyPose pose;
+  pose.local_rotation[body::Index(KinectV2Joint::kShoulderRight)] =
+      Eigen::Quaterniond(Eigen::AngleAxisd(-1.2, Eigen::Vector3d::UnitZ()));
+  const Eigen::VectorXd mean_shape = Eigen::VectorXd::Zero(Model().num_shape_components());
+  auto posed = body::PoseBody(Model(), pose, mean_shape);
+  ASSERT_TRUE(posed.ok());
+  const PointCloud cloud = CloudOf(*posed, &rng);
+  auto fitter = BodyFitter::Create(Model(), {});
+  ASSERT_TRUE(fitter.ok());
+  const Explanation right = (*fitter)->ExplainPose(pose, cloud, -1);
+  EXPECT_EQ(right.points, static_cast<int>(cloud.size()));
+  EXPECT_GT(right.fraction(), 0.98);
+  EXPECT_LT(std::sqrt(right.cost) * 1000.0, 5.0);  // mm
+  body::BodyPose wrong = pose;
+  wrong.local_rotation[body::Index(KinectV2Joint::kShoulderRight)] = Eigen::Quaterniond::Identity();
+  const Explanation off = (*fitter)->ExplainPose(wrong, cloud, -1);
+  std::printf("explained: %.1f%% by the pose, %.1f%% with the arm down\n", 100.0 * right.fraction(),
+              100.0 * off.fraction());
+  EXPECT_LT(off.fraction(), right.fraction() - 0.03);
+  EXPECT_GT(off.cost, 2 * right.cost);
+}
+
 TEST(BodyFitOptions, RejectsBadValues) {
   BodyFitOptions options;
   options.normal_epsilon = 0.5;

@@ -194,6 +194,7 @@ struct SensorShot {
   MaskImage label;
   RgbImage color;
   std::array<Eigen::Vector3d, body::kNumKinectV2Joints> joints_in_world;
+  int64_t num_frames = 0;  // Of the take.
 };
 
 // The encoded messages of one sensor at one instant.
@@ -237,7 +238,51 @@ void AddColorNoise(RgbImage* image, double sigma, uint64_t seed) {
   }
 }
 
-v1::Skeleton MakeSensorSkeleton(const SensorShot& shot, double jitter_m, uint64_t seed) {
+// The joints a tracker would report at frame `frame` of `frames` with the
+// errors of `errors` (the same for every sensor: seeded by the frame).
+std::array<Eigen::Vector3d, body::kNumKinectV2Joints> WithSkeletonErrors(
+    const std::array<Eigen::Vector3d, body::kNumKinectV2Joints>& joints_in_world,
+    const SynthOptions::SkeletonErrors& errors, int64_t frame, int64_t frames, double fps,
+    uint64_t seed, std::array<bool, body::kNumKinectV2Joints>* dropped) {
+  using body::KinectV2Joint;
+  std::array<Eigen::Vector3d, body::kNumKinectV2Joints> out = joints_in_world;
+  dropped->fill(false);
+  std::mt19937_64 rng(seed * 0x9e3779b97f4a7c15ull + static_cast<uint64_t>(frame) * 7919u + 17u);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const bool swap_arms = uniform(rng) < errors.arm_swap_fraction;
+  if (swap_arms) {
+    const std::pair<KinectV2Joint, KinectV2Joint> arms[] = {
+        {KinectV2Joint::kShoulderLeft, KinectV2Joint::kShoulderRight},
+        {KinectV2Joint::kElbowLeft, KinectV2Joint::kElbowRight},
+        {KinectV2Joint::kWristLeft, KinectV2Joint::kWristRight},
+        {KinectV2Joint::kHandLeft, KinectV2Joint::kHandRight},
+        {KinectV2Joint::kHandTipLeft, KinectV2Joint::kHandTipRight},
+        {KinectV2Joint::kThumbLeft, KinectV2Joint::kThumbRight}};
+    for (const auto& [left, right] : arms)
+      std::swap(out[body::Index(left)], out[body::Index(right)]);
+  }
+  for (const KinectV2Joint j :
+       {KinectV2Joint::kElbowLeft, KinectV2Joint::kWristLeft, KinectV2Joint::kHandLeft,
+        KinectV2Joint::kElbowRight, KinectV2Joint::kWristRight, KinectV2Joint::kHandRight,
+        KinectV2Joint::kKneeLeft, KinectV2Joint::kAnkleLeft, KinectV2Joint::kFootLeft,
+        KinectV2Joint::kKneeRight, KinectV2Joint::kAnkleRight, KinectV2Joint::kFootRight}) {
+    const Eigen::Vector3d noise(normal(rng), normal(rng), normal(rng));
+    out[body::Index(j)] += errors.limb_noise_m * noise;
+  }
+  const double half = 0.5 * errors.leg_drop_s * fps;
+  const double middle = 0.5 * static_cast<double>(frames);
+  if (half > 0 && std::abs(static_cast<double>(frame) - middle) < half) {
+    for (const KinectV2Joint j :
+         {KinectV2Joint::kKneeLeft, KinectV2Joint::kAnkleLeft, KinectV2Joint::kFootLeft}) {
+      (*dropped)[body::Index(j)] = true;
+    }
+  }
+  return out;
+}
+
+v1::Skeleton MakeSensorSkeleton(const SensorShot& shot, double jitter_m, uint64_t seed,
+                                const SynthOptions& options) {
   v1::Skeleton skeleton;
   SetStamps(shot, &skeleton);
   skeleton.set_body_index(kActorLabel);
@@ -246,18 +291,27 @@ v1::Skeleton MakeSensorSkeleton(const SensorShot& shot, double jitter_m, uint64_
   std::normal_distribution<double> normal(0.0, 1.0);
   const Rigid3d depth_from_world = shot.sensor->world_from_depth.Inverse();
   const CameraIntrinsics& k = shot.sensor->depth_intrinsics;
+  std::array<bool, body::kNumKinectV2Joints> dropped{};
+  const std::array<Eigen::Vector3d, body::kNumKinectV2Joints> reported =
+      options.skeleton_errors.any()
+          ? WithSkeletonErrors(shot.joints_in_world, options.skeleton_errors, shot.frame_index,
+                               shot.num_frames, options.fps, options.seed, &dropped)
+          : shot.joints_in_world;
   for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-    const Eigen::Vector3d p = depth_from_world * shot.joints_in_world[j];
+    // Visibility from where the joint truly is; the position as reported.
+    const Eigen::Vector3d truth = depth_from_world * shot.joints_in_world[j];
+    const Eigen::Vector3d p = depth_from_world * reported[j];
     // Tracked where the joint is seen on the actor's surface; inferred (and
     // noisier) where it is hidden; not tracked outside the view.
     v1::TrackingState state = v1::TRACKING_STATE_NOT_TRACKED;
-    if (auto pixel = k.Project(p); pixel && k.IsInside(*pixel)) {
+    if (auto pixel = k.Project(truth); pixel && k.IsInside(*pixel)) {
       const int x = static_cast<int>(std::lround(pixel->x())),
                 y = static_cast<int>(std::lround(pixel->y()));
       const double z = shot.ideal_depth_m.at(x, y);
-      const bool visible = shot.label.at(x, y) == kActorLabel && z > 0 && p.z() - z < 0.15;
+      const bool visible = shot.label.at(x, y) == kActorLabel && z > 0 && truth.z() - z < 0.15;
       state = visible ? v1::TRACKING_STATE_TRACKED : v1::TRACKING_STATE_INFERRED;
     }
+    if (dropped[j]) state = v1::TRACKING_STATE_NOT_TRACKED;
     const double sigma = jitter_m * (state == v1::TRACKING_STATE_TRACKED ? 1.0 : 3.0);
     const Eigen::Vector3d noisy =
         p + sigma * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
@@ -308,7 +362,7 @@ absl::StatusOr<SensorMessages> EncodeShot(SensorShot shot, const SynthOptions& o
   out.color.set_quality(options.jpeg_quality);
   ASSIGN_OR_RETURN(std::string jpeg, EncodeJpeg(shot.color, options.jpeg_quality));
   out.color.set_data(std::move(jpeg));
-  out.skeleton = MakeSensorSkeleton(shot, options.skeleton_jitter_m, seed + 7);
+  out.skeleton = MakeSensorSkeleton(shot, options.skeleton_jitter_m, seed + 7, options);
   return out;
 }
 
@@ -348,6 +402,17 @@ absl::Status SynthOptions::Validate() const {
   }
   if (color_noise_sigma < 0 || skeleton_jitter_m < 0) {
     return absl::InvalidArgumentError("noise levels must be >= 0");
+  }
+  if (!(skeleton_errors.limb_noise_m >= 0 && skeleton_errors.limb_noise_m <= 1) ||
+      !(skeleton_errors.arm_swap_fraction >= 0 && skeleton_errors.arm_swap_fraction <= 1) ||
+      !(skeleton_errors.leg_drop_s >= 0 && skeleton_errors.leg_drop_s <= 3600)) {
+    return absl::InvalidArgumentError(
+        "skeleton errors: limb noise within [0, 1] m, arm swaps a fraction within [0, 1], a leg "
+        "drop within [0, 3600] s");
+  }
+  if (skeleton_errors.any() && sensor_skeleton != SensorSkeleton::kTruth) {
+    return absl::InvalidArgumentError(
+        "skeleton errors perturb the sensors' skeletons: they need --sensor-skeleton truth");
   }
   RETURN_IF_ERROR(ValidateBoard());
   return depth_noise.Validate();
@@ -705,6 +770,7 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
       shot.device_stamp_ns = exposure_ns - sensor.clock_offset_ns;
       shot.host_stamp_ns = exposure_ns + latency_ns(latency_rng);
       shot.joints_in_world = seen.joints_m;
+      shot.num_frames = actor.num_frames;
       RETURN_IF_ERROR(RenderShot(scene, sensor, distortion, &shot));
       pending.push_back(ScheduleEncode(&pool, std::move(shot), options));
     }

@@ -55,7 +55,21 @@ struct SynthOptions {
   enum class SensorSkeleton { kNone, kTruth };
   SensorSkeleton sensor_skeleton = SensorSkeleton::kNone;
   double skeleton_jitter_m = 0.01;  // Noise of the kTruth "sensor skeleton", per axis.
-  bool center_motion = true;        // Centre the motion's mean floor position on the origin.
+  // A tracker made worse on purpose (kTruth only), the same error in every
+  // sensor's skeleton at an instant, as a tracker's fused skeleton has it:
+  // Gaussian noise of `limb_noise_m` per axis on elbows, wrists, hands,
+  // knees, ankles and feet; the left and right arms swapped in
+  // `arm_swap_fraction` of the frames (chosen at random); the left leg
+  // (knee, ankle, foot) not tracked for `leg_drop_s` seconds in the middle
+  // of the take.
+  struct SkeletonErrors {
+    double limb_noise_m = 0.0;
+    double arm_swap_fraction = 0.0;
+    double leg_drop_s = 0.0;
+    bool any() const { return limb_noise_m > 0 || arm_swap_fraction > 0 || leg_drop_s > 0; }
+  };
+  SkeletonErrors skeleton_errors;
+  bool center_motion = true;  // Centre the motion's mean floor position on the origin.
   // Turns the whole performance about the vertical (+Y) through the world
   // origin (after centring), degrees, counter-clockwise seen from above: the
   // actor turns to their own left, so 90 makes a motion that faces +Z face

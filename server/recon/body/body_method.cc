@@ -1,6 +1,7 @@
 #include "server/recon/body/body_method.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -35,6 +36,10 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 
 // Instants with fewer depth points of the actor are not fitted.
 constexpr size_t kMinPoints = 200;
+// A fit that explains less of its cloud than this (FrameFit::
+// explained_fraction) is kept but marked invalid: no hypothesis found the
+// body there.
+constexpr double kMinExplainedFraction = 0.5;
 
 // The body model and its fitter. The fitter refers to the model, which is
 // therefore held where it does not move.
@@ -47,9 +52,12 @@ struct LoadedModel {
 struct FrameFits {
   std::vector<std::optional<bodyfit::FrameFit>> fits;
   int fitted = 0;
-  int reinitialised = 0;     // Fits started again from the skeleton.
-  double fit_seconds = 0.0;  // Of the fits kept.
-  double rms_sum = 0.0;      // Their point RMS, mm.
+  int reinitialised = 0;       // Fits started again from the skeleton.
+  double fit_seconds = 0.0;    // Of the fits kept.
+  double rms_sum = 0.0;        // Their point RMS, mm.
+  double explained_sum = 0.0;  // Their explained fractions.
+  int unexplained = 0;         // Fits below kMinExplainedFraction (marked invalid).
+  std::array<int, bodyfit::kNumHypotheses> hypotheses{};  // Fits kept, by their start.
 };
 
 // How the atlas was made.
@@ -237,6 +245,9 @@ absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
     out.reinitialised += next->restarted ? 1 : 0;
     out.fit_seconds += SecondsSince(frame_start);
     out.rms_sum += fit.point_rms_mm;
+    out.explained_sum += fit.explained_fraction;
+    out.unexplained += fit.explained_fraction < kMinExplainedFraction ? 1 : 0;
+    ++out.hypotheses[static_cast<int>(next->hypothesis)];
     ++out.fitted;
     out.fits[i] = std::move(fit);
   }
@@ -273,7 +284,8 @@ std::vector<std::optional<ReenactmentFrame>> FittedFrames(const TakeFrames& take
   for (size_t i = 0; i < fits.fits.size(); ++i) {
     if (!fits.fits[i]) continue;
     const int index = static_cast<int>(i);
-    frames[i] = BodyFrame(index, take.instant(index).stamp_ns, *fits.fits[i], true);
+    const bool explained = fits.fits[i]->explained_fraction >= kMinExplainedFraction;
+    frames[i] = BodyFrame(index, take.instant(index).stamp_ns, *fits.fits[i], explained);
   }
   return frames;
 }
@@ -301,10 +313,14 @@ struct FitFigures {
   int reinitialised = 0;
   double fit_seconds = 0.0;
   double rms_sum = 0.0;
+  double explained_sum = 0.0;
+  int unexplained = 0;
+  std::array<int, bodyfit::kNumHypotheses> hypotheses{};
 };
 
 FitFigures FiguresOf(const FrameFits& fits) {
-  return {fits.fitted, fits.reinitialised, fits.fit_seconds, fits.rms_sum};
+  return {fits.fitted,        fits.reinitialised, fits.fit_seconds, fits.rms_sum,
+          fits.explained_sum, fits.unexplained,   fits.hypotheses};
 }
 
 // The reenactment: the mesh and a frame for every instant (`frames`: those
@@ -345,6 +361,16 @@ Reenactment AssembleReenactment(const TakeFrames& take, const body::BodyModel& m
   figures["fitted_frames"] = fits.fitted;
   figures["reinitialised_frames"] = fits.reinitialised;
   figures["point_rms_mm"] = fits.rms_sum / fits.fitted;
+  // How well the fits explain what the sensors saw: the mean share of
+  // points within explained_m of the body, the frames that explain too
+  // little (marked invalid), and where the kept fits started.
+  figures["explained_fraction"] = fits.explained_sum / fits.fitted;
+  figures["unexplained_frames"] = fits.unexplained;
+  for (int h = 0; h < bodyfit::kNumHypotheses; ++h) {
+    figures[absl::StrCat("hypothesis_",
+                         bodyfit::HypothesisName(static_cast<bodyfit::Hypothesis>(h)))] =
+        fits.hypotheses[h];
+  }
   figures["fit_ms_per_frame"] = 1000.0 * fits.fit_seconds / fits.fitted;
   figures["model_seconds"] = seconds.model;
   figures["clouds_seconds"] = seconds.clouds;
@@ -373,11 +399,17 @@ std::string ShapeLine(const std::string& model_name, const LoadedModel& loaded,
 std::string SummaryLine(int instants, const FitFigures& fits, int atlas_px,
                         const AtlasFigures& atlas) {
   return absl::StrFormat(
-      "body: %d of %d instants fitted (%d started again from the skeleton), %.1f ms per frame, "
-      "point RMS %.2f mm; atlas %d px from %d images (%.0f%% of texels seen) in %.1f s",
-      fits.fitted, instants, fits.reinitialised, 1000.0 * fits.fit_seconds / fits.fitted,
-      fits.rms_sum / fits.fitted, atlas_px, atlas.views, 100.0 * atlas.observed_fraction,
-      atlas.seconds);
+      "body: %d of %d instants fitted (%d started again from the skeleton, %d from arms and %d "
+      "from legs swapped, %d from the previous fit alone), %.1f ms per frame, point RMS %.2f mm, "
+      "%.1f%% of points explained, %d frames explaining too little; atlas %d px from %d images "
+      "(%.0f%% of texels seen) in %.1f s",
+      fits.fitted, instants, fits.reinitialised,
+      fits.hypotheses[static_cast<int>(bodyfit::Hypothesis::kArmsSwapped)],
+      fits.hypotheses[static_cast<int>(bodyfit::Hypothesis::kLegsSwapped)],
+      fits.hypotheses[static_cast<int>(bodyfit::Hypothesis::kPrevious)],
+      1000.0 * fits.fit_seconds / fits.fitted, fits.rms_sum / fits.fitted,
+      100.0 * fits.explained_sum / fits.fitted, fits.unexplained, atlas_px, atlas.views,
+      100.0 * atlas.observed_fraction, atlas.seconds);
 }
 
 }  // namespace
@@ -399,6 +431,12 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
   RETURN_IF_ERROR(reader.Int("max_points", &fit.max_points, 10, 1000000, "points per round"));
   RETURN_IF_ERROR(reader.Bool("refine_vertices", &fit.refine_vertices,
                               "fit the free-form mesh of step 2 (Eq. 4.7)"));
+  RETURN_IF_ERROR(reader.Bool("hypotheses", &fit.hypotheses,
+                              "start each frame from several poses (the previous fit, the "
+                              "skeleton, its arms or legs swapped) and keep the fit that explains "
+                              "the points best"));
+  RETURN_IF_ERROR(reader.Double("explained_m", &fit.explained_m, 0.005, 0.5,
+                                "a point within this of the body is explained, metres"));
   RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192, "atlas side, pixels"));
   RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10,
                                 "visibility threshold T of thesis 4.4, metres"));
@@ -636,6 +674,9 @@ absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMet
   part.set_reinitialised(fits.reinitialised);
   part.set_fit_seconds(fits.fit_seconds);
   part.set_rms_sum_mm(fits.rms_sum);
+  part.set_explained_sum(fits.explained_sum);
+  part.set_unexplained(fits.unexplained);
+  for (const int count_of : fits.hypotheses) part.add_hypotheses(count_of);
   part.set_clouds_seconds(clouds_s);
   part.set_atlas_px(sums.size_px);
   part.set_atlas_views(sums.views);
@@ -695,6 +736,11 @@ absl::StatusOr<Reenactment> StitchBody(const TakeFrames& take, const BodyMethodO
     fits.reinitialised += part.reinitialised();
     fits.fit_seconds += part.fit_seconds();
     fits.rms_sum += part.rms_sum_mm();
+    fits.explained_sum += part.explained_sum();
+    fits.unexplained += part.unexplained();
+    for (int h = 0; h < part.hypotheses_size() && h < bodyfit::kNumHypotheses; ++h) {
+      fits.hypotheses[h] += part.hypotheses(h);
+    }
     seconds.clouds += part.clouds_seconds();
     atlas.seconds += part.texture_seconds();
     ASSIGN_OR_RETURN(const AtlasSums part_sums, UnpackAtlasSums(part));

@@ -13,6 +13,9 @@
 //   rounds, iterations correspondence rounds and LM iterations per frame (3, 5)
 //   max_points         points per round (1200)
 //   refine_vertices    the free-form mesh step (true)
+//   hypotheses         start each frame from several poses and keep the fit
+//                      that explains the points best (true; body_fit.h)
+//   explained_m        a point this near the body is explained (0.03)
 //   atlas_px           atlas side (1024)
 //   visibility_m       T of thesis 4.4 (0.10)
 //   texture_every      use every k-th instant for the atlas (2)
@@ -35,6 +38,15 @@
 // so sums made apart add up to the whole take's), fills and encodes the
 // atlas, and assembles the frames. The result equals RunBody's within the
 // tolerances body_segments_test checks.
+//
+// Figures of how well the fits explain what the sensors saw (in the
+// reenactment's figures, `reenact reenactments show`): explained_fraction
+// (the mean share of each instant's points within explained_m of the
+// fitted body), unexplained_frames (fits explaining under half of their
+// points: kept, but marked invalid, so that viewers and the mirror treat
+// them as unknown) and hypothesis_<start> (how many kept fits started from
+// each hypothesis of bodyfit::FitNext: follow_skeleton, previous,
+// arms_swapped, legs_swapped, skeleton).
 #pragma once
 
 #include <cstdint>

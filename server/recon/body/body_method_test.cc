@@ -55,21 +55,28 @@ Truth ReadTruth(const std::string& path) {
   return truth;
 }
 
-TEST(RunBody, ProceduralBodyFittedWithTheProceduralModelMeetsTheJointFloor) {
-  const std::string dir = reenact::testing::MakeTempDir("body_method");
-  const std::string clip = reenact::testing::TestDataPath("mocap/cmu/131_01.bvh");
-  if (!std::filesystem::exists(clip)) GTEST_SKIP() << "no CMU clip at " << clip;
+// Two sensors at 15 fps (640x360 colour) watching the procedural body of
+// shape `shape` doing 2 s of `clip`; the sensors carry the jittered true
+// skeleton (a device SDK stand-in).
+synth::SynthOptions TwoSensorTake(const std::string& clip, const std::string& shape) {
   synth::SynthOptions options;
-  // The sensors carry the jittered true skeleton (a device SDK stand-in).
   options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.motion = clip;
   options.body = "procedural";
-  options.shape = "random:7";
+  options.shape = shape;
   options.num_sensors = 2;
   options.seconds = 2.0;
   options.fps = 15.0;
   options.color_width = 640;
   options.color_height = 360;
+  return options;
+}
+
+TEST(RunBody, ProceduralBodyFittedWithTheProceduralModelMeetsTheJointFloor) {
+  const std::string dir = reenact::testing::MakeTempDir("body_method");
+  const std::string clip = reenact::testing::TestDataPath("mocap/cmu/131_01.bvh");
+  if (!std::filesystem::exists(clip)) GTEST_SKIP() << "no CMU clip at " << clip;
+  const synth::SynthOptions options = TwoSensorTake(clip, "random:7");
   const std::string take_path = dir + "/take.mcap";
   auto summary = synth::SynthesizeTake(options, take_path);
   if (!summary.ok() && summary.status().code() == absl::StatusCode::kUnavailable) {
@@ -118,6 +125,77 @@ TEST(RunBody, ProceduralBodyFittedWithTheProceduralModelMeetsTheJointFloor) {
   EXPECT_LE(mpjpe_mm, 15.0);
   ASSERT_GT(vertex_frames, 0);
   EXPECT_LE(vertex_sum_mm / vertex_frames, 15.0);
+}
+
+// The tracker made worse on purpose (issue figures): 80 mm of noise on the
+// limbs, the arms swapped in a tenth of the frames and the left leg lost
+// for half a second, the same in both sensors' skeletons. Where the sensors
+// see the body the points outvote the skeleton: the body job started from
+// several poses stays near the truth, the one that follows the skeleton
+// alone does not. A motion (CMU 131_03, a hop) and shape (random:41) the
+// fit was not tuned on.
+TEST(RunBody, APerturbedTrackerIsOutvotedByThePoints) {
+  const std::string dir = reenact::testing::MakeTempDir("body_perturbed");
+  const std::string clip = reenact::testing::TestDataPath("mocap/cmu/131_03.bvh");
+  if (!std::filesystem::exists(clip)) GTEST_SKIP() << "no CMU clip at " << clip;
+  synth::SynthOptions options = TwoSensorTake(clip, "random:41");
+  options.skeleton_errors.limb_noise_m = 0.08;
+  options.skeleton_errors.arm_swap_fraction = 0.1;
+  options.skeleton_errors.leg_drop_s = 0.5;
+  const std::string take_path = dir + "/take.mcap";
+  auto summary = synth::SynthesizeTake(options, take_path);
+  if (!summary.ok() && summary.status().code() == absl::StatusCode::kUnavailable) {
+    GTEST_SKIP() << summary.status();
+  }
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  const Truth truth = ReadTruth(take_path);
+
+  struct Figures {
+    double mpjpe_mm = 0.0;
+    double skeleton_mm = 0.0;  // The perturbed fused skeleton against the truth.
+    std::map<std::string, double> figures;
+  };
+  const auto run = [&](const std::string& hypotheses) {
+    Figures out;
+    MethodInput input;
+    input.take_path = take_path;
+    input.method = "body";
+    input.options = {{"atlas_px", "128"}, {"hypotheses", hypotheses}};
+    const std::string path = dir + "/body-" + hypotheses + ".reen";
+    auto result = RunMethod(input, path);
+    EXPECT_TRUE(result.ok()) << result.status();
+    if (!result.ok()) return out;
+    out.figures = result->figures;
+    auto data = ReadReenactmentFile(path);
+    EXPECT_TRUE(data.ok()) << data.status();
+    if (!data.ok()) return out;
+    double sum = 0.0;
+    int joints = 0;
+    for (const v1::PartFrame& frame : data->frames) {
+      const auto t = truth.joints.find(frame.frame_index());
+      if (t == truth.joints.end()) continue;
+      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+        sum += 1000.0 * (FromProto(frame.joints_in_world_m(j)) - t->second[j]).norm();
+        ++joints;
+      }
+    }
+    out.mpjpe_mm = sum / std::max(1, joints);
+    return out;
+  };
+  const Figures alone = run("false");
+  const Figures voting = run("true");
+  std::printf(
+      "body on a perturbed tracker (80 mm limb noise, arms swapped in 10%% of frames, a leg lost "
+      "for 0.5 s; CMU 131_03, random:41): MPJPE %.1f mm following the skeleton, %.1f mm with "
+      "hypotheses (%.0f%% of points explained, %.0f frames from the arms swapped, %.0f from the "
+      "previous fit, %.0f unexplained); fit %.1f ms per frame (%.1f without)\n",
+      alone.mpjpe_mm, voting.mpjpe_mm, 100.0 * voting.figures.at("explained_fraction"),
+      voting.figures.at("hypothesis_arms_swapped"), voting.figures.at("hypothesis_previous"),
+      voting.figures.at("unexplained_frames"), voting.figures.at("fit_ms_per_frame"),
+      alone.figures.at("fit_ms_per_frame"));
+  EXPECT_LE(voting.mpjpe_mm, 30.0);
+  EXPECT_LT(voting.mpjpe_mm, alone.mpjpe_mm);
+  EXPECT_GT(voting.figures.at("explained_fraction"), 0.9);
 }
 
 TEST(RunBody, BadOptionsAreRejectedBeforeLoading) {

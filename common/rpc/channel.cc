@@ -89,7 +89,7 @@ MakeMetadataInterceptorFactory(std::vector<std::pair<std::string, std::string>> 
 }
 
 std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface> MakeTokenInterceptorFactory(
-    std::string token) {
+    const std::string& token) {
   return MakeMetadataInterceptorFactory({{"authorization", absl::StrCat("Bearer ", token)}});
 }
 

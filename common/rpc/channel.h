@@ -96,7 +96,7 @@ std::shared_ptr<grpc::Channel> MakeClientChannel(const std::string& address,
 // of the channels it is given to (MakeClientChannel's way of sending the
 // token, for channels made elsewhere, e.g. a server's in-process channel).
 std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface> MakeTokenInterceptorFactory(
-    std::string token);
+    const std::string& token);
 
 // Adds the (key, value) pairs to the initial metadata of every call of the
 // channels it is given to (keys in lower case, as gRPC wants them).

@@ -73,7 +73,7 @@ inline int64_t RunBytes(const TakeSize& take, int threads, int colour_denominato
 // triangles asked for `texture_size_px`: doubled (up to 4096) until every
 // cell of a pair of triangles is at least 4 px.
 inline int64_t GrownTextureSide(int64_t texture_size_px, int64_t triangles) {
-  const double cells = std::max<double>(1.0, (triangles + 1) / 2);
+  const auto cells = static_cast<double>(std::max<int64_t>(1, (triangles + 1) / 2));
   const int64_t grid = static_cast<int64_t>(std::ceil(std::sqrt(cells)));
   int64_t side = texture_size_px;
   while (side / grid < 4 && side < 4096) side = std::min<int64_t>(2 * side, 4096);

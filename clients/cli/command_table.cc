@@ -20,7 +20,8 @@ std::vector<Command> BuildCommandTable() {
        "[--jpeg-quality Q] "
        "[--seed N] [--no-depth-noise] [--no-mesh] [--board [SPEC]] "
        "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--sensor-skeleton none|truth] "
-       "[--skeleton-limb-noise-mm N --skeleton-arm-swaps FRACTION --skeleton-leg-drop-s S] "
+       "[--skeleton-limb-noise-mm N --skeleton-arm-swaps FRACTION --skeleton-leg-drop-s S "
+       "--skeleton-lock-on-s S] "
        "[--quiet] [--json]",
        "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors "
        "(--yaw-deg turns the performer about the vertical; --lead-in-s holds the first pose "
@@ -28,7 +29,7 @@ std::vector<Command> BuildCommandTable() {
        "frame; the sensors carry no skeleton unless --sensor-skeleton truth, as real depth "
        "cameras: the capture daemon tracks them; the --skeleton-* flags make that skeleton "
        "worse on purpose, the same in every sensor: noise on the limbs, arms swapped in a "
-       "fraction of the frames, the left leg lost mid-take)",
+       "fraction of the frames, the left leg lost mid-take, no body found at the start)",
        RunSynth},
       {{"board"},
        "--out board.png [--spec aruco:DICT:COLSxROWS:MARKER_MM:GAP_MM] [--dpi N] "

@@ -53,7 +53,8 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
                              "wardrobe",
                              "skeleton-limb-noise-mm",
                              "skeleton-arm-swaps",
-                             "skeleton-leg-drop-s"},
+                             "skeleton-leg-drop-s",
+                             "skeleton-lock-on-s"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -75,12 +76,13 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto limb_noise_mm = flags->GetDouble("skeleton-limb-noise-mm", 0.0);
   auto arm_swaps = flags->GetDouble("skeleton-arm-swaps", 0.0);
   auto leg_drop_s = flags->GetDouble("skeleton-leg-drop-s", 0.0);
+  auto lock_on_s = flags->GetDouble("skeleton-lock-on-s", 0.0);
   for (const absl::Status& s :
        {out_path.status(), motion.status(), sensors.status(), seconds.status(), fps.status(),
         width.status(), height.status(), quality.status(), distance.status(), yaw_deg.status(),
         lead_in_s.status(), board_x_m.status(), board_z_m.status(), board_yaw_deg.status(),
-        metres_per_unit.status(), limb_noise_mm.status(), arm_swaps.status(),
-        leg_drop_s.status()}) {
+        metres_per_unit.status(), limb_noise_mm.status(), arm_swaps.status(), leg_drop_s.status(),
+        lock_on_s.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   if (flags->Has("metres-per-unit") && !(*metres_per_unit > 0)) {
@@ -123,6 +125,7 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   options.skeleton_errors.limb_noise_m = *limb_noise_mm * 1e-3;
   options.skeleton_errors.arm_swap_fraction = *arm_swaps;
   options.skeleton_errors.leg_drop_s = *leg_drop_s;
+  options.skeleton_errors.lock_on_s = *lock_on_s;
   options.ground_truth_mesh = !flags->Has("no-mesh");
   const bool json = flags->Has("json");
   ProgressBar bar(err, !json && !flags->Has("quiet"));

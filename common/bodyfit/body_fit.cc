@@ -297,6 +297,32 @@ SkeletonJoints SwapPairs(const SkeletonJoints& skeleton_m,
   return out;
 }
 
+// Whether the skeleton's limb of `pairs` (left, right) may have changed
+// sides against `before` (the previous fit's joints): its left joints lie
+// about as near the previous right ones as the left ones, or nearer. Far
+// apart limbs that kept their sides need no swapped start; a start is made
+// for every limb the points could tell either way (crossed, or close).
+bool MayHaveSwapped(const SkeletonJoints& skeleton_m,
+                    const std::array<Eigen::Vector3d, kJoints>& before,
+                    std::initializer_list<std::pair<KinectV2Joint, KinectV2Joint>> pairs) {
+  // Per pair: how much nearer the same sides must be for a swap to be ruled out.
+  constexpr double kMarginM = 0.1;
+  double same = 0.0;
+  double cross = 0.0;
+  int counted = 0;
+  for (const auto& [left, right] : pairs) {
+    const Eigen::Vector3d& l = skeleton_m[body::Index(left)];
+    const Eigen::Vector3d& r = skeleton_m[body::Index(right)];
+    if (!l.allFinite() || !r.allFinite()) continue;
+    const Eigen::Vector3d& bl = before[body::Index(left)];
+    const Eigen::Vector3d& br = before[body::Index(right)];
+    same += (l - bl).norm() + (r - br).norm();
+    cross += (l - br).norm() + (r - bl).norm();
+    ++counted;
+  }
+  return counted > 0 && cross < same + kMarginM * counted;
+}
+
 }  // namespace
 
 SkeletonJoints SwapArms(const SkeletonJoints& skeleton_m) {
@@ -570,10 +596,32 @@ absl::StatusOr<BodyFitter::SequenceFit> BodyFitter::FitHypotheses(const FitInput
   const SkeletonJoints& skeleton = input.skeleton_m;
   add(Hypothesis::kFollowSkeleton, skeleton, FollowSkeleton(previous, skeleton));
   add(Hypothesis::kPrevious, skeleton, previous);
-  const SkeletonJoints arms = SwapArms(skeleton);
-  add(Hypothesis::kArmsSwapped, arms, FollowSkeleton(previous, arms));
-  const SkeletonJoints legs = SwapLegs(skeleton);
-  add(Hypothesis::kLegsSwapped, legs, FollowSkeleton(previous, legs));
+  // Swapped starts only for limbs whose sides the skeleton may have
+  // swapped since the previous fit (each costs a FollowSkeleton solve and a
+  // screening).
+  std::array<Eigen::Vector3d, kJoints> before;
+  {
+    const PoseBlocks blocks(PoseParameters::FromPose(previous));
+    const auto pointers = blocks.AngleAxisPointers();
+    Kinematics kin;
+    ComputeKinematics(*data_, pointers.data(), blocks.translation.data(), nullptr, &rest_->joints_m,
+                      false, &kin);
+    before = kin.position_m;
+  }
+  if (MayHaveSwapped(skeleton, before,
+                     {{KinectV2Joint::kElbowLeft, KinectV2Joint::kElbowRight},
+                      {KinectV2Joint::kWristLeft, KinectV2Joint::kWristRight},
+                      {KinectV2Joint::kHandLeft, KinectV2Joint::kHandRight}})) {
+    const SkeletonJoints arms = SwapArms(skeleton);
+    add(Hypothesis::kArmsSwapped, arms, FollowSkeleton(previous, arms));
+  }
+  if (MayHaveSwapped(skeleton, before,
+                     {{KinectV2Joint::kKneeLeft, KinectV2Joint::kKneeRight},
+                      {KinectV2Joint::kAnkleLeft, KinectV2Joint::kAnkleRight},
+                      {KinectV2Joint::kFootLeft, KinectV2Joint::kFootRight}})) {
+    const SkeletonJoints legs = SwapLegs(skeleton);
+    add(Hypothesis::kLegsSwapped, legs, FollowSkeleton(previous, legs));
+  }
   add(Hypothesis::kSkeleton, skeleton, PoseFromSkeleton(skeleton));
   if (candidates.empty()) return absl::InternalError("no starting pose could be made");
   // Screened by how much of the cloud each start explains; the best is

@@ -32,7 +32,10 @@
 //    Step 2 uses Eq. 4.5 as written.
 //  - Frames are fitted one after another with the previous frame fixed (a
 //    causal window of two instead of the thesis's sliding window of three),
-//    so a take can be followed live; the shape is fitted jointly over a few
+//    so a take can be followed live (a job that has the whole take then
+//    fits the frames this left unfitted or doubtful again backwards, from
+//    the frames after them: body_method.cc, FitBackward); the shape is
+//    fitted jointly over a few
 //    frames spread over the take (or the first frames when live) and then
 //    held, which is the thesis's "one shape for all frames".
 //  - Eq. 4.6 is applied to the joints' local rotations (relative to their
@@ -60,7 +63,11 @@
 //    (ExplainPose: a truncated point-to-plane cost, unexplained points at
 //    the truncation), fits the two best and keeps the fit that explains the
 //    cloud best. Where sensors see the body the points decide; the
-//    skeleton still places what no sensor sees.
+//    skeleton still places what no sensor sees. A swapped start is made
+//    only for a limb whose sides the skeleton may have swapped since the
+//    previous fit (its left joints about as near the previous right ones as
+//    the left ones), so a frame whose limbs kept their sides costs little
+//    more than one start.
 #pragma once
 
 #include <array>

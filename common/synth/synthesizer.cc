@@ -272,6 +272,7 @@ std::array<Eigen::Vector3d, body::kNumKinectV2Joints> WithSkeletonErrors(
   }
   const double half = 0.5 * errors.leg_drop_s * fps;
   const double middle = 0.5 * static_cast<double>(frames);
+  if (static_cast<double>(frame) < errors.lock_on_s * fps) dropped->fill(true);
   if (half > 0 && std::abs(static_cast<double>(frame) - middle) < half) {
     for (const KinectV2Joint j :
          {KinectV2Joint::kKneeLeft, KinectV2Joint::kAnkleLeft, KinectV2Joint::kFootLeft}) {
@@ -405,10 +406,11 @@ absl::Status SynthOptions::Validate() const {
   }
   if (!(skeleton_errors.limb_noise_m >= 0 && skeleton_errors.limb_noise_m <= 1) ||
       !(skeleton_errors.arm_swap_fraction >= 0 && skeleton_errors.arm_swap_fraction <= 1) ||
-      !(skeleton_errors.leg_drop_s >= 0 && skeleton_errors.leg_drop_s <= 3600)) {
+      !(skeleton_errors.leg_drop_s >= 0 && skeleton_errors.leg_drop_s <= 3600) ||
+      !(skeleton_errors.lock_on_s >= 0 && skeleton_errors.lock_on_s <= 3600)) {
     return absl::InvalidArgumentError(
         "skeleton errors: limb noise within [0, 1] m, arm swaps a fraction within [0, 1], a leg "
-        "drop within [0, 3600] s");
+        "drop and a lock-on time within [0, 3600] s");
   }
   if (skeleton_errors.any() && sensor_skeleton != SensorSkeleton::kTruth) {
     return absl::InvalidArgumentError(

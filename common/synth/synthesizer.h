@@ -61,12 +61,16 @@ struct SynthOptions {
   // knees, ankles and feet; the left and right arms swapped in
   // `arm_swap_fraction` of the frames (chosen at random); the left leg
   // (knee, ankle, foot) not tracked for `leg_drop_s` seconds in the middle
-  // of the take.
+  // of the take; no joint tracked for the first `lock_on_s` seconds (a
+  // tracker that has not found the body yet).
   struct SkeletonErrors {
     double limb_noise_m = 0.0;
     double arm_swap_fraction = 0.0;
     double leg_drop_s = 0.0;
-    bool any() const { return limb_noise_m > 0 || arm_swap_fraction > 0 || leg_drop_s > 0; }
+    double lock_on_s = 0.0;
+    bool any() const {
+      return limb_noise_m > 0 || arm_swap_fraction > 0 || leg_drop_s > 0 || lock_on_s > 0;
+    }
   };
   SkeletonErrors skeleton_errors;
   bool center_motion = true;  // Centre the motion's mean floor position on the origin.

@@ -615,6 +615,41 @@ TEST(SynthesizeTake, YawTurnsThePerformanceAboutTheVertical) {
   EXPECT_LT(sum_mm / joints, 50.0);      // mm (1 cm jitter, 3 cm where inferred)
 }
 
+// A tracker that has not found the body yet: no joint of any sensor's
+// skeleton is tracked before lock_on_s, and joints are tracked after it.
+TEST(SynthesizeTake, NoJointIsTrackedBeforeTheTrackerLocksOn) {
+  SynthOptions options = ShortTakeOptions();
+  options.skeleton_errors.lock_on_s = 0.2;
+  const std::string path = testing::MakeTempDir("synth_lock_on") + "/take.mcap";
+  auto summary = SynthesizeTake(options, path);
+  if (!summary.ok() && summary.status().code() == absl::StatusCode::kUnavailable) {
+    GTEST_SKIP() << summary.status();
+  }
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  auto reader = TakeReader::Open(path);
+  ASSERT_TRUE(reader.ok()) << reader.status();
+  const int lock_on_frames = static_cast<int>(std::lround(options.fps * 0.2));
+  int tracked_before = 0, tracked_after = 0, skeletons = 0;
+  for (const auto& [id, calibration] : (*reader)->sensors()) {
+    auto all = (*reader)->ReadAll<v1::Skeleton>(SensorTopic(id, "skeleton"));
+    ASSERT_TRUE(all.ok()) << all.status();
+    for (const v1::Skeleton& skeleton : *all) {
+      ++skeletons;
+      for (const auto& joint : skeleton.joints()) {
+        if (joint.tracking_state() == v1::TRACKING_STATE_NOT_TRACKED) continue;
+        (skeleton.frame_index() < lock_on_frames ? tracked_before : tracked_after)++;
+      }
+    }
+  }
+  EXPECT_GT(skeletons, 2 * lock_on_frames);
+  EXPECT_EQ(tracked_before, 0);
+  EXPECT_GT(tracked_after, 20);
+  for (const double bad : {-1.0, 4000.0, std::numeric_limits<double>::quiet_NaN()}) {
+    options.skeleton_errors.lock_on_s = bad;
+    EXPECT_EQ(options.Validate().code(), absl::StatusCode::kInvalidArgument) << bad;
+  }
+}
+
 TEST(SynthesizeTake, NonFiniteYawIsInvalidArgument) {
   SynthOptions options = ShortTakeOptions();
   options.yaw_deg = std::numeric_limits<double>::quiet_NaN();

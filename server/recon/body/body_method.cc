@@ -40,6 +40,9 @@ constexpr size_t kMinPoints = 200;
 // explained_fraction) is kept but marked invalid: no hypothesis found the
 // body there.
 constexpr double kMinExplainedFraction = 0.5;
+// Offline, a fit that explains less than this is tried again from the
+// frames after it (FitBackward).
+constexpr double kDoubtfulFraction = 0.9;
 
 // The body model and its fitter. The fitter refers to the model, which is
 // therefore held where it does not move.
@@ -58,6 +61,7 @@ struct FrameFits {
   double explained_sum = 0.0;  // Their explained fractions.
   int unexplained = 0;         // Fits below kMinExplainedFraction (marked invalid).
   std::array<int, bodyfit::kNumHypotheses> hypotheses{};  // Fits kept, by their start.
+  int backward = 0;  // Fits kept from the backward pass (FitBackward).
 };
 
 // How the atlas was made.
@@ -214,13 +218,67 @@ absl::StatusOr<std::vector<int>> FitShape(const TakeFrames& take, const CloudSou
   return shape_instants;
 }
 
+// Look-ahead, for a job that has the whole take (the live follow stays
+// causal): the instants of [range.first, range.end) that the forward pass
+// could not fit (no skeleton yet and no fit before them: a tracker that has
+// not found the body) or that it fitted doubtfully (explaining less than
+// kDoubtfulFraction of their points), are fitted again backwards, each from
+// the fit of the instant after it, hypotheses included (FitNext); the fit
+// that explains the points better is kept. A doubtful stretch is thus
+// repaired from the frames after it, as the forward pass could only use the
+// frames before it. The thesis's sliding window (Eq. 4.7) looks one frame
+// each way; this looks as far as the stretch goes, and costs nothing where
+// every frame explained its points.
+absl::Status FitBackward(const TakeFrames& take, const std::vector<bodyfit::PointCloud>& clouds,
+                         bodyfit::BodyFitter& fitter, const SegmentRange& range, FrameFits* out) {
+  std::optional<body::BodyPose> next;
+  for (int i = range.end - 1; i >= range.first; --i) {
+    std::optional<bodyfit::FrameFit>& kept = out->fits[i];
+    const bool doubtful = !kept.has_value() || kept->explained_fraction < kDoubtfulFraction;
+    if (!doubtful || !next.has_value() || clouds[i].size() < kMinPoints) {
+      if (kept.has_value()) next = kept->pose;
+      continue;
+    }
+    bodyfit::FitInput input;
+    input.cloud = &clouds[i];
+    input.skeleton_m = take.instant(i).joints_in_world_m;
+    const auto frame_start = std::chrono::steady_clock::now();
+    ASSIGN_OR_RETURN(std::optional<bodyfit::BodyFitter::SequenceFit> back,
+                     fitter.FitNext(input, &*next));
+    const double seconds = SecondsSince(frame_start);
+    if (!back.has_value()) continue;
+    if (kept.has_value() && !(back->fit.explanation_cost < kept->explanation_cost)) {
+      next = kept->pose;
+      out->fit_seconds += seconds;
+      continue;
+    }
+    if (kept.has_value()) {
+      // The forward fit is replaced: its share of the figures goes.
+      out->rms_sum -= kept->point_rms_mm;
+      out->explained_sum -= kept->explained_fraction;
+      out->unexplained -= kept->explained_fraction < kMinExplainedFraction ? 1 : 0;
+    } else {
+      ++out->fitted;
+      ++out->hypotheses[static_cast<int>(back->hypothesis)];
+    }
+    ++out->backward;
+    out->fit_seconds += seconds;
+    out->rms_sum += back->fit.point_rms_mm;
+    out->explained_sum += back->fit.explained_fraction;
+    out->unexplained += back->fit.explained_fraction < kMinExplainedFraction ? 1 : 0;
+    next = back->fit.pose;
+    kept = std::move(back->fit);
+  }
+  return absl::OkStatus();
+}
+
 // The instants of `range` in order, each from the previous fit (Eq. 4.6
 // against it), beginning at range.warmup_first; the fits before range.first
 // only carry the motion into the range and are neither kept nor counted.
 absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
                                     const std::vector<bodyfit::PointCloud>& clouds,
                                     bodyfit::BodyFitter& fitter, const StageProgress& stages,
-                                    const SegmentRange& range) {
+                                    const SegmentRange& range, bool look_ahead) {
   const int n = take.num_instants();
   FrameFits out;
   out.fits.resize(n);
@@ -251,6 +309,7 @@ absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
     ++out.fitted;
     out.fits[i] = std::move(fit);
   }
+  if (look_ahead) RETURN_IF_ERROR(FitBackward(take, clouds, fitter, range, &out));
   RETURN_IF_ERROR(stages.Report("fit", total, total));
   return out;
 }
@@ -258,9 +317,10 @@ absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
 // The whole take's fits: InvalidArgument when no instant could be fitted.
 absl::StatusOr<FrameFits> FitAllFrames(const TakeFrames& take,
                                        const std::vector<bodyfit::PointCloud>& clouds,
-                                       bodyfit::BodyFitter& fitter, const StageProgress& stages) {
-  ASSIGN_OR_RETURN(FrameFits fits,
-                   FitFrames(take, clouds, fitter, stages, {0, take.num_instants(), 0}));
+                                       bodyfit::BodyFitter& fitter, const StageProgress& stages,
+                                       bool look_ahead) {
+  ASSIGN_OR_RETURN(FrameFits fits, FitFrames(take, clouds, fitter, stages,
+                                             {0, take.num_instants(), 0}, look_ahead));
   if (fits.fitted == 0) return absl::InvalidArgumentError("no instant of the take could be fitted");
   return fits;
 }
@@ -396,6 +456,11 @@ std::string ShapeLine(const std::string& model_name, const LoadedModel& loaded,
 }
 
 // The log line of the whole run.
+std::string LookAheadLine(int backward) {
+  return absl::StrFormat(
+      "body: look-ahead: %d frames fitted again backwards from the frames after them", backward);
+}
+
 std::string SummaryLine(int instants, const FitFigures& fits, int atlas_px,
                         const AtlasFigures& atlas) {
   return absl::StrFormat(
@@ -437,6 +502,9 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
                               "the points best"));
   RETURN_IF_ERROR(reader.Double("explained_m", &fit.explained_m, 0.005, 0.5,
                                 "a point within this of the body is explained, metres"));
+  RETURN_IF_ERROR(reader.Bool("look_ahead", &look_ahead,
+                              "fit the frames the forward pass could not fit, or fitted "
+                              "doubtfully, again backwards from the frames after them"));
   RETURN_IF_ERROR(reader.Int("atlas_px", &atlas.size_px, 16, 8192, "atlas side, pixels"));
   RETURN_IF_ERROR(reader.Double("visibility_m", &atlas.visibility_threshold_m, 1e-4, 10,
                                 "visibility threshold T of thesis 4.4, metres"));
@@ -523,7 +591,9 @@ absl::StatusOr<Reenactment> RunBody(const TakeFrames& take, const BodyMethodOpti
   if (context.log) {
     context.log(ShapeLine(o.model, loaded, shape_instants.size(), seconds.shape));
   }
-  ASSIGN_OR_RETURN(const FrameFits fits, FitAllFrames(take, clouds, *loaded.fitter, stages));
+  ASSIGN_OR_RETURN(const FrameFits fits,
+                   FitAllFrames(take, clouds, *loaded.fitter, stages, o.look_ahead));
+  if (context.log && fits.backward > 0) context.log(LookAheadLine(fits.backward));
   ASSIGN_OR_RETURN(TexturedMesh textured, BakeAtlas(take, loaded, fits, o.atlas, stages));
   Reenactment data =
       AssembleReenactment(take, *loaded.model, std::move(textured.mesh), FittedFrames(take, fits),
@@ -655,7 +725,9 @@ absl::StatusOr<std::string> FitBodySegment(const TakeFrames& take, const BodyMet
   ASSIGN_OR_RETURN(const std::vector<bodyfit::PointCloud> clouds,
                    BuildClouds(take, stages, range.warmup_first, range.end));
   const double clouds_s = SecondsSince(clouds_start);
-  ASSIGN_OR_RETURN(const FrameFits fits, FitFrames(take, clouds, *loaded.fitter, stages, range));
+  ASSIGN_OR_RETURN(const FrameFits fits,
+                   FitFrames(take, clouds, *loaded.fitter, stages, range, o.look_ahead));
+  if (context.log && fits.backward > 0) context.log(LookAheadLine(fits.backward));
   // The segment's share of the atlas.
   const auto texture_start = std::chrono::steady_clock::now();
   ASSIGN_OR_RETURN(const BodyMesh mesh, BuildBodyMesh(*loaded.model, loaded.fitter->shape(), ""));

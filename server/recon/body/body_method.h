@@ -16,6 +16,9 @@
 //   hypotheses         start each frame from several poses and keep the fit
 //                      that explains the points best (true; body_fit.h)
 //   explained_m        a point this near the body is explained (0.03)
+//   look_ahead         frames the forward pass could not fit or fitted
+//                      doubtfully are fitted again backwards from the frames
+//                      after them (true; body_method.cc, FitBackward)
 //   atlas_px           atlas side (1024)
 //   visibility_m       T of thesis 4.4 (0.10)
 //   texture_every      use every k-th instant for the atlas (2)
@@ -74,6 +77,7 @@ struct BodyMethodOptions {
   bodyfit::BodyFitOptions fit;
   AtlasOptions atlas;
   double segment_warmup_s = 1.0;
+  bool look_ahead = true;
   // InvalidArgument naming the key for a value that does not parse or lies
   // outside its bounds.
   absl::Status Read(OptionReader& reader);

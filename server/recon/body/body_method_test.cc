@@ -3,13 +3,17 @@
 // procedural model from its mean shape (issue floor: MPJPE <= 15 mm).
 #include "server/recon/body/body_method.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
+#include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
 #include "common/io/body_reenactment.h"
 #include "common/io/proto_convert.h"
@@ -70,6 +74,62 @@ synth::SynthOptions TwoSensorTake(const std::string& clip, const std::string& sh
   options.color_width = 640;
   options.color_height = 360;
   return options;
+}
+
+// The take of `options` written to `path`, and its ground truth.
+absl::StatusOr<Truth> SynthesiseWithTruth(const synth::SynthOptions& options,
+                                          const std::string& path) {
+  RETURN_IF_ERROR(synth::SynthesizeTake(options, path).status());
+  return ReadTruth(path);
+}
+
+// A body job on `take_path` with `options` (atlas_px 128 added), written to
+// `path`: its figures and frames, and each frame's mean joint error
+// against `truth` (mm, by frame index).
+struct BodyRun {
+  std::map<std::string, double> figures;
+  std::vector<v1::PartFrame> frames;
+  std::map<int64_t, double> joint_error_mm;
+  // The mean over the frames of `keep` (all by default).
+  double MeanErrorMm(const std::function<bool(const v1::PartFrame&)>& keep = nullptr) const {
+    double sum = 0.0;
+    int n = 0;
+    for (const v1::PartFrame& frame : frames) {
+      const auto e = joint_error_mm.find(frame.frame_index());
+      if (e == joint_error_mm.end() || (keep && !keep(frame))) continue;
+      sum += e->second;
+      ++n;
+    }
+    return sum / std::max(1, n);
+  }
+};
+
+BodyRun RunBodyJob(const std::string& take_path, const std::string& path,
+                   std::map<std::string, std::string> options, const Truth& truth) {
+  BodyRun out;
+  MethodInput input;
+  input.take_path = take_path;
+  input.method = "body";
+  input.options = std::move(options);
+  input.options.emplace("atlas_px", "128");
+  auto result = RunMethod(input, path);
+  EXPECT_TRUE(result.ok()) << result.status();
+  if (!result.ok()) return out;
+  out.figures = result->figures;
+  auto data = ReadReenactmentFile(path);
+  EXPECT_TRUE(data.ok()) << data.status();
+  if (!data.ok()) return out;
+  out.frames = data->frames;
+  for (const v1::PartFrame& frame : out.frames) {
+    const auto t = truth.joints.find(frame.frame_index());
+    if (t == truth.joints.end()) continue;
+    double sum = 0.0;
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      sum += 1000.0 * (FromProto(frame.joints_in_world_m(j)) - t->second[j]).norm();
+    }
+    out.joint_error_mm[frame.frame_index()] = sum / body::kNumKinectV2Joints;
+  }
+  return out;
 }
 
 TEST(RunBody, ProceduralBodyFittedWithTheProceduralModelMeetsTheJointFloor) {
@@ -143,59 +203,72 @@ TEST(RunBody, APerturbedTrackerIsOutvotedByThePoints) {
   options.skeleton_errors.arm_swap_fraction = 0.1;
   options.skeleton_errors.leg_drop_s = 0.5;
   const std::string take_path = dir + "/take.mcap";
-  auto summary = synth::SynthesizeTake(options, take_path);
-  if (!summary.ok() && summary.status().code() == absl::StatusCode::kUnavailable) {
-    GTEST_SKIP() << summary.status();
+  const absl::StatusOr<Truth> synthesised = SynthesiseWithTruth(options, take_path);
+  if (synthesised.status().code() == absl::StatusCode::kUnavailable) {
+    GTEST_SKIP() << synthesised.status();
   }
-  ASSERT_TRUE(summary.ok()) << summary.status();
-  const Truth truth = ReadTruth(take_path);
+  ASSERT_TRUE(synthesised.ok()) << synthesised.status();
+  const Truth& truth = *synthesised;
 
-  struct Figures {
-    double mpjpe_mm = 0.0;
-    double skeleton_mm = 0.0;  // The perturbed fused skeleton against the truth.
-    std::map<std::string, double> figures;
-  };
-  const auto run = [&](const std::string& hypotheses) {
-    Figures out;
-    MethodInput input;
-    input.take_path = take_path;
-    input.method = "body";
-    input.options = {{"atlas_px", "128"}, {"hypotheses", hypotheses}};
-    const std::string path = dir + "/body-" + hypotheses + ".reen";
-    auto result = RunMethod(input, path);
-    EXPECT_TRUE(result.ok()) << result.status();
-    if (!result.ok()) return out;
-    out.figures = result->figures;
-    auto data = ReadReenactmentFile(path);
-    EXPECT_TRUE(data.ok()) << data.status();
-    if (!data.ok()) return out;
-    double sum = 0.0;
-    int joints = 0;
-    for (const v1::PartFrame& frame : data->frames) {
-      const auto t = truth.joints.find(frame.frame_index());
-      if (t == truth.joints.end()) continue;
-      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-        sum += 1000.0 * (FromProto(frame.joints_in_world_m(j)) - t->second[j]).norm();
-        ++joints;
-      }
-    }
-    out.mpjpe_mm = sum / std::max(1, joints);
-    return out;
-  };
-  const Figures alone = run("false");
-  const Figures voting = run("true");
+  const BodyRun alone =
+      RunBodyJob(take_path, dir + "/alone.reen", {{"hypotheses", "false"}}, truth);
+  const BodyRun voting =
+      RunBodyJob(take_path, dir + "/voting.reen", {{"hypotheses", "true"}}, truth);
   std::printf(
       "body on a perturbed tracker (80 mm limb noise, arms swapped in 10%% of frames, a leg lost "
       "for 0.5 s; CMU 131_03, random:41): MPJPE %.1f mm following the skeleton, %.1f mm with "
       "hypotheses (%.0f%% of points explained, %.0f frames from the arms swapped, %.0f from the "
       "previous fit, %.0f unexplained); fit %.1f ms per frame (%.1f without)\n",
-      alone.mpjpe_mm, voting.mpjpe_mm, 100.0 * voting.figures.at("explained_fraction"),
+      alone.MeanErrorMm(), voting.MeanErrorMm(), 100.0 * voting.figures.at("explained_fraction"),
       voting.figures.at("hypothesis_arms_swapped"), voting.figures.at("hypothesis_previous"),
       voting.figures.at("unexplained_frames"), voting.figures.at("fit_ms_per_frame"),
       alone.figures.at("fit_ms_per_frame"));
-  EXPECT_LE(voting.mpjpe_mm, 30.0);
-  EXPECT_LT(voting.mpjpe_mm, alone.mpjpe_mm);
+  EXPECT_LE(voting.MeanErrorMm(), 30.0);
+  EXPECT_LT(voting.MeanErrorMm(), alone.MeanErrorMm());
   EXPECT_GT(voting.figures.at("explained_fraction"), 0.9);
+}
+
+// A tracker that finds the body only after a second (no joint tracked
+// before): the forward pass has nothing to start from there, so those
+// frames get the first fit's pose, marked invalid. The look-ahead fits them
+// backwards from the frames after them, where the points hold the body.
+TEST(RunBody, TheLookAheadFitsTheFramesBeforeTheTrackerFoundTheBody) {
+  const std::string dir = reenact::testing::MakeTempDir("body_look_ahead");
+  const std::string clip = reenact::testing::TestDataPath("mocap/cmu/131_03.bvh");
+  if (!std::filesystem::exists(clip)) GTEST_SKIP() << "no CMU clip at " << clip;
+  synth::SynthOptions options = TwoSensorTake(clip, "random:29");
+  options.skeleton_errors.lock_on_s = 1.0;
+  const std::string take_path = dir + "/take.mcap";
+  const absl::StatusOr<Truth> synthesised = SynthesiseWithTruth(options, take_path);
+  if (synthesised.status().code() == absl::StatusCode::kUnavailable) {
+    GTEST_SKIP() << synthesised.status();
+  }
+  ASSERT_TRUE(synthesised.ok()) << synthesised.status();
+  const Truth& truth = *synthesised;
+  const int lock_on_frames = static_cast<int>(options.fps * options.skeleton_errors.lock_on_s);
+
+  const BodyRun causal =
+      RunBodyJob(take_path, dir + "/causal.reen", {{"look_ahead", "false"}}, truth);
+  const BodyRun ahead = RunBodyJob(take_path, dir + "/ahead.reen", {{"look_ahead", "true"}}, truth);
+  const auto early = [&](const v1::PartFrame& frame) {
+    return frame.frame_index() < lock_on_frames;
+  };
+  const auto valid_early = [&](const BodyRun& run) {
+    return std::count_if(run.frames.begin(), run.frames.end(), [&](const v1::PartFrame& frame) {
+      return early(frame) && frame.body().valid();
+    });
+  };
+  std::printf(
+      "body with a tracker that finds the body after %.1f s (CMU 131_03, random:29, %d frames "
+      "before): %d of them fitted and MPJPE %.1f mm over them forward only, %d and %.1f mm with "
+      "the look-ahead; whole take %.1f mm and %.1f mm\n",
+      options.skeleton_errors.lock_on_s, lock_on_frames, static_cast<int>(valid_early(causal)),
+      causal.MeanErrorMm(early), static_cast<int>(valid_early(ahead)), ahead.MeanErrorMm(early),
+      causal.MeanErrorMm(), ahead.MeanErrorMm());
+  EXPECT_EQ(valid_early(causal), 0);
+  EXPECT_GE(valid_early(ahead), lock_on_frames - 1);
+  EXPECT_LE(ahead.MeanErrorMm(early), 30.0);
+  EXPECT_LT(ahead.MeanErrorMm(), causal.MeanErrorMm());
 }
 
 TEST(RunBody, BadOptionsAreRejectedBeforeLoading) {
@@ -206,6 +279,9 @@ TEST(RunBody, BadOptionsAreRejectedBeforeLoading) {
   EXPECT_EQ(RunMethod(input, "/tmp/never.reen").status().code(),
             absl::StatusCode::kInvalidArgument);
   input.options = {{"visibility_m", "-1"}};
+  EXPECT_EQ(RunMethod(input, "/tmp/never.reen").status().code(),
+            absl::StatusCode::kInvalidArgument);
+  input.options = {{"look_ahead", "maybe"}};
   EXPECT_EQ(RunMethod(input, "/tmp/never.reen").status().code(),
             absl::StatusCode::kInvalidArgument);
   input.options = {{"no_such_option", "1"}};

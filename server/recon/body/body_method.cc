@@ -245,11 +245,10 @@ absl::Status FitBackward(const TakeFrames& take, const std::vector<bodyfit::Poin
     const auto frame_start = std::chrono::steady_clock::now();
     ASSIGN_OR_RETURN(std::optional<bodyfit::BodyFitter::SequenceFit> back,
                      fitter.FitNext(input, &*next));
-    const double seconds = SecondsSince(frame_start);
+    out->fit_seconds += SecondsSince(frame_start);
     if (!back.has_value()) continue;
     if (kept.has_value() && !(back->fit.explanation_cost < kept->explanation_cost)) {
       next = kept->pose;
-      out->fit_seconds += seconds;
       continue;
     }
     if (kept.has_value()) {
@@ -262,7 +261,6 @@ absl::Status FitBackward(const TakeFrames& take, const std::vector<bodyfit::Poin
       ++out->hypotheses[static_cast<int>(back->hypothesis)];
     }
     ++out->backward;
-    out->fit_seconds += seconds;
     out->rms_sum += back->fit.point_rms_mm;
     out->explained_sum += back->fit.explained_fraction;
     out->unexplained += back->fit.explained_fraction < kMinExplainedFraction ? 1 : 0;
@@ -455,12 +453,13 @@ std::string ShapeLine(const std::string& model_name, const LoadedModel& loaded,
                       absl::StrFormat("%.2f", shape_s), " s");
 }
 
-// The log line of the whole run.
+// The log line of the look-ahead (FitBackward), of a run or a segment.
 std::string LookAheadLine(int backward) {
   return absl::StrFormat(
       "body: look-ahead: %d frames fitted again backwards from the frames after them", backward);
 }
 
+// The log line of the whole run.
 std::string SummaryLine(int instants, const FitFigures& fits, int atlas_px,
                         const AtlasFigures& atlas) {
   return absl::StrFormat(

@@ -20,6 +20,7 @@
 #include "common/bodyfit/body_fit.h"
 #include "common/synth/synthesizer.h"
 #include "server/recon/body/body_cloud.h"
+#include "server/recon/body/live_body.h"
 #include "server/recon/take_frames.h"
 
 namespace reenact::bodyfit {
@@ -145,19 +146,18 @@ void BM_FitFrame(benchmark::State& state) {
 }
 BENCHMARK(BM_FitFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(5.0);
 
-// One frame per iteration as a job fits it (FitNext, the free-form mesh
-// step on); arg 0: one start (the previous fit carried to the skeleton),
-// 1: hypotheses (several starts screened, the two best fitted).
-void BM_FitNext(benchmark::State& state) {
+// One frame per iteration fitted by FitNext with `options`, each from the
+// previous fit. Counters: the share of points explained and the fitted
+// joints' mean distance to the sensors' skeleton (jittered truth), mm.
+void FitNextFrames(benchmark::State& state, const BodyFitOptions& options) {
   const Setup& s = GetSetup();
-  BodyFitOptions options;
-  options.hypotheses = state.range(0) != 0;
   const std::unique_ptr<BodyFitter> fitter = ShapedFitter(s, options, state);
   if (fitter == nullptr) return;
   const int n = s.take->num_instants();
   std::optional<body::BodyPose> previous;
   int i = 0;
   double explained = 0.0;
+  double joint_mm = 0.0;
   int64_t frames = 0;
   for (auto _ : state) {
     FitInput input;
@@ -169,6 +169,11 @@ void BM_FitNext(benchmark::State& state) {
       return;
     }
     explained += (*next)->fit.explained_fraction;
+    double sum = 0.0;
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      sum += 1000.0 * ((*next)->fit.joints_m[j] - input.skeleton_m[j]).norm();
+    }
+    joint_mm += sum / body::kNumKinectV2Joints;
     ++frames;
     previous = (*next)->fit.pose;
     if (++i == n) {
@@ -177,8 +182,51 @@ void BM_FitNext(benchmark::State& state) {
     }
   }
   state.counters["explained_fraction"] = frames > 0 ? explained / frames : 0.0;
+  state.counters["joint_to_skeleton_mm"] = frames > 0 ? joint_mm / frames : 0.0;
+}
+
+// As a job fits (the free-form mesh step on); arg 0: one start (the
+// previous fit carried to the skeleton), 1: hypotheses (several starts
+// screened, the two best fitted).
+void BM_FitNext(benchmark::State& state) {
+  BodyFitOptions options;
+  options.hypotheses = state.range(0) != 0;
+  FitNextFrames(state, options);
 }
 BENCHMARK(BM_FitNext)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(5.0);
+
+// As the live follow fits (recon::LiveFitOptions: hypotheses on, step 2
+// off, lighter rounds): the live budget is 20 ms a frame on one core.
+void BM_LiveFitNext(benchmark::State& state) { FitNextFrames(state, recon::LiveFitOptions()); }
+BENCHMARK(BM_LiveFitNext)->Unit(benchmark::kMillisecond)->MinTime(5.0);
+
+// How long the diagnosis of one fit takes (BodyFitter::DiagnoseFit: per
+// sensor, its points explained and the surface facing it seen), as a job
+// adds it to every frame.
+void BM_DiagnoseFit(benchmark::State& state) {
+  const Setup& s = GetSetup();
+  const std::unique_ptr<BodyFitter> fitter = ShapedFitter(s, BodyFitOptions(), state);
+  if (fitter == nullptr) return;
+  FitInput input;
+  input.cloud = &s.clouds[0];
+  input.skeleton_m = s.take->instant(0).joints_in_world_m;
+  auto fit = fitter->FitNext(input, nullptr);
+  if (!fit.ok() || !fit->has_value()) {
+    state.SkipWithError("fit failed");
+    return;
+  }
+  std::vector<SensorView> centres;
+  for (const recon::TakeSensor& sensor : s.take->sensors()) {
+    centres.push_back({sensor.world_from_depth.translation, nullptr});
+  }
+  double seen = 0.0;
+  for (auto _ : state) {
+    const std::vector<SensorDiagnosis> d = fitter->DiagnoseFit((*fit)->fit, s.clouds[0], centres);
+    if (!d.empty()) seen = d[0].surface_seen_fraction();
+  }
+  state.counters["surface_seen_fraction"] = seen;
+}
+BENCHMARK(BM_DiagnoseFit)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
 }  // namespace reenact::bodyfit

@@ -57,7 +57,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_format.h"
-#include "absl/strings/str_split.h"
+#include "bench/synthetic_takes.h"
 #include "clients/view/evaluation.h"
 #include "clients/view/truth_reenactment.h"
 #include "common/base/flags.h"
@@ -78,21 +78,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Settings {
+struct Settings : bench::TakeSettings {
   std::vector<std::string> motions;
   std::vector<std::string> wardrobes;
   std::vector<std::string> methods;
-  double seconds = 2.0;
-  double fps = 15.0;
-  int every = 2;
-  int color_width = 1920;
-  int color_height = 1080;
-  std::string shape = "random:5";
-  std::string work;
-  std::string data;
-  std::string json;  // Where the rows go as JSON; empty: nowhere.
-  // Extra options of the body configurations (--option k=v,...).
-  std::map<std::string, std::string> body_options;
   bool ceilings = true;  // False (--no-ceilings): the methods alone.
   std::string images;    // Where novel views go (--images); empty: nowhere.
 };
@@ -109,38 +98,21 @@ struct Score {
   double seconds = 0;  // Method run time (0 for a ceiling).
 };
 
-std::vector<std::string> List(const std::string& text) {
-  return absl::StrSplit(text, ',', absl::SkipEmpty());
-}
-
 absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  ASSIGN_OR_RETURN(Flags flags, Flags::Parse(args,
-                                             {"motions", "wardrobes", "methods", "seconds", "fps",
-                                              "every", "color-width", "color-height", "shape",
-                                              "work", "data", "json", "option", "images"},
-                                             {"no-ceilings"}));
+  std::set<std::string> names = bench::kTakeFlags;
+  names.insert({"motions", "wardrobes", "methods", "images"});
+  ASSIGN_OR_RETURN(Flags flags, Flags::Parse(args, names, {"no-ceilings"}));
   Settings s;
-  s.motions = List(flags.GetOr("motions", "131_04-dance,01_01,09_06-run"));
-  s.wardrobes = List(flags.GetOr("wardrobes", "default,solid,print,stripes"));
-  s.methods =
-      List(flags.GetOr("methods", "body-same,body-procedural,rigid-carved,rigid-cylinders"));
-  ASSIGN_OR_RETURN(s.seconds, flags.GetDouble("seconds", s.seconds));
-  ASSIGN_OR_RETURN(s.fps, flags.GetDouble("fps", s.fps));
-  ASSIGN_OR_RETURN(s.every, flags.GetInt("every", s.every));
-  ASSIGN_OR_RETURN(s.color_width, flags.GetInt("color-width", s.color_width));
-  ASSIGN_OR_RETURN(s.color_height, flags.GetInt("color-height", s.color_height));
-  s.shape = flags.GetOr("shape", s.shape);
-  s.work = flags.GetOr("work", "/tmp/reenact_novel_view_e2e");
-  s.data = flags.GetOr("data", REENACT_TEST_DATA_DIR);
-  s.json = flags.GetOr("json", "");
+  s.work = "/tmp/reenact_novel_view_e2e";
+  s.data = REENACT_TEST_DATA_DIR;
+  RETURN_IF_ERROR(bench::ReadTakeSettings(flags, &s));
+  s.motions = bench::SplitList(flags.GetOr("motions", "131_04-dance,01_01,09_06-run"));
+  s.wardrobes = bench::SplitList(flags.GetOr("wardrobes", "default,solid,print,stripes"));
+  s.methods = bench::SplitList(
+      flags.GetOr("methods", "body-same,body-procedural,rigid-carved,rigid-cylinders"));
   s.ceilings = !flags.Has("no-ceilings");
   s.images = flags.GetOr("images", "");
-  for (const std::string& kv : List(flags.GetOr("option", ""))) {
-    const size_t eq = kv.find('=');
-    if (eq == std::string::npos) return absl::InvalidArgumentError("--option wants k=v: " + kv);
-    s.body_options[kv.substr(0, eq)] = kv.substr(eq + 1);
-  }
   for (const std::string& m : s.methods) {
     if (m != "body-same" && m != "body-procedural" && m != "rigid-carved" &&
         m != "rigid-cylinders") {
@@ -154,21 +126,7 @@ absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
 absl::StatusOr<synth::SynthOptions> TakeOptions(const Settings& s, const std::string& motion,
                                                 const std::string& wardrobe) {
   synth::SynthOptions options;
-  const fs::path cmu = fs::path(s.data) / "mocap" / "cmu";
-  if (fs::exists(cmu / (motion + ".bvh"))) {
-    options.motion = (cmu / (motion + ".bvh")).string();
-  } else if (fs::exists(cmu / (motion + ".amc"))) {
-    options.motion = (cmu / (motion + ".amc")).string();
-    const std::string subject = motion.substr(0, motion.find('_'));
-    const std::string kind =
-        motion.substr(motion.find('-') == std::string::npos ? motion.size() : motion.find('-'));
-    options.asf_path = (cmu / (subject + kind + ".asf")).string();
-    if (!fs::exists(options.asf_path)) {
-      return absl::NotFoundError("no ASF " + options.asf_path + " for " + motion);
-    }
-  } else {
-    return absl::NotFoundError("no clip " + motion + " (.bvh or .amc) under " + cmu.string());
-  }
+  RETURN_IF_ERROR(bench::SetCmuMotion(s.data, motion, &options));
   options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.body = "makehuman:" + (fs::path(s.data) / "body" / "makehuman").string();
   options.shape = s.shape;

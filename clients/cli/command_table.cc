@@ -21,7 +21,7 @@ std::vector<Command> BuildCommandTable() {
        "[--seed N] [--no-depth-noise] [--no-mesh] [--board [SPEC]] "
        "[--board-x-m X --board-z-m Z --board-yaw-deg D] [--sensor-skeleton none|truth] "
        "[--skeleton-limb-noise-mm N --skeleton-arm-swaps FRACTION --skeleton-leg-drop-s S "
-       "--skeleton-lock-on-s S] "
+       "--skeleton-lock-on-s S] [--calibration-error-cm C] "
        "[--quiet] [--json]",
        "synthesise a take: a body doing a motion seen by virtual Kinect v2 sensors "
        "(--yaw-deg turns the performer about the vertical; --lead-in-s holds the first pose "
@@ -29,7 +29,8 @@ std::vector<Command> BuildCommandTable() {
        "frame; the sensors carry no skeleton unless --sensor-skeleton truth, as real depth "
        "cameras: the capture daemon tracks them; the --skeleton-* flags make that skeleton "
        "worse on purpose, the same in every sensor: noise on the limbs, arms swapped in a "
-       "fraction of the frames, the left leg lost mid-take, no body found at the start)",
+       "fraction of the frames, the left leg lost mid-take, no body found at the start; "
+       "--calibration-error-cm stores the last sensor's pose that far off along +X)",
        RunSynth},
       {{"board"},
        "--out board.png [--spec aruco:DICT:COLSxROWS:MARKER_MM:GAP_MM] [--dpi N] "

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <ctime>
 #include <map>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -23,9 +24,11 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_replace.h"
 #include "clients/cli/commands.h"
+#include "clients/cli/fit_diagnosis.h"
 #include "clients/cli/progress_bar.h"
 #include "clients/cli/remote_flags.h"
 #include "clients/sdk/jobs_client.h"
+#include "clients/sdk/reenactments_client.h"
 #include "common/base/flags.h"
 #include "common/base/terminal_text.h"
 #include "common/base/time.h"
@@ -397,8 +400,17 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
   if (!connection.ok()) return ReportError(connection.status(), err);
   auto job = client::JobsClient(*connection).Get(*job_id);
   if (!job.ok()) return ReportRemoteError(job.status(), err);
+  // The reenactment's judgement of its frames (fit_diagnosis.h), when the
+  // job made one that can be read.
+  std::optional<v1::ReenactmentSummary> made;
+  if (!job->reenactment_id().empty()) {
+    auto summary = client::ReenactmentsClient(*connection).Get(job->reenactment_id());
+    if (summary.ok()) made = *std::move(summary);
+  }
   if (flags->Has("json")) {
-    out << JobJson(*job).dump(2) << "\n";
+    nlohmann::json json = JobJson(*job);
+    if (made) json["fit"] = FitDiagnosisJson(made->info());
+    out << json.dump(2) << "\n";
     return kExitOk;
   }
   const v1::JobProgress& p = job->progress();
@@ -440,6 +452,7 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
     }
   }
   if (!job->reenactment_id().empty()) out << "reenactment  " << job->reenactment_id() << "\n";
+  if (made) PrintFitDiagnosis(made->info(), out);
   if (!job->error().empty()) out << "error        " << job->error() << "\n";
   return kExitOk;
 }

@@ -13,6 +13,7 @@
 
 #include "clients/cli/commands.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
+#include "reenact/v1/reenactments_service.grpc.pb.h"
 
 namespace reenact::cli {
 namespace {
@@ -94,6 +95,13 @@ class FakeJobs final : public v1::Jobs::Service {
     return grpc::Status::OK;
   }
   grpc::Status Get(grpc::ServerContext*, const v1::GetJobRequest* request, v1::Job* job) override {
+    if (request->job_id() == "j-fit" || request->job_id() == "j-gone") {
+      job->set_job_id(request->job_id());
+      job->set_method("body");
+      job->set_state(v1::JOB_STATE_SUCCEEDED);
+      job->set_reenactment_id(request->job_id() == "j-fit" ? "r-fit" : "r-gone");
+      return grpc::Status::OK;
+    }
     if (request->job_id() != "j-good") return grpc::Status(grpc::StatusCode::NOT_FOUND, "no job");
     job->set_job_id("j-good");
     job->set_state(v1::JOB_STATE_RUNNING);
@@ -108,6 +116,44 @@ class FakeJobs final : public v1::Jobs::Service {
   v1::ListJobsRequest last_list;
 };
 
+// One body-model reenactment, "r-fit", with its fit diagnosis: two
+// sensors, two doubtful spans (one reason with terminal escapes).
+class FakeReenactments final : public v1::Reenactments::Service {
+ public:
+  grpc::Status Get(grpc::ServerContext*, const v1::GetReenactmentRequest* request,
+                   v1::ReenactmentSummary* summary) override {
+    if (request->reenactment_id() != "r-fit") {
+      return grpc::Status(grpc::StatusCode::NOT_FOUND, "no reenactment");
+    }
+    v1::ReenactmentInfo* info = summary->mutable_info();
+    info->set_reenactment_id("r-fit");
+    info->set_method("body");
+    info->add_sensors()->set_sensor_id("front");
+    info->add_sensors()->set_sensor_id("back");
+    auto& figures = *info->mutable_figures();
+    figures["sensor.front.explained_fraction"] = 0.973;
+    figures["sensor.front.rms_mm"] = 4.24;
+    figures["sensor.front.surface_seen_fraction"] = 0.912;
+    figures["sensor.back.explained_fraction"] = 0.801;
+    figures["sensor.back.rms_mm"] = 7.5;
+    figures["sensor.back.surface_seen_fraction"] = 0.55;
+    figures["doubtful_frames"] = 5;
+    v1::DoubtfulSpan* span = info->add_doubtful_spans();
+    span->set_first_frame(18);
+    span->set_last_frame(21);
+    span->set_start_s(1.2);
+    span->set_end_s(1.4);
+    span->set_reason("the fit explains 41 % of sensor back's points");
+    span = info->add_doubtful_spans();
+    span->set_first_frame(40);
+    span->set_last_frame(40);
+    span->set_start_s(2.667);
+    span->set_end_s(2.667);
+    span->set_reason("no fit\x1b[2J");
+    return grpc::Status::OK;
+  }
+};
+
 class JobCommands : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -115,6 +161,7 @@ class JobCommands : public ::testing::Test {
     int port = 0;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
     builder.RegisterService(&service_);
+    builder.RegisterService(&reenactments_);
     server_ = builder.BuildAndStart();
     ASSERT_NE(server_, nullptr);
     address_ = "127.0.0.1:" + std::to_string(port);
@@ -130,6 +177,7 @@ class JobCommands : public ::testing::Test {
   }
 
   FakeJobs service_;
+  FakeReenactments reenactments_;
   std::unique_ptr<grpc::Server> server_;
   std::string address_;
   std::ostringstream out_, err_;
@@ -275,6 +323,38 @@ TEST_F(JobCommands, WatchShowAndCancel) {
   ASSERT_EQ(Run({"jobs", "cancel", "--job", "j-good"}), kExitOk);
   EXPECT_EQ(out_.str(), "job j-good cancelled\n");
   EXPECT_EQ(Run({"jobs", "cancel"}), kExitUsage);
+}
+
+// `jobs show` of a body job prints how well its fits explain each sensor and
+// the moments the sensors contradict them, from the reenactment's figures;
+// a reenactment that cannot be read leaves the job's lines alone.
+TEST_F(JobCommands, ShowPrintsTheFitDiagnosisOfTheReenactment) {
+  ASSERT_EQ(Run({"jobs", "show", "--job", "j-fit"}), kExitOk) << err_.str();
+  const std::string text = out_.str();
+  EXPECT_NE(
+      text.find("fit          sensor front: 97.3 % of its points explained (RMS 4.2 mm), 91 % "
+                "of the surface facing it seen"),
+      std::string::npos)
+      << text;
+  EXPECT_NE(text.find("sensor back: 80.1 %"), std::string::npos) << text;
+  EXPECT_NE(text.find("doubtful     5 frames in 2 spans"), std::string::npos) << text;
+  EXPECT_NE(text.find("   1.20 ..    1.40 s  frames 18-21: the fit explains 41 % of sensor "
+                      "back's points"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(text.find('\x1b'), std::string::npos) << "a reason is printed terminal-safe";
+
+  ASSERT_EQ(Run({"jobs", "show", "--job", "j-fit", "--json"}), kExitOk) << err_.str();
+  const auto json = nlohmann::json::parse(out_.str());
+  ASSERT_TRUE(json.contains("fit")) << json.dump();
+  EXPECT_EQ(json["fit"]["sensors"].size(), 2u);
+  EXPECT_NEAR(json["fit"]["sensors"][1]["surface_seen_fraction"].get<double>(), 0.55, 1e-9);
+  ASSERT_EQ(json["fit"]["doubtful_spans"].size(), 2u);
+  EXPECT_EQ(json["fit"]["doubtful_spans"][0]["last_frame"], 21);
+
+  ASSERT_EQ(Run({"jobs", "show", "--job", "j-gone"}), kExitOk) << err_.str();
+  EXPECT_NE(out_.str().find("reenactment  r-gone"), std::string::npos) << out_.str();
+  EXPECT_EQ(out_.str().find("fit "), std::string::npos) << out_.str();
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "clients/cli/commands.h"
+#include "clients/cli/fit_diagnosis.h"
 #include "clients/cli/progress_bar.h"
 #include "clients/cli/remote_flags.h"
 #include "clients/sdk/follow_stats.h"
@@ -57,6 +58,7 @@ nlohmann::json SummaryJson(const v1::ReenactmentSummary& s) {
       {"part_names", std::vector<std::string>(info.part_names().begin(), info.part_names().end())},
       {"sensor_count", info.sensors_size()},
       {"figures", figures},
+      {"fit", FitDiagnosisJson(info)},
       {"part_count", s.part_count()},
       {"keyframe_count", s.keyframe_count()},
       {"file_bytes", s.file_bytes()}};
@@ -141,8 +143,9 @@ void PrintSummary(const v1::ReenactmentSummary& s, const BodyFacts* body, std::o
     out << "option      " << TerminalSafe(key) << " = " << TerminalSafe(value) << "\n";
   }
   for (const auto& [key, value] : info.figures()) {
-    out << "figure      " << key << " = " << value << "\n";
+    out << "figure      " << TerminalSafe(key) << " = " << value << "\n";
   }
+  PrintFitDiagnosis(info, out);
 }
 
 // `reenact export --format glb`: the .glb of `data` at `path`.

@@ -54,7 +54,8 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
                              "skeleton-limb-noise-mm",
                              "skeleton-arm-swaps",
                              "skeleton-leg-drop-s",
-                             "skeleton-lock-on-s"},
+                             "skeleton-lock-on-s",
+                             "calibration-error-cm"},
                             {"json", "quiet", "no-depth-noise", "no-mesh"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   synth::SynthOptions options;
@@ -77,12 +78,27 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   auto arm_swaps = flags->GetDouble("skeleton-arm-swaps", 0.0);
   auto leg_drop_s = flags->GetDouble("skeleton-leg-drop-s", 0.0);
   auto lock_on_s = flags->GetDouble("skeleton-lock-on-s", 0.0);
-  for (const absl::Status& s :
-       {out_path.status(), motion.status(), sensors.status(), seconds.status(), fps.status(),
-        width.status(), height.status(), quality.status(), distance.status(), yaw_deg.status(),
-        lead_in_s.status(), board_x_m.status(), board_z_m.status(), board_yaw_deg.status(),
-        metres_per_unit.status(), limb_noise_mm.status(), arm_swaps.status(), leg_drop_s.status(),
-        lock_on_s.status()}) {
+  auto calibration_error_cm = flags->GetDouble("calibration-error-cm", 0.0);
+  for (const absl::Status& s : {out_path.status(),
+                                motion.status(),
+                                sensors.status(),
+                                seconds.status(),
+                                fps.status(),
+                                width.status(),
+                                height.status(),
+                                quality.status(),
+                                distance.status(),
+                                yaw_deg.status(),
+                                lead_in_s.status(),
+                                board_x_m.status(),
+                                board_z_m.status(),
+                                board_yaw_deg.status(),
+                                metres_per_unit.status(),
+                                limb_noise_mm.status(),
+                                arm_swaps.status(),
+                                leg_drop_s.status(),
+                                lock_on_s.status(),
+                                calibration_error_cm.status()}) {
     if (!s.ok()) return ReportError(s, err);
   }
   if (flags->Has("metres-per-unit") && !(*metres_per_unit > 0)) {
@@ -126,6 +142,7 @@ int RunSynth(const std::vector<std::string>& args, std::ostream& out, std::ostre
   options.skeleton_errors.arm_swap_fraction = *arm_swaps;
   options.skeleton_errors.leg_drop_s = *leg_drop_s;
   options.skeleton_errors.lock_on_s = *lock_on_s;
+  options.calibration_error_m = *calibration_error_cm * 1e-2;
   options.ground_truth_mesh = !flags->Has("no-mesh");
   const bool json = flags->Has("json");
   ProgressBar bar(err, !json && !flags->Has("quiet"));

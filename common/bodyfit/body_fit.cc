@@ -196,6 +196,105 @@ std::vector<int> SamplePoints(size_t size, int count, int phase) {
   return out;
 }
 
+// Ranges of one sensor's points along lines of sight from its centre, on a
+// grid over the tangent plane of its mean viewing direction (cells of
+// kSightCell, about 3 cm at 3 m): per cell, the range of the nearest
+// point. Lets DiagnoseFit tell a vertex the sensor saw from one hidden
+// behind what it saw and from one where it saw nothing.
+class SightGrid {
+ public:
+  static constexpr double kSightCell = 0.01;  // Radians (tangent units).
+  static constexpr int kMaxSide = 1024;
+
+  SightGrid(const Eigen::Vector3d& centre, const PointCloud& cloud, size_t begin, size_t end)
+      : centre_(centre) {
+    Eigen::Vector3d forward = Eigen::Vector3d::Zero();
+    for (size_t i = begin; i < end; ++i) {
+      forward += (cloud.points_m[i].cast<double>() - centre).normalized();
+    }
+    if (!(forward.norm() > 1e-9)) return;
+    forward.normalize();
+    Eigen::Index least = 0;
+    forward.cwiseAbs().minCoeff(&least);
+    right_ = forward.cross(Eigen::Vector3d::Unit(least)).normalized();
+    up_ = forward.cross(right_);
+    forward_ = forward;
+    Eigen::Vector2d low = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d high = -low;
+    for (size_t i = begin; i < end; ++i) {
+      Eigen::Vector2d t;
+      if (!Tangent(cloud.points_m[i].cast<double>(), &t)) continue;
+      low = low.cwiseMin(t);
+      high = high.cwiseMax(t);
+    }
+    if (!(low.x() <= high.x())) return;
+    cell_ = kSightCell;
+    // Stray points far off spread the grid: coarser cells, not a huge grid.
+    while ((high - low).maxCoeff() / cell_ + 3 > kMaxSide) cell_ *= 2.0;
+    origin_ = low - Eigen::Vector2d::Constant(cell_);
+    width_ = static_cast<int>((high.x() - origin_.x()) / cell_) + 2;
+    height_ = static_cast<int>((high.y() - origin_.y()) / cell_) + 2;
+    nearest_.assign(static_cast<size_t>(width_) * height_, std::numeric_limits<double>::infinity());
+    for (size_t i = begin; i < end; ++i) {
+      const Eigen::Vector3d p = cloud.points_m[i].cast<double>();
+      Eigen::Vector2d t;
+      if (!Tangent(p, &t)) continue;
+      double& r = nearest_[Index(CellOf(t))];
+      r = std::min(r, (p - centre_).norm());
+    }
+  }
+
+  bool usable() const { return width_ > 0; }
+
+  // How the sensor's view meets a surface point at `p` (range r): hidden
+  // behind a nearer point of the same cell (-1), seen (a point within
+  // `tolerance_m` of r in its cell or a neighbouring one: 1), or not seen (0).
+  int Meet(const Eigen::Vector3d& p, double tolerance_m) const {
+    Eigen::Vector2d t;
+    if (!Tangent(p, &t)) return 0;
+    const Eigen::Vector2i c = CellOf(t);
+    const double r = (p - centre_).norm();
+    if (Inside(c) && nearest_[Index(c)] < r - tolerance_m) return -1;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const Eigen::Vector2i q = c + Eigen::Vector2i(dx, dy);
+        if (Inside(q) && std::abs(nearest_[Index(q)] - r) <= tolerance_m) return 1;
+      }
+    }
+    return 0;
+  }
+
+ private:
+  bool Tangent(const Eigen::Vector3d& p, Eigen::Vector2d* t) const {
+    const Eigen::Vector3d d = p - centre_;
+    const double z = d.dot(forward_);
+    if (!(z > 0.05)) return false;
+    *t = Eigen::Vector2d(d.dot(right_) / z, d.dot(up_) / z);
+    return true;
+  }
+  Eigen::Vector2i CellOf(const Eigen::Vector2d& t) const {
+    const Eigen::Vector2d g = (t - origin_) / cell_;
+    return Eigen::Vector2i(static_cast<int>(std::clamp(std::floor(g.x()), -2.0, width_ + 1.0)),
+                           static_cast<int>(std::clamp(std::floor(g.y()), -2.0, height_ + 1.0)));
+  }
+  bool Inside(const Eigen::Vector2i& c) const {
+    return c.x() >= 0 && c.y() >= 0 && c.x() < width_ && c.y() < height_;
+  }
+  size_t Index(const Eigen::Vector2i& c) const {
+    return static_cast<size_t>(c.y()) * width_ + c.x();
+  }
+
+  Eigen::Vector3d centre_;
+  Eigen::Vector3d forward_ = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d right_ = Eigen::Vector3d::UnitX();
+  Eigen::Vector3d up_ = Eigen::Vector3d::UnitY();
+  Eigen::Vector2d origin_ = Eigen::Vector2d::Zero();
+  double cell_ = kSightCell;
+  int width_ = 0;
+  int height_ = 0;
+  std::vector<double> nearest_;  // Per cell; infinity where the sensor saw nothing.
+};
+
 // ExplainPose's figures for a posed mesh: over `sample` points of the cloud
 // from `phase` (-1: every point).
 Explanation Explain(const Eigen::Matrix3Xd& posed, const Eigen::Matrix3Xd& normals,
@@ -668,6 +767,67 @@ Explanation BodyFitter::ExplainPose(const body::BodyPose& pose, const PointCloud
   Eigen::Matrix3Xd posed, normals;
   PoseMesh(pose, &posed, &normals);
   return Explain(posed, normals, cloud, options_, sample, 0);
+}
+
+std::vector<SensorDiagnosis> BodyFitter::DiagnoseFit(const FrameFit& fit, const PointCloud& cloud,
+                                                     const std::vector<SensorView>& sensors) const {
+  std::vector<SensorDiagnosis> out;
+  if (fit.vertices_m.cols() == 0) return out;
+  Eigen::Matrix3Xd posed = fit.vertices_m;
+  if (fit.offsets_m.cols() == posed.cols()) posed += fit.offsets_m;
+  Eigen::Matrix3Xd normals;
+  VertexNormals(posed, data_->triangles, &normals);
+  Eigen::VectorXd area = Eigen::VectorXd::Zero(posed.cols());
+  for (const Eigen::Vector3i& t : data_->triangles) {
+    const double third =
+        (posed.col(t[1]) - posed.col(t[0])).cross(posed.col(t[2]) - posed.col(t[0])).norm() / 6.0;
+    for (int c = 0; c < 3; ++c) area[t[c]] += third;
+  }
+  const double reach = options_.explained_m;
+  const VertexGrid grid(posed, normals, reach);
+  // A vertex faces a sensor when its normal is within about 70 degrees of
+  // the line of sight: grazing surface is seen at random.
+  constexpr double kFacingCos = 0.35;
+  for (const PointCloud::SensorRange& range : cloud.sensor_ranges) {
+    if (range.sensor < 0 || static_cast<size_t>(range.sensor) >= sensors.size() ||
+        range.begin > range.end || range.end > cloud.size()) {
+      continue;
+    }
+    SensorDiagnosis d;
+    d.sensor = range.sensor;
+    double sum2 = 0.0;
+    for (size_t i = range.begin; i < range.end; ++i) {
+      const Eigen::Vector3d z = cloud.points_m[i].cast<double>();
+      ++d.points;
+      const int v = grid.Nearest(z, cloud.normals[i].cast<double>(), options_.normal_epsilon, reach,
+                                 options_.min_normal_dot);
+      if (v < 0) continue;
+      ++d.explained;
+      const double plane = normals.col(v).dot(z - posed.col(v));
+      sum2 += plane * plane;
+    }
+    d.rms_mm = d.explained > 0 ? 1000.0 * std::sqrt(sum2 / d.explained) : 0.0;
+    const SensorView& view = sensors[range.sensor];
+    const Eigen::Vector3d& centre = view.centre_m;
+    const SightGrid sight(centre, cloud, range.begin, range.end);
+    if (sight.usable()) {
+      for (Eigen::Index v = 0; v < posed.cols(); ++v) {
+        const Eigen::Vector3d to_sensor = centre - posed.col(v);
+        if (normals.col(v).dot(to_sensor) < kFacingCos * to_sensor.norm()) continue;
+        if (view.sees && !view.sees(posed.col(v))) continue;
+        const int meet = sight.Meet(posed.col(v), reach);
+        if (meet < 0) continue;
+        ++d.facing_vertices;
+        d.facing_area_m2 += area[v];
+        if (meet > 0) {
+          ++d.seen_vertices;
+          d.seen_area_m2 += area[v];
+        }
+      }
+    }
+    out.push_back(d);
+  }
+  return out;
 }
 
 absl::StatusOr<FrameFit> BodyFitter::FitFrame(const FitInput& input, const body::BodyPose& initial,

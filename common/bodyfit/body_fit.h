@@ -71,6 +71,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -90,6 +91,15 @@ namespace reenact::bodyfit {
 struct PointCloud {
   std::vector<Eigen::Vector3f> points_m;
   std::vector<Eigen::Vector3f> normals;
+  // Which sensor saw which points: points [begin, end) of each range came
+  // from `sensor` (the take's sensor index), ranges in order; empty when
+  // unknown.
+  struct SensorRange {
+    int sensor = 0;
+    size_t begin = 0;
+    size_t end = 0;
+  };
+  std::vector<SensorRange> sensor_ranges;
   size_t size() const { return points_m.size(); }
 };
 
@@ -182,6 +192,43 @@ struct Explanation {
   double fraction() const { return points > 0 ? static_cast<double>(explained) / points : 0.0; }
 };
 
+// How well a fitted surface explains one sensor's view (BodyFitter::
+// DiagnoseFit): its points within explained_m of a vertex (normal-aware,
+// Eq. 4.8) and their RMS distance to the vertices' tangent planes; and the
+// surface's vertices that face the sensor and are not hidden behind what it
+// saw, with those it saw (one of its points within explained_m). A vertex
+// whose line of sight holds no point of the sensor, or only points behind
+// it, is not seen: the model claims a surface where the sensor saw none.
+struct SensorDiagnosis {
+  int sensor = 0;  // PointCloud::SensorRange::sensor.
+  int points = 0;
+  int explained = 0;
+  double rms_mm = 0.0;  // Of the explained points.
+  int facing_vertices = 0;
+  int seen_vertices = 0;
+  // The same surface as area (a third of each adjacent triangle per
+  // vertex), m^2: a model's dense parts (face, fingers) count as much
+  // surface as they are, not as many vertices as they have.
+  double facing_area_m2 = 0.0;
+  double seen_area_m2 = 0.0;
+  double explained_fraction() const {
+    return points > 0 ? static_cast<double>(explained) / points : 0.0;
+  }
+  // 1 when no surface faces the sensor within its view: nothing there
+  // contradicts the fit.
+  double surface_seen_fraction() const {
+    return facing_area_m2 > 0 ? seen_area_m2 / facing_area_m2 : 1.0;
+  }
+};
+
+// A sensor as DiagnoseFit needs it: its optical centre (world frame) and
+// what its image holds (empty: everything), so that surface outside its
+// field of view is not taken for surface it failed to see.
+struct SensorView {
+  Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();
+  std::function<bool(const Eigen::Vector3d& point_m)> sees;
+};
+
 // Where a frame's fit started from (BodyFitter::FitNext).
 enum class Hypothesis {
   kFollowSkeleton,  // The previous fit carried to the skeleton.
@@ -271,6 +318,13 @@ class BodyFitter {
   // How well the model in `pose` (the current shape, no offsets) explains
   // `cloud` (Explanation; `sample` points spread over it, -1: all).
   Explanation ExplainPose(const body::BodyPose& pose, const PointCloud& cloud, int sample) const;
+
+  // Per sensor range of `cloud`, how well `fit` (its prediction plus its
+  // offsets) explains that sensor's points and view (SensorDiagnosis);
+  // `sensors[s]` is sensor s. Ranges naming a sensor not in `sensors` are
+  // left out.
+  std::vector<SensorDiagnosis> DiagnoseFit(const FrameFit& fit, const PointCloud& cloud,
+                                           const std::vector<SensorView>& sensors) const;
 
  private:
   // FitNext with hypotheses (options_.hypotheses, a previous fit and a

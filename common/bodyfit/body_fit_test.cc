@@ -1,6 +1,8 @@
 #include "common/bodyfit/body_fit.h"
 
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -337,6 +339,119 @@ TEST(BodyFitter, ExplainPoseCountsThePointsTheBodyLeavesUnexplained) {
               100.0 * off.fraction());
   EXPECT_LT(off.fraction(), right.fraction() - 0.03);
   EXPECT_GT(off.cost, 2 * right.cost);
+}
+
+// The points of `posed` a sensor at `centre` sees: the vertices facing it
+// (no self-occlusion: the poses below hide nothing), 2 mm noise.
+PointCloud SensorCloudOf(const body::PosedBody& posed, const Eigen::Vector3d& centre,
+                         std::mt19937* rng) {
+  const PointCloud all = CloudOf(posed, rng);
+  PointCloud cloud;
+  for (size_t i = 0; i < all.size(); ++i) {
+    const Eigen::Vector3d to_sensor = centre - all.points_m[i].cast<double>();
+    if (all.normals[i].cast<double>().dot(to_sensor) < 0.3 * to_sensor.norm()) continue;
+    cloud.points_m.push_back(all.points_m[i]);
+    cloud.normals.push_back(all.normals[i]);
+  }
+  cloud.sensor_ranges.push_back({0, 0, cloud.size()});
+  return cloud;
+}
+
+// DiagnoseFit: the true surface explains one sensor's points and is seen
+// where it faces the sensor; with the raised arm put down, the arm's points
+// go unexplained and the model's arm hangs where the sensor saw nothing. A
+// range of a sensor without a centre is left out, and an empty fit says
+// nothing.
+TEST(BodyFitter, DiagnoseFitTellsWhereTheSensorContradictsTheSurface) {
+  std::mt19937 rng(8);
+  body::BodyPose pose;
+  pose.local_rotation[body::Index(KinectV2Joint::kShoulderRight)] =
+      Eigen::Quaterniond(Eigen::AngleAxisd(-1.2, Eigen::Vector3d::UnitZ()));
+  const Eigen::VectorXd mean_shape = Eigen::VectorXd::Zero(Model().num_shape_components());
+  auto posed = body::PoseBody(Model(), pose, mean_shape);
+  ASSERT_TRUE(posed.ok());
+  const Eigen::Vector3d centre(0.3, 1.0, 2.5);
+  const PointCloud cloud = SensorCloudOf(*posed, centre, &rng);
+  auto fitter = BodyFitter::Create(Model(), {});
+  ASSERT_TRUE(fitter.ok());
+  FrameFit right;
+  right.vertices_m = posed->vertices_m;
+  const std::vector<SensorDiagnosis> good =
+      (*fitter)->DiagnoseFit(right, cloud, {{centre, nullptr}});
+  ASSERT_EQ(good.size(), 1u);
+  EXPECT_EQ(good[0].points, static_cast<int>(cloud.size()));
+
+  body::BodyPose down = pose;
+  down.local_rotation[body::Index(KinectV2Joint::kShoulderRight)] = Eigen::Quaterniond::Identity();
+  auto posed_down = body::PoseBody(Model(), down, mean_shape);
+  ASSERT_TRUE(posed_down.ok());
+  FrameFit wrong;
+  wrong.vertices_m = posed_down->vertices_m;
+  const std::vector<SensorDiagnosis> bad =
+      (*fitter)->DiagnoseFit(wrong, cloud, {{centre, nullptr}});
+  ASSERT_EQ(bad.size(), 1u);
+  std::printf(
+      "diagnosis of one sensor: the true surface explains %.1f%% of its points (RMS %.1f mm), "
+      "%.1f%% of the surface facing it seen (%d vertices); with the arm down %.1f%% and %.1f%%\n",
+      100.0 * good[0].explained_fraction(), good[0].rms_mm, 100.0 * good[0].surface_seen_fraction(),
+      good[0].facing_vertices, 100.0 * bad[0].explained_fraction(),
+      100.0 * bad[0].surface_seen_fraction());
+  EXPECT_GT(good[0].explained_fraction(), 0.97);
+  EXPECT_LT(good[0].rms_mm, 4.0);
+  EXPECT_GT(good[0].surface_seen_fraction(), 0.85);
+  EXPECT_LT(bad[0].explained_fraction(), good[0].explained_fraction() - 0.03);
+  EXPECT_LT(bad[0].surface_seen_fraction(), good[0].surface_seen_fraction() - 0.03);
+
+  // Surface outside the sensor's view is not judged.
+  const SensorView blind{centre, [](const Eigen::Vector3d&) { return false; }};
+  const std::vector<SensorDiagnosis> unseen = (*fitter)->DiagnoseFit(wrong, cloud, {blind});
+  ASSERT_EQ(unseen.size(), 1u);
+  EXPECT_EQ(unseen[0].facing_vertices, 0);
+  EXPECT_EQ(unseen[0].surface_seen_fraction(), 1.0);
+  EXPECT_EQ(unseen[0].explained, bad[0].explained);
+
+  PointCloud elsewhere = cloud;
+  elsewhere.sensor_ranges = {{3, 0, cloud.size()}, {0, cloud.size(), cloud.size() + 5}};
+  EXPECT_TRUE((*fitter)->DiagnoseFit(right, elsewhere, {{centre, nullptr}}).empty());
+  EXPECT_TRUE((*fitter)->DiagnoseFit(FrameFit{}, cloud, {{centre, nullptr}}).empty());
+}
+
+// A skeleton with NaN joints (a tracker's lost joints written as NaN): the
+// fit runs on what is finite and stays finite; a skeleton without a torso
+// and no previous fit gives nothing to start from, not an error.
+TEST(BodyFitter, NaNJointsInTheSkeletonAreLeftOut) {
+  std::mt19937 rng(12);
+  body::BodyPose pose;
+  pose.local_rotation[body::Index(KinectV2Joint::kElbowLeft)] =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitX()));
+  const Eigen::VectorXd mean_shape = Eigen::VectorXd::Zero(Model().num_shape_components());
+  auto posed = body::PoseBody(Model(), pose, mean_shape);
+  ASSERT_TRUE(posed.ok());
+  const PointCloud cloud = CloudOf(*posed, &rng);
+  FitInput input;
+  input.cloud = &cloud;
+  for (int j = 0; j < kJoints; ++j) input.skeleton_m[j] = posed->joints_m[j];
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (KinectV2Joint j : {KinectV2Joint::kWristLeft, KinectV2Joint::kKneeRight}) {
+    input.skeleton_m[body::Index(j)] = Eigen::Vector3d(nan, 0.0, nan);
+  }
+  BodyFitOptions options;
+  options.refine_vertices = false;
+  auto fitter = BodyFitter::Create(Model(), options);
+  ASSERT_TRUE(fitter.ok());
+  auto fit = (*fitter)->FitNext(input, nullptr);
+  ASSERT_TRUE(fit.ok()) << fit.status();
+  ASSERT_TRUE(fit->has_value());
+  EXPECT_TRUE((*fit)->fit.vertices_m.allFinite());
+  double sum = 0.0;
+  for (int j = 0; j < kJoints; ++j)
+    sum += 1000.0 * ((*fit)->fit.joints_m[j] - posed->joints_m[j]).norm();
+  EXPECT_LT(sum / kJoints, 15.0) << "mm";
+
+  input.skeleton_m[body::Index(KinectV2Joint::kSpineBase)] = Eigen::Vector3d::Constant(nan);
+  auto nothing = (*fitter)->FitNext(input, nullptr);
+  ASSERT_TRUE(nothing.ok()) << nothing.status();
+  EXPECT_FALSE(nothing->has_value());
 }
 
 TEST(BodyFitOptions, RejectsBadValues) {

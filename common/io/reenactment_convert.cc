@@ -63,6 +63,11 @@ absl::StatusOr<ReenactmentInfo> InfoFromProto(const v1::ReenactmentInfo& m) {
   }
   info.figures.insert(m.figures().begin(), m.figures().end());
   info.texture_mode = TextureModeFromProto(m.texture_mode());
+  info.doubtful_spans.reserve(static_cast<size_t>(m.doubtful_spans_size()));
+  for (const v1::DoubtfulSpan& span : m.doubtful_spans()) {
+    info.doubtful_spans.push_back(
+        {span.first_frame(), span.last_frame(), span.start_s(), span.end_s(), span.reason()});
+  }
   return info;
 }
 
@@ -82,6 +87,14 @@ v1::ReenactmentInfo InfoToProto(const ReenactmentInfo& info) {
   m.mutable_figures()->insert(info.figures.begin(), info.figures.end());
   m.set_texture_mode(info.texture_mode ? ToProto(*info.texture_mode)
                                        : v1::TEXTURE_MODE_UNSPECIFIED);
+  for (const DoubtfulSpan& span : info.doubtful_spans) {
+    v1::DoubtfulSpan* out = m.add_doubtful_spans();
+    out->set_first_frame(span.first_frame);
+    out->set_last_frame(span.last_frame);
+    out->set_start_s(span.start_s);
+    out->set_end_s(span.end_s);
+    out->set_reason(span.reason);
+  }
   return m;
 }
 
@@ -278,6 +291,11 @@ absl::StatusOr<BodyFramePose> BodyFramePoseFromProto(const v1::BodyPose& message
   ASSIGN_OR_RETURN(pose.vertex_offsets_50um, BodyPoseOffsets(message, num_vertices));
   pose.valid = message.valid();
   pose.point_rms_mm = message.point_rms_mm();
+  pose.sensor_fits.reserve(static_cast<size_t>(message.sensor_fits_size()));
+  for (const v1::SensorFit& fit : message.sensor_fits()) {
+    pose.sensor_fits.push_back({fit.sensor(), fit.points(), fit.explained_fraction(), fit.rms_mm(),
+                                fit.surface_seen_fraction()});
+  }
   return pose;
 }
 
@@ -286,6 +304,14 @@ v1::BodyPose BodyFramePoseToProto(const BodyFramePose& pose) {
   if (pose.vertex_offsets_50um.cols() > 0) SetBodyPoseOffsets(pose.vertex_offsets_50um, &m);
   m.set_valid(pose.valid);
   m.set_point_rms_mm(pose.point_rms_mm);
+  for (const SensorFit& fit : pose.sensor_fits) {
+    v1::SensorFit* out = m.add_sensor_fits();
+    out->set_sensor(fit.sensor);
+    out->set_points(fit.points);
+    out->set_explained_fraction(fit.explained_fraction);
+    out->set_rms_mm(fit.rms_mm);
+    out->set_surface_seen_fraction(fit.surface_seen_fraction);
+  }
   return m;
 }
 

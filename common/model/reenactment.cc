@@ -86,6 +86,41 @@ absl::Status CheckBody(const Reenactment& data) {
   return absl::OkStatus();
 }
 
+bool IsFraction(float x) { return x >= 0.0f && x <= 1.0f; }
+
+absl::Status CheckSensorFits(const std::vector<SensorFit>& fits, size_t sensors, size_t frame) {
+  for (const SensorFit& fit : fits) {
+    if (fit.sensor < 0 || static_cast<size_t>(fit.sensor) >= sensors) {
+      return Invalid(
+          absl::StrCat("frame ", frame, " has the fit of sensor ", fit.sensor, " of ", sensors));
+    }
+    if (fit.points < 0 || !IsFraction(fit.explained_fraction) ||
+        !IsFraction(fit.surface_seen_fraction) || !(fit.rms_mm >= 0.0f) ||
+        !std::isfinite(fit.rms_mm)) {
+      return Invalid(absl::StrCat("frame ", frame, " has a sensor fit out of range"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckDoubtfulSpans(const std::vector<DoubtfulSpan>& spans, size_t frames) {
+  int after = 0;  // The first frame a span may start at.
+  for (size_t k = 0; k < spans.size(); ++k) {
+    const DoubtfulSpan& span = spans[k];
+    if (span.first_frame < after || span.last_frame < span.first_frame ||
+        static_cast<size_t>(span.last_frame) >= frames) {
+      return Invalid(absl::StrCat("doubtful span ", k, " (frames ", span.first_frame, "..",
+                                  span.last_frame, ") is out of order or past the ", frames,
+                                  " frames"));
+    }
+    if (!std::isfinite(span.start_s) || !std::isfinite(span.end_s) || span.end_s < span.start_s) {
+      return Invalid(absl::StrCat("doubtful span ", k, " has bad times"));
+    }
+    after = span.last_frame + 1;
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::Status ValidateReenactment(const Reenactment& data) {
@@ -104,7 +139,11 @@ absl::Status ValidateReenactment(const Reenactment& data) {
       return Invalid(absl::StrCat("frame ", f, " has ", frame.joints_in_world_m.size(),
                                   " joints, expected 0 or 25"));
     }
+    if (frame.body.has_value()) {
+      RETURN_IF_ERROR(CheckSensorFits(frame.body->sensor_fits, data.info.sensors.size(), f));
+    }
   }
+  RETURN_IF_ERROR(CheckDoubtfulSpans(data.info.doubtful_spans, data.frames.size()));
   if (data.is_body()) return CheckBody(data);
   const size_t part_count = data.info.part_names.size();
   if (part_count == 0) return Invalid("no part names");

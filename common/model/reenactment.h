@@ -31,6 +31,15 @@
 
 namespace reenact {
 
+// Consecutive instants a method does not vouch for (DoubtfulSpan).
+struct DoubtfulSpan {
+  int first_frame = 0;   // Inclusive.
+  int last_frame = 0;    // Inclusive.
+  double start_s = 0.0;  // Take-timeline seconds from the first instant.
+  double end_s = 0.0;
+  std::string reason;  // For people.
+};
+
 // What a reenactment is and how it was made (ReenactmentInfo).
 struct ReenactmentInfo {
   std::string reenactment_id;
@@ -48,6 +57,8 @@ struct ReenactmentInfo {
   // How its texture is chosen when drawn; nullopt in files written before
   // the field existed (viewers then go by the method).
   std::optional<methods::TextureMode> texture_mode;
+  // In frame order, not overlapping; empty: none judged doubtful.
+  std::vector<DoubtfulSpan> doubtful_spans;
 };
 
 // One rigid part's mesh in its own frame, metres (PartMesh).
@@ -78,6 +89,15 @@ struct PartPose {
   Eigen::Affine3d WorldFromPartScaled() const;
 };
 
+// How well a body fit explains one sensor's view at one instant (SensorFit).
+struct SensorFit {
+  int sensor = 0;                      // Index into ReenactmentInfo::sensors.
+  int points = 0;                      // The sensor's actor points.
+  float explained_fraction = 0.0f;     // Of them, within explained_m of the surface.
+  float rms_mm = 0.0f;                 // Of the explained ones, to the surface.
+  float surface_seen_fraction = 0.0f;  // Of the surface facing it, confirmed by its points.
+};
+
 // A body-model reenactment's pose at one instant (thesis 4.3): the model's
 // joint rotations and root translation, and the optional free-form vertex
 // offsets, kept at the resolution the file stores (0.05 mm steps).
@@ -85,8 +105,9 @@ struct BodyFramePose {
   body::BodyPose pose;
   // 3 x V, in units of 0.05 mm; empty: no offsets.
   Eigen::Matrix<int16_t, 3, Eigen::Dynamic> vertex_offsets_50um;
-  bool valid = false;         // False: the body is hidden at this instant.
-  float point_rms_mm = 0.0f;  // The fit's residual, as the method measured it.
+  bool valid = false;                  // False: the body is hidden at this instant.
+  float point_rms_mm = 0.0f;           // The fit's residual, as the method measured it.
+  std::vector<SensorFit> sensor_fits;  // Per sensor that saw the instant.
 
   // The offsets in metres (3 x V), or an empty matrix.
   Eigen::Matrix3Xd OffsetsMetres() const;

@@ -412,6 +412,9 @@ absl::Status SynthOptions::Validate() const {
         "skeleton errors: limb noise within [0, 1] m, arm swaps a fraction within [0, 1], a leg "
         "drop and a lock-on time within [0, 3600] s");
   }
+  if (!(calibration_error_m >= 0 && calibration_error_m <= 2)) {
+    return absl::InvalidArgumentError("the calibration error must be within [0, 2] m");
+  }
   if (skeleton_errors.any() && sensor_skeleton != SensorSkeleton::kTruth) {
     return absl::InvalidArgumentError(
         "skeleton errors perturb the sensors' skeletons: they need --sensor-skeleton truth");
@@ -734,7 +737,12 @@ absl::Status SynthesizeInto(const SynthOptions& options, const std::string& path
   const int64_t start_ns = (WallNowNs() / kNanosPerSecond) * kNanosPerSecond;
   ASSIGN_OR_RETURN(auto writer, TakeWriter::Open(path, MakeTakeInfo(options, path, start_ns)));
   for (const VirtualSensor& sensor : sensors) {
-    RETURN_IF_ERROR(writer->AddSensor(MakeCalibration(sensor, options.fps)));
+    v1::SensorCalibration calibration = MakeCalibration(sensor, options.fps);
+    if (&sensor == &sensors.back() && options.calibration_error_m > 0) {
+      v1::Vector3* t = calibration.mutable_world_from_depth()->mutable_translation_m();
+      t->set_x(t->x() + options.calibration_error_m);
+    }
+    RETURN_IF_ERROR(writer->AddSensor(calibration));
   }
   RETURN_IF_ERROR(WriteTopology(writer.get(), actor.model, scene.body_texture, options));
 

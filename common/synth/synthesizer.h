@@ -73,6 +73,10 @@ struct SynthOptions {
     }
   };
   SkeletonErrors skeleton_errors;
+  // The last sensor's stored calibration is this far off its true pose,
+  // metres along world +X (a rig knocked after it was calibrated); what the
+  // sensors see stays true. Within [0, 2].
+  double calibration_error_m = 0.0;
   bool center_motion = true;  // Centre the motion's mean floor position on the origin.
   // Turns the whole performance about the vertical (+Y) through the world
   // origin (after centring), degrees, counter-clockwise seen from above: the

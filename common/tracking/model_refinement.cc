@@ -21,7 +21,7 @@ struct PersonState {
 };
 
 bodyfit::PointCloud ToCloud(const PersonCloud& cloud) {
-  return bodyfit::PointCloud{cloud.points_m, cloud.normals};
+  return bodyfit::PointCloud{cloud.points_m, cloud.normals, {}};
 }
 
 bodyfit::SkeletonJoints ToSkeleton(const TrackedPerson& person) {

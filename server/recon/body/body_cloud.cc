@@ -40,11 +40,13 @@ absl::StatusOr<bodyfit::PointCloud> CloudBuilder::Build(int instant) const {
     surface_options.step = options_.step;
     ASSIGN_OR_RETURN(const carving::SurfaceMap surface,
                      carving::BuildSurfaceMap(cameras_[s], depth, &actor, surface_options));
+    const size_t begin = cloud.size();
     for (size_t i = 0; i < surface.points_in_world_m.size(); ++i) {
       if (!surface.HasPoint(i) || !surface.HasNormal(i)) continue;
       cloud.points_m.push_back(surface.points_in_world_m[i]);
       cloud.normals.push_back(surface.normals_in_world[i]);
     }
+    cloud.sensor_ranges.push_back({s, begin, cloud.size()});
   }
   return cloud;
 }

@@ -23,8 +23,10 @@
 #include "common/io/reenactment_convert.h"
 #include "reenact/v1/segments.pb.h"
 #include "server/recon/body/body_cloud.h"
+#include "server/recon/body/body_diagnosis.h"
 #include "server/recon/body/body_texturing.h"
 #include "server/recon/body/live_body.h"
+#include "server/recon/carving/sensor_frame.h"
 #include "server/recon/method_util.h"
 
 namespace reenact::recon {
@@ -62,6 +64,8 @@ struct FrameFits {
   int unexplained = 0;         // Fits below kMinExplainedFraction (marked invalid).
   std::array<int, bodyfit::kNumHypotheses> hypotheses{};  // Fits kept, by their start.
   int backward = 0;  // Fits kept from the backward pass (FitBackward).
+  // Per instant, how its fit explains each sensor's view (DiagnoseFits).
+  std::vector<std::vector<bodyfit::SensorDiagnosis>> diagnoses;
 };
 
 // How the atlas was made.
@@ -270,6 +274,36 @@ absl::Status FitBackward(const TakeFrames& take, const std::vector<bodyfit::Poin
   return absl::OkStatus();
 }
 
+// How each kept fit of [first, end) explains each sensor's view
+// (BodyFitter::DiagnoseFit), in parallel.
+absl::Status DiagnoseFits(const TakeFrames& take, const std::vector<bodyfit::PointCloud>& clouds,
+                          const bodyfit::BodyFitter& fitter, int first, int end, FrameFits* out) {
+  // Each sensor's centre and what its depth image holds.
+  std::vector<std::shared_ptr<const carving::PosedCamera>> cameras;
+  std::vector<bodyfit::SensorView> views;
+  for (const TakeSensor& sensor : take.sensors()) {
+    ASSIGN_OR_RETURN(
+        carving::PosedCamera camera,
+        carving::PosedCamera::Create(sensor.depth_intrinsics, sensor.world_from_depth));
+    auto shared = std::make_shared<const carving::PosedCamera>(std::move(camera));
+    bodyfit::SensorView view;
+    view.centre_m = sensor.world_from_depth.translation;
+    view.sees = [shared](const Eigen::Vector3d& p) {
+      Eigen::Vector2f pixel;
+      return shared->ProjectCameraPoint(shared->ToCamera(p.cast<float>()), &pixel) &&
+             pixel.x() >= 0 && pixel.y() >= 0 && pixel.x() < shared->width() &&
+             pixel.y() < shared->height();
+    };
+    views.push_back(std::move(view));
+  }
+  out->diagnoses.assign(out->fits.size(), {});
+  take.pool().ParallelFor(first, end, [&](int i) {
+    if (!out->fits[i]) return;
+    out->diagnoses[i] = fitter.DiagnoseFit(*out->fits[i], clouds[i], views);
+  });
+  return absl::OkStatus();
+}
+
 // The instants of `range` in order, each from the previous fit (Eq. 4.6
 // against it), beginning at range.warmup_first; the fits before range.first
 // only carry the motion into the range and are neither kept nor counted.
@@ -308,6 +342,7 @@ absl::StatusOr<FrameFits> FitFrames(const TakeFrames& take,
     out.fits[i] = std::move(fit);
   }
   if (look_ahead) RETURN_IF_ERROR(FitBackward(take, clouds, fitter, range, &out));
+  RETURN_IF_ERROR(DiagnoseFits(take, clouds, fitter, range.first, range.end, &out));
   RETURN_IF_ERROR(stages.Report("fit", total, total));
   return out;
 }
@@ -344,6 +379,13 @@ std::vector<std::optional<ReenactmentFrame>> FittedFrames(const TakeFrames& take
     const int index = static_cast<int>(i);
     const bool explained = fits.fits[i]->explained_fraction >= kMinExplainedFraction;
     frames[i] = BodyFrame(index, take.instant(index).stamp_ns, *fits.fits[i], explained);
+    if (i < fits.diagnoses.size()) {
+      for (const bodyfit::SensorDiagnosis& d : fits.diagnoses[i]) {
+        frames[i]->body->sensor_fits.push_back(
+            {d.sensor, d.points, static_cast<float>(d.explained_fraction()),
+             static_cast<float>(d.rms_mm), static_cast<float>(d.surface_seen_fraction())});
+      }
+    }
   }
   return frames;
 }
@@ -411,11 +453,17 @@ Reenactment AssembleReenactment(const TakeFrames& take, const body::BodyModel& m
     frame.frame_index = i;
     frame.stamp_ns = take.instant(i).stamp_ns;
     frame.body->valid = false;
+    frame.body->sensor_fits.clear();
     data.frames.push_back(std::move(frame));
   }
   ReenactmentInfo& info = data.info;
   info.fps = take.fps();
   auto& figures = info.figures;
+  // Where the sensors contradict the fits (body_diagnosis.h).
+  std::vector<std::string> sensor_ids;
+  for (const TakeSensor& sensor : take.sensors()) sensor_ids.push_back(sensor.sensor_id);
+  info.doubtful_spans = FindDoubtfulSpans(data.frames, sensor_ids);
+  AddDiagnosisFigures(data.frames, sensor_ids, info.doubtful_spans, &figures);
   figures["fitted_frames"] = fits.fitted;
   figures["reinitialised_frames"] = fits.reinitialised;
   figures["point_rms_mm"] = fits.rms_sum / fits.fitted;

@@ -50,6 +50,17 @@
 // them as unknown) and hypothesis_<start> (how many kept fits started from
 // each hypothesis of bodyfit::FitNext: follow_skeleton, previous,
 // arms_swapped, legs_swapped, skeleton).
+//
+// The diagnosis (body_diagnosis.h): every fitted frame carries, per sensor
+// that saw it, how well its fit explains that sensor's view
+// (BodyPose.sensor_fits: points, share explained, their RMS, share of the
+// fitted surface facing the sensor that the sensor saw;
+// bodyfit::BodyFitter::DiagnoseFit); the figures give each sensor's means
+// ("sensor.ID.explained_fraction", "sensor.ID.rms_mm",
+// "sensor.ID.surface_seen_fraction") and the doubtful frames; and the
+// reenactment lists the spans of frames a sensor contradicts
+// (ReenactmentInfo.doubtful_spans, with the reason), which
+// `reenact jobs show` prints.
 #pragma once
 
 #include <cstdint>

@@ -40,6 +40,15 @@ absl::Status LiveBodyOptions::Read(methods::OptionReader& reader) {
                     "live: frame sets between the samples the shape is fitted on");
 }
 
+bodyfit::BodyFitOptions LiveFitOptions() {
+  bodyfit::BodyFitOptions o;
+  o.refine_vertices = false;
+  o.max_points = 600;
+  o.rounds = 2;
+  o.iterations_per_round = 4;
+  return o;
+}
+
 LiveBodyFollower::LiveBodyFollower() : state_(std::make_unique<State>()) {}
 LiveBodyFollower::~LiveBodyFollower() { WaitForShape(); }
 
@@ -52,7 +61,7 @@ absl::StatusOr<std::unique_ptr<LiveBodyFollower>> LiveBodyFollower::Create(
     const std::map<std::string, std::string>& options,
     const std::vector<std::string>& asset_roots) {
   BodyMethodOptions o;
-  o.fit.refine_vertices = false;  // The preview carries poses only.
+  o.fit = LiveFitOptions();
   std::unique_ptr<LiveBodyFollower> follower(new LiveBodyFollower());
   State& s = *follower->state_;
   {

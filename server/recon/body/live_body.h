@@ -22,6 +22,7 @@
 
 #include "absl/status/statusor.h"
 #include "common/body/body_model.h"
+#include "common/bodyfit/body_fit.h"
 #include "common/methods/option_reader.h"
 #include "common/model/reenactment.h"
 #include "common/model/sensor_calibration.h"
@@ -38,6 +39,13 @@ struct LiveBodyOptions {
   absl::Status Read(methods::OptionReader& reader);
   absl::Status Validate() const { return absl::OkStatus(); }
 };
+
+// The fit a live follow runs: the method's defaults made lighter so that a
+// FrameSet is fitted within 20 ms on one core (body_fit_bench
+// BM_LiveFitNext): step 2 off (the preview carries poses only), fewer
+// points per round, fewer rounds and iterations. Hypotheses stay on. A
+// job's options still override each.
+bodyfit::BodyFitOptions LiveFitOptions();
 
 // What one FrameSet produced.
 struct LiveUpdate {

@@ -24,9 +24,9 @@ inline std::vector<std::string> SplitList(const std::string& text) {
 
 // The flags every such command reads (their names, for Flags::Parse:
 // kTakeFlags) and their values.
-inline const std::set<std::string> kTakeFlags = {
-    "seconds", "fps", "every", "color-width", "color-height", "shape", "work", "data", "json",
-    "option"};
+inline const std::set<std::string> kTakeFlags = {"seconds",      "fps",   "every", "color-width",
+                                                 "color-height", "shape", "work",  "data",
+                                                 "json",         "option"};
 struct TakeSettings {
   double seconds = 2.0;
   double fps = 15.0;

@@ -52,12 +52,16 @@ std::vector<Command> BuildCommandTable() {
        "(JPEG bytes), with the frame's stamps and the sensor's calibration",
        RunTakeFrame},
       {{"import"},
-       "FILE|DIR --out take.mcap [--format azure-mkv|tum|oni] [--max-frames N] "
-       "[--intrinsics FILE] [--sensor-id ID] [--jpeg-quality Q] [--name NAME] [--quiet] [--json]",
+       "FILE|DIR --out take.mcap [--format azure-mkv|tum|oni|depth-png] [--max-frames N] "
+       "[--intrinsics FILE] [--depth-units-per-m U] [--fps F] [--sensor-id ID] "
+       "[--jpeg-quality Q] [--name NAME] [--quiet] [--json]",
        "a recording made by another tool as a take: an Azure Kinect .mkv (k4arecorder; its "
        "calibration.json), a TUM RGB-D folder (rgb.txt, depth.txt; default intrinsics fx=fy=525, "
-       "cx=319.5, cy=239.5 unless --intrinsics \"fx fy cx cy [d0..d4]\"), or an OpenNI2 .oni; the "
-       "format follows from the name unless --format",
+       "cx=319.5, cy=239.5 unless --intrinsics \"fx fy cx cy [d0..d4]\"), an OpenNI2 .oni, or a "
+       "folder of 16-bit depth PNGs with no colour (frames named in order, or in frames/; "
+       "millimetres unless --depth-units-per-m; the lens from --intrinsics or the folder's "
+       "meta.json; --fps, default meta.json's or 30); the format follows from the path unless "
+       "--format",
        RunImport},
       {{"take", "skeletons"},
        "TAKE.mcap --truth SYNTH.mcap [--track [--model F.onnx | --forest F] [--refine]] [--json]",

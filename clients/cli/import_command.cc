@@ -1,5 +1,7 @@
 // `reenact import`: a recording made by another tool (Azure Kinect .mkv, TUM
-// RGB-D folder, OpenNI2 .oni) as a take (common/io/recordings).
+// RGB-D folder, OpenNI2 .oni, a folder of depth PNGs) as a take
+// (common/io/recordings).
+#include <functional>
 #include <ostream>
 
 #include <nlohmann/json.hpp>
@@ -11,11 +13,24 @@
 #include "common/io/recordings/recording_import.h"
 
 namespace reenact::cli {
+namespace {
+
+// Prints "imported N of M frames" to `err` every 30 frames.
+std::function<void(int64_t)> ProgressPrinter(std::ostream& err, int64_t total) {
+  return [&err, total](int64_t frames) {
+    if (frames % 30 != 0) return;
+    err << "\rimported " << frames << (total > 0 ? absl::StrCat(" of ", total) : "") << " frames"
+        << std::flush;
+  };
+}
+
+}  // namespace
 
 int RunImport(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(
-      args, {"out", "format", "max-frames", "intrinsics", "sensor-id", "jpeg-quality", "name"},
-      {"quiet", "json"});
+  auto flags = Flags::Parse(args,
+                            {"out", "format", "max-frames", "intrinsics", "sensor-id",
+                             "jpeg-quality", "name", "depth-units-per-m", "fps"},
+                            {"quiet", "json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto out_path = flags->Required("out");
   if (!out_path.ok()) return ReportError(out_path.status(), err);
@@ -42,11 +57,30 @@ int RunImport(const std::vector<std::string>& args, std::ostream& out, std::ostr
   }
   recordings::RecordingOptions options;
   options.intrinsics_path = flags->GetOr("intrinsics", "");
-  if (!options.intrinsics_path.empty() && *format != recordings::RecordingFormat::kTum) {
+  auto units = flags->GetDouble("depth-units-per-m", 0.0);
+  if (!units.ok()) return ReportError(units.status(), err);
+  auto fps = flags->GetDouble("fps", 0.0);
+  if (!fps.ok()) return ReportError(fps.status(), err);
+  options.depth_units_per_m = *units;
+  options.fps = *fps;
+  const bool folder = *format == recordings::RecordingFormat::kTum ||
+                      *format == recordings::RecordingFormat::kDepthFolder;
+  if ((flags->Has("intrinsics") || flags->Has("depth-units-per-m")) && !folder) {
+    return ReportError(absl::InvalidArgumentError(
+                           "--intrinsics and --depth-units-per-m apply to TUM and depth-png "
+                           "folders (the other formats carry their own calibration)"),
+                       err);
+  }
+  if (flags->Has("fps") && *format != recordings::RecordingFormat::kDepthFolder) {
     return ReportError(
-        absl::InvalidArgumentError("--intrinsics applies to TUM folders (the other formats carry "
-                                   "their own calibration)"),
+        absl::InvalidArgumentError("--fps applies to depth-png folders (the others are stamped)"),
         err);
+  }
+  if (*units != 0 && !(*units >= 1 && *units <= 1e6)) {
+    return ReportError(absl::InvalidArgumentError("--depth-units-per-m must be in [1, 10^6]"), err);
+  }
+  if (!(*fps >= 0 && *fps <= 1000)) {
+    return ReportError(absl::InvalidArgumentError("--fps must be in (0, 1000]"), err);
   }
   auto reader = recordings::OpenRecording(source, *format, options);
   if (!reader.ok()) {
@@ -60,46 +94,39 @@ int RunImport(const std::vector<std::string>& args, std::ostream& out, std::ostr
   import.take_name = flags->GetOr("name", "");
   const bool quiet = flags->Has("quiet") || flags->Has("json");
   const int64_t total = (*reader)->info().frame_count;
-  if (!quiet) {
-    import.progress = [&err, total ](int64_t frames) {
-      if (frames % 30 == 0) {
-        err << "\rimported " << frames << (total > 0 ? absl::StrCat(" of ", total) : "")
-            << " frames" << std::flush;
+  if (!quiet) import.progress = ProgressPrinter(err, total);
+  absl::StatusOr<recordings::ImportReport> report =
+      recordings::ImportRecording(**reader, *out_path, import);
+  if (!quiet) err << "\n";
+  if (!report.ok()) {
+    err << "reenact: import of " << source << " failed: " << report.status().message() << "\n";
+    return kExitFailure;
   }
-};
-}  // namespace reenact::cli
-absl::StatusOr<recordings::ImportReport> report =
-    recordings::ImportRecording(**reader, *out_path, import);
-if (!quiet) err << "\n";
-if (!report.ok()) {
-  err << "reenact: import of " << source << " failed: " << report.status().message() << "\n";
-  return kExitFailure;
-}
-const recordings::RecordingInfo& info = (*reader)->info();
-nlohmann::json j = {
-    {"source", source},
-    {"format", recordings::FormatName(*format)},
-    {"out", *out_path},
-    {"sensor", report->sensor_id},
-    {"frames", report->frames},
-    {"frames_with_color", report->frames_with_color},
-    {"duration_s", (report->last_stamp_ns - report->first_stamp_ns) * 1e-9},
-    {"fps", info.nominal_fps},
-    {"depth", {info.depth_lens.pinhole.width, info.depth_lens.pinhole.height}},
-    {"color",
-     {info.has_color ? info.color_lens.pinhole.width : 0,
-      info.has_color ? info.color_lens.pinhole.height : 0}},
-    {"lens_fit_px", {{"depth", report->depth_lens_fit_px}, {"color", report->color_lens_fit_px}}},
-    {"calibration", info.calibration_note}};
-if (flags->Has("json")) {
-  out << j.dump(2) << "\n";
-} else {
-  out << "wrote " << *out_path << ": " << report->frames << " frames (" << report->frames_with_color
-      << " with colour) of sensor " << report->sensor_id << " from "
-      << recordings::FormatName(*format) << " " << source << "\n  " << info.calibration_note
-      << "\n";
-}
-return kExitOk;
+  const recordings::RecordingInfo& info = (*reader)->info();
+  nlohmann::json j = {
+      {"source", source},
+      {"format", recordings::FormatName(*format)},
+      {"out", *out_path},
+      {"sensor", report->sensor_id},
+      {"frames", report->frames},
+      {"frames_with_color", report->frames_with_color},
+      {"duration_s", (report->last_stamp_ns - report->first_stamp_ns) * 1e-9},
+      {"fps", info.nominal_fps},
+      {"depth", {info.depth_lens.pinhole.width, info.depth_lens.pinhole.height}},
+      {"color",
+       {info.has_color ? info.color_lens.pinhole.width : 0,
+        info.has_color ? info.color_lens.pinhole.height : 0}},
+      {"lens_fit_px", {{"depth", report->depth_lens_fit_px}, {"color", report->color_lens_fit_px}}},
+      {"calibration", info.calibration_note}};
+  if (flags->Has("json")) {
+    out << j.dump(2) << "\n";
+  } else {
+    out << "wrote " << *out_path << ": " << report->frames << " frames ("
+        << report->frames_with_color << " with colour) of sensor " << report->sensor_id << " from "
+        << recordings::FormatName(*format) << " " << source << "\n  " << info.calibration_note
+        << "\n";
+  }
+  return kExitOk;
 }
 
 }  // namespace reenact::cli

@@ -76,6 +76,55 @@ TEST(Import, TumFolderThenTakeFrame) {
   EXPECT_NE(text.str().find("frame 0"), std::string::npos) << text.str();
 }
 
+// A real depth-only Kinect v2 sequence (../shared/data/rgbd-seq): a folder
+// of depth PNGs in millimetres with its lens in meta.json becomes a take
+// whose frames hold the same depth and whose calibration is that lens.
+TEST(Import, DepthOnlyFolderOfARealSequence) {
+  const std::string seq = testing::TestDataPath("rgbd-seq/utd-kinect2-a02-s2-t1");
+  REENACT_REQUIRE_TEST_FILE(seq + "/meta.json");
+  const std::string dir = testing::MakeTempDir("cli_import_depth_png");
+  std::ostringstream out, err;
+  ASSERT_EQ(RunImport({seq, "--out", dir + "/take.mcap", "--json"}, out, err), kExitOk)
+      << err.str();
+  const nlohmann::json j = nlohmann::json::parse(out.str());
+  auto meta_text = ReadFileToString(seq + "/meta.json");
+  ASSERT_TRUE(meta_text.ok());
+  const nlohmann::json meta = nlohmann::json::parse(*meta_text);
+  EXPECT_EQ(j["format"], "depth-png");
+  EXPECT_EQ(j["frames"], meta["frames"].size());
+  EXPECT_EQ(j["frames_with_color"], 0);
+  EXPECT_EQ(j["depth"], (nlohmann::json{512, 424}));
+  EXPECT_NEAR(j["duration_s"].get<double>(), (meta["frames"].size() - 1) / 30.0, 1e-6);
+
+  std::ostringstream frame_out, frame_err;
+  ASSERT_EQ(
+      RunTakeFrame({dir + "/take.mcap", "--index", "5", "--depth-png", dir + "/d.png", "--json"},
+                   frame_out, frame_err),
+      kExitOk)
+      << frame_err.str();
+  const nlohmann::json f = nlohmann::json::parse(frame_out.str());
+  EXPECT_DOUBLE_EQ(f["calibration"]["depth_intrinsics"]["fx"].get<double>(),
+                   meta["intrinsics"][0].get<double>());
+  const cv::Mat ours = cv::imread(dir + "/d.png", cv::IMREAD_UNCHANGED);
+  const cv::Mat theirs =
+      cv::imread(seq + "/" + meta["frames"][5]["depth"].get<std::string>(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(ours.type(), CV_16UC1);
+  ASSERT_EQ(theirs.type(), CV_16UC1);
+  EXPECT_EQ(cv::norm(ours, theirs, cv::NORM_INF), 0.0) << "mm";
+
+  // Flags that do not apply, and a folder with no lens.
+  std::ostringstream e1, e2, e3, o;
+  const std::string tum = WriteTum("cli_import_depth_png_tum");
+  EXPECT_EQ(RunImport({tum, "--out", dir + "/t.mcap", "--fps", "15"}, o, e1), kExitUsage);
+  EXPECT_EQ(RunImport({seq, "--out", dir + "/t.mcap", "--depth-units-per-m", "0.5"}, o, e2),
+            kExitUsage);
+  const std::string bare = testing::MakeTempDir("cli_import_depth_png_bare");
+  cv::imwrite(bare + "/0.png", cv::Mat(4, 4, CV_16UC1, cv::Scalar(1000)));
+  EXPECT_EQ(RunImport({bare, "--out", dir + "/b.mcap"}, o, e3), kExitFailure);
+  EXPECT_NE(e3.str().find("--intrinsics"), std::string::npos) << e3.str();
+  EXPECT_FALSE(fs::exists(dir + "/b.mcap"));
+}
+
 TEST(Import, ExitCodes) {
   const std::string dir = WriteTum("cli_import_codes");
   std::ostringstream out, err;

@@ -14,7 +14,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "common/base/files.h"
+#include "common/base/status_macros.h"
 
 namespace reenact::recordings {
 
@@ -26,6 +33,8 @@ std::string FormatName(RecordingFormat format) {
       return "tum";
     case RecordingFormat::kOni:
       return "oni";
+    case RecordingFormat::kDepthFolder:
+      return "depth-png";
   }
   return "unknown";
 }
@@ -34,8 +43,9 @@ absl::StatusOr<RecordingFormat> ParseFormat(const std::string& name) {
   if (name == "azure-mkv") return RecordingFormat::kAzureMkv;
   if (name == "tum") return RecordingFormat::kTum;
   if (name == "oni") return RecordingFormat::kOni;
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown recording format \"", name, "\" (expected azure-mkv, tum or oni)"));
+  if (name == "depth-png") return RecordingFormat::kDepthFolder;
+  return absl::InvalidArgumentError(absl::StrCat("unknown recording format \"", name,
+                                                 "\" (expected azure-mkv, tum, oni or depth-png)"));
 }
 
 absl::StatusOr<RecordingFormat> DetectFormat(const std::string& path) {
@@ -44,8 +54,17 @@ absl::StatusOr<RecordingFormat> DetectFormat(const std::string& path) {
   if (!fs::exists(path, ec)) return absl::NotFoundError(absl::StrCat(path, ": no such file"));
   if (fs::is_directory(path, ec)) {
     if (fs::exists(fs::path(path) / "depth.txt", ec)) return RecordingFormat::kTum;
-    return absl::InvalidArgumentError(absl::StrCat(
-        path, ": a folder without depth.txt is not a TUM RGB-D recording (give --format)"));
+    if (fs::is_directory(fs::path(path) / "frames", ec)) return RecordingFormat::kDepthFolder;
+    for (fs::directory_iterator it(path, ec), end; !ec && it != end; it.increment(ec)) {
+      std::string extension = it->path().extension().string();
+      std::transform(extension.begin(), extension.end(), extension.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (extension == ".png") return RecordingFormat::kDepthFolder;
+    }
+    return absl::InvalidArgumentError(
+        absl::StrCat(path,
+                     ": a folder with neither depth.txt (TUM RGB-D) nor depth PNGs (depth-png) is "
+                     "no recording (give --format)"));
   }
   std::string extension = fs::path(path).extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
@@ -54,8 +73,8 @@ absl::StatusOr<RecordingFormat> DetectFormat(const std::string& path) {
   if (extension == ".oni") return RecordingFormat::kOni;
   return absl::InvalidArgumentError(absl::StrCat(
       path,
-      ": cannot tell the recording format from the name (expected a .mkv or .oni file or "
-      "a TUM folder; give --format azure-mkv|tum|oni)"));
+      ": cannot tell the recording format from the name (expected a .mkv or .oni file, a TUM "
+      "folder or a folder of depth PNGs; give --format azure-mkv|tum|oni|depth-png)"));
 }
 
 namespace {
@@ -132,8 +151,74 @@ absl::StatusOr<std::unique_ptr<RecordingReader>> OpenRecording(const std::string
       return OpenTumFolder(path, options);
     case RecordingFormat::kOni:
       return OpenOni(path, options);
+    case RecordingFormat::kDepthFolder:
+      return OpenDepthFolder(path, options);
   }
   return absl::InvalidArgumentError("unknown recording format");
+}
+
+absl::StatusOr<CameraIntrinsics> IntrinsicsFromNumbers(const std::vector<double>& values,
+                                                       const std::string& origin) {
+  if (values.size() != 4 && values.size() != 9) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        origin, ": expected \"fx fy cx cy [d0 d1 d2 d3 d4]\", got ", values.size(), " numbers"));
+  }
+  for (double v : values) {
+    if (!std::isfinite(v)) {
+      return absl::InvalidArgumentError(absl::StrCat(origin, ": a lens value is not finite"));
+    }
+  }
+  CameraIntrinsics k;
+  k.fx = values[0];
+  k.fy = values[1];
+  k.cx = values[2];
+  k.cy = values[3];
+  if (values.size() == 9) {
+    k.k1 = values[4];
+    k.k2 = values[5];
+    k.p1 = values[6];
+    k.p2 = values[7];
+    k.k3 = values[8];
+  }
+  return k;
+}
+
+absl::StatusOr<CameraIntrinsics> ReadIntrinsicsFile(const std::string& path) {
+  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, 1 << 20));
+  const size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && text[first] == '{') {
+    const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+    const auto it = j.is_object() ? j.find("intrinsics") : j.end();
+    if (j.is_discarded() || !j.is_object() || it == j.end() || !it->is_array()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ": a JSON lens file needs an \"intrinsics\" array"));
+    }
+    std::vector<double> values;
+    for (const nlohmann::json& v : *it) {
+      if (!v.is_number() || values.size() >= 9) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(path, ": \"intrinsics\" is not an array of 4 or 9 numbers"));
+      }
+      values.push_back(v.get<double>());
+    }
+    return IntrinsicsFromNumbers(values, path);
+  }
+  for (absl::string_view line : absl::StrSplit(text, '\n')) {
+    line = absl::StripAsciiWhitespace(line);
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<double> values;
+    for (absl::string_view field :
+         absl::StrSplit(line, absl::ByAnyChar(" \t,"), absl::SkipEmpty())) {
+      double v = 0;
+      if (!absl::SimpleAtod(field, &v) || !std::isfinite(v)) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(path, ": \"", std::string(field), "\" is not a number"));
+      }
+      values.push_back(v);
+    }
+    return IntrinsicsFromNumbers(values, path);
+  }
+  return absl::InvalidArgumentError(absl::StrCat(path, ": no calibration line"));
 }
 
 absl::StatusOr<std::pair<int, int>> PngSize(const std::string& bytes) {

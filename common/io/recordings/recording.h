@@ -1,10 +1,9 @@
 // Readers of RGB-D recordings made by other tools, so that they can become
 // takes (`reenact import`) or play as live sensors (`reenactd --source
-// azure-mkv:FILE|tum:DIR|oni:FILE`). Each recording is one sensor; a reader
-// yields its calibration once and then its frames in order: depth in
-// millimetres along z (uint16, 0 = no measurement) and the colour frame
-// nearest in time, either as the JPEG bytes the recording holds or as RGB
-// pixels.
+// azure-mkv:FILE|tum:DIR|oni:FILE`; depth-png folders are imported only). Each recording is one
+// sensor; a reader yields its calibration once and then its frames in order: depth in millimetres
+// along z (uint16, 0 = no measurement) and the colour frame nearest in time, either as the JPEG
+// bytes the recording holds or as RGB pixels.
 //
 // Formats:
 //   azure-mkv  Azure Kinect recordings of k4arecorder (Matroska; see
@@ -14,6 +13,8 @@
 //              units per metre, colour PNGs 8-bit RGB (tum.cc).
 //   oni        OpenNI2 recordings (.oni) through OpenNI2's own file device
 //              (oni.cc).
+//   depth-png  a folder of 16-bit depth PNGs named in order, with no colour
+//              and no timestamps (depth_folder.cc).
 //
 // Nothing here trusts the file: every size read from it is bounded before
 // anything is allocated, and bad input is an error status, never an abort.
@@ -23,6 +24,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -32,14 +34,15 @@
 
 namespace reenact::recordings {
 
-enum class RecordingFormat { kAzureMkv, kTum, kOni };
+enum class RecordingFormat { kAzureMkv, kTum, kOni, kDepthFolder };
 
-// "azure-mkv", "tum", "oni".
+// "azure-mkv", "tum", "oni", "depth-png".
 std::string FormatName(RecordingFormat format);
 // The inverse; InvalidArgument naming the accepted names otherwise.
 absl::StatusOr<RecordingFormat> ParseFormat(const std::string& name);
-// From the path: a folder holding depth.txt is TUM, *.mkv is an Azure Kinect
-// recording, *.oni an OpenNI2 one. NotFound when the path does not exist,
+// From the path: a folder holding depth.txt is TUM, another folder holding
+// *.png files (or a frames/ subfolder) a depth-png folder, *.mkv is an Azure
+// Kinect recording, *.oni an OpenNI2 one. NotFound when the path does not exist,
 // InvalidArgument when it is none of these.
 absl::StatusOr<RecordingFormat> DetectFormat(const std::string& path);
 
@@ -100,9 +103,14 @@ struct RecordedFrame {
 };
 
 struct RecordingOptions {
-  // TUM: a calibration file overriding the default intrinsics (see tum.cc
-  // for its format).
+  // TUM and depth-png: a calibration file (ReadIntrinsicsFile); TUM has a
+  // default, a depth-png folder needs this or its own meta.json.
   std::string intrinsics_path;
+  // TUM and depth-png: depth units per metre (0: the format's own, 5000 for
+  // TUM, 1000 (millimetres) for depth-png).
+  double depth_units_per_m = 0.0;
+  // depth-png: frames per second (0: meta.json's "fps_nominal", else 30).
+  double fps = 0.0;
   // Largest image a recording may declare, in pixels (both streams).
   uint64_t max_pixels = uint64_t{4096} * 4096;
   // OpenNI2: how long to wait for the file device's next frame.
@@ -131,6 +139,18 @@ absl::StatusOr<std::unique_ptr<RecordingReader>> OpenTumFolder(const std::string
                                                                const RecordingOptions& options);
 absl::StatusOr<std::unique_ptr<RecordingReader>> OpenOni(const std::string& path,
                                                          const RecordingOptions& options);
+absl::StatusOr<std::unique_ptr<RecordingReader>> OpenDepthFolder(const std::string& path,
+                                                                 const RecordingOptions& options);
+
+// A lens file: the first line that is not empty or a '#' comment holds
+// "fx fy cx cy [d0 d1 d2 d3 d4]" (d0..d4 = k1 k2 p1 p2 k3, OpenCV's order, as
+// the TUM benchmark's calibration table gives them); or a JSON object whose
+// "intrinsics" array holds the same numbers (../shared/data/rgbd-seq's
+// meta.json). Width and height are left 0 for the caller.
+absl::StatusOr<CameraIntrinsics> ReadIntrinsicsFile(const std::string& path);
+// The same from its 4 or 9 numbers (`origin` names them in errors).
+absl::StatusOr<CameraIntrinsics> IntrinsicsFromNumbers(const std::vector<double>& values,
+                                                       const std::string& origin);
 
 // PNG helpers for depth maps (OpenCV's libpng decoder behind a bound on the
 // size the header declares). DecodePng16 reads a 16-bit (or 8-bit) one-channel

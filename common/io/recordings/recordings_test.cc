@@ -7,10 +7,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -577,9 +580,155 @@ TEST(Oni, ForeignFileIsAnError) {
   EXPECT_NE(reader.status().message().find("junk.oni"), std::string::npos) << reader.status();
 }
 
+// A real Kinect v2 depth sequence of ../shared/data/rgbd-seq: a folder of
+// 16-bit PNGs in millimetres with its lens in meta.json, read as a
+// depth-only recording with the depth as stored and the lens of meta.json;
+// at the pixels of the Kinect SDK's joints the depth lies just in front of
+// the joints, as the data's README says.
+TEST(DepthFolder, ARealKinectV2SequenceWithTheLensOfItsMeta) {
+  const std::string dir = testing::TestDataPath("rgbd-seq/utd-kinect2-a01-s1-t1");
+  REENACT_REQUIRE_TEST_FILE(dir + "/meta.json");
+  EXPECT_EQ(DetectFormat(dir).value_or(RecordingFormat::kTum), RecordingFormat::kDepthFolder);
+  auto reader = OpenRecording(dir, RecordingFormat::kDepthFolder);
+  ASSERT_TRUE(reader.ok()) << reader.status();
+  const RecordingInfo& info = (*reader)->info();
+  auto meta_text = ReadFileToString(dir + "/meta.json");
+  ASSERT_TRUE(meta_text.ok());
+  const nlohmann::json meta = nlohmann::json::parse(*meta_text);
+  EXPECT_EQ(info.frame_count, static_cast<int64_t>(meta["frames"].size()));
+  EXPECT_FALSE(info.has_color);
+  EXPECT_DOUBLE_EQ(info.nominal_fps, 30.0);
+  EXPECT_EQ(info.depth_lens.pinhole.width, 512);
+  EXPECT_EQ(info.depth_lens.pinhole.height, 424);
+  EXPECT_DOUBLE_EQ(info.depth_lens.pinhole.fx, meta["intrinsics"][0].get<double>());
+  EXPECT_DOUBLE_EQ(info.depth_lens.pinhole.cy, meta["intrinsics"][3].get<double>());
+  std::vector<double> gaps_m;
+  int64_t frames = 0;
+  int worst = 0;
+  while (true) {
+    auto frame = (*reader)->Next();
+    ASSERT_TRUE(frame.ok()) << frame.status();
+    if (!frame->has_value()) break;
+    const RecordedFrame& f = **frame;
+    EXPECT_EQ(f.stamp_ns, static_cast<int64_t>(std::llround(frames * 1e9 / 30.0)));
+    EXPECT_FALSE(f.has_color());
+    const nlohmann::json& entry = meta["frames"][frames];
+    worst = std::max(
+        worst, MaxDifference(f.depth_mm, ReadPng16(dir + "/" + entry["depth"].get<std::string>())));
+    for (const auto& [name, px] : entry["joints_px"].items()) {
+      const int u = static_cast<int>(std::lround(px[0].get<double>()));
+      const int v = static_cast<int>(std::lround(px[1].get<double>()));
+      if (u < 0 || v < 0 || u >= f.depth_mm.width || v >= f.depth_mm.height) continue;
+      const uint16_t mm = f.depth_mm.at(u, v);
+      if (mm == 0) continue;
+      gaps_m.push_back(mm * 1e-3 - entry["joints_m"][name][2].get<double>());
+    }
+    ++frames;
+  }
+  EXPECT_EQ(frames, info.frame_count);
+  EXPECT_EQ(worst, 0) << "max |depth - the PNG| in mm";
+  ASSERT_GT(gaps_m.size(), 100u);
+  std::sort(gaps_m.begin(), gaps_m.end());
+  const double median = gaps_m[gaps_m.size() / 2];
+  std::printf(
+      "rgbd-seq a01 s1: %lld frames, depth minus the SDK joint's z at its pixel: median "
+      "%.3f m over %zu joints\n",
+      static_cast<long long>(frames), median, gaps_m.size());
+  // Joints lie inside the body: the surface 2-17 cm in front of them.
+  EXPECT_LT(median, 0.0);
+  EXPECT_GT(median, -0.15);
+}
+
+// A folder of PNGs written here: frames ordered by the number in their
+// names, depth in another unit, the lens from a file, the frame rate given;
+// and what is refused.
+TEST(DepthFolder, OrderUnitsLensAndBadFolders) {
+  const std::string dir = testing::MakeTempDir("depth_png");
+  // 10000 units per metre; frame k holds 1000 + k mm, written out of order.
+  for (int k : {10, 2, 1}) {
+    cv::Mat png(4, 6, CV_16UC1, cv::Scalar((1000 + k) * 10 + 4));
+    png.at<uint16_t>(0, 0) = 0;
+    cv::imwrite(absl::StrCat(dir, "/f", k, ".png"), png);
+  }
+  WriteText(dir + "/lens.txt", "# fx fy cx cy\n5.5 5.25 2.5 1.5\n");
+  RecordingOptions options;
+  options.depth_units_per_m = 10000;
+  options.fps = 10;
+  options.intrinsics_path = dir + "/lens.txt";
+  EXPECT_EQ(DetectFormat(dir).value_or(RecordingFormat::kTum), RecordingFormat::kDepthFolder);
+  auto reader = OpenRecording(dir, RecordingFormat::kDepthFolder, options);
+  ASSERT_TRUE(reader.ok()) << reader.status();
+  EXPECT_DOUBLE_EQ((*reader)->info().depth_lens.pinhole.fy, 5.25);
+  EXPECT_EQ((*reader)->info().depth_lens.pinhole.width, 6);
+  std::vector<int> mm;
+  std::vector<int64_t> stamps;
+  while (true) {
+    auto frame = (*reader)->Next();
+    ASSERT_TRUE(frame.ok()) << frame.status();
+    if (!frame->has_value()) break;
+    EXPECT_EQ((*frame)->depth_mm.at(0, 0), 0) << "no value stays no value";
+    mm.push_back((*frame)->depth_mm.at(3, 2));
+    stamps.push_back((*frame)->stamp_ns);
+  }
+  EXPECT_EQ(mm, (std::vector<int>{1001, 1002, 1010}));  // 10014 units: 1001.4 mm.
+  EXPECT_EQ(stamps, (std::vector<int64_t>{0, 100'000'000, 200'000'000}));
+
+  // The lens as JSON, as rgbd-seq's meta.json states it.
+  WriteText(dir + "/lens.json", R"({"intrinsics": [5.5, 5.25, 2.5, 1.5]})");
+  options.intrinsics_path = dir + "/lens.json";
+  EXPECT_TRUE(OpenRecording(dir, RecordingFormat::kDepthFolder, options).ok());
+
+  // No lens: refused, asking for one.
+  auto no_lens = OpenRecording(dir, RecordingFormat::kDepthFolder);
+  ASSERT_FALSE(no_lens.ok());
+  EXPECT_EQ(no_lens.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(no_lens.status().message().find("--intrinsics"), std::string::npos) << no_lens.status();
+  // A lens file of three numbers, a bad unit.
+  WriteText(dir + "/short.txt", "5 5 2\n");
+  options.intrinsics_path = dir + "/short.txt";
+  EXPECT_EQ(OpenRecording(dir, RecordingFormat::kDepthFolder, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  options.intrinsics_path = dir + "/lens.txt";
+  options.depth_units_per_m = -5;
+  EXPECT_EQ(OpenRecording(dir, RecordingFormat::kDepthFolder, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  options.depth_units_per_m = 0;
+
+  // A frame of another size and a truncated frame: DataLoss naming the file.
+  cv::imwrite(dir + "/f11.png", cv::Mat(5, 6, CV_16UC1, cv::Scalar(1000)));
+  auto bytes = ReadFileToString(dir + "/f2.png");
+  ASSERT_TRUE(bytes.ok());
+  ASSERT_TRUE(WriteFileAtomically(dir + "/f12.png", bytes->substr(0, bytes->size() / 2)).ok());
+  auto damaged = OpenRecording(dir, RecordingFormat::kDepthFolder, options);
+  ASSERT_TRUE(damaged.ok()) << damaged.status();
+  std::vector<std::string> errors;
+  for (int i = 0; i < 6; ++i) {
+    auto frame = (*damaged)->Next();
+    if (!frame.ok()) {
+      EXPECT_EQ(frame.status().code(), absl::StatusCode::kDataLoss);
+      errors.emplace_back(frame.status().message());
+    }
+  }
+  ASSERT_EQ(errors.size(), 2u);
+  EXPECT_NE(errors[0].find("f11.png: 6x5 px"), std::string::npos) << errors[0];
+  EXPECT_NE(errors[1].find("f12.png"), std::string::npos) << errors[1];
+
+  // An empty frames/ folder.
+  const std::string empty = testing::MakeTempDir("depth_png_empty");
+  fs::create_directories(empty + "/frames");
+  EXPECT_EQ(DetectFormat(empty).value_or(RecordingFormat::kTum), RecordingFormat::kDepthFolder);
+  auto nothing = OpenRecording(empty, RecordingFormat::kDepthFolder, options);
+  ASSERT_FALSE(nothing.ok());
+  EXPECT_NE(nothing.status().message().find("holds no *.png"), std::string::npos)
+      << nothing.status();
+}
+
 TEST(Formats, NamesAndDetection) {
   EXPECT_EQ(ParseFormat("azure-mkv").value_or(RecordingFormat::kTum), RecordingFormat::kAzureMkv);
   EXPECT_EQ(ParseFormat("bag").status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ParseFormat("depth-png").value_or(RecordingFormat::kTum),
+            RecordingFormat::kDepthFolder);
+  EXPECT_EQ(FormatName(RecordingFormat::kDepthFolder), "depth-png");
   const std::string dir = testing::MakeTempDir("formats");
   WriteText(dir + "/a.MKV", "x");
   WriteText(dir + "/b.txt", "x");

@@ -4,7 +4,9 @@
 //   rgb.txt, depth.txt   one "timestamp filename" line per image, timestamps
 //                        in seconds, '#' starts a comment line
 //   depth/*.png          16-bit one-channel PNG, 5000 units per metre
-//                        (millimetres = value / 5, rounded), 0 = no value
+//                        (millimetres = value / 5, rounded; another scale
+//                        with RecordingOptions.depth_units_per_m), 0 = no
+//                        value
 //   rgb/*.png            8-bit colour PNG
 // Depth and colour are associated as the benchmark's associate.py does: pairs
 // closer than 20 ms, the closest first, each image used once. A depth frame
@@ -120,42 +122,6 @@ absl::StatusOr<std::vector<Entry>> ReadList(const std::string& dir, const std::s
   return entries;
 }
 
-absl::StatusOr<CameraIntrinsics> ReadIntrinsicsFile(const std::string& path) {
-  ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path, 1 << 20));
-  for (absl::string_view line : absl::StrSplit(text, '\n')) {
-    line = absl::StripAsciiWhitespace(line);
-    if (line.empty() || line[0] == '#') continue;
-    std::vector<double> values;
-    for (absl::string_view field :
-         absl::StrSplit(line, absl::ByAnyChar(" \t,"), absl::SkipEmpty())) {
-      double v = 0;
-      if (!absl::SimpleAtod(field, &v) || !std::isfinite(v)) {
-        return absl::InvalidArgumentError(
-            absl::StrCat(path, ": \"", std::string(field), "\" is not a number"));
-      }
-      values.push_back(v);
-    }
-    if (values.size() != 4 && values.size() != 9) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          path, ": expected \"fx fy cx cy [d0 d1 d2 d3 d4]\", got ", values.size(), " numbers"));
-    }
-    CameraIntrinsics k;
-    k.fx = values[0];
-    k.fy = values[1];
-    k.cx = values[2];
-    k.cy = values[3];
-    if (values.size() == 9) {
-      k.k1 = values[4];
-      k.k2 = values[5];
-      k.p1 = values[6];
-      k.p2 = values[7];
-      k.k3 = values[8];
-    }
-    return k;
-  }
-  return absl::InvalidArgumentError(absl::StrCat(path, ": no calibration line"));
-}
-
 class TumReader : public RecordingReader {
  public:
   static absl::StatusOr<std::unique_ptr<RecordingReader>> Open(const std::string& dir,
@@ -217,10 +183,17 @@ class TumReader : public RecordingReader {
     absl::StatusOr<Image<uint16_t, 1>> raw = DecodePng16(bytes, options_.max_pixels);
     if (!raw.ok())
       return absl::DataLossError(absl::StrCat(Path(file), ": ", raw.status().message()));
-    // 5000 units per metre: millimetres are value / 5, rounded to nearest.
     DepthImageMm depth(raw->width, raw->height);
-    for (size_t p = 0; p < depth.data.size(); ++p) {
-      depth.data[p] = static_cast<uint16_t>((uint32_t{raw->data[p]} + 2) / 5);
+    if (options_.depth_units_per_m <= 0 || options_.depth_units_per_m == 5000) {
+      // 5000 units per metre: millimetres are value / 5, rounded to nearest.
+      for (size_t p = 0; p < depth.data.size(); ++p) {
+        depth.data[p] = static_cast<uint16_t>((uint32_t{raw->data[p]} + 2) / 5);
+      }
+    } else {
+      const double to_mm = 1000.0 / options_.depth_units_per_m;
+      for (size_t p = 0; p < depth.data.size(); ++p) {
+        depth.data[p] = static_cast<uint16_t>(std::min(std::round(raw->data[p] * to_mm), 65535.0));
+      }
     }
     return depth;
   }
@@ -245,6 +218,10 @@ class TumReader : public RecordingReader {
     info_.format = RecordingFormat::kTum;
     info_.source = dir_;
     info_.model = "tum_rgbd";
+    const double units = options_.depth_units_per_m;
+    if (units != 0 && !(units >= 1 && units <= 1e6)) {
+      return absl::InvalidArgumentError("depth units per metre must be in [1, 10^6]");
+    }
     ASSIGN_OR_RETURN(depth_, ReadList(dir_, "depth.txt"));
     if (depth_.empty()) {
       return absl::InvalidArgumentError(absl::StrCat(dir_, "/depth.txt lists no image"));

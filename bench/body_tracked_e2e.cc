@@ -16,7 +16,10 @@
 // worker does (recon::RunMethod), and measures the reenactment as
 // `reenact eval` does (view::EvaluateReenactment): MPJPE, surface distance
 // and PSNR90 of the view 90 degrees from sensor 0; beside them the share of
-// frames whose fitted body faces away from the truth ("turned"), the mean
+// frames whose fitted body faces away from the truth ("turned"), the MPJPE
+// of the fitted frames alone split into the six hand joints and the other
+// 19 ("hands", "rest"; MPJPE also counts the frames the job could not fit,
+// which hold the nearest fit's pose), the mean
 // error of the skeletons the job got, the fit time per frame and the
 // frames the job marked doubtful (body_diagnosis.h). It prints one row per
 // run, then the means and the targets:
@@ -44,6 +47,8 @@
 #include <iostream>
 #include <map>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -176,9 +181,42 @@ double TurnedAroundShare(const Reenactment& data, const GroundTruth& truth) {
   return n > 0 ? static_cast<double>(turned) / n : NAN;
 }
 
+// The hand joints: hand, hand tip and thumb of each side.
+bool IsHandJoint(int j) {
+  using J = body::KinectV2Joint;
+  for (J hand : {J::kHandLeft, J::kHandRight, J::kHandTipLeft, J::kHandTipRight, J::kThumbLeft,
+                 J::kThumbRight}) {
+    if (body::Index(hand) == j) return true;
+  }
+  return false;
+}
+
+// MPJPE of `data`'s fitted frames (every `every`-th instant, as the
+// evaluation takes them) over the hand joints and over the others, mm.
+std::pair<double, double> HandsAndRestMm(const Reenactment& data, const GroundTruth& truth,
+                                         int every) {
+  double sum[2] = {0.0, 0.0};
+  int64_t n[2] = {0, 0};
+  for (const ReenactmentFrame& frame : data.frames) {
+    if (!frame.body || !frame.body->valid || frame.joints_in_world_m.size() != 25) continue;
+    if (frame.frame_index % every != 0) continue;
+    const auto t = truth.joints.find(frame.frame_index);
+    if (t == truth.joints.end()) continue;
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      const int group = IsHandJoint(j) ? 0 : 1;
+      sum[group] += 1000.0 * (frame.joints_in_world_m[j] - t->second[j]).norm();
+      ++n[group];
+    }
+  }
+  return {n[0] > 0 ? sum[0] / n[0] : NAN, n[1] > 0 ? sum[1] / n[1] : NAN};
+}
+
 struct Row {
   std::string motion, skeletons, model;
   double mpjpe_mm = NAN, surface_mm = NAN, psnr_db = NAN;
+  // MPJPE of the fitted frames alone, split: the six hand joints (hand,
+  // hand tip and thumb of each side) and the other 19.
+  double hands_mm = NAN, rest_mm = NAN;
   double turned = NAN;       // Share of fitted frames facing away from the truth.
   double skeleton_mm = NAN;  // The job's skeletons against the truth.
   double fit_ms = NAN;       // Per frame.
@@ -216,6 +254,7 @@ absl::StatusOr<Row> RunOne(const Settings& s, const std::string& motion,
   Row row{motion, skeletons, model};
   row.turned = TurnedAroundShare(data, truth);
   row.mpjpe_mm = r.mpjpe_mm;
+  std::tie(row.hands_mm, row.rest_mm) = HandsAndRestMm(data, truth, s.every);
   row.surface_mm = r.surface_mm;
   row.psnr_db = r.psnr_db_90;
   row.skeleton_mm = skeleton_mm;
@@ -230,9 +269,10 @@ absl::StatusOr<Row> RunOne(const Settings& s, const std::string& motion,
 }
 
 void PrintRow(const Row& r) {
-  std::printf("%-13s %-10s %-10s %7.1f %7.1f %7.2f %6.0f%% %9.1f %7.1f %5.0f/%d\n",
-              r.motion.c_str(), r.skeletons.c_str(), r.model.c_str(), r.mpjpe_mm, r.surface_mm,
-              r.psnr_db, 100.0 * r.turned, r.skeleton_mm, r.fit_ms, r.doubtful_frames, r.frames);
+  std::printf("%-13s %-10s %-10s %7.1f %6.1f %6.1f %7.1f %7.2f %6.0f%% %9.1f %7.1f %5.0f/%d\n",
+              r.motion.c_str(), r.skeletons.c_str(), r.model.c_str(), r.mpjpe_mm, r.hands_mm,
+              r.rest_mm, r.surface_mm, r.psnr_db, 100.0 * r.turned, r.skeleton_mm, r.fit_ms,
+              r.doubtful_frames, r.frames);
   std::fflush(stdout);
 }
 
@@ -267,8 +307,9 @@ int Run(int argc, char** argv) {
       "body method, MakeHuman body (%s), 2 sensors, %g s at %g fps, colour %dx%d; novel view 90 "
       "deg, every %d-th instant\n",
       s.shape.c_str(), s.seconds, s.fps, s.color_width, s.color_height, s.every);
-  std::printf("%-13s %-10s %-10s %7s %7s %7s %7s %9s %7s %s\n", "motion", "skeletons", "model",
-              "MPJPE", "surface", "PSNR90", "turned", "skeleton", "fit_ms", "doubtful");
+  std::printf("%-13s %-10s %-10s %7s %6s %6s %7s %7s %7s %9s %7s %s\n", "motion", "skeletons",
+              "model", "MPJPE", "hands", "rest", "surface", "PSNR90", "turned", "skeleton",
+              "fit_ms", "doubtful");
   std::vector<Row> rows;
   for (const std::string& motion : s.motions) {
     for (const std::string& skeletons : s.skeletons) {
@@ -300,6 +341,8 @@ int Run(int argc, char** argv) {
     for (const std::string& model : s.models) {
       Row mean{"all", skeletons, model};
       mean.mpjpe_mm = Mean(rows, skeletons, model, &Row::mpjpe_mm);
+      mean.hands_mm = Mean(rows, skeletons, model, &Row::hands_mm);
+      mean.rest_mm = Mean(rows, skeletons, model, &Row::rest_mm);
       mean.surface_mm = Mean(rows, skeletons, model, &Row::surface_mm);
       mean.psnr_db = Mean(rows, skeletons, model, &Row::psnr_db);
       mean.turned = Mean(rows, skeletons, model, &Row::turned);
@@ -337,6 +380,8 @@ int Run(int argc, char** argv) {
                    {"skeletons", r.skeletons},
                    {"model", r.model},
                    {"mpjpe_mm", finite(r.mpjpe_mm)},
+                   {"hands_mpjpe_mm", finite(r.hands_mm)},
+                   {"rest_mpjpe_mm", finite(r.rest_mm)},
                    {"surface_mm", finite(r.surface_mm)},
                    {"psnr_db_90", finite(r.psnr_db)},
                    {"turned_around_share", finite(r.turned)},

@@ -146,12 +146,7 @@ class DepthFolderReader : public RecordingReader {
           files_[i], ": ", raw->width, "x", raw->height, " px; the first depth image is ",
           info_.depth_lens.pinhole.width, "x", info_.depth_lens.pinhole.height));
     }
-    frame.depth_mm = DepthImageMm(raw->width, raw->height);
-    const double to_mm = 1000.0 / units_per_m_;
-    for (size_t p = 0; p < raw->data.size(); ++p) {
-      const double mm = std::round(raw->data[p] * to_mm);
-      frame.depth_mm.data[p] = static_cast<uint16_t>(std::min(mm, 65535.0));
-    }
+    frame.depth_mm = DepthToMillimetres(*raw, units_per_m_);
     return std::optional<RecordedFrame>(std::move(frame));
   }
 

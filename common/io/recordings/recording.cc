@@ -221,6 +221,15 @@ absl::StatusOr<CameraIntrinsics> ReadIntrinsicsFile(const std::string& path) {
   return absl::InvalidArgumentError(absl::StrCat(path, ": no calibration line"));
 }
 
+DepthImageMm DepthToMillimetres(const Image<uint16_t, 1>& raw, double units_per_m) {
+  DepthImageMm depth(raw.width, raw.height);
+  const double to_mm = 1000.0 / units_per_m;
+  for (size_t p = 0; p < raw.data.size(); ++p) {
+    depth.data[p] = static_cast<uint16_t>(std::min(std::round(raw.data[p] * to_mm), 65535.0));
+  }
+  return depth;
+}
+
 absl::StatusOr<std::pair<int, int>> PngSize(const std::string& bytes) {
   // PNG (ISO/IEC 15948) 5.2 and 11.2.2: an 8-byte signature, then the IHDR
   // chunk (length 13, "IHDR", width and height as big-endian uint32).

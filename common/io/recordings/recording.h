@@ -157,6 +157,9 @@ absl::StatusOr<CameraIntrinsics> IntrinsicsFromNumbers(const std::vector<double>
 // PNG; DecodePngRgb any PNG as 8-bit RGB. DataLoss for a file that does not
 // decode or declares more than `max_pixels`.
 absl::StatusOr<Image<uint16_t, 1>> DecodePng16(const std::string& bytes, uint64_t max_pixels);
+// Depth of `units_per_m` units per metre (> 0) in millimetres, rounded to
+// the nearest, 0 kept as no value, saturated at 65535.
+DepthImageMm DepthToMillimetres(const Image<uint16_t, 1>& raw, double units_per_m);
 absl::StatusOr<RgbImage> DecodePngRgb(const std::string& bytes, uint64_t max_pixels);
 // A 16-bit grey PNG of `depth` (values as they are, e.g. millimetres).
 absl::StatusOr<std::string> EncodePng16(const DepthImageMm& depth);

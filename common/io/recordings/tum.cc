@@ -183,19 +183,9 @@ class TumReader : public RecordingReader {
     absl::StatusOr<Image<uint16_t, 1>> raw = DecodePng16(bytes, options_.max_pixels);
     if (!raw.ok())
       return absl::DataLossError(absl::StrCat(Path(file), ": ", raw.status().message()));
-    DepthImageMm depth(raw->width, raw->height);
-    if (options_.depth_units_per_m <= 0 || options_.depth_units_per_m == 5000) {
-      // 5000 units per metre: millimetres are value / 5, rounded to nearest.
-      for (size_t p = 0; p < depth.data.size(); ++p) {
-        depth.data[p] = static_cast<uint16_t>((uint32_t{raw->data[p]} + 2) / 5);
-      }
-    } else {
-      const double to_mm = 1000.0 / options_.depth_units_per_m;
-      for (size_t p = 0; p < depth.data.size(); ++p) {
-        depth.data[p] = static_cast<uint16_t>(std::min(std::round(raw->data[p] * to_mm), 65535.0));
-      }
-    }
-    return depth;
+    // 5000 units per metre unless the options say otherwise.
+    return DepthToMillimetres(*raw,
+                              options_.depth_units_per_m > 0 ? options_.depth_units_per_m : 5000.0);
   }
 
   absl::StatusOr<RgbImage> ReadColor(const std::string& file) const {

@@ -108,6 +108,24 @@ std::vector<Command> BuildCommandTable() {
        "DIR/mocap/cmu, never trained on; --sequence: one motion seen by a fixed camera, whole "
        "frames)",
        RunTrackerSynth},
+      {{"grade"},
+       "--teacher REENACTMENT|TAKE --learner TAKE [--sensor ID] [--teacher-id ID] "
+       "[--teacher-sensor ID] [--server HOST:PORT [--tls-ca F] [--token-file F] [--cache DIR]] "
+       "[--one-to-one] [--smoothing-s S] [--report DIR] [--pairs] [--json] | --real DIR "
+       "[--sequences NAME,...] [--learners PATTERN,...] [--tracked [--model F.onnx | --forest "
+       "F.rtf]] [--quiet] [--json]",
+       "grade a learner's take against a teacher as the mirror does, with no window: per body "
+       "part, only where the sensor saw it (the learner's TRACKED joints), over the frames paired "
+       "by DTW (--one-to-one: index by index); prints the mean over the graded parts, how much "
+       "of the body it covers, the parts not graded and why, and at most three corrections in "
+       "words; --report DIR writes grade.json, heatmap.png (parts x time) and worst-moments.png. "
+       "The teacher is a reenactment (a .reen file or folder, or an ID on --server) or a take. "
+       "--real DIR: every pair of recordings of two people in a folder laid out like "
+       "shared/data/rgbd-seq, graded from the stored SDK skeletons (and with --tracked from ours): "
+       "how often a same-action pair grades lower than a different-action pair for the same "
+       "learner, and how our per-part grades agree with the SDK's (--learners: only recordings "
+       "whose names match these shell patterns grade as learners)",
+       RunGrade},
       {{"auth", "add"},
        "--file TOKENS.json --role viewer|capture|coach|worker|admin --name NAME",
        "mint a random token for reenact-server --auth TOKENS.json (or reenactd --auth): appends "

@@ -84,4 +84,7 @@ int RunTrackerEval(const std::vector<std::string>& args, std::ostream& out, std:
 int RunTrackerEvalReal(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int RunTrackerSynth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
+// grade_command.cc
+int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
 }  // namespace reenact::cli

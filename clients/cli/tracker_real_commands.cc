@@ -22,6 +22,7 @@
 #include "absl/strings/str_split.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/progress_bar.h"
+#include "clients/cli/real_sequences.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
@@ -36,8 +37,6 @@ namespace fs = std::filesystem;
 using body::KinectV2Joint;
 
 constexpr int kJoints = body::kNumKinectV2Joints;
-// meta.json files above this are refused before they are read.
-constexpr uintmax_t kMaxMetaBytes = 256u << 20;
 
 // The 20 joints an evaluation scores: Kinect v1's skeleton in Kinect v2
 // names (no neck, hand tips or thumbs).
@@ -56,125 +55,6 @@ constexpr std::array<std::pair<KinectV2Joint, KinectV2Joint>, 8> kLimbPairs = {{
     {KinectV2Joint::kAnkleLeft, KinectV2Joint::kAnkleRight},
     {KinectV2Joint::kFootLeft, KinectV2Joint::kFootRight},
 }};
-
-std::optional<int> JointIndex(const std::string& name) {
-  // Kinect v1 names that differ from Kinect v2's.
-  static const std::map<std::string, std::string> kV1 = {
-      {"ShoulderCenter", "SpineShoulder"}, {"Spine", "SpineMid"}, {"HipCenter", "SpineBase"}};
-  const auto v1 = kV1.find(name);
-  const std::string& v2 = v1 == kV1.end() ? name : v1->second;
-  for (int j = 0; j < kJoints; ++j) {
-    if (body::KinectV2JointName(static_cast<KinectV2Joint>(j)) == v2) return j;
-  }
-  return std::nullopt;
-}
-
-struct RefFrame {
-  int index = 0;  // In meta.json.
-  std::string depth_path;
-  std::optional<std::array<double, 4>> intrinsics;  // When the frame has its own.
-  std::array<std::optional<Eigen::Vector3d>, kJoints> joints;
-};
-
-struct RefSequence {
-  std::string name;
-  std::string folder;
-  std::optional<std::array<double, 4>> intrinsics;
-  std::vector<RefFrame> frames;
-};
-
-absl::StatusOr<std::array<double, 4>> ReadIntrinsics(const nlohmann::json& j,
-                                                     const std::string& where) {
-  if (!j.is_array() || j.size() != 4) {
-    return absl::InvalidArgumentError(where + ": intrinsics must be [fx, fy, cx, cy]");
-  }
-  std::array<double, 4> k{};
-  for (int i = 0; i < 4; ++i) {
-    if (!j[i].is_number()) return absl::InvalidArgumentError(where + ": intrinsics not numbers");
-    k[i] = j[i].get<double>();
-    if (!std::isfinite(k[i])) return absl::InvalidArgumentError(where + ": intrinsics not finite");
-  }
-  if (!(k[0] > 0 && k[1] > 0)) {
-    return absl::InvalidArgumentError(where + ": focal lengths must be positive");
-  }
-  return k;
-}
-
-std::optional<Eigen::Vector3d> ReadPoint(const nlohmann::json& j) {
-  if (!j.is_array() || j.size() != 3) return std::nullopt;
-  Eigen::Vector3d p;
-  for (int i = 0; i < 3; ++i) {
-    if (!j[i].is_number()) return std::nullopt;
-    p[i] = j[i].get<double>();
-  }
-  if (!p.allFinite() || !(p.z() > 0.05)) return std::nullopt;
-  return p;
-}
-
-absl::StatusOr<RefSequence> ReadSequence(const fs::path& folder) {
-  const fs::path meta_path = folder / "meta.json";
-  std::error_code ec;
-  const uintmax_t size = fs::file_size(meta_path, ec);
-  if (ec) return absl::NotFoundError(absl::StrCat("no ", meta_path.string()));
-  if (size > kMaxMetaBytes) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(meta_path.string(), " is larger than ", kMaxMetaBytes >> 20, " MiB"));
-  }
-  std::ifstream in(meta_path);
-  nlohmann::json meta = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (meta.is_discarded() || !meta.is_object()) {
-    return absl::DataLossError(absl::StrCat(meta_path.string(), " is not JSON"));
-  }
-  RefSequence seq;
-  seq.folder = folder.string();
-  seq.name = folder.filename().string();
-  if (seq.name.empty()) seq.name = folder.parent_path().filename().string();
-  if (meta.contains("intrinsics")) {
-    ASSIGN_OR_RETURN(seq.intrinsics, ReadIntrinsics(meta["intrinsics"], meta_path.string()));
-  }
-  const nlohmann::json& frames = meta["frames"];
-  if (!frames.is_array()) {
-    return absl::InvalidArgumentError(absl::StrCat(meta_path.string(), " has no frames"));
-  }
-  std::vector<std::string> names;
-  if (meta.contains("joint_names") && meta["joint_names"].is_array()) {
-    for (const auto& n : meta["joint_names"])
-      names.push_back(n.is_string() ? n.get<std::string>() : "");
-  }
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const nlohmann::json& f = frames[i];
-    const std::string where = absl::StrCat(meta_path.string(), " frame ", i);
-    if (!f.is_object() || !f.contains("depth") || !f["depth"].is_string()) {
-      return absl::InvalidArgumentError(where + ": no depth file");
-    }
-    RefFrame frame;
-    frame.index = static_cast<int>(i);
-    const std::string rel = f["depth"].get<std::string>();
-    if (rel.empty() || fs::path(rel).is_absolute() || rel.find("..") != std::string::npos) {
-      return absl::InvalidArgumentError(where + ": depth must be a path inside the folder");
-    }
-    frame.depth_path = (folder / rel).string();
-    if (f.contains("intrinsics")) {
-      ASSIGN_OR_RETURN(frame.intrinsics, ReadIntrinsics(f["intrinsics"], where));
-    } else if (!seq.intrinsics) {
-      return absl::InvalidArgumentError(where + ": no intrinsics for the frame or the sequence");
-    }
-    if (f.contains("joints_m")) {
-      const nlohmann::json& jm = f["joints_m"];
-      if (jm.is_object()) {
-        for (const auto& [name, value] : jm.items()) {
-          if (const auto j = JointIndex(name)) frame.joints[*j] = ReadPoint(value);
-        }
-      } else if (jm.is_array()) {
-        for (size_t k = 0; k < jm.size() && k < names.size(); ++k) {
-          if (const auto j = JointIndex(names[k])) frame.joints[*j] = ReadPoint(jm[k]);
-        }
-      }
-    }
-    seq.frames.push_back(std::move(frame));
-  }
-  return seq;
-}
 
 // Error sums of one sequence or of all.
 struct Tally {
@@ -263,25 +143,6 @@ nlohmann::json TallyJson(const Tally& t) {
           {"joint_mean_mm", joints}};
 }
 
-// The sequences under `dir`: `dir` itself when it holds meta.json, else its
-// sub-folders that do (sorted by name), kept when their name contains one
-// of `filters` (all when empty).
-std::vector<fs::path> SequenceFolders(const fs::path& dir,
-                                      const std::vector<std::string>& filters) {
-  std::error_code ec;
-  if (fs::is_regular_file(dir / "meta.json", ec)) return {dir};
-  std::vector<fs::path> folders;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (!entry.is_directory(ec) || !fs::is_regular_file(entry.path() / "meta.json", ec)) continue;
-    const std::string name = entry.path().filename().string();
-    bool keep = filters.empty();
-    for (const std::string& f : filters) keep |= name.find(f) != std::string::npos;
-    if (keep) folders.push_back(entry.path());
-  }
-  std::sort(folders.begin(), folders.end());
-  return folders;
-}
-
 }  // namespace
 
 int RunTrackerEvalReal(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -296,7 +157,7 @@ int RunTrackerEvalReal(const std::vector<std::string>& args, std::ostream& out, 
   }
   const std::vector<std::string> filters =
       absl::StrSplit(flags->GetOr("sequences", ""), ',', absl::SkipEmpty());
-  const std::vector<fs::path> folders = SequenceFolders(*dir, filters);
+  const std::vector<fs::path> folders = RefSequenceFolders(*dir, filters);
   if (folders.empty()) {
     return ReportError(
         absl::NotFoundError(absl::StrCat("no sequence (a folder with meta.json) in ", *dir,
@@ -329,39 +190,17 @@ int RunTrackerEvalReal(const std::vector<std::string>& args, std::ostream& out, 
   Tally all;
   nlohmann::json sequences = nlohmann::json::array();
   for (const fs::path& folder : folders) {
-    absl::StatusOr<RefSequence> seq = ReadSequence(folder);
+    absl::StatusOr<RefSequence> seq = ReadRefSequence(folder);
     if (!seq.ok()) return ReportError(seq.status(), err);
-    (*tracker)->Reset();
+    absl::StatusOr<std::vector<TrackedRefFrame>> tracked =
+        TrackRefSequence(**tracker, *seq, history, own_segmentation);
+    if (!tracked.ok()) return ReportError(tracked.status(), err);
     Tally tally;
-    for (const RefFrame& frame : seq->frames) {
-      absl::StatusOr<DepthImageMm> depth = ReadPngDepth(frame.depth_path);
-      if (!depth.ok()) return ReportError(depth.status(), err);
-      const std::array<double, 4> kv = frame.intrinsics ? *frame.intrinsics : *seq->intrinsics;
-      CameraIntrinsics k;
-      k.width = depth->width, k.height = depth->height;
-      k.fx = kv[0], k.fy = kv[1], k.cx = kv[2], k.cy = kv[3];
-      // The folder's own background removal marks the person, unless the
-      // tracker is asked to find people itself.
-      MaskImage labels(depth->width, depth->height);
-      for (size_t i = 0; i < labels.data.size(); ++i) labels.data[i] = depth->data[i] != 0;
-      if (!history) (*tracker)->Reset();
-      const auto start = std::chrono::steady_clock::now();
-      absl::StatusOr<std::vector<tracking::TrackedPerson>> people =
-          (*tracker)->Track(*depth, k, own_segmentation ? nullptr : &labels);
-      tally.track_ms +=
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-              .count();
-      if (!people.ok()) {
-        return ReportError(
-            absl::Status(people.status().code(),
-                         absl::StrCat(frame.depth_path, ": ", people.status().message())),
-            err);
-      }
-      // The person with the most pixels is the one the sequence is about.
-      const tracking::TrackedPerson* person = nullptr;
-      for (const tracking::TrackedPerson& p : *people) {
-        if (person == nullptr || p.num_pixels > person->num_pixels) person = &p;
-      }
+    for (size_t f = 0; f < seq->frames.size(); ++f) {
+      const RefFrame& frame = seq->frames[f];
+      tally.track_ms += (*tracked)[f].track_ms;
+      const tracking::TrackedPerson* person =
+          (*tracked)[f].person ? &*(*tracked)[f].person : nullptr;
       Score(frame, person, &tally);
       if (joints_out.is_open()) {
         nlohmann::json joints = nlohmann::json::object();

@@ -17,6 +17,7 @@ constexpr double kMaxWorldTiltDeg = 45.0;
 // The learner skeleton of one body, and how many joints are usable.
 struct Candidate {
   body::SkeletonPose pose;
+  std::array<bool, body::kNumKinectV2Joints> seen{};
   int usable = 0;
   double depth_m = std::numeric_limits<double>::infinity();
 };
@@ -37,6 +38,7 @@ Candidate ConvertSkeleton(const v1::Skeleton& skeleton, const Rigid3d& color_fro
     candidate.pose.position_m[j] = color_from_depth * in_depth;
     if (!candidate.pose.valid[j]) ++candidate.usable;
     candidate.pose.valid[j] = true;
+    candidate.seen[j] = joint.tracking_state() == v1::TRACKING_STATE_TRACKED;
   }
   const int base = body::Index(body::KinectV2Joint::kSpineBase);
   if (candidate.pose.valid[base]) candidate.depth_m = candidate.pose.position_m[base].z();
@@ -67,7 +69,7 @@ absl::StatusOr<LearnerSensor> LearnerSensorFromCalibration(
   return sensor;
 }
 
-std::optional<body::SkeletonPose> LearnerSkeletonInColor(
+std::optional<LearnerSkeleton> ChooseLearnerSkeleton(
     const std::vector<const v1::Skeleton*>& skeletons, const Rigid3d& color_from_depth) {
   std::optional<Candidate> best;
   for (const v1::Skeleton* skeleton : skeletons) {
@@ -79,7 +81,14 @@ std::optional<body::SkeletonPose> LearnerSkeletonInColor(
     }
   }
   if (!best) return std::nullopt;
-  return best->pose;
+  return LearnerSkeleton{best->pose, best->seen};
+}
+
+std::optional<body::SkeletonPose> LearnerSkeletonInColor(
+    const std::vector<const v1::Skeleton*>& skeletons, const Rigid3d& color_from_depth) {
+  std::optional<LearnerSkeleton> chosen = ChooseLearnerSkeleton(skeletons, color_from_depth);
+  if (!chosen) return std::nullopt;
+  return chosen->pose;
 }
 
 int64_t ExposureStampNs(int64_t device_stamp_ns, int64_t host_stamp_ns, int64_t clock_offset_ns) {

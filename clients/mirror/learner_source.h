@@ -15,6 +15,7 @@
 // stamp is used where a message has no device stamp.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -40,6 +41,9 @@ struct LearnerFrame {
   // y down, z forward; metres; joints labelled with the person's own sides,
   // not mirrored); nullopt when nobody is tracked.
   std::optional<body::SkeletonPose> skeleton_in_color;
+  // Per joint of skeleton_in_color: seen by the sensor (TRACKED), as opposed
+  // to inferred (hidden or outside the view); all false without a skeleton.
+  std::array<bool, body::kNumKinectV2Joints> joint_seen{};
   // The colour image (sRGB, top row first); nullopt when the frame has none
   // or it did not decode.
   std::optional<RgbImage> color;
@@ -89,6 +93,15 @@ absl::StatusOr<LearnerSensor> LearnerSensorFromCalibration(
 // NOT_TRACKED or not finite is invalid. nullopt when no body has a usable
 // joint.
 std::optional<body::SkeletonPose> LearnerSkeletonInColor(
+    const std::vector<const v1::Skeleton*>& skeletons, const Rigid3d& color_from_depth);
+
+// The same skeleton with, per joint, whether the sensor saw it (its state is
+// TRACKED rather than INFERRED).
+struct LearnerSkeleton {
+  body::SkeletonPose pose;
+  std::array<bool, body::kNumKinectV2Joints> seen{};
+};
+std::optional<LearnerSkeleton> ChooseLearnerSkeleton(
     const std::vector<const v1::Skeleton*>& skeletons, const Rigid3d& color_from_depth);
 
 // The exposure stamp (see the top): device + offset, or host when the

@@ -163,7 +163,10 @@ LearnerFrame LearnerFrameFromSet(const v1::LiveFrameSet& set, const std::string&
     }
     skeletons.push_back(&skeleton);
   }
-  frame.skeleton_in_color = LearnerSkeletonInColor(skeletons, color_from_depth);
+  if (std::optional<LearnerSkeleton> learner = ChooseLearnerSkeleton(skeletons, color_from_depth)) {
+    frame.skeleton_in_color = learner->pose;
+    frame.joint_seen = learner->seen;
+  }
   for (const v1::ColorImage& color : set.colors()) {
     if (color.sensor_id() != sensor_id || color.data().empty()) continue;
     frame.stamp_ns =

@@ -323,7 +323,7 @@ absl::StatusOr<bool> MirrorLoop::Step(const LearnerFrame& frame) {
     return false;
   }
   ASSIGN_OR_RETURN(const MirrorFrame mirror,
-                   session_->Update(frame.stamp_ns, frame.skeleton_in_color));
+                   session_->Update(frame.stamp_ns, frame.skeleton_in_color, &frame.joint_seen));
   Record(mirror);
   if (mirror.state != MirrorState::kPlaying) FollowLearner(frame);
   ASSIGN_OR_RETURN(RgbImage image, Compose(frame, mirror));

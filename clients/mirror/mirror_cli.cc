@@ -192,6 +192,7 @@ nlohmann::json RepetitionsJson(const MirrorAppSummary& summary) {
     const RepetitionReport& report = summary.reports[i];
     nlohmann::json entry = {{"repetition", report.repetition},
                             {"mean_error_deg", OptionalJson(report.mean_error_deg)},
+                            {"coverage", report.coverage},
                             {"learner_facing_yaw_deg", OptionalJson(report.learner_facing_yaw_deg)},
                             {"view_yaw_deg", report.view_yaw_deg},
                             {"teacher_turn_yaw_deg", report.teacher_turn_yaw_deg},
@@ -261,12 +262,14 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
   for (size_t i = 0; i < summary.reports.size(); ++i) {
     const RepetitionReport& report = summary.reports[i];
     err << absl::StrFormat(
-        "reenact-mirror: repetition %d%s: mean error %s (facing %s, teacher turned %+.1f deg)%s\n",
+        "reenact-mirror: repetition %d%s: mean error %s over %.0f%% of the body seen (facing %s, "
+        "teacher turned %+.1f deg)%s\n",
         report.repetition,
         report.complete ? ""
                         : absl::StrFormat(" (cut short after %d of %d teacher frames)",
                                           report.teacher_frames_played, report.num_teacher_frames),
         report.mean_error_deg ? absl::StrFormat("%.1f deg", *report.mean_error_deg) : "-",
+        100.0 * report.coverage,
         report.learner_facing_yaw_deg ? absl::StrFormat("%+.1f deg", *report.learner_facing_yaw_deg)
                                       : "-",
         report.teacher_turn_yaw_deg,

@@ -103,6 +103,12 @@ absl::StatusOr<MirrorSession> MirrorSession::Create(
 
 absl::StatusOr<MirrorFrame> MirrorSession::Update(
     int64_t stamp_ns, const std::optional<body::SkeletonPose>& learner_in_sensor) {
+  return Update(stamp_ns, learner_in_sensor, nullptr);
+}
+
+absl::StatusOr<MirrorFrame> MirrorSession::Update(
+    int64_t stamp_ns, const std::optional<body::SkeletonPose>& learner_in_sensor,
+    const std::array<bool, body::kNumKinectV2Joints>* joint_seen) {
   if (last_stamp_ns_ && stamp_ns < *last_stamp_ns_) {
     return absl::InvalidArgumentError(absl::StrCat(
         "learner stamp ", stamp_ns, " ns is earlier than the previous ", *last_stamp_ns_, " ns"));
@@ -113,6 +119,16 @@ absl::StatusOr<MirrorFrame> MirrorSession::Update(
   if (learner_in_sensor) {
     yaw_deg = FacingYawInSensorDeg(*learner_in_sensor, options_.up_in_sensor);
     learner = PartDirectionsInSpine(*learner_in_sensor);
+    // Grade only what the sensor saw: a part with an inferred joint is
+    // left out (drawn in missing_color, out of the report's means).
+    if (joint_seen != nullptr) {
+      for (int p = 0; p < kNumBodyParts; ++p) {
+        const PartBone bone = BodyPartBone(BodyPartAt(p));
+        if (!(*joint_seen)[body::Index(bone.from)] || !(*joint_seen)[body::Index(bone.to)]) {
+          (*learner)[p].reset();
+        }
+      }
+    }
   }
   MirrorFrame frame;
   frame.learner_facing_yaw_deg = yaw_deg;

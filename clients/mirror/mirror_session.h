@@ -172,6 +172,14 @@ class MirrorSession {
   // previous frame's.
   absl::StatusOr<MirrorFrame> Update(int64_t stamp_ns,
                                      const std::optional<body::SkeletonPose>& learner_in_sensor);
+  // The same, grading only the parts the sensor saw: `joint_seen` (per joint
+  // of learner_in_sensor, e.g. LearnerFrame::joint_seen) false for a joint
+  // that was only inferred leaves out the parts it ends; they are drawn in
+  // colors.missing_color and stay out of the report's means and coverage.
+  // nullptr grades every valid joint.
+  absl::StatusOr<MirrorFrame> Update(int64_t stamp_ns,
+                                     const std::optional<body::SkeletonPose>& learner_in_sensor,
+                                     const std::array<bool, body::kNumKinectV2Joints>* joint_seen);
 
   // Ends a repetition that is playing when the learner stops early (a take
   // ends, the app is told to stop): its report covers the teacher frames

@@ -63,6 +63,12 @@ void SummarizeErrors(RepetitionReport& report) {
   }
   report.mean_error_deg =
       mean_count > 0 ? std::optional<double>(mean_sum / mean_count) : std::nullopt;
+  int compared = 0;
+  for (const int n : part_count) compared += n;
+  report.coverage = report.frames.empty()
+                        ? 0.0
+                        : static_cast<double>(compared) /
+                              (static_cast<double>(report.frames.size()) * kNumBodyParts);
 }
 
 std::string RepetitionCsv(const RepetitionReport& report) {
@@ -79,6 +85,7 @@ std::string RepetitionJson(const RepetitionReport& report) {
   Json json = {
       {"repetition", report.repetition},
       {"mean_error_deg", OptionalNumber(report.mean_error_deg)},
+      {"coverage", report.coverage},
       {"parts", PartsJson(report.part_mean_error_deg)},
       {"learner_facing_yaw_deg", OptionalNumber(report.learner_facing_yaw_deg)},
       {"view_yaw_deg", report.view_yaw_deg},

@@ -7,7 +7,7 @@
 //                 time_s,teacher_frame,learner_stamp_ns,<13 part names>,mean_error_deg
 //                 (degrees; an empty field is a missing part or mean);
 //   rep-NNN.json  {"repetition", "mean_error_deg", "parts": {"head": ..., ...},
-//                 "learner_facing_yaw_deg", "view_yaw_deg", "teacher_turn_yaw_deg",
+//                 "coverage", "learner_facing_yaw_deg", "view_yaw_deg", "teacher_turn_yaw_deg",
 //                 "teacher_facing_yaw_world_deg", "challenge", "dtw",
 //                 "playback_speed", "start_stamp_ns", "end_stamp_ns", "duration_s",
 //                 "num_learner_frames", "num_teacher_frames",
@@ -75,6 +75,9 @@ struct RepetitionReport {
   // Mean over the compared pairs of each pair's mean part error (with DTW a
   // learner frame may be in several pairs).
   std::optional<double> mean_error_deg;
+  // Compared part-frames over all part-frames (0..1): how much of the body
+  // the means cover (parts the sensor did not see are not compared).
+  double coverage = 0.0;
 };
 
 // Fills part_mean_error_deg and mean_error_deg from `frames`.

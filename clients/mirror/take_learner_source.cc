@@ -97,7 +97,7 @@ class TakeLearnerSource : public LearnerSource {
  private:
   TakeLearnerSource() = default;
   absl::Status ReadSkeletons();
-  std::optional<body::SkeletonPose> SkeletonNear(int64_t stamp_ns) const;
+  std::optional<LearnerSkeleton> SkeletonNear(int64_t stamp_ns) const;
   bool Push(int64_t stamp_ns, std::optional<RgbImage> color);
   absl::Status ProduceFromColor();
   absl::Status ProduceFromSkeletons();
@@ -112,7 +112,7 @@ class TakeLearnerSource : public LearnerSource {
   // The take stores no skeletons: the learner was tracked from its depth.
   bool tracked_ = false;
   // The learner per exposure stamp (nullopt: skeletons without a usable joint).
-  std::map<int64_t, std::optional<body::SkeletonPose>> skeletons_;
+  std::map<int64_t, std::optional<LearnerSkeleton>> skeletons_;
   int64_t last_stamp_ns_ = std::numeric_limits<int64_t>::min();
   LearnerQueue queue_{kFramesAhead, LearnerQueue::WhenFull::kWait};
   std::thread thread_;
@@ -170,12 +170,12 @@ absl::Status TakeLearnerSource::ReadSkeletons() {
   for (const auto& [stamp_ns, bodies] : by_stamp) {
     std::vector<const v1::Skeleton*> pointers;
     for (const v1::Skeleton& skeleton : bodies) pointers.push_back(&skeleton);
-    skeletons_[stamp_ns] = LearnerSkeletonInColor(pointers, color_from_depth_);
+    skeletons_[stamp_ns] = ChooseLearnerSkeleton(pointers, color_from_depth_);
   }
   return absl::OkStatus();
 }
 
-std::optional<body::SkeletonPose> TakeLearnerSource::SkeletonNear(int64_t stamp_ns) const {
+std::optional<LearnerSkeleton> TakeLearnerSource::SkeletonNear(int64_t stamp_ns) const {
   const int64_t tolerance_ns = static_cast<int64_t>(0.5e9 / sensor_.nominal_fps);
   auto after = skeletons_.lower_bound(stamp_ns);
   auto best = skeletons_.end();
@@ -197,7 +197,10 @@ bool TakeLearnerSource::Push(int64_t stamp_ns, std::optional<RgbImage> color) {
   // Stamps never go back, even where chunk order and exposure order differ.
   frame.stamp_ns = std::max(stamp_ns, last_stamp_ns_);
   last_stamp_ns_ = frame.stamp_ns;
-  frame.skeleton_in_color = SkeletonNear(stamp_ns);
+  if (std::optional<LearnerSkeleton> learner = SkeletonNear(stamp_ns)) {
+    frame.skeleton_in_color = learner->pose;
+    frame.joint_seen = learner->seen;
+  }
   frame.color = std::move(color);
   return queue_.Push(std::move(frame));
 }

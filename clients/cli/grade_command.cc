@@ -1,0 +1,535 @@
+// `reenact grade`: the magic mirror's comparison (clients/mirror/grading.h)
+// with no window or video, so that a coach can grade a class's recordings in
+// a batch:
+//   reenact grade --teacher REENACTMENT|TAKE --learner TAKE [--json]
+// and the same comparison checked on real people, over every pair of
+// recordings of a folder laid out like ../shared/data/rgbd-seq:
+//   reenact grade --real DIR [--tracked] [--json]
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "clients/cli/commands.h"
+#include "clients/cli/real_sequences.h"
+#include "clients/mirror/grading.h"
+#include "clients/mirror/learner_source.h"
+#include "clients/mirror/teacher_view.h"
+#include "clients/sdk/reenactment_source.h"
+#include "common/base/files.h"
+#include "common/base/flags.h"
+#include "common/base/status_macros.h"
+#include "common/rpc/channel.h"
+#include "common/tracking/body_tracker.h"
+
+namespace reenact::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using mirror::GradeFrame;
+
+// ---------------------------------------------------------------------------
+// Teacher and learner from files.
+
+// The frames of a take's learner sensor (tracked from depth when the take
+// has no skeletons), timed from the first frame.
+absl::StatusOr<std::vector<GradeFrame>> TakeFrames(const std::string& path,
+                                                   const std::string& sensor, bool all_seen) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return absl::NotFoundError(absl::StrCat("no take ", path));
+  ASSIGN_OR_RETURN(std::unique_ptr<mirror::LearnerSource> source,
+                   mirror::OpenTakeLearner(path, sensor));
+  std::vector<GradeFrame> frames;
+  std::optional<int64_t> first_ns;
+  while (true) {
+    ASSIGN_OR_RETURN(std::optional<mirror::LearnerFrame> frame, source->Next());
+    if (!frame) break;
+    if (!first_ns) first_ns = frame->stamp_ns;
+    GradeFrame f;
+    f.time_s = static_cast<double>(frame->stamp_ns - *first_ns) * 1e-9;
+    f.pose = frame->skeleton_in_color;
+    f.seen = frame->joint_seen;
+    if (all_seen) mirror::MarkValidJointsSeen(f);
+    frames.push_back(std::move(f));
+  }
+  if (frames.empty()) {
+    return absl::FailedPreconditionError(absl::StrCat(source->Describe(), " has no frame"));
+  }
+  return frames;
+}
+
+bool IsTakePath(const std::string& path) { return absl::EndsWithIgnoreCase(path, ".mcap"); }
+
+absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags, std::string* described) {
+  const std::string teacher = flags.GetOr("teacher", "");
+  if (!flags.Has("server") && IsTakePath(teacher)) {
+    *described = "take " + teacher;
+    return TakeFrames(teacher, flags.GetOr("teacher-sensor", ""), /*all_seen=*/true);
+  }
+  std::unique_ptr<client::ReenactmentSource> source;
+  std::string id;
+  if (flags.Has("server")) {
+    ASSIGN_OR_RETURN(
+        const rpc::ClientSecurity security,
+        rpc::LoadClientSecurity(flags.GetOr("tls-ca", ""), flags.GetOr("token-file", "")));
+    ASSIGN_OR_RETURN(source,
+                     client::OpenReenactmentSource(
+                         absl::StrCat("grpc:", *flags.Get("server")),
+                         flags.GetOr("cache", client::DefaultReenactmentCacheDir()), security));
+    id = teacher;
+  } else {
+    ASSIGN_OR_RETURN(source, client::OpenReenactmentSource(teacher));
+    id = flags.GetOr("teacher-id", "");
+  }
+  if (id.empty()) {
+    ASSIGN_OR_RETURN(std::vector<v1::ReenactmentSummary> list, source->List());
+    if (list.size() != 1) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("--teacher-id ID is required: ", source->Describe(), " has ", list.size(),
+                       " reenactments"));
+    }
+    id = list.front().info().reenactment_id();
+  }
+  ASSIGN_OR_RETURN(const Reenactment data, source->Load(id));
+  if (!(data.info.fps > 0.0) || !std::isfinite(data.info.fps)) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("reenactment ", id, " has no frame rate (ReenactmentInfo.fps)"));
+  }
+  ASSIGN_OR_RETURN(const std::vector<body::SkeletonPose> poses, mirror::TeacherSkeletons(data));
+  std::vector<GradeFrame> frames;
+  frames.reserve(poses.size());
+  for (size_t i = 0; i < poses.size(); ++i) {
+    GradeFrame f;
+    f.time_s = static_cast<double>(i) / data.info.fps;
+    f.pose = poses[i];
+    mirror::MarkValidJointsSeen(f);
+    frames.push_back(std::move(f));
+  }
+  *described = absl::StrCat("reenactment ", id, " (", source->Describe(), ")");
+  return frames;
+}
+
+absl::Status WriteReport(const std::string& dir, const mirror::Grade& grade,
+                         const std::vector<GradeFrame>& teacher,
+                         const std::vector<GradeFrame>& learner) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return absl::PermissionDeniedError(absl::StrCat("cannot make ", dir, ": ", ec.message()));
+  RETURN_IF_ERROR(WriteFileAtomically((fs::path(dir) / "grade.json").string(),
+                                      mirror::GradeJson(grade, /*with_pairs=*/true) + "\n"));
+  ASSIGN_OR_RETURN(const std::string heat, mirror::GradeHeatMapPng(grade));
+  RETURN_IF_ERROR(WriteFileAtomically((fs::path(dir) / "heatmap.png").string(), heat));
+  ASSIGN_OR_RETURN(const std::string worst, mirror::WorstMomentsPng(grade, teacher, learner));
+  return WriteFileAtomically((fs::path(dir) / "worst-moments.png").string(), worst);
+}
+
+void PrintGrade(const mirror::Grade& grade, const mirror::GradeOptions& options,
+                std::ostream& out) {
+  if (grade.mean_error_deg) {
+    out << absl::StrFormat(
+        "mean error %.1f degrees over the graded parts (%.0f%% of the body "
+        "over time was seen and graded)\n",
+        *grade.mean_error_deg, 100.0 * grade.coverage);
+  } else {
+    out << "nothing could be graded: no part was seen in enough frames\n";
+  }
+  for (int p = 0; p < mirror::kNumBodyParts; ++p) {
+    const mirror::PartGrade& part = grade.parts[p];
+    const std::string name = mirror::PartWords(mirror::BodyPartAt(p));
+    if (part.graded) {
+      out << absl::StrFormat("  %-16s %5.1f deg  (seen %3.0f%%)\n", name, *part.mean_error_deg,
+                             100.0 * part.coverage);
+    } else {
+      out << absl::StrFormat("  %-16s not graded: %s\n", name, part.not_graded_reason);
+    }
+  }
+  if (grade.corrections.empty()) {
+    out << "no correction: every graded part stayed within " << options.min_correction_deg
+        << " degrees\n";
+  }
+  for (const mirror::Correction& c : grade.corrections) out << "correction: " << c.text << "\n";
+}
+
+// ---------------------------------------------------------------------------
+// Real people: every pair of recordings of a folder like rgbd-seq.
+
+struct RealSequence {
+  RefSequence ref;
+  std::vector<GradeFrame> sdk;      // The stored SDK skeletons (no states: all seen).
+  std::vector<GradeFrame> tracked;  // Ours, with TRACKED as seen.
+};
+
+std::vector<GradeFrame> SdkFrames(const RefSequence& seq) {
+  std::vector<GradeFrame> frames;
+  for (size_t i = 0; i < seq.frames.size(); ++i) {
+    GradeFrame f;
+    f.time_s = static_cast<double>(i) / seq.fps;
+    body::SkeletonPose pose;
+    int any = 0;
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      pose.position_m[j] = Eigen::Vector3d::Zero();
+      if (const auto& p = seq.frames[i].joints[j])
+        pose.position_m[j] = *p, pose.valid[j] = true, ++any;
+    }
+    if (any > 0) f.pose = pose;
+    mirror::MarkValidJointsSeen(f);
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+std::vector<GradeFrame> TrackedFrames(const RefSequence& seq,
+                                      const std::vector<TrackedRefFrame>& tracked) {
+  std::vector<GradeFrame> frames;
+  for (size_t i = 0; i < tracked.size(); ++i) {
+    GradeFrame f;
+    f.time_s = static_cast<double>(i) / seq.fps;
+    if (const auto& person = tracked[i].person) {
+      body::SkeletonPose pose;
+      int any = 0;
+      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+        const tracking::TrackedJoint& joint = person->joints[j];
+        pose.position_m[j] = Eigen::Vector3d::Zero();
+        if (joint.state == tracking::JointState::kNotTracked ||
+            !joint.position_in_camera_m.allFinite()) {
+          continue;
+        }
+        pose.position_m[j] = joint.position_in_camera_m;
+        pose.valid[j] = true;
+        f.seen[j] = joint.state == tracking::JointState::kTracked;
+        ++any;
+      }
+      if (any > 0) f.pose = pose;
+    }
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+// How often a same-action pair grades lower than a different-action pair for
+// the same learner (ties count half).
+struct Ranking {
+  double wins = 0.0;
+  int64_t comparisons = 0;
+  int pairs = 0, failed = 0;
+  double same_sum = 0.0, different_sum = 0.0;
+  int same_n = 0, different_n = 0;
+  double Share() const { return comparisons ? 100.0 * wins / comparisons : 0.0; }
+};
+
+// Per-part errors of the same pairs from two skeleton sources.
+struct Agreement {
+  std::vector<double> sdk, tracked;
+  double coverage_sum = 0.0;
+  int pairs = 0;
+  double Correlation() const {
+    const size_t n = sdk.size();
+    if (n < 2) return 0.0;
+    double mx = 0, my = 0;
+    for (size_t i = 0; i < n; ++i) mx += sdk[i], my += tracked[i];
+    mx /= n, my /= n;
+    double sxy = 0, sxx = 0, syy = 0;
+    for (size_t i = 0; i < n; ++i) {
+      sxy += (sdk[i] - mx) * (tracked[i] - my);
+      sxx += (sdk[i] - mx) * (sdk[i] - mx);
+      syy += (tracked[i] - my) * (tracked[i] - my);
+    }
+    return sxx > 0 && syy > 0 ? sxy / std::sqrt(sxx * syy) : 0.0;
+  }
+  double MeanAbsDifference() const {
+    double sum = 0;
+    for (size_t i = 0; i < sdk.size(); ++i) sum += std::abs(sdk[i] - tracked[i]);
+    return sdk.empty() ? 0.0 : sum / sdk.size();
+  }
+};
+
+struct PairGrades {
+  const RealSequence* teacher;
+  const RealSequence* learner;
+  std::optional<mirror::Grade> sdk, tracked;
+};
+
+void Rank(const std::vector<PairGrades>& pairs, bool tracked, Ranking* r) {
+  // learner -> (same-action means, different-action means)
+  std::map<const RealSequence*, std::pair<std::vector<double>, std::vector<double>>> by_learner;
+  for (const PairGrades& p : pairs) {
+    const std::optional<mirror::Grade>& g = tracked ? p.tracked : p.sdk;
+    ++r->pairs;
+    if (!g || !g->mean_error_deg) {
+      ++r->failed;
+      continue;
+    }
+    const bool same = p.teacher->ref.action_id == p.learner->ref.action_id;
+    auto& lists = by_learner[p.learner];
+    (same ? lists.first : lists.second).push_back(*g->mean_error_deg);
+    (same ? r->same_sum : r->different_sum) += *g->mean_error_deg;
+    ++(same ? r->same_n : r->different_n);
+  }
+  for (const auto& [learner, lists] : by_learner) {
+    for (const double s : lists.first) {
+      for (const double d : lists.second) {
+        r->wins += s < d ? 1.0 : s == d ? 0.5 : 0.0;
+        ++r->comparisons;
+      }
+    }
+  }
+}
+
+void Agree(const std::vector<PairGrades>& pairs, Agreement* a) {
+  for (const PairGrades& p : pairs) {
+    if (!p.sdk || !p.tracked) continue;
+    ++a->pairs;
+    a->coverage_sum += p.tracked->coverage;
+    for (int part = 0; part < mirror::kNumBodyParts; ++part) {
+      const mirror::PartGrade& s = p.sdk->parts[part];
+      const mirror::PartGrade& t = p.tracked->parts[part];
+      if (!s.graded || !t.graded) continue;
+      a->sdk.push_back(*s.mean_error_deg);
+      a->tracked.push_back(*t.mean_error_deg);
+    }
+  }
+}
+
+nlohmann::json RankingJson(const Ranking& r) {
+  return {{"pairs", r.pairs},
+          {"pairs_not_graded", r.failed},
+          {"comparisons", r.comparisons},
+          {"same_action_lower_percent", r.Share()},
+          {"mean_same_action_deg", r.same_n ? r.same_sum / r.same_n : 0.0},
+          {"mean_different_action_deg", r.different_n ? r.different_sum / r.different_n : 0.0}};
+}
+
+nlohmann::json AgreementJson(const Agreement& a) {
+  return {{"pairs", a.pairs},
+          {"part_values", a.sdk.size()},
+          {"correlation", a.Correlation()},
+          {"mean_abs_difference_deg", a.MeanAbsDifference()},
+          {"mean_tracked_coverage", a.pairs ? a.coverage_sum / a.pairs : 0.0}};
+}
+
+int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
+  const std::string dir = *flags.Get("real");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) {
+    return ReportError(absl::NotFoundError(absl::StrCat("no folder ", dir)), err);
+  }
+  const std::vector<std::string> filters =
+      absl::StrSplit(flags.GetOr("sequences", ""), ',', absl::SkipEmpty());
+  const std::vector<fs::path> folders = RefSequenceFolders(dir, filters);
+  if (folders.empty()) {
+    return ReportError(
+        absl::NotFoundError(absl::StrCat("no sequence (a folder with meta.json) in ", dir,
+                                         filters.empty() ? "" : " whose name matches --sequences")),
+        err);
+  }
+  const bool with_tracker = flags.Has("tracked");
+  const bool quiet = flags.Has("json");
+  std::unique_ptr<tracking::BodyTracker> tracker;
+  if (with_tracker) {
+    tracking::BodyTrackerOptions options;
+    if (flags.Has("forest")) {
+      options.method = tracking::TrackerMethod::kForest;
+      options.forest_path = *flags.Get("forest");
+    }
+    options.model_path = flags.GetOr("model", "");
+    absl::StatusOr<std::unique_ptr<tracking::BodyTracker>> created =
+        tracking::BodyTracker::Create(options);
+    if (!created.ok()) return ReportError(created.status(), err);
+    tracker = *std::move(created);
+  }
+  mirror::GradeOptions options;
+  options.use_dtw = !flags.Has("one-to-one");
+  // Which recordings act as learners (all by default): shell patterns on
+  // the folder names, e.g. the subjects a tracker never trained on.
+  const std::vector<std::string> learner_patterns =
+      absl::StrSplit(flags.GetOr("learners", ""), ',', absl::SkipEmpty());
+  const auto is_learner = [&](const std::string& name) {
+    if (learner_patterns.empty()) return true;
+    return std::any_of(learner_patterns.begin(), learner_patterns.end(), [&](const std::string& p) {
+      return fnmatch(p.c_str(), name.c_str(), 0) == 0;
+    });
+  };
+
+  std::vector<RealSequence> sequences;
+  sequences.reserve(folders.size());
+  for (const fs::path& folder : folders) {
+    absl::StatusOr<RefSequence> ref = ReadRefSequence(folder);
+    if (!ref.ok()) return ReportError(ref.status(), err);
+    RealSequence seq;
+    seq.ref = *std::move(ref);
+    seq.sdk = SdkFrames(seq.ref);
+    if (tracker) {
+      absl::StatusOr<std::vector<TrackedRefFrame>> tracked =
+          TrackRefSequence(*tracker, seq.ref, /*history=*/true, /*own_segmentation=*/false);
+      if (!tracked.ok()) return ReportError(tracked.status(), err);
+      seq.tracked = TrackedFrames(seq.ref, *tracked);
+      if (!quiet && !flags.Has("quiet"))
+        err << "tracked " << seq.ref.name << " (" << seq.tracked.size() << " frames)\n";
+    }
+    sequences.push_back(std::move(seq));
+  }
+
+  // Pairs within a dataset (one sensor type), teacher and learner different
+  // people.
+  std::map<std::string, std::vector<PairGrades>> by_dataset;
+  for (const RealSequence& learner : sequences) {
+    if (!is_learner(learner.ref.name)) continue;
+    for (const RealSequence& teacher : sequences) {
+      if (&teacher == &learner || teacher.ref.dataset != learner.ref.dataset ||
+          teacher.ref.subject == learner.ref.subject) {
+        continue;
+      }
+      PairGrades pair{&teacher, &learner, std::nullopt, std::nullopt};
+      absl::StatusOr<mirror::Grade> sdk = mirror::GradeSequences(teacher.sdk, learner.sdk, options);
+      if (sdk.ok()) pair.sdk = *std::move(sdk);
+      if (tracker) {
+        absl::StatusOr<mirror::Grade> tracked =
+            mirror::GradeSequences(teacher.tracked, learner.tracked, options);
+        if (tracked.ok()) pair.tracked = *std::move(tracked);
+      }
+      by_dataset[learner.ref.dataset].push_back(std::move(pair));
+    }
+  }
+  if (by_dataset.empty()) {
+    return ReportError(absl::FailedPreconditionError(
+                           "no pair of recordings of two different people in one dataset"),
+                       err);
+  }
+  nlohmann::json datasets = nlohmann::json::object();
+  Ranking all_sdk, all_tracked;
+  Agreement all_agree;
+  for (const auto& [name, pairs] : by_dataset) {
+    Ranking sdk, tracked;
+    Agreement agree;
+    Rank(pairs, false, &sdk);
+    Rank(pairs, false, &all_sdk);
+    nlohmann::json entry = {{"sdk", RankingJson(sdk)}};
+    if (tracker) {
+      Rank(pairs, true, &tracked);
+      Rank(pairs, true, &all_tracked);
+      Agree(pairs, &agree);
+      Agree(pairs, &all_agree);
+      entry["tracked"] = RankingJson(tracked);
+      entry["tracked_vs_sdk"] = AgreementJson(agree);
+    }
+    datasets[name] = entry;
+    if (!quiet) {
+      out << name << ": " << sdk.pairs << " pairs; SDK skeletons: same action graded lower in "
+          << absl::StrFormat("%.1f", sdk.Share()) << " % of comparisons (mean "
+          << absl::StrFormat("%.1f", sdk.same_n ? sdk.same_sum / sdk.same_n : 0.0)
+          << " deg same action, "
+          << absl::StrFormat("%.1f", sdk.different_n ? sdk.different_sum / sdk.different_n : 0.0)
+          << " deg different)\n";
+      if (tracker) {
+        out << name << ": tracked skeletons: same action graded lower in "
+            << absl::StrFormat("%.1f", tracked.Share()) << " %; per-part grades against the "
+            << "SDK's: correlation " << absl::StrFormat("%.3f", agree.Correlation())
+            << ", mean absolute difference " << absl::StrFormat("%.1f", agree.MeanAbsDifference())
+            << " deg over " << agree.sdk.size() << " part grades, tracked coverage "
+            << absl::StrFormat("%.0f", 100.0 * (agree.pairs ? agree.coverage_sum / agree.pairs : 0))
+            << " %\n";
+      }
+    }
+  }
+  nlohmann::json result = {{"datasets", datasets},
+                           {"sequences", sequences.size()},
+                           {"dtw", options.use_dtw},
+                           {"overall", {{"sdk", RankingJson(all_sdk)}}}};
+  if (tracker) {
+    result["overall"]["tracked"] = RankingJson(all_tracked);
+    result["overall"]["tracked_vs_sdk"] = AgreementJson(all_agree);
+  }
+  if (flags.Has("json")) {
+    out << result.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  } else {
+    out << "overall: same action graded lower in " << absl::StrFormat("%.1f", all_sdk.Share())
+        << " % of comparisons (SDK skeletons)";
+    if (tracker) {
+      out << ", " << absl::StrFormat("%.1f", all_tracked.Share())
+          << " % (tracked); tracked against SDK per-part grades: correlation "
+          << absl::StrFormat("%.3f", all_agree.Correlation()) << ", mean absolute difference "
+          << absl::StrFormat("%.1f", all_agree.MeanAbsDifference()) << " deg";
+    }
+    out << "\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  auto flags = Flags::Parse(
+      args,
+      {"teacher", "teacher-id", "teacher-sensor", "learner", "sensor", "server", "cache", "tls-ca",
+       "token-file", "report", "real", "sequences", "model", "forest", "smoothing-s", "learners"},
+      {"json", "pairs", "one-to-one", "tracked", "quiet"});
+  if (!flags.ok()) return ReportError(flags.status(), err);
+  if (flags->Has("real")) {
+    if (flags->Has("teacher") || flags->Has("learner")) {
+      return ReportError(absl::InvalidArgumentError(
+                             "--real grades the folder's own pairs: no --teacher/--learner"),
+                         err);
+    }
+    return RunGradeReal(*flags, out, err);
+  }
+  if (!flags->Has("teacher") || !flags->Has("learner")) {
+    return ReportError(absl::InvalidArgumentError(
+                           "give --teacher REENACTMENT|TAKE and --learner TAKE (or --real DIR)"),
+                       err);
+  }
+  mirror::GradeOptions options;
+  options.use_dtw = !flags->Has("one-to-one");
+  auto smoothing = flags->GetDouble("smoothing-s", options.smoothing_s);
+  if (!smoothing.ok()) return ReportError(smoothing.status(), err);
+  options.smoothing_s = *smoothing;
+  if (absl::Status valid = options.Validate(); !valid.ok()) return ReportError(valid, err);
+
+  std::string teacher_described;
+  absl::StatusOr<std::vector<GradeFrame>> teacher = TeacherFrames(*flags, &teacher_described);
+  if (!teacher.ok()) {
+    return ReportError(absl::Status(teacher.status().code(),
+                                    absl::StrCat("teacher: ", teacher.status().message())),
+                       err);
+  }
+  absl::StatusOr<std::vector<GradeFrame>> learner =
+      TakeFrames(*flags->Get("learner"), flags->GetOr("sensor", ""), /*all_seen=*/false);
+  if (!learner.ok()) {
+    return ReportError(absl::Status(learner.status().code(),
+                                    absl::StrCat("learner: ", learner.status().message())),
+                       err);
+  }
+  absl::StatusOr<mirror::Grade> grade = mirror::GradeSequences(*teacher, *learner, options);
+  if (!grade.ok()) return ReportError(grade.status(), err);
+  if (const auto report = flags->Get("report")) {
+    if (absl::Status written = WriteReport(*report, *grade, *teacher, *learner); !written.ok()) {
+      return ReportError(written, err);
+    }
+  }
+  if (flags->Has("json")) {
+    nlohmann::json j = nlohmann::json::parse(mirror::GradeJson(*grade, flags->Has("pairs")));
+    j["teacher"] = teacher_described;
+    j["learner"] = *flags->Get("learner");
+    out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    return kExitOk;
+  }
+  out << "teacher: " << teacher_described << "\nlearner: " << *flags->Get("learner") << "\n";
+  PrintGrade(*grade, options, out);
+  if (const auto report = flags->Get("report")) out << "report: " << *report << "\n";
+  return kExitOk;
+}
+
+}  // namespace reenact::cli

@@ -141,9 +141,10 @@ void PrintGrade(const mirror::Grade& grade, const mirror::GradeOptions& options,
                 std::ostream& out) {
   if (grade.mean_error_deg) {
     out << absl::StrFormat(
-        "mean error %.1f degrees over the graded parts (%.0f%% of the body "
-        "over time was seen and graded)\n",
-        *grade.mean_error_deg, 100.0 * grade.coverage);
+        "mean error %.1f degrees over the graded parts (%.0f%% of the body over time was seen "
+        "and graded); %.1f degrees weighted by how much the teacher moves each part\n",
+        *grade.mean_error_deg, 100.0 * grade.coverage,
+        grade.action_error_deg.value_or(*grade.mean_error_deg));
   } else {
     out << "nothing could be graded: no part was seen in enough frames\n";
   }
@@ -151,8 +152,8 @@ void PrintGrade(const mirror::Grade& grade, const mirror::GradeOptions& options,
     const mirror::PartGrade& part = grade.parts[p];
     const std::string name = mirror::PartWords(mirror::BodyPartAt(p));
     if (part.graded) {
-      out << absl::StrFormat("  %-16s %5.1f deg  (seen %3.0f%%)\n", name, *part.mean_error_deg,
-                             100.0 * part.coverage);
+      out << absl::StrFormat("  %-16s %5.1f deg  (seen %3.0f%%, teacher moves it %.0f deg)\n", name,
+                             *part.mean_error_deg, 100.0 * part.coverage, part.teacher_motion_deg);
     } else {
       out << absl::StrFormat("  %-16s not graded: %s\n", name, part.not_graded_reason);
     }
@@ -263,20 +264,25 @@ struct PairGrades {
   std::optional<mirror::Grade> sdk, tracked;
 };
 
-void Rank(const std::vector<PairGrades>& pairs, bool tracked, Ranking* r) {
+// `plain`: by the plain mean over the graded parts instead of the
+// action-weighted error.
+void Rank(const std::vector<PairGrades>& pairs, bool tracked, Ranking* r, bool plain = false) {
   // learner -> (same-action means, different-action means)
   std::map<const RealSequence*, std::pair<std::vector<double>, std::vector<double>>> by_learner;
   for (const PairGrades& p : pairs) {
     const std::optional<mirror::Grade>& g = tracked ? p.tracked : p.sdk;
     ++r->pairs;
-    if (!g || !g->mean_error_deg) {
+    const std::optional<double> score = !g      ? std::nullopt
+                                        : plain ? g->mean_error_deg
+                                                : g->action_error_deg;
+    if (!score) {
       ++r->failed;
       continue;
     }
     const bool same = p.teacher->ref.action_id == p.learner->ref.action_id;
     auto& lists = by_learner[p.learner];
-    (same ? lists.first : lists.second).push_back(*g->mean_error_deg);
-    (same ? r->same_sum : r->different_sum) += *g->mean_error_deg;
+    (same ? lists.first : lists.second).push_back(*score);
+    (same ? r->same_sum : r->different_sum) += *score;
     ++(same ? r->same_n : r->different_n);
   }
   for (const auto& [learner, lists] : by_learner) {
@@ -304,8 +310,9 @@ void Agree(const std::vector<PairGrades>& pairs, Agreement* a) {
   }
 }
 
-nlohmann::json RankingJson(const Ranking& r) {
+nlohmann::json RankingJson(const Ranking& r, const Ranking& plain) {
   return {{"pairs", r.pairs},
+          {"same_action_lower_percent_plain_mean", plain.Share()},
           {"pairs_not_graded", r.failed},
           {"comparisons", r.comparisons},
           {"same_action_lower_percent", r.Share()},
@@ -410,33 +417,41 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
                        err);
   }
   nlohmann::json datasets = nlohmann::json::object();
-  Ranking all_sdk, all_tracked;
+  Ranking all_sdk, all_tracked, all_sdk_plain, all_tracked_plain;
   Agreement all_agree;
   for (const auto& [name, pairs] : by_dataset) {
-    Ranking sdk, tracked;
+    Ranking sdk, tracked, sdk_plain, tracked_plain;
     Agreement agree;
     Rank(pairs, false, &sdk);
+    Rank(pairs, false, &sdk_plain, /*plain=*/true);
     Rank(pairs, false, &all_sdk);
-    nlohmann::json entry = {{"sdk", RankingJson(sdk)}};
+    Rank(pairs, false, &all_sdk_plain, /*plain=*/true);
+    nlohmann::json entry = {{"sdk", RankingJson(sdk, sdk_plain)}};
     if (tracker) {
       Rank(pairs, true, &tracked);
+      Rank(pairs, true, &tracked_plain, /*plain=*/true);
       Rank(pairs, true, &all_tracked);
+      Rank(pairs, true, &all_tracked_plain, /*plain=*/true);
       Agree(pairs, &agree);
       Agree(pairs, &all_agree);
-      entry["tracked"] = RankingJson(tracked);
+      entry["tracked"] = RankingJson(tracked, tracked_plain);
       entry["tracked_vs_sdk"] = AgreementJson(agree);
     }
     datasets[name] = entry;
     if (!quiet) {
       out << name << ": " << sdk.pairs << " pairs; SDK skeletons: same action graded lower in "
-          << absl::StrFormat("%.1f", sdk.Share()) << " % of comparisons (mean "
+          << absl::StrFormat("%.1f", sdk.Share()) << " % of comparisons ("
+          << absl::StrFormat("%.1f", sdk_plain.Share()) << " % by the plain mean; "
+          << "action-weighted "
           << absl::StrFormat("%.1f", sdk.same_n ? sdk.same_sum / sdk.same_n : 0.0)
           << " deg same action, "
           << absl::StrFormat("%.1f", sdk.different_n ? sdk.different_sum / sdk.different_n : 0.0)
           << " deg different)\n";
       if (tracker) {
         out << name << ": tracked skeletons: same action graded lower in "
-            << absl::StrFormat("%.1f", tracked.Share()) << " %; per-part grades against the "
+            << absl::StrFormat("%.1f", tracked.Share()) << " % ("
+            << absl::StrFormat("%.1f", tracked_plain.Share())
+            << " % by the plain mean); per-part grades against the "
             << "SDK's: correlation " << absl::StrFormat("%.3f", agree.Correlation())
             << ", mean absolute difference " << absl::StrFormat("%.1f", agree.MeanAbsDifference())
             << " deg over " << agree.sdk.size() << " part grades, tracked coverage "
@@ -448,9 +463,9 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
   nlohmann::json result = {{"datasets", datasets},
                            {"sequences", sequences.size()},
                            {"dtw", options.use_dtw},
-                           {"overall", {{"sdk", RankingJson(all_sdk)}}}};
+                           {"overall", {{"sdk", RankingJson(all_sdk, all_sdk_plain)}}}};
   if (tracker) {
-    result["overall"]["tracked"] = RankingJson(all_tracked);
+    result["overall"]["tracked"] = RankingJson(all_tracked, all_tracked_plain);
     result["overall"]["tracked_vs_sdk"] = AgreementJson(all_agree);
   }
   if (flags.Has("json")) {

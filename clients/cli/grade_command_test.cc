@@ -25,7 +25,7 @@ namespace {
 namespace fs = std::filesystem;
 
 // Measured on this data (see the test that prints it), less a margin.
-constexpr double kSdkRankingFloorPercent = 80.0;  // Measured 84.3 %.
+constexpr double kSdkRankingFloorPercent = 87.0;  // Measured 91.1 %.
 
 struct Result {
   int code = 0;
@@ -142,8 +142,10 @@ TEST(GradeReal, SameActionGradesLowerThanDifferentActionOnSdkSkeletons) {
   const double share = sdk["same_action_lower_percent"];
   std::printf(
       "Kinect v2, SDK skeletons: %d pairs, same action lower in %.1f %% of %lld "
-      "comparisons (mean %.1f deg same action, %.1f deg different)\n",
+      "comparisons (%.1f %% by the plain mean; action-weighted %.1f deg same action, %.1f deg "
+      "different)\n",
       sdk["pairs"].get<int>(), share, sdk["comparisons"].get<long long>(),
+      sdk["same_action_lower_percent_plain_mean"].get<double>(),
       sdk["mean_same_action_deg"].get<double>(), sdk["mean_different_action_deg"].get<double>());
   EXPECT_EQ(sdk["pairs"].get<int>(), 30 * 20);
   EXPECT_EQ(sdk["pairs_not_graded"].get<int>(), 0);
@@ -178,7 +180,7 @@ TEST(GradeReal, TrackedGradesAgreeWithTheSdksOnAHeldOutSubject) {
   EXPECT_GE(correlation, 0.8);
   EXPECT_LE(mad, 8.0);
   EXPECT_GE(agree["mean_tracked_coverage"].get<double>(), 0.6);
-  EXPECT_GE(tracked["same_action_lower_percent"].get<double>(), 80.0);  // Measured 88.3 %.
+  EXPECT_GE(tracked["same_action_lower_percent"].get<double>(), 88.0);  // Measured 93.3 %.
 }
 
 TEST(GradeReal, BadFoldersAndFlags) {

@@ -167,6 +167,9 @@ absl::Status GradeOptions::Validate() const {
   if (!(min_part_coverage >= 0.0 && min_part_coverage <= 1.0)) {
     return absl::InvalidArgumentError("min_part_coverage must be in [0, 1]");
   }
+  if (!(motion_weight_floor_deg >= 0.0 && motion_weight_floor_deg <= 180.0)) {
+    return absl::InvalidArgumentError("motion_weight_floor_deg must be in [0, 180]");
+  }
   return absl::OkStatus();
 }
 
@@ -287,6 +290,34 @@ absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
     }
   }
   if (total_n > 0) grade.mean_error_deg = total_sum / static_cast<double>(total_n);
+
+  // The teacher's motion per part, and the action-weighted error.
+  double weighted_sum = 0.0, weight_sum = 0.0;
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& d : teacher_dirs) {
+      if (d[p]) sum += *d[p];
+    }
+    PartGrade& part = grade.parts[p];
+    if (sum.norm() > 1e-9) {
+      const Eigen::Vector3d mean = sum.normalized();
+      double angle_sum = 0.0;
+      int n = 0;
+      for (const auto& d : teacher_dirs) {
+        if (d[p]) angle_sum += AngleBetweenDeg(*d[p], mean), ++n;
+      }
+      part.teacher_motion_deg = angle_sum / n;
+    }
+    if (!part.graded) continue;
+    const double weight = part.teacher_motion_deg + options.motion_weight_floor_deg;
+    weighted_sum += weight * *part.mean_error_deg;
+    weight_sum += weight;
+  }
+  if (weight_sum > 0.0) {
+    grade.action_error_deg = weighted_sum / weight_sum;
+  } else if (grade.mean_error_deg) {
+    grade.action_error_deg = grade.mean_error_deg;  // Floor 0, a frozen teacher.
+  }
   if (num_pairs > 0) {
     grade.coverage = static_cast<double>(graded_part_pairs) / (num_pairs * kNumBodyParts);
   }
@@ -367,6 +398,7 @@ std::string GradeJson(const Grade& grade, bool with_pairs) {
     const PartGrade& part = grade.parts[p];
     const std::string name(BodyPartName(BodyPartAt(p)));
     parts[name] = {{"mean_error_deg", OptionalJson(part.mean_error_deg)},
+                   {"teacher_motion_deg", part.teacher_motion_deg},
                    {"graded", part.graded},
                    {"coverage", part.coverage},
                    {"graded_pairs", part.graded_pairs}};
@@ -391,6 +423,7 @@ std::string GradeJson(const Grade& grade, bool with_pairs) {
                      {"error_deg", m.error_deg}});
   }
   nlohmann::json j = {{"mean_error_deg", OptionalJson(grade.mean_error_deg)},
+                      {"action_error_deg", OptionalJson(grade.action_error_deg)},
                       {"coverage", grade.coverage},
                       {"dtw", grade.used_dtw},
                       {"learner_frames", grade.num_learner_frames},

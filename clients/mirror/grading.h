@@ -94,6 +94,10 @@ struct GradeOptions {
   // A part is reported "not graded" overall when it was graded in fewer than
   // this share of the pairs (0..1).
   double min_part_coverage = 0.2;
+  // The action-weighted error weighs each graded part by how much the
+  // teacher moves it (teacher_motion_deg) plus this floor (degrees, >= 0;
+  // > 0 keeps a part the teacher holds still from counting for nothing).
+  double motion_weight_floor_deg = 5.0;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -117,6 +121,9 @@ struct GradedPair {
 struct PartGrade {
   // Mean error over the pairs where the part was graded.
   std::optional<double> mean_error_deg;
+  // How much the teacher moves the part: the mean angle (degrees) between
+  // its direction in each teacher frame and its mean direction.
+  double teacher_motion_deg = 0.0;
   int graded_pairs = 0;
   // Share of all pairs where it was graded.
   double coverage = 0.0;
@@ -153,6 +160,11 @@ struct Grade {
   // Mean over the graded part-pairs of the parts that are graded overall
   // (each part weighted by its graded pairs); nullopt when nothing is.
   std::optional<double> mean_error_deg;
+  // The grade of the action: the mean of the graded parts' mean errors,
+  // each weighted by teacher_motion_deg + motion_weight_floor_deg, so that
+  // the parts the action is about count most (a wave is graded mostly on
+  // the waving arm, not on the stance); nullopt when nothing is graded.
+  std::optional<double> action_error_deg;
   // Graded part-pairs over all part-pairs, 0..1.
   double coverage = 0.0;
   std::vector<Correction> corrections;

@@ -192,6 +192,45 @@ TEST_F(GradingTest, ATeacherWithoutSomeJointsHasThosePartsNeutral) {
   EXPECT_NEAR(grade->coverage, 12.0 / 13.0, 1e-9);
 }
 
+TEST_F(GradingTest, TheActionWeightedErrorCountsThePartsTheTeacherMoves) {
+  // A learner whose left lower leg is 30 degrees off throughout.
+  std::vector<body::SkeletonPose> learner = teacher_poses_;
+  const auto knee = body::KinectV2Joint::kKneeLeft;
+  for (body::SkeletonPose& pose : learner) {
+    const Eigen::Vector3d k = Joint(pose, knee);
+    const Eigen::Vector3d shin = Joint(pose, body::KinectV2Joint::kAnkleLeft) - k;
+    const Eigen::AngleAxisd turn(30.0 * testing::kRadPerDeg,
+                                 shin.cross(Eigen::Vector3d::UnitX()).normalized());
+    for (const auto j : {body::KinectV2Joint::kAnkleLeft, body::KinectV2Joint::kFootLeft}) {
+      pose.position_m[body::Index(j)] = k + turn * (Joint(pose, j) - k);
+    }
+  }
+  GradeOptions options;
+  options.use_dtw = false;
+  const auto grade = GradeSequences(teacher_, Frames(learner, kFps), options);
+  ASSERT_TRUE(grade.ok()) << grade.status();
+  // The weights are the teacher's motion plus the floor.
+  double num = 0, den = 0;
+  for (const PartGrade& part : grade->parts) {
+    ASSERT_TRUE(part.graded);
+    EXPECT_TRUE(std::isfinite(part.teacher_motion_deg));
+    EXPECT_GE(part.teacher_motion_deg, 0.0);
+    EXPECT_LE(part.teacher_motion_deg, 90.0);
+    num += (part.teacher_motion_deg + options.motion_weight_floor_deg) * *part.mean_error_deg;
+    den += part.teacher_motion_deg + options.motion_weight_floor_deg;
+  }
+  ASSERT_TRUE(grade->action_error_deg.has_value());
+  EXPECT_NEAR(*grade->action_error_deg, num / den, 1e-9);
+  EXPECT_NEAR(*grade->parts[Index(BodyPart::kLeftLowerLeg)].mean_error_deg, 30.0, 0.5);
+  // A teacher who holds one pose moves nothing: every part weighs the floor.
+  std::vector<GradeFrame> frozen =
+      Frames(std::vector<body::SkeletonPose>(teacher_poses_.size(), teacher_poses_.front()), kFps);
+  const auto still = GradeSequences(frozen, frozen, options);
+  ASSERT_TRUE(still.ok()) << still.status();
+  for (const PartGrade& part : still->parts) EXPECT_NEAR(part.teacher_motion_deg, 0.0, 1e-6);
+  EXPECT_NEAR(*still->action_error_deg, 0.0, 1e-6);
+}
+
 TEST_F(GradingTest, BadInputIsRefusedWithAMessage) {
   EXPECT_EQ(GradeSequences({}, teacher_).status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(GradeSequences(teacher_, {}).status().code(), absl::StatusCode::kInvalidArgument);
@@ -205,6 +244,9 @@ TEST_F(GradingTest, BadInputIsRefusedWithAMessage) {
   bad.smoothing_s = std::numeric_limits<double>::infinity();
   EXPECT_EQ(GradeSequences(teacher_, teacher_, bad).status().code(),
             absl::StatusCode::kInvalidArgument);
+  bad = {};
+  bad.motion_weight_floor_deg = -1.0;
+  EXPECT_FALSE(bad.Validate().ok());
   bad = {};
   bad.max_corrections = 14;
   EXPECT_FALSE(bad.Validate().ok());

@@ -173,9 +173,11 @@ absl::Status GradeOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
-                                     const std::vector<GradeFrame>& learner,
-                                     const GradeOptions& options) {
+namespace {
+absl::StatusOr<Grade> GradeImpl(const std::vector<GradeFrame>& teacher,
+                                const std::vector<GradeFrame>& learner,
+                                const std::vector<FramePair>* given_pairs,
+                                const GradeOptions& options) {
   RETURN_IF_ERROR(options.Validate());
   if (teacher.empty()) return absl::InvalidArgumentError("the teacher has no frames");
   if (learner.empty()) return absl::InvalidArgumentError("the learner has no frames");
@@ -198,7 +200,17 @@ absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
   grade.num_learner_frames = static_cast<int>(learner.size());
   for (const GradeFrame& f : learner) grade.learner_frames_without_skeleton += !f.pose.has_value();
   Alignment alignment;
-  if (options.use_dtw) {
+  if (given_pairs != nullptr) {
+    for (const FramePair& fp : *given_pairs) {
+      if (fp.learner_frame < 0 || fp.learner_frame >= grade.num_learner_frames ||
+          fp.teacher_frame < 0 || fp.teacher_frame >= grade.num_teacher_frames) {
+        return absl::InvalidArgumentError(absl::StrCat("pair (learner ", fp.learner_frame,
+                                                       ", teacher ", fp.teacher_frame,
+                                                       ") is outside the sequences"));
+      }
+    }
+    alignment.pairs = *given_pairs;
+  } else if (options.use_dtw) {
     ASSIGN_OR_RETURN(alignment, AlignDirectionsByDtw(learner_dirs, teacher_dirs, options.dtw));
     grade.used_dtw = true;
   } else {
@@ -383,6 +395,19 @@ absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
     grade.worst_moments.push_back(m);
   }
   return grade;
+}
+}  // namespace
+
+absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
+                                     const std::vector<GradeFrame>& learner,
+                                     const GradeOptions& options) {
+  return GradeImpl(teacher, learner, nullptr, options);
+}
+
+absl::StatusOr<Grade> GradePairs(const std::vector<GradeFrame>& teacher,
+                                 const std::vector<GradeFrame>& learner,
+                                 const std::vector<FramePair>& pairs, const GradeOptions& options) {
+  return GradeImpl(teacher, learner, &pairs, options);
 }
 
 namespace {

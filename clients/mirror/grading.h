@@ -182,6 +182,15 @@ absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
                                      const std::vector<GradeFrame>& learner,
                                      const GradeOptions& options = {});
 
+// The same over pairs chosen by the caller (e.g. the mirror's pairing of
+// each learner frame with the teacher frame on screen); used_dtw is false.
+// InvalidArgument for a pair outside either sequence, besides the errors of
+// GradeSequences.
+absl::StatusOr<Grade> GradePairs(const std::vector<GradeFrame>& teacher,
+                                 const std::vector<GradeFrame>& learner,
+                                 const std::vector<FramePair>& pairs,
+                                 const GradeOptions& options = {});
+
 // "left knee", "right upper arm", "head", ... (for sentences).
 std::string PartWords(BodyPart part);
 

@@ -186,6 +186,14 @@ nlohmann::json OptionalJson(const std::optional<double>& value) {
   return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
 }
 
+nlohmann::json CorrectionTexts(const RepetitionReport& report) {
+  nlohmann::json texts = nlohmann::json::array();
+  if (report.grade) {
+    for (const Correction& c : report.grade->corrections) texts.push_back(c.text);
+  }
+  return texts;
+}
+
 nlohmann::json RepetitionsJson(const MirrorAppSummary& summary) {
   nlohmann::json repetitions = nlohmann::json::array();
   for (size_t i = 0; i < summary.reports.size(); ++i) {
@@ -193,6 +201,7 @@ nlohmann::json RepetitionsJson(const MirrorAppSummary& summary) {
     nlohmann::json entry = {{"repetition", report.repetition},
                             {"mean_error_deg", OptionalJson(report.mean_error_deg)},
                             {"coverage", report.coverage},
+                            {"corrections", CorrectionTexts(report)},
                             {"learner_facing_yaw_deg", OptionalJson(report.learner_facing_yaw_deg)},
                             {"view_yaw_deg", report.view_yaw_deg},
                             {"teacher_turn_yaw_deg", report.teacher_turn_yaw_deg},
@@ -275,6 +284,17 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
         report.teacher_turn_yaw_deg,
         i < summary.report_files.size() ? absl::StrCat(" -> ", summary.report_files[i].json_path)
                                         : "");
+    if (!report.grade) continue;
+    for (int p = 0; p < kNumBodyParts; ++p) {
+      const PartGrade& part = report.grade->parts[p];
+      if (!part.graded) {
+        err << "reenact-mirror:   not graded: " << PartWords(BodyPartAt(p)) << " ("
+            << part.not_graded_reason << ")\n";
+      }
+    }
+    for (const Correction& c : report.grade->corrections) {
+      err << "reenact-mirror:   correction: " << c.text << "\n";
+    }
   }
   for (const std::string& problem : summary.report_problems) {
     err << "reenact-mirror: report not written: " << problem << "\n";

@@ -91,6 +91,11 @@ absl::StatusOr<MirrorSession> MirrorSession::Create(
   session.teacher_directions_.reserve(teacher_in_world.size());
   for (const body::SkeletonPose& pose : teacher_in_world) {
     session.teacher_directions_.push_back(PartDirectionsInSpine(pose));
+    GradeFrame frame;
+    frame.time_s = static_cast<double>(session.teacher_grade_frames_.size()) / teacher_fps;
+    frame.pose = pose;
+    MarkValidJointsSeen(frame);
+    session.teacher_grade_frames_.push_back(std::move(frame));
   }
   session.teacher_ = std::move(teacher_in_world);
   session.view_error_sum_deg_.assign(options.challenge_view_yaws_deg.size(), 0.0);
@@ -116,6 +121,13 @@ absl::StatusOr<MirrorFrame> MirrorSession::Update(
   last_stamp_ns_ = stamp_ns;
   std::optional<double> yaw_deg;
   std::optional<PerPart<Eigen::Vector3d>> learner;
+  GradeFrame learner_frame;
+  learner_frame.pose = learner_in_sensor;
+  if (joint_seen != nullptr && learner_in_sensor) {
+    learner_frame.seen = *joint_seen;
+  } else {
+    MarkValidJointsSeen(learner_frame);
+  }
   if (learner_in_sensor) {
     yaw_deg = FacingYawInSensorDeg(*learner_in_sensor, options_.up_in_sensor);
     learner = PartDirectionsInSpine(*learner_in_sensor);
@@ -137,7 +149,7 @@ absl::StatusOr<MirrorFrame> MirrorSession::Update(
   }
   if (state_ == MirrorState::kReadingFacing) UpdateReadingFacing(stamp_ns, yaw_deg);
   if (state_ == MirrorState::kPlaying) {
-    UpdatePlaying(stamp_ns, learner ? &*learner : nullptr, frame);
+    UpdatePlaying(stamp_ns, learner ? &*learner : nullptr, learner_frame, frame);
   }
   frame.state = state_;
   frame.repetition = state_ == MirrorState::kFinished ? repetitions_done_ : repetitions_done_ + 1;
@@ -173,7 +185,7 @@ void MirrorSession::StartPlaying(int64_t stamp_ns) {
 }
 
 void MirrorSession::UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3d>* learner,
-                                  MirrorFrame& frame) {
+                                  const GradeFrame& learner_frame, MirrorFrame& frame) {
   const double elapsed_s = (stamp_ns - play_start_ns_) * 1e-9;
   // A microframe of slack so that stamps landing exactly on a frame count.
   const double position = elapsed_s * teacher_fps_ * options_.playback_speed + 1e-6;
@@ -184,7 +196,7 @@ void MirrorSession::UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3
   teacher_frame_ = static_cast<int>(std::floor(position));
   if (learner == nullptr) return;
   ++learner_frames_in_repetition_;
-  played_.push_back({stamp_ns, teacher_frame_, *learner});
+  played_.push_back({stamp_ns, teacher_frame_, *learner, learner_frame});
 }
 
 std::optional<MirrorFrame> MirrorSession::EndEarly(int64_t stamp_ns) {
@@ -241,13 +253,27 @@ RepetitionReport MirrorSession::BuildReport(int64_t end_stamp_ns, bool complete)
   report.teacher_frames_played = complete
                                      ? report.num_teacher_frames
                                      : (played_.empty() ? 0 : played_.back().teacher_frame + 1);
-  report.frames = PairedFrames(report.teacher_frames_played, report.used_dtw);
+  std::vector<FramePair> pairs;
+  report.frames = PairedFrames(report.teacher_frames_played, report.used_dtw, &pairs);
   SummarizeErrors(report);
+  // The same pairs through the grading library: corrections, worst moments.
+  report.learner_frames.reserve(played_.size());
+  for (const PlayedFrame& played : played_) {
+    report.learner_frames.push_back(played.learner);
+    report.learner_frames.back().time_s = (played.stamp_ns - play_start_ns_) * 1e-9;
+  }
+  absl::StatusOr<Grade> grade = GradePairs(teacher_grade_frames_, report.learner_frames, pairs);
+  if (grade.ok()) {
+    report.grade = *std::move(grade);
+    report.teacher_frames = teacher_grade_frames_;
+  } else {
+    report.learner_frames.clear();
+  }
   return report;
 }
 
-std::vector<ComparedFrame> MirrorSession::PairedFrames(int teacher_frames_played,
-                                                       bool& used_dtw) const {
+std::vector<ComparedFrame> MirrorSession::PairedFrames(int teacher_frames_played, bool& used_dtw,
+                                                       std::vector<FramePair>* pairs) const {
   Alignment alignment;
   used_dtw = false;
   if (options_.use_dtw && !played_.empty()) {
@@ -274,6 +300,7 @@ std::vector<ComparedFrame> MirrorSession::PairedFrames(int teacher_frames_played
       alignment.pairs.push_back({i, played_[i].teacher_frame});
     }
   }
+  if (pairs != nullptr) *pairs = alignment.pairs;
   std::vector<ComparedFrame> frames;
   frames.reserve(alignment.pairs.size());
   for (const FramePair& pair : alignment.pairs) {

@@ -69,6 +69,7 @@
 #include "absl/status/statusor.h"
 #include "clients/mirror/body_parts.h"
 #include "clients/mirror/facing.h"
+#include "clients/mirror/grading.h"
 #include "clients/mirror/pose_comparison.h"
 #include "clients/mirror/repetition_report.h"
 #include "clients/mirror/time_alignment.h"
@@ -204,16 +205,19 @@ class MirrorSession {
     int64_t stamp_ns;
     int teacher_frame;
     PerPart<Eigen::Vector3d> directions;
+    GradeFrame learner;  // The skeleton and which joints were seen.
   };
 
   MirrorSession() = default;
   void UpdateReadingFacing(int64_t stamp_ns, const std::optional<double>& yaw_deg);
   void StartPlaying(int64_t stamp_ns);
-  void UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3d>* learner, MirrorFrame& frame);
+  void UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3d>* learner,
+                     const GradeFrame& learner_frame, MirrorFrame& frame);
   void FinishRepetition(int64_t stamp_ns, MirrorFrame& frame, bool complete = true);
   RepetitionReport BuildReport(int64_t end_stamp_ns, bool complete) const;
   // The compared pairs over teacher frames [0, teacher_frames_played).
-  std::vector<ComparedFrame> PairedFrames(int teacher_frames_played, bool& used_dtw) const;
+  std::vector<ComparedFrame> PairedFrames(int teacher_frames_played, bool& used_dtw,
+                                          std::vector<FramePair>* pairs = nullptr) const;
   // Index into challenge_view_yaws_deg of the view for the coming (or
   // playing) repetition; nullopt when challenge mode is off.
   std::optional<int> ChallengeViewIndex() const;
@@ -223,6 +227,7 @@ class MirrorSession {
   MirrorSessionOptions options_;
   std::vector<body::SkeletonPose> teacher_;
   std::vector<PerPart<Eigen::Vector3d>> teacher_directions_;
+  std::vector<GradeFrame> teacher_grade_frames_;
   double teacher_fps_ = 0.0;
   TeacherFacing teacher_facing_;
   Eigen::Isometry3d world_from_camera_ = Eigen::Isometry3d::Identity();

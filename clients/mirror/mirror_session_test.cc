@@ -142,6 +142,42 @@ TEST(MirrorSession, TwoRepetitionsGoThroughFacingPlayingAndReportsAndWriteFiles)
   EXPECT_EQ(playing->teacher_frame, 0);
 }
 
+TEST(MirrorSession, EachReportSaysWhatToCorrectWithTheHeatMapAndTheWorstMoments) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  const std::vector<SkeletonPose> teacher = Teacher();
+  MirrorSessionOptions options;
+  options.repetitions = 2;
+  options.report_dir = reenact::testing::MakeTempDir("mirror_session_grade") + "/reports";
+  MirrorSession session = MakeSession(teacher, options);
+  // The second repetition with the right forearm 40 degrees off.
+  Learner learner;
+  learner.change = [](const SkeletonPose& pose, int repetition) {
+    return repetition == 2 ? testing::TurnRightForearm(pose, 40.0) : pose;
+  };
+  Drive(session, teacher, learner);
+  ASSERT_EQ(session.reports().size(), 2u);
+  const RepetitionReport& good = session.reports()[0];
+  const RepetitionReport& off = session.reports()[1];
+  ASSERT_TRUE(good.grade.has_value());
+  ASSERT_TRUE(off.grade.has_value());
+  EXPECT_TRUE(good.grade->corrections.empty());
+  EXPECT_NEAR(good.grade->coverage, 1.0, 1e-9);
+  ASSERT_FALSE(off.grade->corrections.empty());
+  EXPECT_EQ(off.grade->corrections.front().part, BodyPart::kRightLowerArm);
+  EXPECT_NEAR(off.grade->corrections.front().error_deg, 40.0, 4.0);
+  EXPECT_NE(off.grade->corrections.front().text.find("right"), std::string::npos)
+      << off.grade->corrections.front().text;
+  std::cout << "repetition 2: " << off.grade->corrections.front().text << "\n";
+  const std::string stem = options.report_dir + "/" + RepetitionFileStem(2);
+  for (const char* file : {"-heatmap.png", "-worst.png"}) {
+    EXPECT_GT(std::filesystem::file_size(stem + file), 1000u) << file;
+  }
+  const nlohmann::json json = nlohmann::json::parse(*ReadFileToString(stem + ".json"));
+  ASSERT_TRUE(json.contains("grade"));
+  EXPECT_EQ(json["grade"]["corrections"][0]["part"], "right_lower_arm");
+  EXPECT_EQ(json["files"]["heatmap"], "rep-002-heatmap.png");
+}
+
 TEST(MirrorSession, LearnerFacingNinetyDegreesTurnsTheTeacherNinetyDegrees) {
   REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
   const std::vector<SkeletonPose> teacher = Teacher();

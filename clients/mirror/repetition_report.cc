@@ -104,6 +104,11 @@ std::string RepetitionJson(const RepetitionReport& report) {
       {"num_compared_frames", static_cast<int>(report.frames.size())},
       {"files", {{"csv", stem + ".csv"}, {"png", stem + ".png"}}},
   };
+  if (report.grade) {
+    json["grade"] = Json::parse(GradeJson(*report.grade));
+    json["files"]["heatmap"] = stem + "-heatmap.png";
+    json["files"]["worst_moments"] = stem + "-worst.png";
+  }
   return json.dump(2) + "\n";
 }
 
@@ -114,11 +119,21 @@ absl::StatusOr<RepetitionFiles> WriteRepetitionReport(const RepetitionReport& re
   RETURN_IF_ERROR(CreateDirectories(report_dir));
   const std::filesystem::path stem =
       std::filesystem::path(report_dir) / RepetitionFileStem(report.repetition);
-  RepetitionFiles files{stem.string() + ".csv", stem.string() + ".json", stem.string() + ".png"};
+  RepetitionFiles files{stem.string() + ".csv", stem.string() + ".json", stem.string() + ".png", "",
+                        ""};
   ASSIGN_OR_RETURN(const std::string png, RepetitionPlotPng(report));
-  // The JSON goes last: a reader that sees it finds the other two in place.
+  // The JSON goes last: a reader that sees it finds the others in place.
   RETURN_IF_ERROR(WriteFileAtomically(files.csv_path, RepetitionCsv(report)));
   RETURN_IF_ERROR(WriteFileAtomically(files.png_path, png));
+  if (report.grade) {
+    files.heatmap_path = stem.string() + "-heatmap.png";
+    files.worst_path = stem.string() + "-worst.png";
+    ASSIGN_OR_RETURN(const std::string heat, GradeHeatMapPng(*report.grade));
+    ASSIGN_OR_RETURN(const std::string worst,
+                     WorstMomentsPng(*report.grade, report.teacher_frames, report.learner_frames));
+    RETURN_IF_ERROR(WriteFileAtomically(files.heatmap_path, heat));
+    RETURN_IF_ERROR(WriteFileAtomically(files.worst_path, worst));
+  }
   RETURN_IF_ERROR(WriteFileAtomically(files.json_path, RepetitionJson(report)));
   return files;
 }

@@ -13,7 +13,10 @@
 //                 "num_learner_frames", "num_teacher_frames",
 //                 "num_compared_frames", "files"} (null where missing);
 //   rep-NNN.png   per-part error (degrees) over time (seconds), one coloured
-//                 line per part, the frame mean in black, with a legend.
+//                 line per part, the frame mean in black, with a legend;
+//   rep-NNN-heatmap.png, rep-NNN-worst.png  when the report has a grade: the
+//                 parts x time heat map and the worst moments (grading.h),
+//                 and the JSON then carries "grade" (GradeJson).
 #pragma once
 
 #include <cstdint>
@@ -24,6 +27,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "clients/mirror/body_parts.h"
+#include "clients/mirror/grading.h"
 #include "clients/mirror/pose_comparison.h"
 
 namespace reenact::mirror {
@@ -78,6 +82,15 @@ struct RepetitionReport {
   // Compared part-frames over all part-frames (0..1): how much of the body
   // the means cover (parts the sensor did not see are not compared).
   double coverage = 0.0;
+  // The repetition graded over the same pairs by the grading library
+  // (grading.h): the parts not graded and why, the action-weighted error,
+  // at most three corrections in words and the worst moments; nullopt when
+  // it could not be graded.
+  std::optional<Grade> grade;
+  // The frames graded (learner: the repetition's, timed from its start;
+  // teacher: the whole action), for the worst moments' thumbnails.
+  std::vector<GradeFrame> learner_frames;
+  std::vector<GradeFrame> teacher_frames;
 };
 
 // Fills part_mean_error_deg and mean_error_deg from `frames`.
@@ -96,6 +109,10 @@ struct RepetitionFiles {
   std::string csv_path;
   std::string json_path;
   std::string png_path;
+  // rep-NNN-heatmap.png and rep-NNN-worst.png (GradeHeatMapPng,
+  // WorstMomentsPng); empty when the report has no grade.
+  std::string heatmap_path;
+  std::string worst_path;
 };
 
 // Creates `report_dir` if needed and writes the three files, each through a

@@ -174,6 +174,7 @@ echo "demo: body view     $PWD/$out/body-novel-view/video.mp4 (a full turn aroun
 echo "demo: learner take  $PWD/$out/learner.mcap (synthetic, turned 90 degrees; tracked by reenactd)"
 echo "demo: mirror        $PWD/$out/mirror/video.mp4 (the learner's mirror image beside the turned teacher)"
 echo "demo: mirror report $PWD/$out/mirror-report/rep-001.png (per-part error over time; .csv and .json beside it)"
+echo "demo: mirror grade  $PWD/$out/mirror-report/rep-001-heatmap.png (parts x time, grey where not seen), rep-001-worst.png (the worst moments); corrections in rep-001.json"
 echo
 echo "demo: glTF 2.0 files (any glTF viewer opens them):"
 echo "demo: rigid-part reenactment glTF: $PWD/$out/reenactment.glb"

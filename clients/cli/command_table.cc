@@ -111,19 +111,25 @@ std::vector<Command> BuildCommandTable() {
       {{"grade"},
        "--teacher REENACTMENT|TAKE --learner TAKE [--sensor ID] [--teacher-id ID] "
        "[--teacher-sensor ID] [--server HOST:PORT [--tls-ca F] [--token-file F] [--cache DIR]] "
-       "[--one-to-one] [--smoothing-s S] [--report DIR] [--pairs] [--json] | --real DIR "
+       "[--one-to-one] [--smoothing-s S] [--repetition-max-deg D] [--report DIR] [--pairs] "
+       "[--json] | --real DIR "
        "[--sequences NAME,...] [--learners PATTERN,...] [--tracked [--model F.onnx | --forest "
        "F.rtf]] [--quiet] [--json]",
        "grade a learner's take against a teacher as the mirror does, with no window: per body "
        "part, only where the sensor saw it (the learner's TRACKED joints), over the frames paired "
        "by DTW (--one-to-one: index by index); prints the mean over the graded parts, how much "
        "of the body it covers, the parts not graded and why, and at most three corrections in "
-       "words; --report DIR writes grade.json, heatmap.png (parts x time) and worst-moments.png. "
+       "words. It counts the repetitions of the teacher's action in the take (stretches within "
+       "--repetition-max-deg, default 18, of it), grades each and all of them together, and "
+       "times each of the teacher's holds against the learner's. "
+       "--report DIR writes grade.json, heatmap.png (parts x time) and worst-moments.png. "
        "The teacher is a reenactment (a .reen file or folder, or an ID on --server) or a take. "
        "--real DIR: every pair of recordings of two people in a folder laid out like "
        "shared/data/rgbd-seq, graded from the stored SDK skeletons (and with --tracked from ours): "
        "how often a same-action pair grades lower than a different-action pair for the same "
-       "learner, and how our per-part grades agree with the SDK's (--learners: only recordings "
+       "learner, how our per-part grades agree with the SDK's, and how often a recording is "
+       "counted as one repetition of the same action and none of another (--learners: only "
+       "recordings "
        "whose names match these shell patterns grade as learners)",
        RunGrade},
       {{"auth", "add"},

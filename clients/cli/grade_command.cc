@@ -28,6 +28,7 @@
 #include "clients/cli/real_sequences.h"
 #include "clients/mirror/grading.h"
 #include "clients/mirror/learner_source.h"
+#include "clients/mirror/repetitions.h"
 #include "clients/mirror/teacher_view.h"
 #include "clients/sdk/reenactment_source.h"
 #include "common/base/files.h"
@@ -123,14 +124,25 @@ absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags, std::s
   return frames;
 }
 
-absl::Status WriteReport(const std::string& dir, const mirror::Grade& grade,
+// The grade as JSON: GradeJson's with the repetitions and holds added.
+nlohmann::json TakeGradeJson(const mirror::TakeGrade& take, bool with_pairs) {
+  nlohmann::json j = nlohmann::json::parse(mirror::GradeJson(take.overall, with_pairs));
+  j["repetitions"] = nlohmann::json::parse(mirror::RepetitionsJson(take));
+  return j;
+}
+
+absl::Status WriteReport(const std::string& dir, const mirror::TakeGrade& take,
                          const std::vector<GradeFrame>& teacher,
                          const std::vector<GradeFrame>& learner) {
+  const mirror::Grade& grade = take.overall;
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) return absl::PermissionDeniedError(absl::StrCat("cannot make ", dir, ": ", ec.message()));
-  RETURN_IF_ERROR(WriteFileAtomically((fs::path(dir) / "grade.json").string(),
-                                      mirror::GradeJson(grade, /*with_pairs=*/true) + "\n"));
+  RETURN_IF_ERROR(
+      WriteFileAtomically((fs::path(dir) / "grade.json").string(),
+                          TakeGradeJson(take, /*with_pairs=*/true)
+                                  .dump(2, ' ', false, nlohmann::json::error_handler_t::replace) +
+                              "\n"));
   ASSIGN_OR_RETURN(const std::string heat, mirror::GradeHeatMapPng(grade));
   RETURN_IF_ERROR(WriteFileAtomically((fs::path(dir) / "heatmap.png").string(), heat));
   ASSIGN_OR_RETURN(const std::string worst, mirror::WorstMomentsPng(grade, teacher, learner));
@@ -165,6 +177,40 @@ void PrintGrade(const mirror::Grade& grade, const mirror::GradeOptions& options,
   for (const mirror::Correction& c : grade.corrections) out << "correction: " << c.text << "\n";
 }
 
+void PrintRepetitions(const mirror::TakeGrade& take, const mirror::RepetitionOptions& options,
+                      std::ostream& out) {
+  if (take.repetitions.empty()) {
+    out << absl::StrFormat(
+        "repetitions: none found (no stretch of the take came within %.0f degrees of the "
+        "teacher's action); the whole take is graded against it\n",
+        options.max_distance_deg);
+    return;
+  }
+  out << "repetitions: " << take.repetitions.size() << " of the teacher's action";
+  if (!take.teacher_holds.empty()) {
+    out << ", which holds a pose " << take.teacher_holds.size()
+        << (take.teacher_holds.size() == 1 ? " time" : " times");
+  }
+  out << "\n";
+  for (size_t i = 0; i < take.repetitions.size(); ++i) {
+    const mirror::Repetition& r = take.repetitions[i];
+    const mirror::Grade& g = take.repetition_grades[i];
+    out << absl::StrFormat("  %2d  %6.1f .. %6.1f s  ", i + 1, r.start_s, r.end_s);
+    if (g.mean_error_deg) {
+      out << absl::StrFormat("mean error %.1f deg (%.1f weighted) over %.0f%% seen\n",
+                             *g.mean_error_deg, g.action_error_deg.value_or(*g.mean_error_deg),
+                             100.0 * g.coverage);
+    } else {
+      out << "nothing seen to grade\n";
+    }
+    for (const mirror::HoldMatch& h : take.repetition_holds[i]) {
+      out << "      " << mirror::HoldWords(h) << "\n";
+    }
+    for (const mirror::Correction& c : g.corrections) out << "      correction: " << c.text << "\n";
+  }
+  out << "over all repetitions:\n";
+}
+
 // ---------------------------------------------------------------------------
 // Real people: every pair of recordings of a folder like rgbd-seq.
 
@@ -173,53 +219,6 @@ struct RealSequence {
   std::vector<GradeFrame> sdk;      // The stored SDK skeletons (no states: all seen).
   std::vector<GradeFrame> tracked;  // Ours, with TRACKED as seen.
 };
-
-std::vector<GradeFrame> SdkFrames(const RefSequence& seq) {
-  std::vector<GradeFrame> frames;
-  for (size_t i = 0; i < seq.frames.size(); ++i) {
-    GradeFrame f;
-    f.time_s = static_cast<double>(i) / seq.fps;
-    body::SkeletonPose pose;
-    int any = 0;
-    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-      pose.position_m[j] = Eigen::Vector3d::Zero();
-      if (const auto& p = seq.frames[i].joints[j])
-        pose.position_m[j] = *p, pose.valid[j] = true, ++any;
-    }
-    if (any > 0) f.pose = pose;
-    mirror::MarkValidJointsSeen(f);
-    frames.push_back(std::move(f));
-  }
-  return frames;
-}
-
-std::vector<GradeFrame> TrackedFrames(const RefSequence& seq,
-                                      const std::vector<TrackedRefFrame>& tracked) {
-  std::vector<GradeFrame> frames;
-  for (size_t i = 0; i < tracked.size(); ++i) {
-    GradeFrame f;
-    f.time_s = static_cast<double>(i) / seq.fps;
-    if (const auto& person = tracked[i].person) {
-      body::SkeletonPose pose;
-      int any = 0;
-      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
-        const tracking::TrackedJoint& joint = person->joints[j];
-        pose.position_m[j] = Eigen::Vector3d::Zero();
-        if (joint.state == tracking::JointState::kNotTracked ||
-            !joint.position_in_camera_m.allFinite()) {
-          continue;
-        }
-        pose.position_m[j] = joint.position_in_camera_m;
-        pose.valid[j] = true;
-        f.seen[j] = joint.state == tracking::JointState::kTracked;
-        ++any;
-      }
-      if (any > 0) f.pose = pose;
-    }
-    frames.push_back(std::move(f));
-  }
-  return frames;
-}
 
 // How often a same-action pair grades lower than a different-action pair for
 // the same learner (ties count half).
@@ -262,6 +261,38 @@ struct PairGrades {
   const RealSequence* teacher;
   const RealSequence* learner;
   std::optional<mirror::Grade> sdk, tracked;
+  // Repetitions of the teacher's action found in the learner's recording
+  // (each recording holds one), or -1 when the search failed.
+  int sdk_repetitions = -1, tracked_repetitions = -1;
+};
+
+// How well repetitions are counted: a recording of the same action should
+// hold exactly one, one of a different action none.
+struct Counting {
+  int same = 0, same_once = 0, different = 0, different_none = 0;
+  void Add(const PairGrades& p, bool tracked) {
+    const int n = tracked ? p.tracked_repetitions : p.sdk_repetitions;
+    if (n < 0) return;
+    if (p.teacher->ref.action_id == p.learner->ref.action_id) {
+      ++same, same_once += n == 1;
+    } else {
+      ++different, different_none += n == 0;
+    }
+  }
+  double SameOnce() const { return same ? 100.0 * same_once / same : 0.0; }
+  double DifferentNone() const { return different ? 100.0 * different_none / different : 0.0; }
+  nlohmann::json Json() const {
+    return {{"same_action_pairs", same},
+            {"same_action_counted_once_percent", SameOnce()},
+            {"different_action_pairs", different},
+            {"different_action_counted_none_percent", DifferentNone()}};
+  }
+  std::string Words() const {
+    return absl::StrFormat(
+        "repetitions counted: once in %.1f %% of same-action recordings, none in %.1f %% of "
+        "different-action ones",
+        SameOnce(), DifferentNone());
+  }
 };
 
 // `plain`: by the plain mean over the graded parts instead of the
@@ -360,6 +391,14 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
   }
   mirror::GradeOptions options;
   options.use_dtw = !flags.Has("one-to-one");
+  mirror::RepetitionOptions repetition_options;
+  const absl::StatusOr<double> max_deg =
+      flags.GetDouble("repetition-max-deg", repetition_options.max_distance_deg);
+  if (!max_deg.ok()) return ReportError(max_deg.status(), err);
+  repetition_options.max_distance_deg = *max_deg;
+  if (absl::Status valid = repetition_options.Validate(); !valid.ok()) {
+    return ReportError(valid, err);
+  }
   // Which recordings act as learners (all by default): shell patterns on
   // the folder names, e.g. the subjects a tracker never trained on.
   const std::vector<std::string> learner_patterns =
@@ -378,12 +417,12 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
     if (!ref.ok()) return ReportError(ref.status(), err);
     RealSequence seq;
     seq.ref = *std::move(ref);
-    seq.sdk = SdkFrames(seq.ref);
+    seq.sdk = SdkGradeFrames(seq.ref);
     if (tracker) {
       absl::StatusOr<std::vector<TrackedRefFrame>> tracked =
           TrackRefSequence(*tracker, seq.ref, /*history=*/true, /*own_segmentation=*/false);
       if (!tracked.ok()) return ReportError(tracked.status(), err);
-      seq.tracked = TrackedFrames(seq.ref, *tracked);
+      seq.tracked = TrackedGradeFrames(seq.ref, *tracked);
       if (!quiet && !flags.Has("quiet"))
         err << "tracked " << seq.ref.name << " (" << seq.tracked.size() << " frames)\n";
     }
@@ -403,10 +442,17 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
       PairGrades pair{&teacher, &learner, std::nullopt, std::nullopt};
       absl::StatusOr<mirror::Grade> sdk = mirror::GradeSequences(teacher.sdk, learner.sdk, options);
       if (sdk.ok()) pair.sdk = *std::move(sdk);
+      const auto count = [&](const std::vector<GradeFrame>& t, const std::vector<GradeFrame>& l) {
+        const absl::StatusOr<std::vector<mirror::Repetition>> reps =
+            mirror::FindRepetitions(t, l, repetition_options);
+        return reps.ok() ? static_cast<int>(reps->size()) : -1;
+      };
+      pair.sdk_repetitions = count(teacher.sdk, learner.sdk);
       if (tracker) {
         absl::StatusOr<mirror::Grade> tracked =
             mirror::GradeSequences(teacher.tracked, learner.tracked, options);
         if (tracked.ok()) pair.tracked = *std::move(tracked);
+        pair.tracked_repetitions = count(teacher.tracked, learner.tracked);
       }
       by_dataset[learner.ref.dataset].push_back(std::move(pair));
     }
@@ -419,14 +465,21 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
   nlohmann::json datasets = nlohmann::json::object();
   Ranking all_sdk, all_tracked, all_sdk_plain, all_tracked_plain;
   Agreement all_agree;
+  Counting all_count_sdk, all_count_tracked;
   for (const auto& [name, pairs] : by_dataset) {
     Ranking sdk, tracked, sdk_plain, tracked_plain;
     Agreement agree;
+    Counting count_sdk, count_tracked;
+    for (const PairGrades& p : pairs) {
+      count_sdk.Add(p, false), all_count_sdk.Add(p, false);
+      if (tracker) count_tracked.Add(p, true), all_count_tracked.Add(p, true);
+    }
     Rank(pairs, false, &sdk);
     Rank(pairs, false, &sdk_plain, /*plain=*/true);
     Rank(pairs, false, &all_sdk);
     Rank(pairs, false, &all_sdk_plain, /*plain=*/true);
-    nlohmann::json entry = {{"sdk", RankingJson(sdk, sdk_plain)}};
+    nlohmann::json entry = {{"sdk", RankingJson(sdk, sdk_plain)},
+                            {"repetitions_sdk", count_sdk.Json()}};
     if (tracker) {
       Rank(pairs, true, &tracked);
       Rank(pairs, true, &tracked_plain, /*plain=*/true);
@@ -436,6 +489,7 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
       Agree(pairs, &all_agree);
       entry["tracked"] = RankingJson(tracked, tracked_plain);
       entry["tracked_vs_sdk"] = AgreementJson(agree);
+      entry["repetitions_tracked"] = count_tracked.Json();
     }
     datasets[name] = entry;
     if (!quiet) {
@@ -446,7 +500,8 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
           << absl::StrFormat("%.1f", sdk.same_n ? sdk.same_sum / sdk.same_n : 0.0)
           << " deg same action, "
           << absl::StrFormat("%.1f", sdk.different_n ? sdk.different_sum / sdk.different_n : 0.0)
-          << " deg different)\n";
+          << " deg different)\n"
+          << name << ": SDK skeletons: " << count_sdk.Words() << "\n";
       if (tracker) {
         out << name << ": tracked skeletons: same action graded lower in "
             << absl::StrFormat("%.1f", tracked.Share()) << " % ("
@@ -456,16 +511,21 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
             << ", mean absolute difference " << absl::StrFormat("%.1f", agree.MeanAbsDifference())
             << " deg over " << agree.sdk.size() << " part grades, tracked coverage "
             << absl::StrFormat("%.0f", 100.0 * (agree.pairs ? agree.coverage_sum / agree.pairs : 0))
-            << " %\n";
+            << " %\n"
+            << name << ": tracked skeletons: " << count_tracked.Words() << "\n";
       }
     }
   }
-  nlohmann::json result = {{"datasets", datasets},
-                           {"sequences", sequences.size()},
-                           {"dtw", options.use_dtw},
-                           {"overall", {{"sdk", RankingJson(all_sdk, all_sdk_plain)}}}};
+  nlohmann::json result = {
+      {"datasets", datasets},
+      {"sequences", sequences.size()},
+      {"dtw", options.use_dtw},
+      {"repetition_max_deg", repetition_options.max_distance_deg},
+      {"overall",
+       {{"sdk", RankingJson(all_sdk, all_sdk_plain)}, {"repetitions_sdk", all_count_sdk.Json()}}}};
   if (tracker) {
     result["overall"]["tracked"] = RankingJson(all_tracked, all_tracked_plain);
+    result["overall"]["repetitions_tracked"] = all_count_tracked.Json();
     result["overall"]["tracked_vs_sdk"] = AgreementJson(all_agree);
   }
   if (flags.Has("json")) {
@@ -479,7 +539,8 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
           << absl::StrFormat("%.3f", all_agree.Correlation()) << ", mean absolute difference "
           << absl::StrFormat("%.1f", all_agree.MeanAbsDifference()) << " deg";
     }
-    out << "\n";
+    out << "\noverall: SDK skeletons: " << all_count_sdk.Words() << "\n";
+    if (tracker) out << "overall: tracked skeletons: " << all_count_tracked.Words() << "\n";
   }
   return kExitOk;
 }
@@ -487,11 +548,12 @@ int RunGradeReal(const Flags& flags, std::ostream& out, std::ostream& err) {
 }  // namespace
 
 int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  auto flags = Flags::Parse(
-      args,
-      {"teacher", "teacher-id", "teacher-sensor", "learner", "sensor", "server", "cache", "tls-ca",
-       "token-file", "report", "real", "sequences", "model", "forest", "smoothing-s", "learners"},
-      {"json", "pairs", "one-to-one", "tracked", "quiet"});
+  auto flags =
+      Flags::Parse(args,
+                   {"teacher", "teacher-id", "teacher-sensor", "learner", "sensor", "server",
+                    "cache", "tls-ca", "token-file", "report", "real", "sequences", "model",
+                    "forest", "smoothing-s", "learners", "repetition-max-deg"},
+                   {"json", "pairs", "one-to-one", "tracked", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (flags->Has("real")) {
     if (flags->Has("teacher") || flags->Has("learner")) {
@@ -512,6 +574,14 @@ int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostre
   if (!smoothing.ok()) return ReportError(smoothing.status(), err);
   options.smoothing_s = *smoothing;
   if (absl::Status valid = options.Validate(); !valid.ok()) return ReportError(valid, err);
+  mirror::TakeGradeOptions take_options;
+  take_options.grade = options;
+  auto max_deg = flags->GetDouble("repetition-max-deg", take_options.repetitions.max_distance_deg);
+  if (!max_deg.ok()) return ReportError(max_deg.status(), err);
+  take_options.repetitions.max_distance_deg = *max_deg;
+  if (absl::Status valid = take_options.repetitions.Validate(); !valid.ok()) {
+    return ReportError(valid, err);
+  }
 
   std::string teacher_described;
   absl::StatusOr<std::vector<GradeFrame>> teacher = TeacherFrames(*flags, &teacher_described);
@@ -527,22 +597,23 @@ int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostre
                                     absl::StrCat("learner: ", learner.status().message())),
                        err);
   }
-  absl::StatusOr<mirror::Grade> grade = mirror::GradeSequences(*teacher, *learner, options);
-  if (!grade.ok()) return ReportError(grade.status(), err);
+  absl::StatusOr<mirror::TakeGrade> take = mirror::GradeTake(*teacher, *learner, take_options);
+  if (!take.ok()) return ReportError(take.status(), err);
   if (const auto report = flags->Get("report")) {
-    if (absl::Status written = WriteReport(*report, *grade, *teacher, *learner); !written.ok()) {
+    if (absl::Status written = WriteReport(*report, *take, *teacher, *learner); !written.ok()) {
       return ReportError(written, err);
     }
   }
   if (flags->Has("json")) {
-    nlohmann::json j = nlohmann::json::parse(mirror::GradeJson(*grade, flags->Has("pairs")));
+    nlohmann::json j = TakeGradeJson(*take, flags->Has("pairs"));
     j["teacher"] = teacher_described;
     j["learner"] = *flags->Get("learner");
     out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     return kExitOk;
   }
   out << "teacher: " << teacher_described << "\nlearner: " << *flags->Get("learner") << "\n";
-  PrintGrade(*grade, options, out);
+  PrintRepetitions(*take, take_options.repetitions, out);
+  PrintGrade(take->overall, options, out);
   if (const auto report = flags->Get("report")) out << "report: " << *report << "\n";
   return kExitOk;
 }

@@ -205,4 +205,51 @@ absl::StatusOr<std::vector<TrackedRefFrame>> TrackRefSequence(tracking::BodyTrac
   return tracked;
 }
 
+std::vector<mirror::GradeFrame> SdkGradeFrames(const RefSequence& seq) {
+  std::vector<mirror::GradeFrame> frames;
+  for (size_t i = 0; i < seq.frames.size(); ++i) {
+    mirror::GradeFrame f;
+    f.time_s = static_cast<double>(i) / seq.fps;
+    body::SkeletonPose pose;
+    int any = 0;
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      pose.position_m[j] = Eigen::Vector3d::Zero();
+      if (const auto& p = seq.frames[i].joints[j])
+        pose.position_m[j] = *p, pose.valid[j] = true, ++any;
+    }
+    if (any > 0) f.pose = pose;
+    mirror::MarkValidJointsSeen(f);
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+std::vector<mirror::GradeFrame> TrackedGradeFrames(const RefSequence& seq,
+                                                   const std::vector<TrackedRefFrame>& tracked) {
+  std::vector<mirror::GradeFrame> frames;
+  for (size_t i = 0; i < tracked.size(); ++i) {
+    mirror::GradeFrame f;
+    f.time_s = static_cast<double>(i) / seq.fps;
+    if (const auto& person = tracked[i].person) {
+      body::SkeletonPose pose;
+      int any = 0;
+      for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+        const tracking::TrackedJoint& joint = person->joints[j];
+        pose.position_m[j] = Eigen::Vector3d::Zero();
+        if (joint.state == tracking::JointState::kNotTracked ||
+            !joint.position_in_camera_m.allFinite()) {
+          continue;
+        }
+        pose.position_m[j] = joint.position_in_camera_m;
+        pose.valid[j] = true;
+        f.seen[j] = joint.state == tracking::JointState::kTracked;
+        ++any;
+      }
+      if (any > 0) f.pose = pose;
+    }
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
 }  // namespace reenact::cli

@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 
 #include "absl/status/statusor.h"
+#include "clients/mirror/grading.h"
 #include "common/body/joint_set.h"
 #include "common/tracking/body_tracker.h"
 
@@ -72,5 +73,14 @@ struct TrackedRefFrame {
 absl::StatusOr<std::vector<TrackedRefFrame>> TrackRefSequence(tracking::BodyTracker& tracker,
                                                               const RefSequence& seq, bool history,
                                                               bool own_segmentation);
+
+// The sequence's stored reference skeletons as grading frames, timed at its
+// frame rate; every valid joint counts as seen (the file has no states).
+std::vector<mirror::GradeFrame> SdkGradeFrames(const RefSequence& seq);
+
+// Tracked frames as grading frames: TRACKED joints are seen, INFERRED ones
+// valid but not seen, NOT_TRACKED and non-finite ones left out.
+std::vector<mirror::GradeFrame> TrackedGradeFrames(const RefSequence& seq,
+                                                   const std::vector<TrackedRefFrame>& tracked);
 
 }  // namespace reenact::cli

@@ -304,22 +304,11 @@ absl::StatusOr<Grade> GradeImpl(const std::vector<GradeFrame>& teacher,
   if (total_n > 0) grade.mean_error_deg = total_sum / static_cast<double>(total_n);
 
   // The teacher's motion per part, and the action-weighted error.
+  const std::array<double, kNumBodyParts> motion = PartMotionDeg(teacher_dirs);
   double weighted_sum = 0.0, weight_sum = 0.0;
   for (int p = 0; p < kNumBodyParts; ++p) {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const auto& d : teacher_dirs) {
-      if (d[p]) sum += *d[p];
-    }
     PartGrade& part = grade.parts[p];
-    if (sum.norm() > 1e-9) {
-      const Eigen::Vector3d mean = sum.normalized();
-      double angle_sum = 0.0;
-      int n = 0;
-      for (const auto& d : teacher_dirs) {
-        if (d[p]) angle_sum += AngleBetweenDeg(*d[p], mean), ++n;
-      }
-      part.teacher_motion_deg = angle_sum / n;
-    }
+    part.teacher_motion_deg = motion[p];
     if (!part.graded) continue;
     const double weight = part.teacher_motion_deg + options.motion_weight_floor_deg;
     weighted_sum += weight * *part.mean_error_deg;
@@ -397,6 +386,26 @@ absl::StatusOr<Grade> GradeImpl(const std::vector<GradeFrame>& teacher,
   return grade;
 }
 }  // namespace
+
+std::array<double, kNumBodyParts> PartMotionDeg(
+    const std::vector<PerPart<Eigen::Vector3d>>& directions) {
+  std::array<double, kNumBodyParts> motion{};
+  for (int p = 0; p < kNumBodyParts; ++p) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& d : directions) {
+      if (d[p]) sum += *d[p];
+    }
+    if (sum.norm() <= 1e-9) continue;
+    const Eigen::Vector3d mean = sum.normalized();
+    double angle_sum = 0.0;
+    int n = 0;
+    for (const auto& d : directions) {
+      if (d[p]) angle_sum += AngleBetweenDeg(*d[p], mean), ++n;
+    }
+    motion[p] = angle_sum / n;
+  }
+  return motion;
+}
 
 absl::StatusOr<Grade> GradeSequences(const std::vector<GradeFrame>& teacher,
                                      const std::vector<GradeFrame>& learner,

@@ -191,6 +191,12 @@ absl::StatusOr<Grade> GradePairs(const std::vector<GradeFrame>& teacher,
                                  const std::vector<FramePair>& pairs,
                                  const GradeOptions& options = {});
 
+// How much each part moves over a sequence of part directions: the mean
+// angle (degrees) between its direction in each frame and its mean
+// direction; 0 for a part in no frame (PartGrade::teacher_motion_deg).
+std::array<double, kNumBodyParts> PartMotionDeg(
+    const std::vector<PerPart<Eigen::Vector3d>>& directions);
+
 // "left knee", "right upper arm", "head", ... (for sentences).
 std::string PartWords(BodyPart part);
 

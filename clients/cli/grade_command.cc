@@ -96,16 +96,8 @@ absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags, std::s
     ASSIGN_OR_RETURN(source, client::OpenReenactmentSource(teacher));
     id = flags.GetOr("teacher-id", "");
   }
-  if (id.empty()) {
-    ASSIGN_OR_RETURN(std::vector<v1::ReenactmentSummary> list, source->List());
-    if (list.size() != 1) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("--teacher-id ID is required: ", source->Describe(), " has ", list.size(),
-                       " reenactments"));
-    }
-    id = list.front().info().reenactment_id();
-  }
-  ASSIGN_OR_RETURN(const Reenactment data, source->Load(id));
+  ASSIGN_OR_RETURN(const Reenactment data,
+                   client::LoadReenactmentOrOnly(*source, id, "--teacher-id ID", &id));
   if (!(data.info.fps > 0.0) || !std::isfinite(data.info.fps)) {
     return absl::FailedPreconditionError(
         absl::StrCat("reenactment ", id, " has no frame rate (ReenactmentInfo.fps)"));
@@ -206,6 +198,8 @@ void PrintRepetitions(const mirror::TakeGrade& take, const mirror::RepetitionOpt
     for (const mirror::HoldMatch& h : take.repetition_holds[i]) {
       out << "      " << mirror::HoldWords(h) << "\n";
     }
+    // With one repetition its corrections are the overall ones, below.
+    if (take.repetitions.size() < 2) continue;
     for (const mirror::Correction& c : g.corrections) out << "      correction: " << c.text << "\n";
   }
   out << "over all repetitions:\n";

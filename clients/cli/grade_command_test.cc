@@ -18,6 +18,10 @@
 #include "clients/cli/commands.h"
 #include "clients/cli/real_sequences.h"
 #include "clients/mirror/repetitions.h"
+#include "clients/view/truth_reenactment.h"
+#include "common/body/procedural_body.h"
+#include "common/io/reenactment_convert.h"
+#include "common/io/take.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 
@@ -132,6 +136,93 @@ TEST(Grade, WritesTheReportAndPrintsCorrectionsInWords) {
   // One kick, one repetition.
   EXPECT_EQ(j["repetitions"]["count"], 1) << j["repetitions"].dump();
   EXPECT_NE(r.out.find("repetitions: 1 of the teacher's action"), std::string::npos) << r.out;
+}
+
+// The teacher as a reenactment file (the body model of a synthetic take's
+// ground truth) with five frames whose skeleton is missing, the learner a
+// take of the same kick with the sensor's (jittered true) skeleton: graded
+// near zero, one repetition, and nothing graded against the missing frames.
+TEST(Grade, AReenactmentTeacherWithMissingFramesGradesTheRest) {
+  synth::SynthOptions options;
+  options.motion = "builtin:front-kick";
+  options.num_sensors = 1;
+  options.seconds = 2.0;
+  options.color_width = 320;
+  options.color_height = 180;
+  options.seed = 5;
+  const std::string teacher_take = Dir() + "/reen_teacher.mcap";
+  ASSERT_TRUE(synth::SynthesizeTake(options, teacher_take).ok());
+  auto take = TakeReader::Open(teacher_take);
+  auto model = body::BuildProceduralBody();
+  ASSERT_TRUE(take.ok() && model.ok());
+  absl::StatusOr<Reenactment> data = view::testing::MakeTruthBodyReenactment(**take, *model);
+  ASSERT_TRUE(data.ok()) << data.status();
+  ASSERT_GE(data->frames.size(), 40u);
+  // A frame without joints is how a reenactment stores a missing skeleton.
+  for (int k = 20; k < 25; ++k) data->frames[k].joints_in_world_m.clear();
+  const std::string reen = Dir() + "/teacher_missing.reen";
+  const absl::Status written = WriteReenactment(*data, reen);
+  ASSERT_TRUE(written.ok()) << written;
+  options.ground_truth_mesh = false;
+  options.seed = 6;
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
+  options.skeleton_jitter_m = 0.005;
+  const std::string learner = Dir() + "/reen_learner.mcap";
+  ASSERT_TRUE(synth::SynthesizeTake(options, learner).ok());
+
+  const Result r = Grade({"--teacher", reen, "--learner", learner, "--json", "--pairs"});
+  ASSERT_EQ(r.code, kExitOk) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  std::printf("reenactment teacher with 5 missing frames: %.2f deg over %.0f %%, %d repetition\n",
+              j["mean_error_deg"].get<double>(), 100.0 * j["coverage"].get<double>(),
+              j["repetitions"]["count"].get<int>());
+  EXPECT_LT(j["mean_error_deg"].get<double>(), 5.0);
+  EXPECT_EQ(j["repetitions"]["count"], 1);
+  EXPECT_NE(j["teacher"].get<std::string>().find("reenactment"), std::string::npos);
+  // Every pair with a missing teacher frame is ungraded for that reason.
+  int against_missing = 0;
+  for (const nlohmann::json& pair : j["pair_errors"]) {
+    const int t = pair["teacher_frame"];
+    if (t < 20 || t >= 25) continue;
+    ++against_missing;
+    EXPECT_TRUE(pair["mean_error_deg"].is_null()) << pair.dump();
+  }
+  EXPECT_GT(against_missing, 0);
+}
+
+// Depth-only recordings of real people (imported from rgbd-seq folders, no
+// colour, no skeleton) are tracked and graded like any take: subject 3's
+// wave against subject 1's is one repetition and grades well below subject
+// 3's clap against the same wave, which is no repetition.
+TEST(Grade, DepthOnlyImportsOfRealPeopleAreTrackedAndGraded) {
+  const std::string dir = testing::TestDataPath("rgbd-seq");
+  REENACT_REQUIRE_TEST_FILE(dir + "/index.csv");
+  auto import = [&](const std::string& name) {
+    const std::string out_path = Dir() + "/" + name + ".mcap";
+    std::ostringstream out, err;
+    EXPECT_EQ(RunImport({dir + "/" + name, "--out", out_path}, out, err), kExitOk) << err.str();
+    return out_path;
+  };
+  const std::string teacher = import("utd-kinect2-a01-s1-t1");
+  const std::string wave = import("utd-kinect2-a01-s3-t1");
+  const std::string clap = import("utd-kinect2-a10-s3-t1");
+  const Result same = Grade({"--teacher", teacher, "--learner", wave, "--json"});
+  const Result other = Grade({"--teacher", teacher, "--learner", clap, "--json"});
+  ASSERT_EQ(same.code, kExitOk) << same.err;
+  ASSERT_EQ(other.code, kExitOk) << other.err;
+  const nlohmann::json s = nlohmann::json::parse(same.out);
+  const nlohmann::json o = nlohmann::json::parse(other.out);
+  const double same_deg = s["action_error_deg"], other_deg = o["action_error_deg"];
+  std::printf(
+      "depth-only real takes, tracked: wave vs wave %.1f deg over %.0f %% (%d repetition), "
+      "clap vs wave %.1f deg (%d repetitions)\n",
+      same_deg, 100.0 * s["coverage"].get<double>(), s["repetitions"]["count"].get<int>(),
+      other_deg, o["repetitions"]["count"].get<int>());
+  EXPECT_EQ(s["repetitions"]["count"], 1);
+  EXPECT_EQ(o["repetitions"]["count"], 0);
+  EXPECT_TRUE(o["repetitions"]["whole_take"].get<bool>());
+  EXPECT_LT(same_deg + 10.0, other_deg);
+  EXPECT_GT(s["coverage"].get<double>(), 0.6);
 }
 
 // The real-people figures: every pair of two different people of the

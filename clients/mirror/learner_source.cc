@@ -47,15 +47,29 @@ Candidate ConvertSkeleton(const v1::Skeleton& skeleton, const Rigid3d& color_fro
 
 }  // namespace
 
+namespace {
+bool HasColorCamera(const v1::SensorCalibration& calibration) {
+  return calibration.color_intrinsics().width_px() > 0 ||
+         calibration.color_intrinsics().height_px() > 0;
+}
+}  // namespace
+
+absl::StatusOr<Rigid3d> LearnerColorFromDepth(const v1::SensorCalibration& calibration) {
+  if (!HasColorCamera(calibration)) return Rigid3d();
+  return FromProto(calibration.color_from_depth());
+}
+
 absl::StatusOr<LearnerSensor> LearnerSensorFromCalibration(
     const v1::SensorCalibration& calibration) {
   LearnerSensor sensor;
   sensor.sensor_id = calibration.sensor_id();
-  ASSIGN_OR_RETURN(sensor.color_intrinsics, FromProto(calibration.color_intrinsics()));
+  ASSIGN_OR_RETURN(sensor.color_intrinsics,
+                   FromProto(HasColorCamera(calibration) ? calibration.color_intrinsics()
+                                                         : calibration.depth_intrinsics()));
   if (calibration.nominal_fps() > 0 && std::isfinite(calibration.nominal_fps())) {
     sensor.nominal_fps = calibration.nominal_fps();
   }
-  ASSIGN_OR_RETURN(const Rigid3d color_from_depth, FromProto(calibration.color_from_depth()));
+  ASSIGN_OR_RETURN(const Rigid3d color_from_depth, LearnerColorFromDepth(calibration));
   ASSIGN_OR_RETURN(const Rigid3d world_from_depth, FromProto(calibration.world_from_depth()));
   const Rigid3d color_from_world = color_from_depth * world_from_depth.Inverse();
   const Eigen::Vector3d up = color_from_world.rotation * Eigen::Vector3d::UnitY();
@@ -72,16 +86,18 @@ absl::StatusOr<LearnerSensor> LearnerSensorFromCalibration(
 std::optional<LearnerSkeleton> ChooseLearnerSkeleton(
     const std::vector<const v1::Skeleton*>& skeletons, const Rigid3d& color_from_depth) {
   std::optional<Candidate> best;
+  int people = 0;
   for (const v1::Skeleton* skeleton : skeletons) {
     Candidate candidate = ConvertSkeleton(*skeleton, color_from_depth);
     if (candidate.usable == 0) continue;
+    ++people;
     if (!best || candidate.usable > best->usable ||
         (candidate.usable == best->usable && candidate.depth_m < best->depth_m)) {
       best = std::move(candidate);
     }
   }
   if (!best) return std::nullopt;
-  return LearnerSkeleton{best->pose, best->seen};
+  return LearnerSkeleton{best->pose, best->seen, people};
 }
 
 std::optional<body::SkeletonPose> LearnerSkeletonInColor(

@@ -37,6 +37,9 @@ namespace reenact::mirror {
 struct LearnerFrame {
   // Exposure time, nanoseconds on the source's clock (see the top).
   int64_t stamp_ns = 0;
+  // A live frame: when it reached the capture host (its host_stamp_ns, the
+  // host's wall clock), for the learner-to-screen latency; 0 when unknown.
+  int64_t host_stamp_ns = 0;
   // The tracked learner in the sensor's colour camera frame (OpenCV: x right,
   // y down, z forward; metres; joints labelled with the person's own sides,
   // not mirrored); nullopt when nobody is tracked.
@@ -44,6 +47,9 @@ struct LearnerFrame {
   // Per joint of skeleton_in_color: seen by the sensor (TRACKED), as opposed
   // to inferred (hidden or outside the view); all false without a skeleton.
   std::array<bool, body::kNumKinectV2Joints> joint_seen{};
+  // How many people the tracker found in the frame (bodies with a usable
+  // joint); the learner is the one ChooseLearnerSkeleton picks.
+  int people_in_view = 0;
   // The colour image (sRGB, top row first); nullopt when the frame has none
   // or it did not decode.
   std::optional<RgbImage> color;
@@ -78,11 +84,17 @@ class LearnerSource {
   virtual int64_t frames_dropped() const { return 0; }
 };
 
-// The learner sensor of a calibration: its colour intrinsics and fps, and up
-// as the world's +Y seen from the colour camera when the calibration's world
-// is plausibly gravity-aligned (that up within 45 degrees of a level
-// sensor's -y); otherwise (e.g. a world that is just the depth camera's
-// frame) a level sensor's up. InvalidArgument for bad intrinsics or poses.
+// The colour camera's pose relative to the depth camera. A sensor with no
+// colour camera (a depth-only recording: colour intrinsics of size 0) has
+// its depth camera stand in for it: identity.
+absl::StatusOr<Rigid3d> LearnerColorFromDepth(const v1::SensorCalibration& calibration);
+
+// The learner sensor of a calibration (the depth camera standing in for the
+// colour camera of a depth-only sensor, as LearnerColorFromDepth): its colour intrinsics and fps,
+// and up as the world's +Y seen from the colour camera when the calibration's world is plausibly
+// gravity-aligned (that up within 45 degrees of a level sensor's -y); otherwise (e.g. a world that
+// is just the depth camera's frame) a level sensor's up. InvalidArgument for bad intrinsics or
+// poses.
 absl::StatusOr<LearnerSensor> LearnerSensorFromCalibration(
     const v1::SensorCalibration& calibration);
 
@@ -100,6 +112,8 @@ std::optional<body::SkeletonPose> LearnerSkeletonInColor(
 struct LearnerSkeleton {
   body::SkeletonPose pose;
   std::array<bool, body::kNumKinectV2Joints> seen{};
+  // Bodies in the frame with a usable joint (>= 1).
+  int people = 1;
 };
 std::optional<LearnerSkeleton> ChooseLearnerSkeleton(
     const std::vector<const v1::Skeleton*>& skeletons, const Rigid3d& color_from_depth);

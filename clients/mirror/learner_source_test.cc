@@ -157,6 +157,37 @@ TEST(TakeLearner, TakeWithoutSkeletonsOrDepthIsFailedPrecondition) {
   EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
 }
 
+// Two people in the frame: the learner is the one with more joints, and the
+// count says two; a body with no usable joint is nobody.
+TEST(ChooseLearnerSkeleton, CountsThePeopleInViewAndPicksTheMostTracked) {
+  auto body = [](int joints, double x_m, v1::TrackingState state) {
+    v1::Skeleton s;
+    for (int j = 0; j < joints; ++j) {
+      v1::Joint* joint = s.add_joints();
+      joint->set_name(std::string(body::KinectV2JointName(static_cast<body::KinectV2Joint>(j))));
+      joint->mutable_position_in_depth_m()->set_x(x_m);
+      joint->mutable_position_in_depth_m()->set_y(0.1 * j);
+      joint->mutable_position_in_depth_m()->set_z(2.5);
+      joint->set_tracking_state(state);
+    }
+    return s;
+  };
+  const v1::Skeleton near = body(25, -0.5, v1::TRACKING_STATE_TRACKED);
+  const v1::Skeleton partial = body(12, 0.8, v1::TRACKING_STATE_INFERRED);
+  const v1::Skeleton nobody = body(25, 0.0, v1::TRACKING_STATE_NOT_TRACKED);
+  const std::optional<LearnerSkeleton> chosen =
+      ChooseLearnerSkeleton({&partial, &near, &nobody}, Rigid3d());
+  ASSERT_TRUE(chosen.has_value());
+  EXPECT_EQ(chosen->people, 2);
+  EXPECT_NEAR(chosen->pose.position_m[0].x(), -0.5, 1e-12);
+  EXPECT_TRUE(chosen->seen[0]);
+  const std::optional<LearnerSkeleton> one = ChooseLearnerSkeleton({&partial}, Rigid3d());
+  ASSERT_TRUE(one.has_value());
+  EXPECT_EQ(one->people, 1);
+  EXPECT_FALSE(one->seen[0]);
+  EXPECT_FALSE(ChooseLearnerSkeleton({&nobody}, Rigid3d()).has_value());
+}
+
 TEST(TakeLearner, NanJointsLeaveNobodyTracked) {
   const std::string path = LearnerTake(1.0, 0.0);
   ASSERT_FALSE(path.empty());

@@ -160,17 +160,20 @@ LearnerFrame LearnerFrameFromSet(const v1::LiveFrameSet& set, const std::string&
     if (skeletons.empty()) {
       frame.stamp_ns =
           ExposureStampNs(skeleton.device_stamp_ns(), skeleton.host_stamp_ns(), clock_offset_ns);
+      frame.host_stamp_ns = std::max(frame.host_stamp_ns, skeleton.host_stamp_ns());
     }
     skeletons.push_back(&skeleton);
   }
   if (std::optional<LearnerSkeleton> learner = ChooseLearnerSkeleton(skeletons, color_from_depth)) {
     frame.skeleton_in_color = learner->pose;
     frame.joint_seen = learner->seen;
+    frame.people_in_view = learner->people;
   }
   for (const v1::ColorImage& color : set.colors()) {
     if (color.sensor_id() != sensor_id || color.data().empty()) continue;
     frame.stamp_ns =
         ExposureStampNs(color.device_stamp_ns(), color.host_stamp_ns(), clock_offset_ns);
+    frame.host_stamp_ns = std::max(frame.host_stamp_ns, color.host_stamp_ns());
     if (!color.encoding().empty() && color.encoding() != "jpeg") break;
     absl::StatusOr<RgbImage> decoded = DecodeJpeg(color.data());
     if (decoded.ok()) frame.color = *std::move(decoded);
@@ -188,8 +191,7 @@ absl::StatusOr<std::unique_ptr<LearnerSource>> OpenLiveLearner(std::unique_ptr<L
   sensor.sensor_id = chosen.sensor_id();
   sensor.live = true;
   if (chosen.nominal_fps() > 0) sensor.nominal_fps = chosen.nominal_fps();
-  ASSIGN_OR_RETURN(const Rigid3d color_from_depth,
-                   FromProto(chosen.calibration().color_from_depth()));
+  ASSIGN_OR_RETURN(const Rigid3d color_from_depth, LearnerColorFromDepth(chosen.calibration()));
   return std::unique_ptr<LearnerSource>(
       std::make_unique<LiveLearnerSource>(std::move(feed), std::move(sensor), color_from_depth,
                                           chosen.calibration().clock_offset_ns()));

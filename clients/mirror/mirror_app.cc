@@ -1,5 +1,6 @@
 #include "clients/mirror/mirror_app.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -14,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/base/status_macros.h"
+#include "common/base/time.h"
 #include "common/io/png.h"
 #include "common/io/video_writer.h"
 #include "common/render/image_window.h"
@@ -246,6 +248,9 @@ class MirrorLoop {
   std::optional<int64_t> first_stamp_ns_;
   int64_t last_stamp_ns_ = 0;
   Clock::time_point start_;
+  std::vector<double> latency_ms_;
+  // Stamp of the last frame with a learner (the first frame's until one).
+  std::optional<int64_t> last_seen_stamp_ns_;
   double render_s_ = 0.0;
   double compose_s_ = 0.0;
   double output_s_ = 0.0;
@@ -323,8 +328,14 @@ absl::StatusOr<bool> MirrorLoop::Step(const LearnerFrame& frame) {
     return false;
   }
   ASSIGN_OR_RETURN(const MirrorFrame mirror,
-                   session_->Update(frame.stamp_ns, frame.skeleton_in_color, &frame.joint_seen));
+                   session_->Update(frame.stamp_ns, frame.skeleton_in_color, &frame.joint_seen,
+                                    frame.people_in_view));
   Record(mirror);
+  status_.people_in_view = frame.people_in_view;
+  if (frame.skeleton_in_color || !last_seen_stamp_ns_) last_seen_stamp_ns_ = frame.stamp_ns;
+  status_.learner_missing_s = (frame.stamp_ns - *last_seen_stamp_ns_) * 1e-9;
+  status_.teacher_frame_has_skeleton = mirror.state != MirrorState::kPlaying ||
+                                       session_->TeacherFrameHasSkeleton(mirror.teacher_frame);
   if (mirror.state != MirrorState::kPlaying) FollowLearner(frame);
   ASSIGN_OR_RETURN(RgbImage image, Compose(frame, mirror));
   if (observer_) observer_({&frame, &mirror, &image, teacher_camera_});
@@ -335,6 +346,9 @@ absl::StatusOr<bool> MirrorLoop::Step(const LearnerFrame& frame) {
   const Clock::time_point output_start = Clock::now();
   ASSIGN_OR_RETURN(const bool go_on, sink_->Put(std::move(image), summary_.frames));
   output_s_ += SecondsSince(output_start);
+  if (learner_.sensor().live && frame.host_stamp_ns > 0) {
+    latency_ms_.push_back(1e-6 * static_cast<double>(WallNowNs() - frame.host_stamp_ns));
+  }
   ++summary_.frames;
   if (frame.skeleton_in_color) ++summary_.frames_with_learner;
   if (!go_on) {
@@ -353,6 +367,23 @@ void MirrorLoop::Record(const MirrorFrame& mirror) {
   if (!mirror.finished_report) return;
   summary_.reports.push_back(*mirror.finished_report);
   status_.finished_mean_error_deg.push_back(mirror.finished_report->mean_error_deg);
+  status_.last_corrections.clear();
+  status_.last_not_graded.clear();
+  if (const std::optional<Grade>& grade = mirror.finished_report->grade) {
+    for (const Correction& c : grade->corrections) status_.last_corrections.push_back(c.text);
+    // One line per reason: "left upper arm, left lower arm: hidden from the
+    // sensor".
+    std::map<std::string, std::string> by_reason;
+    for (int p = 0; p < kNumBodyParts; ++p) {
+      const PartGrade& part = grade->parts[p];
+      if (part.graded) continue;
+      std::string& parts = by_reason[part.not_graded_reason];
+      absl::StrAppend(&parts, parts.empty() ? "" : ", ", PartWords(BodyPartAt(p)));
+    }
+    for (const auto& [reason, parts] : by_reason) {
+      status_.last_not_graded.push_back(absl::StrCat(parts, ": ", reason));
+    }
+  }
   if (mirror.report_files) summary_.report_files.push_back(*mirror.report_files);
   if (!mirror.report_status.ok()) {
     summary_.report_problems.push_back(std::string(mirror.report_status.message()));
@@ -435,6 +466,20 @@ absl::Status MirrorLoop::Finish() {
     summary_.render_ms_mean = 1e3 * render_s_ / summary_.frames;
     summary_.compose_ms_mean = 1e3 * compose_s_ / summary_.frames;
     summary_.output_ms_mean = 1e3 * output_s_ / summary_.frames;
+  }
+  if (!latency_ms_.empty()) {
+    std::vector<double> sorted = latency_ms_;
+    std::sort(sorted.begin(), sorted.end());
+    auto at = [&](double q) {
+      return sorted[std::min(sorted.size() - 1, static_cast<size_t>(q * sorted.size()))];
+    };
+    summary_.latency_frames = static_cast<int>(sorted.size());
+    double sum = 0.0;
+    for (const double v : sorted) sum += v;
+    summary_.latency_ms_mean = sum / static_cast<double>(sorted.size());
+    summary_.latency_ms_p50 = at(0.5);
+    summary_.latency_ms_p95 = at(0.95);
+    summary_.latency_ms_max = sorted.back();
   }
   return finished;
 }

@@ -89,6 +89,16 @@ struct MirrorAppSummary {
   double compose_ms_mean = 0.0;
   double output_ms_mean = 0.0;
   std::string renderer;  // GL_VERSION / GL_RENDERER.
+  // A live learner: milliseconds from each frame's arrival on the capture
+  // host (LearnerFrame::host_stamp_ns) to its picture handed on (shown in
+  // the window, or queued for the files), over the frames that carry the
+  // stamp; the capture host's wall clock against this one's, so meaningful
+  // when both are one machine or their clocks are synchronised. 0 without.
+  int latency_frames = 0;
+  double latency_ms_mean = 0.0;
+  double latency_ms_p50 = 0.0;
+  double latency_ms_p95 = 0.0;
+  double latency_ms_max = 0.0;
 };
 
 // One drawn frame, for observers (tests, tools).

@@ -157,17 +157,12 @@ absl::StatusOr<Reenactment> LoadTeacher(const Flags& flags, std::ostream& err) {
                          absl::StrCat("grpc:", *flags.Get("server")),
                          flags.GetOr("cache", client::DefaultReenactmentCacheDir()), security));
   }
-  std::string id = flags.GetOr("teacher", "");
-  if (id.empty()) {
-    ASSIGN_OR_RETURN(std::vector<v1::ReenactmentSummary> list, source->List());
-    if (list.size() != 1) {
-      return absl::FailedPreconditionError(absl::StrCat(
-          "--teacher ID is required: ", source->Describe(), " has ", list.size(), " reenactments"));
-    }
-    id = list.front().info().reenactment_id();
-  }
-  err << "reenact-mirror: teacher " << id << " from " << source->Describe() << "\n";
-  return source->Load(id);
+  std::string id;
+  absl::StatusOr<Reenactment> teacher =
+      client::LoadReenactmentOrOnly(*source, flags.GetOr("teacher", ""), "--teacher ID", &id);
+  if (teacher.ok())
+    err << "reenact-mirror: teacher " << id << " from " << source->Describe() << "\n";
+  return teacher;
 }
 
 absl::StatusOr<std::unique_ptr<LearnerSource>> OpenLearner(const Flags& flags) {
@@ -208,7 +203,8 @@ nlohmann::json RepetitionsJson(const MirrorAppSummary& summary) {
                             {"dtw", report.used_dtw},
                             {"compared_frames", report.frames.size()},
                             {"complete", report.complete},
-                            {"learner_frames", report.num_learner_frames}};
+                            {"learner_frames", report.num_learner_frames},
+                            {"input_problems", InputProblems(report)}};
     repetitions.push_back(entry);
   }
   return repetitions;
@@ -264,6 +260,11 @@ nlohmann::json SummaryJson(const MirrorAppSummary& summary, const std::string& t
           {"render_ms_mean", summary.render_ms_mean},
           {"compose_ms_mean", summary.compose_ms_mean},
           {"output_ms_mean", summary.output_ms_mean},
+          {"latency_frames", summary.latency_frames},
+          {"latency_ms_mean", summary.latency_ms_mean},
+          {"latency_ms_p50", summary.latency_ms_p50},
+          {"latency_ms_p95", summary.latency_ms_p95},
+          {"latency_ms_max", summary.latency_ms_max},
           {"renderer", summary.renderer}};
 }
 
@@ -284,6 +285,9 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
         report.teacher_turn_yaw_deg,
         i < summary.report_files.size() ? absl::StrCat(" -> ", summary.report_files[i].json_path)
                                         : "");
+    for (const std::string& problem : InputProblems(report)) {
+      err << "reenact-mirror:   " << problem << "\n";
+    }
     if (!report.grade) continue;
     for (int p = 0; p < kNumBodyParts; ++p) {
       const PartGrade& part = report.grade->parts[p];
@@ -301,6 +305,12 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
   }
   err << absl::StrFormat("reenact-mirror: %d frames in %.1f s (%.1f frames/s); stopped: %s\n",
                          summary.frames, summary.seconds, summary.fps, summary.stopped);
+  if (summary.latency_frames > 0) {
+    err << absl::StrFormat(
+        "reenact-mirror: learner to screen %.1f ms median, %.1f ms p95 (from the capture "
+        "host's arrival stamp); %d frames dropped\n",
+        summary.latency_ms_p50, summary.latency_ms_p95, summary.frames_dropped);
+  }
   if (!summary.mp4_path.empty()) err << "reenact-mirror: video " << summary.mp4_path << "\n";
   if (!summary.mp4_problem.empty())
     err << "reenact-mirror: no MP4: " << summary.mp4_problem << "\n";

@@ -305,6 +305,22 @@ std::vector<std::string> StatusLines(const MirrorFrame& frame, const StatusConte
                                static_cast<int>(context.finished_mean_error_deg.size()), *last)
              : absl::StrFormat("repetition %d: nothing compared",
                                static_cast<int>(context.finished_mean_error_deg.size())));
+    for (const std::string& c : context.last_corrections) lines.push_back("fix: " + c);
+    for (const std::string& n : context.last_not_graded) lines.push_back("not graded: " + n);
+  }
+  // What is wrong with the input now.
+  if (context.people_in_view > 1) {
+    lines.push_back(absl::StrFormat(
+        "%d people in view: grading the one with the most joints tracked", context.people_in_view));
+  }
+  if (frame.state != MirrorState::kWaitingForLearner && frame.state != MirrorState::kFinished &&
+      context.learner_missing_s >= 0.5) {
+    lines.push_back(absl::StrFormat(
+        "learner not seen for %.1f s (out of view, or no depth from the sensor): not graded",
+        context.learner_missing_s));
+  }
+  if (frame.state == MirrorState::kPlaying && !context.teacher_frame_has_skeleton) {
+    lines.push_back("the teacher has no skeleton in this frame: not graded");
   }
   return lines;
 }

@@ -128,10 +128,24 @@ struct StatusContext {
   ChallengeMode challenge = ChallengeMode::kOff;
   // Mean errors of the finished repetitions, in order.
   std::vector<std::optional<double>> finished_mean_error_deg;
+  // The last finished repetition's corrections in words and its parts not
+  // graded ("left lower arm: hidden from the sensor"), shown until the next
+  // one finishes.
+  std::vector<std::string> last_corrections;
+  std::vector<std::string> last_not_graded;
+  // This frame: people the tracker found; seconds since the learner was
+  // last seen (0 while seen); whether the teacher frame on screen has a
+  // skeleton to grade against.
+  int people_in_view = 1;
+  double learner_missing_s = 0.0;
+  bool teacher_frame_has_skeleton = true;
 };
 
 // The state in words, e.g. "hold still: facing +32 deg  1.2/2.0 s",
-// "repetition 2/3  frame 41/60  error 7.5 deg", and a line per recent result.
+// "repetition 2/3  frame 41/60  error 7.5 deg", a line per recent result
+// with its corrections, and what is wrong with the input right now ("2
+// people in view ...", "learner not seen for 1.5 s ...", "the teacher has no
+// skeleton in this frame ...").
 std::vector<std::string> StatusLines(const MirrorFrame& frame, const StatusContext& context);
 
 // Timeline position: the hold's progress while reading the facing, the

@@ -189,6 +189,33 @@ TEST(StatusLines, SayWhatTheSessionIsDoing) {
             "repetition 2/3  frame 41/60  error 7.5 deg  challenge view +180 deg");
 }
 
+TEST(StatusLines, SayWhatToFixAndWhatIsWrongWithTheInput) {
+  StatusContext context;
+  context.num_teacher_frames = 60;
+  MirrorFrame frame;
+  frame.state = MirrorState::kPlaying;
+  frame.teacher_frame = 10;
+  context.finished_mean_error_deg = {std::optional<double>(12.0)};
+  context.last_corrections = {"right elbow: straighten about 30 degrees at 1.8 s"};
+  context.last_not_graded = {"left upper arm, left lower arm: hidden from the sensor"};
+  context.people_in_view = 2;
+  context.learner_missing_s = 1.5;
+  context.teacher_frame_has_skeleton = false;
+  const std::vector<std::string> lines = StatusLines(frame, context);
+  ASSERT_EQ(lines.size(), 7u);
+  EXPECT_EQ(lines[2], "fix: right elbow: straighten about 30 degrees at 1.8 s");
+  EXPECT_EQ(lines[3], "not graded: left upper arm, left lower arm: hidden from the sensor");
+  EXPECT_EQ(lines[4], "2 people in view: grading the one with the most joints tracked");
+  EXPECT_EQ(lines[5],
+            "learner not seen for 1.5 s (out of view, or no depth from the sensor): not graded");
+  EXPECT_EQ(lines[6], "the teacher has no skeleton in this frame: not graded");
+  // A short gap says nothing; nor does a missing teacher frame while waiting.
+  context.learner_missing_s = 0.2;
+  context.people_in_view = 1;
+  frame.state = MirrorState::kReadingFacing;
+  EXPECT_EQ(StatusLines(frame, context).size(), 4u);
+}
+
 TEST(ParseMirrorLayout, KnowsSideAndGhost) {
   EXPECT_EQ(*ParseMirrorLayout("side"), MirrorLayout::kSide);
   EXPECT_EQ(*ParseMirrorLayout("ghost"), MirrorLayout::kGhost);

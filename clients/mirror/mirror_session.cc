@@ -1,5 +1,6 @@
 #include "clients/mirror/mirror_session.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -89,14 +90,17 @@ absl::StatusOr<MirrorSession> MirrorSession::Create(
   session.steadiness_.emplace(std::move(detector));
   session.teacher_fps_ = teacher_fps;
   session.teacher_directions_.reserve(teacher_in_world.size());
+  auto grade_frames = std::make_shared<std::vector<GradeFrame>>();
+  grade_frames->reserve(teacher_in_world.size());
   for (const body::SkeletonPose& pose : teacher_in_world) {
     session.teacher_directions_.push_back(PartDirectionsInSpine(pose));
     GradeFrame frame;
-    frame.time_s = static_cast<double>(session.teacher_grade_frames_.size()) / teacher_fps;
+    frame.time_s = static_cast<double>(grade_frames->size()) / teacher_fps;
     frame.pose = pose;
     MarkValidJointsSeen(frame);
-    session.teacher_grade_frames_.push_back(std::move(frame));
+    grade_frames->push_back(std::move(frame));
   }
+  session.teacher_grade_frames_ = std::move(grade_frames);
   session.teacher_ = std::move(teacher_in_world);
   session.view_error_sum_deg_.assign(options.challenge_view_yaws_deg.size(), 0.0);
   session.view_repetitions_.assign(options.challenge_view_yaws_deg.size(), 0);
@@ -113,7 +117,7 @@ absl::StatusOr<MirrorFrame> MirrorSession::Update(
 
 absl::StatusOr<MirrorFrame> MirrorSession::Update(
     int64_t stamp_ns, const std::optional<body::SkeletonPose>& learner_in_sensor,
-    const std::array<bool, body::kNumKinectV2Joints>* joint_seen) {
+    const std::array<bool, body::kNumKinectV2Joints>* joint_seen, int people_in_view) {
   if (last_stamp_ns_ && stamp_ns < *last_stamp_ns_) {
     return absl::InvalidArgumentError(absl::StrCat(
         "learner stamp ", stamp_ns, " ns is earlier than the previous ", *last_stamp_ns_, " ns"));
@@ -149,7 +153,7 @@ absl::StatusOr<MirrorFrame> MirrorSession::Update(
   }
   if (state_ == MirrorState::kReadingFacing) UpdateReadingFacing(stamp_ns, yaw_deg);
   if (state_ == MirrorState::kPlaying) {
-    UpdatePlaying(stamp_ns, learner ? &*learner : nullptr, learner_frame, frame);
+    UpdatePlaying(stamp_ns, learner ? &*learner : nullptr, learner_frame, people_in_view, frame);
   }
   frame.state = state_;
   frame.repetition = state_ == MirrorState::kFinished ? repetitions_done_ : repetitions_done_ + 1;
@@ -181,11 +185,14 @@ void MirrorSession::StartPlaying(int64_t stamp_ns) {
   play_start_ns_ = stamp_ns;
   teacher_frame_ = 0;
   learner_frames_in_repetition_ = 0;
+  frames_without_learner_in_repetition_ = 0;
+  frames_with_several_people_in_repetition_ = 0;
   played_.clear();
 }
 
 void MirrorSession::UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3d>* learner,
-                                  const GradeFrame& learner_frame, MirrorFrame& frame) {
+                                  const GradeFrame& learner_frame, int people_in_view,
+                                  MirrorFrame& frame) {
   const double elapsed_s = (stamp_ns - play_start_ns_) * 1e-9;
   // A microframe of slack so that stamps landing exactly on a frame count.
   const double position = elapsed_s * teacher_fps_ * options_.playback_speed + 1e-6;
@@ -194,9 +201,19 @@ void MirrorSession::UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3
     return;
   }
   teacher_frame_ = static_cast<int>(std::floor(position));
-  if (learner == nullptr) return;
+  if (people_in_view > 1) ++frames_with_several_people_in_repetition_;
+  if (learner == nullptr) {
+    ++frames_without_learner_in_repetition_;
+    return;
+  }
   ++learner_frames_in_repetition_;
   played_.push_back({stamp_ns, teacher_frame_, *learner, learner_frame});
+}
+
+bool MirrorSession::TeacherFrameHasSkeleton(int k) const {
+  if (k < 0 || k >= static_cast<int>(teacher_directions_.size())) return false;
+  const PerPart<Eigen::Vector3d>& d = teacher_directions_[k];
+  return std::any_of(d.begin(), d.end(), [](const auto& v) { return v.has_value(); });
 }
 
 std::optional<MirrorFrame> MirrorSession::EndEarly(int64_t stamp_ns) {
@@ -248,11 +265,16 @@ RepetitionReport MirrorSession::BuildReport(int64_t end_stamp_ns, bool complete)
   report.start_stamp_ns = play_start_ns_;
   report.end_stamp_ns = end_stamp_ns;
   report.num_learner_frames = learner_frames_in_repetition_;
+  report.frames_without_learner = frames_without_learner_in_repetition_;
+  report.frames_with_several_people = frames_with_several_people_in_repetition_;
   report.num_teacher_frames = static_cast<int>(teacher_.size());
   report.complete = complete;
   report.teacher_frames_played = complete
                                      ? report.num_teacher_frames
                                      : (played_.empty() ? 0 : played_.back().teacher_frame + 1);
+  for (int k = 0; k < report.teacher_frames_played; ++k) {
+    report.teacher_frames_without_skeleton += !TeacherFrameHasSkeleton(k);
+  }
   std::vector<FramePair> pairs;
   report.frames = PairedFrames(report.teacher_frames_played, report.used_dtw, &pairs);
   SummarizeErrors(report);
@@ -262,7 +284,7 @@ RepetitionReport MirrorSession::BuildReport(int64_t end_stamp_ns, bool complete)
     report.learner_frames.push_back(played.learner);
     report.learner_frames.back().time_s = (played.stamp_ns - play_start_ns_) * 1e-9;
   }
-  absl::StatusOr<Grade> grade = GradePairs(teacher_grade_frames_, report.learner_frames, pairs);
+  absl::StatusOr<Grade> grade = GradePairs(*teacher_grade_frames_, report.learner_frames, pairs);
   if (grade.ok()) {
     report.grade = *std::move(grade);
     report.teacher_frames = teacher_grade_frames_;

@@ -57,6 +57,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -177,10 +178,14 @@ class MirrorSession {
   // of learner_in_sensor, e.g. LearnerFrame::joint_seen) false for a joint
   // that was only inferred leaves out the parts it ends; they are drawn in
   // colors.missing_color and stay out of the report's means and coverage.
-  // nullptr grades every valid joint.
+  // nullptr grades every valid joint. `people_in_view`: how many people the
+  // tracker found in the frame (LearnerFrame::people_in_view); frames with
+  // more than one are counted in the report (the learner is still the one
+  // the source chose).
   absl::StatusOr<MirrorFrame> Update(int64_t stamp_ns,
                                      const std::optional<body::SkeletonPose>& learner_in_sensor,
-                                     const std::array<bool, body::kNumKinectV2Joints>* joint_seen);
+                                     const std::array<bool, body::kNumKinectV2Joints>* joint_seen,
+                                     int people_in_view = 1);
 
   // Ends a repetition that is playing when the learner stops early (a take
   // ends, the app is told to stop): its report covers the teacher frames
@@ -195,6 +200,9 @@ class MirrorSession {
   const TeacherFacing& teacher_facing() const { return teacher_facing_; }
   const Eigen::Isometry3d& world_from_virtual_camera() const { return world_from_camera_; }
   int num_teacher_frames() const { return static_cast<int>(teacher_.size()); }
+  // Whether teacher frame `k` has a skeleton to compare with (a spine and at
+  // least one part); false also for k outside the teacher.
+  bool TeacherFrameHasSkeleton(int k) const;
   double teacher_fps() const { return teacher_fps_; }
   // Reports of the finished repetitions, in order.
   const std::vector<RepetitionReport>& reports() const { return reports_; }
@@ -212,7 +220,7 @@ class MirrorSession {
   void UpdateReadingFacing(int64_t stamp_ns, const std::optional<double>& yaw_deg);
   void StartPlaying(int64_t stamp_ns);
   void UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3d>* learner,
-                     const GradeFrame& learner_frame, MirrorFrame& frame);
+                     const GradeFrame& learner_frame, int people_in_view, MirrorFrame& frame);
   void FinishRepetition(int64_t stamp_ns, MirrorFrame& frame, bool complete = true);
   RepetitionReport BuildReport(int64_t end_stamp_ns, bool complete) const;
   // The compared pairs over teacher frames [0, teacher_frames_played).
@@ -227,7 +235,8 @@ class MirrorSession {
   MirrorSessionOptions options_;
   std::vector<body::SkeletonPose> teacher_;
   std::vector<PerPart<Eigen::Vector3d>> teacher_directions_;
-  std::vector<GradeFrame> teacher_grade_frames_;
+  // Shared with every report (RepetitionReport::teacher_frames).
+  std::shared_ptr<const std::vector<GradeFrame>> teacher_grade_frames_;
   double teacher_fps_ = 0.0;
   TeacherFacing teacher_facing_;
   Eigen::Isometry3d world_from_camera_ = Eigen::Isometry3d::Identity();
@@ -241,6 +250,8 @@ class MirrorSession {
   int64_t play_start_ns_ = 0;
   int teacher_frame_ = 0;
   int learner_frames_in_repetition_ = 0;
+  int frames_without_learner_in_repetition_ = 0;
+  int frames_with_several_people_in_repetition_ = 0;
   std::vector<PlayedFrame> played_;
   std::vector<RepetitionReport> reports_;
   // Challenge kHardestView: per listed view, summed repetition means and count.

@@ -377,6 +377,72 @@ TEST(MirrorSession, LostLearnerAndBadStampsAndOptions) {
   EXPECT_FALSE(bad.Validate().ok());
 }
 
+// Bad input while a repetition plays: the learner out of view for half a
+// second, two people in view for a while, and a teacher whose reenactment
+// lacks ten frames. None is graded; the report counts each and says so.
+TEST(MirrorSession, BadInputIsLeftUngradedAndSaidInTheReport) {
+  REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
+  std::vector<SkeletonPose> teacher = Teacher();
+  ASSERT_GE(teacher.size(), 60u);
+  for (int f = 30; f < 40; ++f) teacher[f].valid.fill(false);
+  MirrorSessionOptions options;
+  options.repetitions = 1;
+  options.facing.hold_s = 0.2;
+  options.report_dir = reenact::testing::MakeTempDir("mirror_session_bad_input");
+  MirrorSession session = MakeSession(teacher, options);
+  const Eigen::Isometry3d sensor_from_world = testing::SensorInFrontOf(teacher[0]);
+  std::optional<int64_t> play_start_ns;
+  int missing = 0, crowded = 0;
+  for (int64_t stamp_ns = 0; stamp_ns < 10e9 && session.state() != MirrorState::kFinished;
+       stamp_ns += kFrameNs) {
+    int shown = 0;
+    double played_s = -1.0;
+    if (play_start_ns) {
+      played_s = (stamp_ns - *play_start_ns) * 1e-9;
+      shown = std::min(static_cast<int>(played_s * kTeacherFps + 1e-6),
+                       static_cast<int>(teacher.size()) - 1);
+      if (!teacher[shown].valid[0]) shown = 29;  // The learner goes on from the last pose.
+    }
+    const bool gone = played_s >= 0.4 && played_s < 0.9;
+    const int people = played_s >= 1.5 && played_s < 1.8 ? 2 : 1;
+    if (play_start_ns && session.state() == MirrorState::kPlaying) {
+      missing += gone;
+      crowded += people > 1;
+    }
+    std::optional<SkeletonPose> pose;
+    if (!gone) pose = TransformPose(sensor_from_world, teacher[shown]);
+    absl::StatusOr<MirrorFrame> frame = session.Update(stamp_ns, pose, nullptr, people);
+    ASSERT_TRUE(frame.ok()) << frame.status();
+    if (frame->state == MirrorState::kPlaying && !play_start_ns) {
+      play_start_ns = stamp_ns;
+      // This first playing frame was already fed as not gone, one person.
+    }
+  }
+  ASSERT_EQ(session.reports().size(), 1u);
+  const RepetitionReport& report = session.reports()[0];
+  EXPECT_EQ(report.frames_without_learner, missing);
+  EXPECT_GE(report.frames_without_learner, 14);  // 0.5 s at 30 frames/s.
+  EXPECT_EQ(report.frames_with_several_people, crowded);
+  EXPECT_GE(report.frames_with_several_people, 8);
+  EXPECT_EQ(report.teacher_frames_without_skeleton, 10);
+  EXPECT_FALSE(session.TeacherFrameHasSkeleton(35));
+  EXPECT_TRUE(session.TeacherFrameHasSkeleton(29));
+  EXPECT_FALSE(session.TeacherFrameHasSkeleton(-1));
+  const std::vector<std::string> problems = InputProblems(report);
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_NE(problems[0].find("not seen in"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[1].find("more than one person"), std::string::npos) << problems[1];
+  EXPECT_NE(problems[2].find("teacher has no skeleton in 10 of"), std::string::npos) << problems[2];
+  // The graded pairs are the seen ones against teacher frames that have a
+  // skeleton: an identical learner still grades near zero.
+  ASSERT_TRUE(report.mean_error_deg.has_value());
+  EXPECT_LT(*report.mean_error_deg, 1.0);
+  const nlohmann::json json = nlohmann::json::parse(
+      *ReadFileToString(options.report_dir + "/" + RepetitionFileStem(1) + ".json"));
+  EXPECT_EQ(json["input_problems"].size(), 3u);
+  EXPECT_EQ(json["frames_without_learner"], missing);
+}
+
 TEST(MirrorSession, UnwritableReportFolderIsReportedNotFatal) {
   REENACT_REQUIRE_TEST_FILE(testing::CmuClipPath());
   const std::vector<SkeletonPose> teacher = Teacher();

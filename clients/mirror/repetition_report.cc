@@ -98,10 +98,14 @@ std::string RepetitionJson(const RepetitionReport& report) {
       {"end_stamp_ns", report.end_stamp_ns},
       {"duration_s", (report.end_stamp_ns - report.start_stamp_ns) * 1e-9},
       {"num_learner_frames", report.num_learner_frames},
+      {"frames_without_learner", report.frames_without_learner},
+      {"frames_with_several_people", report.frames_with_several_people},
+      {"teacher_frames_without_skeleton", report.teacher_frames_without_skeleton},
       {"num_teacher_frames", report.num_teacher_frames},
       {"complete", report.complete},
       {"teacher_frames_played", report.teacher_frames_played},
       {"num_compared_frames", static_cast<int>(report.frames.size())},
+      {"input_problems", InputProblems(report)},
       {"files", {{"csv", stem + ".csv"}, {"png", stem + ".png"}}},
   };
   if (report.grade) {
@@ -110,6 +114,29 @@ std::string RepetitionJson(const RepetitionReport& report) {
     json["files"]["worst_moments"] = stem + "-worst.png";
   }
   return json.dump(2) + "\n";
+}
+
+std::vector<std::string> InputProblems(const RepetitionReport& report) {
+  std::vector<std::string> problems;
+  const int received = report.num_learner_frames + report.frames_without_learner;
+  if (report.frames_without_learner > 0) {
+    problems.push_back(absl::StrFormat(
+        "the learner was not seen in %d of %d frames (out of view, or no depth from the sensor): "
+        "those frames are not graded",
+        report.frames_without_learner, received));
+  }
+  if (report.frames_with_several_people > 0) {
+    problems.push_back(absl::StrFormat(
+        "%d of %d frames had more than one person in view: the one with the most joints tracked "
+        "was graded",
+        report.frames_with_several_people, received));
+  }
+  if (report.teacher_frames_without_skeleton > 0) {
+    problems.push_back(absl::StrFormat(
+        "the teacher has no skeleton in %d of %d frames: nothing is graded against them",
+        report.teacher_frames_without_skeleton, report.teacher_frames_played));
+  }
+  return problems;
 }
 
 std::string RepetitionFileStem(int repetition) { return absl::StrFormat("rep-%03d", repetition); }
@@ -129,10 +156,15 @@ absl::StatusOr<RepetitionFiles> WriteRepetitionReport(const RepetitionReport& re
     files.heatmap_path = stem.string() + "-heatmap.png";
     files.worst_path = stem.string() + "-worst.png";
     ASSIGN_OR_RETURN(const std::string heat, GradeHeatMapPng(*report.grade));
-    ASSIGN_OR_RETURN(const std::string worst,
-                     WorstMomentsPng(*report.grade, report.teacher_frames, report.learner_frames));
     RETURN_IF_ERROR(WriteFileAtomically(files.heatmap_path, heat));
-    RETURN_IF_ERROR(WriteFileAtomically(files.worst_path, worst));
+    if (report.teacher_frames) {
+      ASSIGN_OR_RETURN(
+          const std::string worst,
+          WorstMomentsPng(*report.grade, *report.teacher_frames, report.learner_frames));
+      RETURN_IF_ERROR(WriteFileAtomically(files.worst_path, worst));
+    } else {
+      files.worst_path.clear();
+    }
   }
   RETURN_IF_ERROR(WriteFileAtomically(files.json_path, RepetitionJson(report)));
   return files;

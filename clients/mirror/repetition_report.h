@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,6 +66,13 @@ struct RepetitionReport {
   int64_t end_stamp_ns = 0;
   // Learner frames with a skeleton received while playing.
   int num_learner_frames = 0;
+  // Frames received while playing with no learner skeleton (out of view, no
+  // depth), and frames with more than one person in view.
+  int frames_without_learner = 0;
+  int frames_with_several_people = 0;
+  // Teacher frames played that have no skeleton to compare with (a
+  // reenactment with missing frames): nothing is graded against them.
+  int teacher_frames_without_skeleton = 0;
   // Frames of the teacher's action.
   int num_teacher_frames = 0;
   // False when the learner stopped (the take ended, the app was stopped)
@@ -88,13 +96,19 @@ struct RepetitionReport {
   // it could not be graded.
   std::optional<Grade> grade;
   // The frames graded (learner: the repetition's, timed from its start;
-  // teacher: the whole action), for the worst moments' thumbnails.
+  // teacher: the whole action, shared by every report of a session), for the
+  // worst moments' thumbnails; teacher_frames is null when not graded.
   std::vector<GradeFrame> learner_frames;
-  std::vector<GradeFrame> teacher_frames;
+  std::shared_ptr<const std::vector<GradeFrame>> teacher_frames;
 };
 
 // Fills part_mean_error_deg and mean_error_deg from `frames`.
 void SummarizeErrors(RepetitionReport& report);
+
+// What went wrong with the input of a repetition, in words for the learner
+// (the learner out of view or no depth, several people in view, teacher
+// frames without a skeleton); empty when nothing did.
+std::vector<std::string> InputProblems(const RepetitionReport& report);
 
 // The three files' contents (see the top of this header).
 std::string RepetitionCsv(const RepetitionReport& report);

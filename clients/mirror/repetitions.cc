@@ -312,7 +312,10 @@ absl::StatusOr<TakeGrade> GradeTake(const std::vector<GradeFrame>& teacher,
   RETURN_IF_ERROR(options.grade.Validate());
   RETURN_IF_ERROR(options.holds.Validate());
   TakeGrade take;
-  ASSIGN_OR_RETURN(take.repetitions, FindRepetitions(teacher, learner, options.repetitions));
+  // Paired one to one, the take is the teacher's action once: no search.
+  if (options.grade.use_dtw) {
+    ASSIGN_OR_RETURN(take.repetitions, FindRepetitions(teacher, learner, options.repetitions));
+  }
   ASSIGN_OR_RETURN(take.teacher_holds, FindHolds(teacher, options.holds));
   ASSIGN_OR_RETURN(const std::vector<Hold> learner_holds, FindHolds(learner, options.holds));
   std::vector<FramePair> all_pairs;

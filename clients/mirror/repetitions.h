@@ -141,7 +141,9 @@ struct TakeGradeOptions {
   HoldOptions holds;
 };
 
-// Grades `learner` against `teacher` as above. The errors of GradeSequences,
+// Grades `learner` against `teacher` as above; with options.grade.use_dtw
+// false (pairs index by index) there is no search: the whole take is one
+// repetition's worth, graded as GradeSequences does. The errors of GradeSequences,
 // FindRepetitions and FindHolds.
 absl::StatusOr<TakeGrade> GradeTake(const std::vector<GradeFrame>& teacher,
                                     const std::vector<GradeFrame>& learner,

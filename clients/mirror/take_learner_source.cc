@@ -132,7 +132,7 @@ absl::StatusOr<std::unique_ptr<LearnerSource>> TakeLearnerSource::Open(
   ASSIGN_OR_RETURN(source->sensor_, LearnerSensorFromCalibration(calibration));
   source->sensor_.sensor_id = id;
   source->clock_offset_ns_ = calibration.clock_offset_ns();
-  ASSIGN_OR_RETURN(source->color_from_depth_, FromProto(calibration.color_from_depth()));
+  ASSIGN_OR_RETURN(source->color_from_depth_, LearnerColorFromDepth(calibration));
   source->has_color_ = ColorCount(*source->reader_, id) > 0;
   RETURN_IF_ERROR(source->ReadSkeletons());
   TakeLearnerSource* raw = source.get();
@@ -200,6 +200,7 @@ bool TakeLearnerSource::Push(int64_t stamp_ns, std::optional<RgbImage> color) {
   if (std::optional<LearnerSkeleton> learner = SkeletonNear(stamp_ns)) {
     frame.skeleton_in_color = learner->pose;
     frame.joint_seen = learner->seen;
+    frame.people_in_view = learner->people;
   }
   frame.color = std::move(color);
   return queue_.Push(std::move(frame));

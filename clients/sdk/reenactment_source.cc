@@ -179,6 +179,22 @@ absl::StatusOr<std::unique_ptr<ReenactmentSource>> OpenReenactmentSource(
   return NewLocalSource(spec);
 }
 
+absl::StatusOr<Reenactment> LoadReenactmentOrOnly(ReenactmentSource& source, const std::string& id,
+                                                  const std::string& id_flag,
+                                                  std::string* loaded_id) {
+  std::string chosen = id;
+  if (chosen.empty()) {
+    ASSIGN_OR_RETURN(const std::vector<v1::ReenactmentSummary> list, source.List());
+    if (list.size() != 1) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          id_flag, " is required: ", source.Describe(), " has ", list.size(), " reenactments"));
+    }
+    chosen = list.front().info().reenactment_id();
+  }
+  if (loaded_id != nullptr) *loaded_id = chosen;
+  return source.Load(chosen);
+}
+
 std::string DefaultReenactmentCacheDir() {
   if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0') {
     return (fs::path(xdg) / "reenact").string();

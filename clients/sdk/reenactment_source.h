@@ -59,6 +59,14 @@ absl::StatusOr<std::unique_ptr<ReenactmentSource>> OpenReenactmentSource(
     const std::string& spec, const std::string& cache_dir = "",
     const rpc::ClientSecurity& security = {});
 
+// Reenactment `id` of `source`, or with `id` empty the only one it holds
+// (FailedPrecondition when it holds none or several, saying that
+// `id_flag`, e.g. "--teacher ID", is required). The id loaded goes to
+// *loaded_id when given.
+absl::StatusOr<Reenactment> LoadReenactmentOrOnly(ReenactmentSource& source, const std::string& id,
+                                                  const std::string& id_flag,
+                                                  std::string* loaded_id = nullptr);
+
 // The default cache folder: $XDG_CACHE_HOME/reenact, else
 // $HOME/.cache/reenact, else a folder under the system's temp folder.
 std::string DefaultReenactmentCacheDir();

@@ -129,6 +129,10 @@ reconstruct body- "$out/body.glb" --method body --model procedural
 # the repetition is graded part by part (time-aligned by DTW) into a report.
 # The learner's sensor gives no skeleton either: the daemon records them and
 # tracks them as it did the teacher, and the mirror reads the stored take.
+# The mirror compares the learner with the teacher's joints as the same
+# tracker (with its model refinement, as the daemon ran) finds them in the
+# teacher drawn as depth from the learner's side: the same joint definitions
+# on both sides.
 "$reenact" synth --motion builtin:front-kick --body procedural --shape random:3 --sensors 1 \
   --seconds 5.5 --lead-in-s 2 --yaw-deg 90 --color-width 960 --color-height 540 \
   --out "$out/learner-source.mcap" --quiet
@@ -145,7 +149,7 @@ rm -rf "$out/mirror" "$out/mirror-report"
 "$bin/reenact-mirror" --server "$server" --token-file "$out/tls/viewer.token" \
   --teacher "$reenactment_id" --cache "$out/cache" \
   --learner-take "$out/learner.mcap" --dtw --render-to "$out/mirror" \
-  --report "$out/mirror-report" --width 960 --height 540
+  --report "$out/mirror-report" --width 960 --height 540 --teacher-joints tracked-refined
 # The tablet: the app on this machine's address, the viewer token in the
 # address's fragment (the page keeps it and never sends it in a URL). The
 # tablet must trust the demo's CA first (install ca.pem as a CA certificate).

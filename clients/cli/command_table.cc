@@ -110,7 +110,9 @@ std::vector<Command> BuildCommandTable() {
        RunTrackerSynth},
       {{"grade"},
        "--teacher REENACTMENT|TAKE --learner TAKE [--sensor ID] [--teacher-id ID] "
-       "[--teacher-sensor ID] [--server HOST:PORT [--tls-ca F] [--token-file F] [--cache DIR]] "
+       "[--teacher-sensor ID] [--teacher-joints stored|tracked|tracked-refined] [--server "
+       "HOST:PORT [--tls-ca F] "
+       "[--token-file F] [--cache DIR]] "
        "[--one-to-one] [--smoothing-s S] [--repetition-max-deg D] [--report DIR] [--pairs] "
        "[--json] | --real DIR "
        "[--sequences NAME,...] [--learners PATTERN,...] [--tracked [--model F.onnx | --forest "
@@ -123,7 +125,10 @@ std::vector<Command> BuildCommandTable() {
        "--repetition-max-deg, default 18, of it), grades each and all of them together, and "
        "times each of the teacher's holds against the learner's. "
        "--report DIR writes grade.json, heatmap.png (parts x time) and worst-moments.png. "
-       "The teacher is a reenactment (a .reen file or folder, or an ID on --server) or a take. "
+       "The teacher is a reenactment (a .reen file or folder, or an ID on --server) or a take; "
+       "--teacher-joints tracked compares with a reenactment's joints as our tracker finds them "
+       "in it drawn as depth and seen from the learner's side, instead of its stored joints "
+       "(for a learner tracked from depth; tracked-refined for reenactd's --tracker-refine on). "
        "--real DIR: every pair of recordings of two people in a folder laid out like "
        "shared/data/rgbd-seq, graded from the stored SDK skeletons (and with --tracked from ours): "
        "how often a same-action pair grades lower than a different-action pair for the same "

@@ -26,6 +26,7 @@
 #include "absl/strings/str_split.h"
 #include "clients/cli/commands.h"
 #include "clients/cli/real_sequences.h"
+#include "clients/mirror/facing.h"
 #include "clients/mirror/grading.h"
 #include "clients/mirror/learner_source.h"
 #include "clients/mirror/repetitions.h"
@@ -75,7 +76,31 @@ absl::StatusOr<std::vector<GradeFrame>> TakeFrames(const std::string& path,
 
 bool IsTakePath(const std::string& path) { return absl::EndsWithIgnoreCase(path, ".mcap"); }
 
-absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags, std::string* described) {
+// The learner's facing relative to their sensor: the median over the frames
+// with a readable facing (0 when none has one).
+double LearnerFacingDeg(const std::vector<GradeFrame>& learner) {
+  std::vector<double> yaws;
+  for (const GradeFrame& f : learner) {
+    if (!f.pose) continue;
+    if (const std::optional<double> yaw = mirror::FacingYawInSensorDeg(*f.pose)) {
+      yaws.push_back(*yaw);
+    }
+  }
+  if (yaws.empty()) return 0.0;
+  std::nth_element(yaws.begin(), yaws.begin() + yaws.size() / 2, yaws.end());
+  return yaws[yaws.size() / 2];
+}
+
+// The learner as the teacher's joints are matched to it: its facing (the
+// side from which the tracker sees the teacher with --teacher-joints
+// tracked).
+struct LearnerView {
+  double facing_deg = 0.0;
+};
+
+absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags,
+                                                      const LearnerView& learner,
+                                                      std::string* described) {
   const std::string teacher = flags.GetOr("teacher", "");
   if (!flags.Has("server") && IsTakePath(teacher)) {
     *described = "take " + teacher;
@@ -102,7 +127,15 @@ absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags, std::s
     return absl::FailedPreconditionError(
         absl::StrCat("reenactment ", id, " has no frame rate (ReenactmentInfo.fps)"));
   }
-  ASSIGN_OR_RETURN(const std::vector<body::SkeletonPose> poses, mirror::TeacherSkeletons(data));
+  ASSIGN_OR_RETURN(const mirror::TeacherJoints joints,
+                   mirror::ParseTeacherJoints(flags.GetOr("teacher-joints", "stored")));
+  mirror::TeacherTrackingOptions tracking;
+  tracking.view_yaw_deg = learner.facing_deg;
+  tracking.tracker.refine = joints == mirror::TeacherJoints::kTrackedRefined;
+  ASSIGN_OR_RETURN(const std::vector<body::SkeletonPose> poses,
+                   joints != mirror::TeacherJoints::kStored
+                       ? mirror::TeacherSkeletonsAsTracked(data, tracking)
+                       : mirror::TeacherSkeletons(data));
   std::vector<GradeFrame> frames;
   frames.reserve(poses.size());
   for (size_t i = 0; i < poses.size(); ++i) {
@@ -112,7 +145,12 @@ absl::StatusOr<std::vector<GradeFrame>> TeacherFrames(const Flags& flags, std::s
     mirror::MarkValidJointsSeen(f);
     frames.push_back(std::move(f));
   }
-  *described = absl::StrCat("reenactment ", id, " (", source->Describe(), ")");
+  *described = absl::StrCat("reenactment ", id, " (", source->Describe(), ")",
+                            joints != mirror::TeacherJoints::kStored
+                                ? absl::StrFormat(", its joints as the tracker finds them seen "
+                                                  "at the learner's facing, %+.0f deg",
+                                                  learner.facing_deg)
+                                : "");
   return frames;
 }
 
@@ -546,7 +584,7 @@ int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostre
       Flags::Parse(args,
                    {"teacher", "teacher-id", "teacher-sensor", "learner", "sensor", "server",
                     "cache", "tls-ca", "token-file", "report", "real", "sequences", "model",
-                    "forest", "smoothing-s", "learners", "repetition-max-deg"},
+                    "forest", "smoothing-s", "learners", "repetition-max-deg", "teacher-joints"},
                    {"json", "pairs", "one-to-one", "tracked", "quiet"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (flags->Has("real")) {
@@ -577,18 +615,19 @@ int RunGrade(const std::vector<std::string>& args, std::ostream& out, std::ostre
     return ReportError(valid, err);
   }
 
-  std::string teacher_described;
-  absl::StatusOr<std::vector<GradeFrame>> teacher = TeacherFrames(*flags, &teacher_described);
-  if (!teacher.ok()) {
-    return ReportError(absl::Status(teacher.status().code(),
-                                    absl::StrCat("teacher: ", teacher.status().message())),
-                       err);
-  }
   absl::StatusOr<std::vector<GradeFrame>> learner =
       TakeFrames(*flags->Get("learner"), flags->GetOr("sensor", ""), /*all_seen=*/false);
   if (!learner.ok()) {
     return ReportError(absl::Status(learner.status().code(),
                                     absl::StrCat("learner: ", learner.status().message())),
+                       err);
+  }
+  std::string teacher_described;
+  absl::StatusOr<std::vector<GradeFrame>> teacher =
+      TeacherFrames(*flags, {LearnerFacingDeg(*learner)}, &teacher_described);
+  if (!teacher.ok()) {
+    return ReportError(absl::Status(teacher.status().code(),
+                                    absl::StrCat("teacher: ", teacher.status().message())),
                        err);
   }
   absl::StatusOr<mirror::TakeGrade> take = mirror::GradeTake(*teacher, *learner, take_options);

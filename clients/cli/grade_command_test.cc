@@ -138,11 +138,10 @@ TEST(Grade, WritesTheReportAndPrintsCorrectionsInWords) {
   EXPECT_NE(r.out.find("repetitions: 1 of the teacher's action"), std::string::npos) << r.out;
 }
 
-// The teacher as a reenactment file (the body model of a synthetic take's
-// ground truth) with five frames whose skeleton is missing, the learner a
-// take of the same kick with the sensor's (jittered true) skeleton: graded
-// near zero, one repetition, and nothing graded against the missing frames.
-TEST(Grade, AReenactmentTeacherWithMissingFramesGradesTheRest) {
+// The kick as a body reenactment file: the body model of a synthetic take's
+// ground truth (its stored joints are the model's), the frames in
+// `missing` stored without a skeleton; "" after a failure.
+std::string KickReenactment(const std::string& name, int first_missing = 0, int end_missing = 0) {
   synth::SynthOptions options;
   options.motion = "builtin:front-kick";
   options.num_sensors = 1;
@@ -150,19 +149,87 @@ TEST(Grade, AReenactmentTeacherWithMissingFramesGradesTheRest) {
   options.color_width = 320;
   options.color_height = 180;
   options.seed = 5;
-  const std::string teacher_take = Dir() + "/reen_teacher.mcap";
-  ASSERT_TRUE(synth::SynthesizeTake(options, teacher_take).ok());
-  auto take = TakeReader::Open(teacher_take);
+  const std::string take_path = absl::StrCat(Dir(), "/", name, ".mcap");
+  if (const auto made = synth::SynthesizeTake(options, take_path); !made.ok()) {
+    ADD_FAILURE() << made.status();
+    return "";
+  }
+  auto take = TakeReader::Open(take_path);
   auto model = body::BuildProceduralBody();
-  ASSERT_TRUE(take.ok() && model.ok());
+  if (!take.ok() || !model.ok()) {
+    ADD_FAILURE() << "the take or the body model did not load";
+    return "";
+  }
   absl::StatusOr<Reenactment> data = view::testing::MakeTruthBodyReenactment(**take, *model);
-  ASSERT_TRUE(data.ok()) << data.status();
-  ASSERT_GE(data->frames.size(), 40u);
+  if (!data.ok()) {
+    ADD_FAILURE() << data.status();
+    return "";
+  }
   // A frame without joints is how a reenactment stores a missing skeleton.
-  for (int k = 20; k < 25; ++k) data->frames[k].joints_in_world_m.clear();
-  const std::string reen = Dir() + "/teacher_missing.reen";
-  const absl::Status written = WriteReenactment(*data, reen);
-  ASSERT_TRUE(written.ok()) << written;
+  for (int k = first_missing; k < end_missing && k < static_cast<int>(data->frames.size()); ++k) {
+    data->frames[k].joints_in_world_m.clear();
+  }
+  const std::string reen = absl::StrCat(Dir(), "/", name, ".reen");
+  if (const absl::Status written = WriteReenactment(*data, reen); !written.ok()) {
+    ADD_FAILURE() << written;
+    return "";
+  }
+  return reen;
+}
+
+// The same kick with a body reenactment as the teacher and learners tracked
+// from depth at four facings. The reenactment's stored joints are the body
+// model's, which are not the points our tracker reports: compared as
+// stored, a perfect learner facing the sensor reads 13.7 degrees. With
+// --teacher-joints tracked the teacher's joints are our tracker's on the
+// teacher drawn as depth from the learner's side. Measured: 2.5, 5.1, 3.9 and 4.8 degrees at 0, 30,
+// 60 and 90 degrees over 77, 42, 39 and 11 % of the part-frames; the goal of 80 % graded at 0-60
+// degrees is not reached (the tracker infers most joints of a turned body).
+TEST(Grade, AReenactmentTeacherIsTrackedLikeTheLearnerForAPerfectRepetition) {
+  const std::string teacher = KickReenactment("kick_teacher");
+  ASSERT_FALSE(teacher.empty());
+  for (const double yaw : {0.0, 30.0, 60.0, 90.0}) {
+    const std::string learner = KickTake(yaw, 2);
+    ASSERT_FALSE(learner.empty());
+    const Result r = Grade(
+        {"--teacher", teacher, "--learner", learner, "--teacher-joints", "tracked", "--json"});
+    ASSERT_EQ(r.code, kExitOk) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    ASSERT_TRUE(j["mean_error_deg"].is_number()) << r.out;
+    const double mean = j["mean_error_deg"], coverage = j["coverage"];
+    std::printf("reenactment teacher, perfect learner at yaw %2.0f: %.2f deg over %.0f %%\n", yaw,
+                mean, 100.0 * coverage);
+    EXPECT_NE(j["teacher"].get<std::string>().find("as the tracker finds them"), std::string::npos);
+    EXPECT_LE(mean, 6.0) << "yaw " << yaw;
+    EXPECT_GE(coverage, yaw < 80.0 ? 0.35 : 0.05) << "yaw " << yaw;
+    if (yaw == 0.0) {
+      EXPECT_LE(mean, 3.5);
+      // The stored joints, for contrast.
+      const Result stored = Grade({"--teacher", teacher, "--learner", learner, "--json"});
+      ASSERT_EQ(stored.code, kExitOk) << stored.err;
+      const double stored_mean = nlohmann::json::parse(stored.out)["mean_error_deg"];
+      std::printf("  the same with the stored joints: %.2f deg\n", stored_mean);
+      EXPECT_GT(stored_mean, mean + 5.0);
+    }
+  }
+  EXPECT_EQ(
+      Grade({"--teacher", teacher, "--learner", KickTake(0.0, 2), "--teacher-joints", "x"}).code,
+      kExitUsage);
+}
+
+// The teacher as a reenactment file with five frames whose skeleton is
+// missing, the learner a take of the same kick with the sensor's (jittered
+// true) skeleton: graded near zero, one repetition, and nothing graded
+// against the missing frames.
+TEST(Grade, AReenactmentTeacherWithMissingFramesGradesTheRest) {
+  const std::string reen = KickReenactment("teacher_missing", 20, 25);
+  ASSERT_FALSE(reen.empty());
+  synth::SynthOptions options;
+  options.motion = "builtin:front-kick";
+  options.num_sensors = 1;
+  options.seconds = 2.0;
+  options.color_width = 320;
+  options.color_height = 180;
   options.ground_truth_mesh = false;
   options.seed = 6;
   options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;

@@ -229,6 +229,8 @@ class MirrorLoop {
   void FollowLearner(const LearnerFrame& frame);
   absl::StatusOr<CameraIntrinsics> IntrinsicsFor(const LearnerFrame& frame);
   void Record(const MirrorFrame& mirror);
+  // Compares with the teacher as tracked from the locked facing.
+  absl::Status UseTrackedTeacher();
   void Pace(int64_t stamp_ns) const;
   absl::Status Finish();
 
@@ -249,6 +251,9 @@ class MirrorLoop {
   int64_t last_stamp_ns_ = 0;
   Clock::time_point start_;
   std::vector<double> latency_ms_;
+  // --teacher-joints tracked: the teacher tracked per view (15-degree steps).
+  MirrorState previous_state_ = MirrorState::kWaitingForLearner;
+  std::map<int, std::vector<body::SkeletonPose>> tracked_teacher_by_view_;
   // Stamp of the last frame with a learner (the first frame's until one).
   std::optional<int64_t> last_seen_stamp_ns_;
   double render_s_ = 0.0;
@@ -331,6 +336,11 @@ absl::StatusOr<bool> MirrorLoop::Step(const LearnerFrame& frame) {
                    session_->Update(frame.stamp_ns, frame.skeleton_in_color, &frame.joint_seen,
                                     frame.people_in_view));
   Record(mirror);
+  if (options_.teacher_joints != TeacherJoints::kStored && mirror.state == MirrorState::kPlaying &&
+      previous_state_ != MirrorState::kPlaying) {
+    RETURN_IF_ERROR(UseTrackedTeacher());
+  }
+  previous_state_ = mirror.state;
   status_.people_in_view = frame.people_in_view;
   if (frame.skeleton_in_color || !last_seen_stamp_ns_) last_seen_stamp_ns_ = frame.stamp_ns;
   status_.learner_missing_s = (frame.stamp_ns - *last_seen_stamp_ns_) * 1e-9;
@@ -360,6 +370,25 @@ absl::StatusOr<bool> MirrorLoop::Step(const LearnerFrame& frame) {
     return false;
   }
   return true;
+}
+
+absl::Status MirrorLoop::UseTrackedTeacher() {
+  // Views in steps of 15 degrees, each tracked once and kept.
+  const double yaw_deg = session_->locked_learner_yaw_deg().value_or(0.0);
+  const int view = static_cast<int>(std::lround(yaw_deg / 15.0)) * 15;
+  auto found = tracked_teacher_by_view_.find(view);
+  if (found == tracked_teacher_by_view_.end()) {
+    const Clock::time_point start = Clock::now();
+    TeacherTrackingOptions tracking = options_.teacher_tracking;
+    tracking.view_yaw_deg = view;
+    tracking.tracker.refine = options_.teacher_joints == TeacherJoints::kTrackedRefined;
+    ASSIGN_OR_RETURN(std::vector<body::SkeletonPose> tracked,
+                     TeacherSkeletonsAsTracked(data_, tracking));
+    found = tracked_teacher_by_view_.emplace(view, std::move(tracked)).first;
+    summary_.teacher_tracking_s += SecondsSince(start);
+    ++summary_.teacher_views_tracked;
+  }
+  return session_->SetComparisonTeacher(found->second);
 }
 
 void MirrorLoop::Record(const MirrorFrame& mirror) {

@@ -35,6 +35,14 @@ struct MirrorAppOptions {
   CompositionOptions composition;
   // Texturing and multisampling of the teacher.
   TeacherRendererOptions teacher;
+  // kTracked, kTrackedRefined: compare the learner with the teacher's joints
+  // as the learner's tracker finds them in the teacher drawn as depth
+  // (TeacherSkeletonsAsTracked), seen from the learner's locked facing (in steps of 15 degrees;
+  // each view is tracked when a repetition first needs it, which holds that frame up for about a
+  // second), instead of the joints the reenactment stores: for a learner tracked from depth, so
+  // that both go through the same joint definitions.
+  TeacherJoints teacher_joints = TeacherJoints::kStored;
+  TeacherTrackingOptions teacher_tracking;
   // Move the virtual camera so the teacher stands where the learner stands
   // (see the top); false: the session's camera as it is.
   bool follow_learner_position = true;
@@ -95,6 +103,10 @@ struct MirrorAppSummary {
   // stamp; the capture host's wall clock against this one's, so meaningful
   // when both are one machine or their clocks are synchronised. 0 without.
   int latency_frames = 0;
+  // --teacher-joints tracked: views of the teacher tracked, and the seconds
+  // it took (frames were held up meanwhile).
+  int teacher_views_tracked = 0;
+  double teacher_tracking_s = 0.0;
   double latency_ms_mean = 0.0;
   double latency_ms_p50 = 0.0;
   double latency_ms_p95 = 0.0;

@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "absl/strings/str_cat.h"
 #include "clients/mirror/mirror_app.h"
 #include "clients/mirror/mirror_cli.h"
 #include "clients/mirror/teacher_view.h"
@@ -160,6 +161,45 @@ TEST(ReenactMirror, TurnedLearnerTurnsTheTeacher) {
 // the same kick turned 60 degrees. Beside it, the same learner graded as
 // before the tracker: its sensor's jittered true skeleton against the body
 // model's joints.
+// A perfect learner tracked from depth at 0 and 60 degrees against the body
+// reenactment of the same kick: compared with the reenactment's stored
+// joints (the body model's) and with --teacher-joints tracked (the
+// teacher's joints as our tracker finds them in it drawn as depth, seen from
+// the learner's locked facing). The second goes through the same tracker
+// on both sides and reads lower.
+TEST(ReenactMirror, TeacherJointsTrackedFromTheLearnersSideMatchATrackedLearner) {
+  const std::string teacher = TeacherReen();
+  ASSERT_FALSE(teacher.empty());
+  for (const double yaw : {0.0, 60.0}) {
+    const std::string learner = LearnerTake(3.0, yaw, 0.01, /*sensor_skeleton=*/false);
+    ASSERT_FALSE(learner.empty());
+    double mean_deg[2] = {0.0, 0.0};
+    for (const int tracked : {0, 1}) {
+      const std::string dir = absl::StrCat(TestDir(), "/joints", yaw, "_", tracked);
+      const CliResult run =
+          RunCli({"--teacher-file", teacher, "--learner-take", learner, "--render-to", dir,
+                  "--hold-s", "0.3", "--every", "1000", "--msaa", "0", "--no-mp4", "--dtw",
+                  "--teacher-joints", tracked ? "tracked" : "stored", "--json"});
+      ASSERT_EQ(run.code, 0) << run.err;
+      ASSERT_EQ(run.json["repetitions_done"], 1);
+      ASSERT_TRUE(run.json["repetitions"][0]["mean_error_deg"].is_number());
+      mean_deg[tracked] = run.json["repetitions"][0]["mean_error_deg"];
+      EXPECT_EQ(run.json["teacher_views_tracked"], tracked);
+      if (tracked) {
+        std::cout << "teacher views tracked in " << run.json["teacher_tracking_s"] << " s\n";
+      }
+    }
+    std::cout << "perfect learner tracked at yaw " << yaw << ": " << mean_deg[0]
+              << " deg against the stored joints, " << mean_deg[1]
+              << " deg against the teacher tracked from the learner's side\n";
+    EXPECT_LT(mean_deg[1], mean_deg[0]) << "yaw " << yaw;
+    EXPECT_LT(mean_deg[1], yaw == 0.0 ? 4.0 : 8.0) << "yaw " << yaw;  // deg
+  }
+  const CliResult bad = RunCli({"--teacher-file", teacher, "--learner-take",
+                                LearnerTake(3.0, 0.0, 0.01, false), "--teacher-joints", "fit"});
+  EXPECT_EQ(bad.code, 2);
+}
+
 TEST(ReenactMirror, TrackedLearnerTurnedSixtyDegreesAgainstTheTrackedTeacher) {
   const std::string tracked_teacher = TrackedTeacherReen();
   const std::string tracked_learner = LearnerTake(3.0, 60.0, 0.01, /*sensor_skeleton=*/false);

@@ -33,6 +33,7 @@ const char kMirrorUsage[] =
     "                      [--facing-smoothing-s S] [--dtw]\n"
     "                      [--speed X] [--challenge cycle|hardest [--views DEG,DEG,...]]\n"
     "                      [--seconds S] [--mode vdtm|baked] [--msaa 0|2|4|8] [--fixed-camera]\n"
+    "                      [--teacher-joints stored|tracked|tracked-refined]\n"
     "                      [--no-hud] [--json]\n"
     "  The magic mirror: the learner's mirror image with their joints coloured by their\n"
     "  error, beside (side) or under (ghost) the teacher, turned to face the way the\n"
@@ -47,7 +48,12 @@ const char kMirrorUsage[] =
     "  N-th frame) and video.mp4. --seconds S stops after S seconds of learner time.\n"
     "  --fixed-camera keeps the teacher where the virtual camera puts it instead of\n"
     "  where the learner stands. --msaa (default 4) smooths the teacher's edges; 0 is\n"
-    "  about twice as fast on a software OpenGL (llvmpipe). --json prints a summary.";
+    "  about twice as fast on a software OpenGL (llvmpipe). --teacher-joints tracked:\n"
+    "  compare with the teacher's joints as the tracker finds them in the teacher drawn\n"
+    "  as depth, seen from the learner's side (for a learner tracked from depth: the\n"
+    "  same joint definitions on both sides; tracked-refined for reenactd's\n"
+    "  --tracker-refine on), instead of the joints the reenactment stores.\n"
+    "  --json prints a summary.";
 
 namespace {
 
@@ -135,6 +141,8 @@ absl::StatusOr<MirrorAppOptions> OptionsFromFlags(const Flags& flags) {
   ASSIGN_OR_RETURN(options.teacher.mode, view::ParseTextureMode(flags.GetOr("mode", "vdtm")));
   ASSIGN_OR_RETURN(options.teacher.msaa_samples,
                    flags.GetInt("msaa", options.teacher.msaa_samples));
+  ASSIGN_OR_RETURN(options.teacher_joints,
+                   ParseTeacherJoints(flags.GetOr("teacher-joints", "stored")));
   options.follow_learner_position = !flags.Has("fixed-camera");
   options.render_to = flags.GetOr("render-to", "");
   ASSIGN_OR_RETURN(options.png_every, flags.GetInt("every", 1));
@@ -261,6 +269,8 @@ nlohmann::json SummaryJson(const MirrorAppSummary& summary, const std::string& t
           {"compose_ms_mean", summary.compose_ms_mean},
           {"output_ms_mean", summary.output_ms_mean},
           {"latency_frames", summary.latency_frames},
+          {"teacher_views_tracked", summary.teacher_views_tracked},
+          {"teacher_tracking_s", summary.teacher_tracking_s},
           {"latency_ms_mean", summary.latency_ms_mean},
           {"latency_ms_p50", summary.latency_ms_p50},
           {"latency_ms_p95", summary.latency_ms_p95},
@@ -317,12 +327,13 @@ void PrintSummary(const MirrorAppSummary& summary, std::ostream& err) {
 }
 
 std::set<std::string> ValueFlags() {
-  return {
-      "teacher", "server",    "cache",       "teacher-file", "learner-take",  "daemon",
-      "sensor",  "layout",    "ghost-alpha", "width",        "height",        "render-to",
-      "every",   "report",    "repetitions", "hold-s",       "tolerance-deg", "speed",
-      "seconds", "challenge", "views",       "mode",         "msaa",          "facing-smoothing-s",
-      "tls-ca",  "token-file"};
+  return {"teacher",       "server",     "cache",         "teacher-file",
+          "learner-take",  "daemon",     "sensor",        "layout",
+          "ghost-alpha",   "width",      "height",        "render-to",
+          "every",         "report",     "repetitions",   "hold-s",
+          "tolerance-deg", "speed",      "seconds",       "challenge",
+          "views",         "mode",       "msaa",          "facing-smoothing-s",
+          "tls-ca",        "token-file", "teacher-joints"};
 }
 
 std::set<std::string> BoolFlags() {

@@ -89,18 +89,7 @@ absl::StatusOr<MirrorSession> MirrorSession::Create(
   ASSIGN_OR_RETURN(SteadinessDetector detector, SteadinessDetector::Create(options.facing));
   session.steadiness_.emplace(std::move(detector));
   session.teacher_fps_ = teacher_fps;
-  session.teacher_directions_.reserve(teacher_in_world.size());
-  auto grade_frames = std::make_shared<std::vector<GradeFrame>>();
-  grade_frames->reserve(teacher_in_world.size());
-  for (const body::SkeletonPose& pose : teacher_in_world) {
-    session.teacher_directions_.push_back(PartDirectionsInSpine(pose));
-    GradeFrame frame;
-    frame.time_s = static_cast<double>(grade_frames->size()) / teacher_fps;
-    frame.pose = pose;
-    MarkValidJointsSeen(frame);
-    grade_frames->push_back(std::move(frame));
-  }
-  session.teacher_grade_frames_ = std::move(grade_frames);
+  RETURN_IF_ERROR(session.SetComparisonTeacher(teacher_in_world));
   session.teacher_ = std::move(teacher_in_world);
   session.view_error_sum_deg_.assign(options.challenge_view_yaws_deg.size(), 0.0);
   session.view_repetitions_.assign(options.challenge_view_yaws_deg.size(), 0);
@@ -208,6 +197,30 @@ void MirrorSession::UpdatePlaying(int64_t stamp_ns, const PerPart<Eigen::Vector3
   }
   ++learner_frames_in_repetition_;
   played_.push_back({stamp_ns, teacher_frame_, *learner, learner_frame});
+}
+
+absl::Status MirrorSession::SetComparisonTeacher(
+    const std::vector<body::SkeletonPose>& teacher_in_world) {
+  if (teacher_fps_ <= 0.0 || (!teacher_.empty() && teacher_in_world.size() != teacher_.size())) {
+    return absl::InvalidArgumentError(absl::StrCat("the comparison teacher has ",
+                                                   teacher_in_world.size(), " frames, the teacher ",
+                                                   teacher_.size()));
+  }
+  std::vector<PerPart<Eigen::Vector3d>> directions;
+  directions.reserve(teacher_in_world.size());
+  auto grade_frames = std::make_shared<std::vector<GradeFrame>>();
+  grade_frames->reserve(teacher_in_world.size());
+  for (const body::SkeletonPose& pose : teacher_in_world) {
+    directions.push_back(PartDirectionsInSpine(pose));
+    GradeFrame frame;
+    frame.time_s = static_cast<double>(grade_frames->size()) / teacher_fps_;
+    frame.pose = pose;
+    MarkValidJointsSeen(frame);
+    grade_frames->push_back(std::move(frame));
+  }
+  teacher_directions_ = std::move(directions);
+  teacher_grade_frames_ = std::move(grade_frames);
+  return absl::OkStatus();
 }
 
 bool MirrorSession::TeacherFrameHasSkeleton(int k) const {

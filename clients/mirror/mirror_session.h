@@ -200,6 +200,14 @@ class MirrorSession {
   const TeacherFacing& teacher_facing() const { return teacher_facing_; }
   const Eigen::Isometry3d& world_from_virtual_camera() const { return world_from_camera_; }
   int num_teacher_frames() const { return static_cast<int>(teacher_.size()); }
+  // Replaces the teacher skeletons the learner is compared with (one per
+  // teacher frame, world), e.g. by the teacher's joints as the learner's
+  // tracker finds them (TeacherSkeletonsAsTracked); the facing, turn and
+  // timing keep the skeletons the session was created with. Takes effect
+  // from the next frame compared. InvalidArgument for another frame count.
+  absl::Status SetComparisonTeacher(const std::vector<body::SkeletonPose>& teacher_in_world);
+  // The learner's facing locked for the repetition playing or last played.
+  const std::optional<double>& locked_learner_yaw_deg() const { return locked_learner_yaw_deg_; }
   // Whether teacher frame `k` has a skeleton to compare with (a spine and at
   // least one part); false also for k outside the teacher.
   bool TeacherFrameHasSkeleton(int k) const;

@@ -13,6 +13,7 @@
 
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,7 @@
 #include "common/body/joint_set.h"
 #include "common/model/reenactment.h"
 #include "common/render/offscreen_renderer.h"
+#include "common/tracking/body_tracker.h"
 
 namespace reenact::mirror {
 
@@ -34,6 +36,46 @@ namespace reenact::mirror {
 // joint is invalid. FailedPrecondition when the reenactment has no instant
 // or no instant has a joint (it carries no skeleton to compare with).
 absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletons(const Reenactment& data);
+
+// Which teacher joints the learner is compared with: the reenactment's
+// stored joints, or its joints as our tracker finds them in it drawn as
+// depth (TeacherSkeletonsAsTracked), without or with the tracker's model
+// refinement (BodyTrackerOptions::refine). Pick the tracker settings that
+// found the learner, so that both go through the same pipeline.
+enum class TeacherJoints { kStored, kTracked, kTrackedRefined };
+// "stored", "tracked", "tracked-refined"; InvalidArgument otherwise.
+absl::StatusOr<TeacherJoints> ParseTeacherJoints(std::string_view name);
+
+// Options of TeacherSkeletonsAsTracked.
+struct TeacherTrackingOptions {
+  // The virtual depth sensor (Kinect v2 depth intrinsics, 512x424): in front
+  // of the teacher's start facing, `distance_m` from its pivot, the lens
+  // `height_m` above the floor.
+  double distance_m = 2.5;
+  double height_m = 1.0;
+  // The teacher's facing relative to the virtual sensor (degrees, the
+  // convention of FacingYawInSensorDeg): the learner's facing relative to
+  // theirs, so that the tracker sees both from the same side.
+  double view_yaw_deg = 0.0;
+  // The tracker: the learner's (the shipped network by default).
+  tracking::BodyTrackerOptions tracker;
+};
+
+// The teacher's skeleton per instant as the learner's tracker reports it, so
+// that the mirror compares the two through the same joint definitions and
+// the same pipeline: each instant is drawn as depth (and its actor mask)
+// from a virtual depth sensor that sees the teacher's start facing at
+// options.view_yaw_deg, and tracked
+// as reenactd tracks a sensor (tracking::BodyTracker, with history). The
+// joints go back to the world; a joint the tracker did not track is invalid,
+// and an instant where it found nobody has none. Needed because a fitted
+// body's joints and a tracker's are not the same points: on the built-in
+// kick the stored joints of a body reenactment read 14 degrees against the
+// same body tracked from depth facing the sensor, where two tracked takes
+// read under 2. The errors of TeacherSkeletons, Unavailable without EGL, and
+// the tracker's.
+absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletonsAsTracked(
+    const Reenactment& data, const TeacherTrackingOptions& options = {});
 
 // world_from_camera of the render camera: T^-1 V (see the top).
 Eigen::Isometry3d TeacherRenderPose(const Eigen::Isometry3d& world_from_virtual_camera,

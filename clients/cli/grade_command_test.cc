@@ -55,18 +55,24 @@ const std::string& Dir() {
 // A 2 s take of the built-in front kick seen by one sensor with no skeleton
 // stream (a depth camera: `reenact grade` tracks it as reenactd would), the
 // person turned `yaw_deg` from the sensor; "" after a failure.
-std::string KickTake(double yaw_deg, uint64_t seed) {
-  static std::map<std::pair<double, uint64_t>, std::string> made;
-  if (auto it = made.find({yaw_deg, seed}); it != made.end()) return it->second;
+// The built-in front kick, 2 s, one small sensor.
+synth::SynthOptions KickOptions(uint64_t seed) {
   synth::SynthOptions options;
   options.motion = "builtin:front-kick";
-  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kNone;
   options.num_sensors = 1;
   options.seconds = 2.0;
   options.color_width = 320;
   options.color_height = 180;
-  options.yaw_deg = yaw_deg;
   options.seed = seed;
+  return options;
+}
+
+std::string KickTake(double yaw_deg, uint64_t seed) {
+  static std::map<std::pair<double, uint64_t>, std::string> made;
+  if (auto it = made.find({yaw_deg, seed}); it != made.end()) return it->second;
+  synth::SynthOptions options = KickOptions(seed);
+  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kNone;
+  options.yaw_deg = yaw_deg;
   options.ground_truth_mesh = false;
   const std::string path = absl::StrCat(Dir(), "/kick_yaw", yaw_deg, "_seed", seed, ".mcap");
   const auto summary = synth::SynthesizeTake(options, path);
@@ -142,13 +148,7 @@ TEST(Grade, WritesTheReportAndPrintsCorrectionsInWords) {
 // ground truth (its stored joints are the model's), the frames in
 // `missing` stored without a skeleton; "" after a failure.
 std::string KickReenactment(const std::string& name, int first_missing = 0, int end_missing = 0) {
-  synth::SynthOptions options;
-  options.motion = "builtin:front-kick";
-  options.num_sensors = 1;
-  options.seconds = 2.0;
-  options.color_width = 320;
-  options.color_height = 180;
-  options.seed = 5;
+  const synth::SynthOptions options = KickOptions(5);
   const std::string take_path = absl::StrCat(Dir(), "/", name, ".mcap");
   if (const auto made = synth::SynthesizeTake(options, take_path); !made.ok()) {
     ADD_FAILURE() << made.status();
@@ -224,14 +224,8 @@ TEST(Grade, AReenactmentTeacherIsTrackedLikeTheLearnerForAPerfectRepetition) {
 TEST(Grade, AReenactmentTeacherWithMissingFramesGradesTheRest) {
   const std::string reen = KickReenactment("teacher_missing", 20, 25);
   ASSERT_FALSE(reen.empty());
-  synth::SynthOptions options;
-  options.motion = "builtin:front-kick";
-  options.num_sensors = 1;
-  options.seconds = 2.0;
-  options.color_width = 320;
-  options.color_height = 180;
+  synth::SynthOptions options = KickOptions(6);
   options.ground_truth_mesh = false;
-  options.seed = 6;
   options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
   options.skeleton_jitter_m = 0.005;
   const std::string learner = Dir() + "/reen_learner.mcap";

@@ -53,7 +53,26 @@ absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletonsAsTracked(
       !(options.height_m > 0.0 && options.height_m < 3.0)) {
     return absl::InvalidArgumentError("the virtual sensor must stand 0.5-10 m away, 0-3 m high");
   }
-  ASSIGN_OR_RETURN(const std::vector<body::SkeletonPose> stored, TeacherSkeletons(data));
+  ASSIGN_OR_RETURN(const std::vector<body::SkeletonPose> stored_in_world, TeacherSkeletons(data));
+  // Up is the teacher's own mean spine direction, not world +Y: the world of
+  // an imported recording is its depth camera's frame (y down).
+  Eigen::Vector3d spine_sum = Eigen::Vector3d::Zero();
+  for (const body::SkeletonPose& pose : stored_in_world) {
+    const int base = body::Index(body::KinectV2Joint::kSpineBase);
+    const int top = body::Index(body::KinectV2Joint::kSpineShoulder);
+    if (!pose.valid[base] || !pose.valid[top]) continue;
+    const Eigen::Vector3d spine = pose.position_m[top] - pose.position_m[base];
+    if (spine.allFinite() && spine.norm() > 0.05) spine_sum += spine.normalized();
+  }
+  if (spine_sum.norm() < 1e-6) {
+    return absl::FailedPreconditionError("the teacher has no frame with a spine to stand upright");
+  }
+  const Eigen::Quaterniond upright_from_world =
+      Eigen::Quaterniond::FromTwoVectors(spine_sum.normalized(), Eigen::Vector3d::UnitY());
+  std::vector<body::SkeletonPose> stored = stored_in_world;
+  for (body::SkeletonPose& pose : stored) {
+    for (auto& p : pose.position_m) p = upright_from_world * p;
+  }
   const double fps = data.info.fps > 0.0 && std::isfinite(data.info.fps) ? data.info.fps : 30.0;
   ASSIGN_OR_RETURN(const TeacherFacing facing, MeasureTeacherFacing(stored, fps, 0.5));
   if (!std::isfinite(options.view_yaw_deg)) {
@@ -71,10 +90,12 @@ absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletonsAsTracked(
   Eigen::Isometry3d world_from_camera = Eigen::Isometry3d::Identity();
   double best_miss_deg = 1e9;
   for (const double sign : {1.0, -1.0}) {
-    ASSIGN_OR_RETURN(const Eigen::Isometry3d candidate,
-                     PlaceVirtualCamera(facing.pivot_in_world,
-                                        facing.facing_yaw_world_deg + sign * options.view_yaw_deg,
-                                        options.distance_m, options.height_m));
+    // The lens height_m above a floor taken 1 m below the pivot.
+    ASSIGN_OR_RETURN(
+        const Eigen::Isometry3d candidate,
+        PlaceVirtualCamera(facing.pivot_in_world,
+                           facing.facing_yaw_world_deg + sign * options.view_yaw_deg,
+                           options.distance_m, facing.pivot_in_world.y() - 1.0 + options.height_m));
     double miss_deg = 0.0;
     if (start != nullptr) {
       const Eigen::Isometry3d camera_from_world = candidate.inverse();
@@ -86,6 +107,8 @@ absl::StatusOr<std::vector<body::SkeletonPose>> TeacherSkeletonsAsTracked(
     }
     if (miss_deg < best_miss_deg) best_miss_deg = miss_deg, world_from_camera = candidate;
   }
+  // From the upright frame back to the reenactment's world.
+  world_from_camera = Eigen::Isometry3d(upright_from_world.inverse()) * world_from_camera;
   const CameraIntrinsics intrinsics = KinectV2DepthIntrinsics();
   const render::RenderCamera camera =
       render::RenderCameraFromIntrinsics(intrinsics, world_from_camera);

@@ -48,9 +48,10 @@ absl::StatusOr<TeacherJoints> ParseTeacherJoints(std::string_view name);
 
 // Options of TeacherSkeletonsAsTracked.
 struct TeacherTrackingOptions {
-  // The virtual depth sensor (Kinect v2 depth intrinsics, 512x424): in front
-  // of the teacher's start facing, `distance_m` from its pivot, the lens
-  // `height_m` above the floor.
+  // The virtual depth sensor (Kinect v2 depth intrinsics, 512x424):
+  // `distance_m` from the teacher's pivot, the lens `height_m` above a floor
+  // taken 1 m below the pivot, up being the teacher's mean spine direction
+  // (the world of an imported recording need not have +Y up).
   double distance_m = 2.5;
   double height_m = 1.0;
   // The teacher's facing relative to the virtual sensor (degrees, the

@@ -88,6 +88,12 @@ absl::StatusOr<VdtmModel> VdtmModel::Create(const Reenactment& data) {
     const SensorCalibration& calibration = data.info.sensors[s];
     KeyframeCamera camera;
     camera.sensor = s;
+    // A depth-only sensor (no colour camera: intrinsics of size 0) textures
+    // nothing; a keyframe naming it is refused below as an unknown sensor.
+    if (calibration.color_intrinsics.width == 0 && calibration.color_intrinsics.height == 0) {
+      sensors.push_back(camera);
+      continue;
+    }
     RETURN_IF_ERROR(calibration.color_intrinsics.Validate());
     camera.color_intrinsics = calibration.color_intrinsics;
     camera.color_from_world =

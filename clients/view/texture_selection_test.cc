@@ -176,6 +176,21 @@ TEST(KeyframeUv, ProjectsThroughTheKeyframesPoseCropAndScale) {
   EXPECT_NEAR(uv.y(), 1.0 - (py - 20 + 0.5) * 0.5 / h, 1e-6);
 }
 
+// A depth-only sensor (no colour camera) is drawn untextured, not refused;
+// a keyframe from it is.
+TEST(VdtmModel, ASensorWithoutAColourCameraTexturesNothing) {
+  Reenactment data = ThreeSensorScene();
+  SensorCalibration depth_only = data.info.sensors[0];
+  depth_only.sensor_id = "depth-only";
+  depth_only.color_intrinsics = CameraIntrinsics();
+  data.info.sensors.push_back(depth_only);
+  absl::StatusOr<VdtmModel> model = VdtmModel::Create(data);
+  ASSERT_TRUE(model.ok()) << model.status();
+  EXPECT_EQ(model->num_keyframes(), static_cast<int>(data.keyframes.size()));
+  data.keyframes[0].sensor_id = "depth-only";
+  EXPECT_EQ(VdtmModel::Create(data).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(VdtmModel, InvalidReenactmentIsInvalidArgument) {
   Reenactment data = ThreeSensorScene();
   data.keyframes[0].sensor_id = "nobody";

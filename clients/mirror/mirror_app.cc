@@ -14,6 +14,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "clients/sdk/follow_stats.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/io/png.h"
@@ -496,20 +497,12 @@ absl::Status MirrorLoop::Finish() {
     summary_.compose_ms_mean = 1e3 * compose_s_ / summary_.frames;
     summary_.output_ms_mean = 1e3 * output_s_ / summary_.frames;
   }
-  if (!latency_ms_.empty()) {
-    std::vector<double> sorted = latency_ms_;
-    std::sort(sorted.begin(), sorted.end());
-    auto at = [&](double q) {
-      return sorted[std::min(sorted.size() - 1, static_cast<size_t>(q * sorted.size()))];
-    };
-    summary_.latency_frames = static_cast<int>(sorted.size());
-    double sum = 0.0;
-    for (const double v : sorted) sum += v;
-    summary_.latency_ms_mean = sum / static_cast<double>(sorted.size());
-    summary_.latency_ms_p50 = at(0.5);
-    summary_.latency_ms_p95 = at(0.95);
-    summary_.latency_ms_max = sorted.back();
-  }
+  const client::Distribution latency = client::Distribute(latency_ms_);
+  summary_.latency_frames = static_cast<int>(latency.count);
+  summary_.latency_ms_mean = latency.mean_ms;
+  summary_.latency_ms_p50 = latency.p50_ms;
+  summary_.latency_ms_p95 = latency.p95_ms;
+  summary_.latency_ms_max = latency.max_ms;
   return finished;
 }
 

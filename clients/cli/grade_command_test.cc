@@ -182,11 +182,11 @@ std::string KickReenactment(const std::string& name, int first_missing = 0, int 
 // model's, which are not the points our tracker reports: compared as
 // stored, a perfect learner facing the sensor reads 13.7 degrees. With
 // --teacher-joints tracked the teacher's joints are our tracker's on the
-// teacher drawn as depth from the learner's side. Measured: 2.3, 5.9, 4.0
-// and 4.8 degrees at 0, 30, 60 and 90 degrees over 77, 42, 38 and 11 % of
+// teacher drawn as depth from the learner's side. Measured: 2.2, 5.2, 3.7
+// and 5.3 degrees at 0, 30, 60 and 90 degrees over 82, 52, 48 and 42 % of
 // the part-frames; the goal (5 degrees, 80 % graded at 0-60 degrees) is
-// not reached at 30 degrees nor in coverage (the tracker infers most
-// joints of a turned body).
+// not reached at 30 degrees nor in coverage: turned away from its one
+// sensor, the far arm is hidden behind the body and is rightly not graded.
 TEST(Grade, AReenactmentTeacherIsTrackedLikeTheLearnerForAPerfectRepetition) {
   const std::string teacher = KickReenactment("kick_teacher");
   ASSERT_FALSE(teacher.empty());
@@ -203,7 +203,7 @@ TEST(Grade, AReenactmentTeacherIsTrackedLikeTheLearnerForAPerfectRepetition) {
                 mean, 100.0 * coverage);
     EXPECT_NE(j["teacher"].get<std::string>().find("as the tracker finds them"), std::string::npos);
     EXPECT_LE(mean, 7.0) << "yaw " << yaw;
-    EXPECT_GE(coverage, yaw < 80.0 ? 0.35 : 0.05) << "yaw " << yaw;
+    EXPECT_GE(coverage, yaw < 80.0 ? 0.42 : 0.3) << "yaw " << yaw;
     if (yaw == 0.0) {
       EXPECT_LE(mean, 3.5);
       // The stored joints, for contrast.

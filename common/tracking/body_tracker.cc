@@ -181,7 +181,7 @@ absl::Status BodyTrackerOptions::Validate() const {
     return absl::InvalidArgumentError("tracker: bad vote bandwidth or count");
   }
   if (!(min_tracked_confidence >= 0 && min_tracked_confidence <= 1) ||
-      !(max_behind_surface_m > 0) || !(max_id_jump_m > 0)) {
+      !(max_behind_surface_m > 0) || !(max_behind_surface_trunk_m > 0) || !(max_id_jump_m > 0)) {
     return absl::InvalidArgumentError("tracker: bad confidence, surface or id distance");
   }
   if (!(min_prior_confidence >= 0 && min_prior_confidence <= 1)) {
@@ -213,7 +213,7 @@ struct BodyTracker::Impl {
   void KeepSides(TrackedPerson* person) const;
   void AssignIds(std::vector<TrackedPerson>* people);
   void SetState(const DepthImageMm& depth, const MaskImage& labels, const CameraIntrinsics& k,
-                int label, TrackedJoint* joint) const;
+                int label, int joint_index, TrackedJoint* joint) const;
   absl::Status Refine(const PersonView& view, const CameraIntrinsics& k, TrackedPerson* person);
 };
 
@@ -364,6 +364,25 @@ absl::StatusOr<TrackedPerson> BodyTracker::Impl::TrackPersonNet(const PersonView
   return person;
 }
 
+namespace {
+
+// The trunk's joints: spine, neck and hips (max_behind_surface_trunk_m).
+bool IsTrunkJoint(int joint) {
+  switch (static_cast<body::KinectV2Joint>(joint)) {
+    case body::KinectV2Joint::kSpineBase:
+    case body::KinectV2Joint::kSpineMid:
+    case body::KinectV2Joint::kSpineShoulder:
+    case body::KinectV2Joint::kNeck:
+    case body::KinectV2Joint::kHipLeft:
+    case body::KinectV2Joint::kHipRight:
+      return true;
+    default:
+      return false;
+  }
+}
+
+}  // namespace
+
 // Left and right joints of the limbs, paired.
 constexpr std::array<std::pair<body::KinectV2Joint, body::KinectV2Joint>, 10> kSides = {{
     {body::KinectV2Joint::kShoulderLeft, body::KinectV2Joint::kShoulderRight},
@@ -417,14 +436,17 @@ void BodyTracker::Impl::KeepSides(TrackedPerson* person) const {
 }
 
 void BodyTracker::Impl::SetState(const DepthImageMm& depth, const MaskImage& labels,
-                                 const CameraIntrinsics& k, int label, TrackedJoint* joint) const {
+                                 const CameraIntrinsics& k, int label, int joint_index,
+                                 TrackedJoint* joint) const {
   joint->state = JointState::kInferred;
   if (joint->confidence < options.min_tracked_confidence || !k.IsInside(joint->pixel)) return;
   const int x = static_cast<int>(std::lround(joint->pixel.x()));
   const int y = static_cast<int>(std::lround(joint->pixel.y()));
   if (labels.at(x, y) != label || depth.at(x, y) == 0) return;
   const double behind_m = joint->position_in_camera_m.z() - depth.at(x, y) * 0.001;
-  if (behind_m > -0.05 && behind_m < options.max_behind_surface_m) {
+  const double max_behind_m =
+      IsTrunkJoint(joint_index) ? options.max_behind_surface_trunk_m : options.max_behind_surface_m;
+  if (behind_m > -0.05 && behind_m < max_behind_m) {
     joint->state = JointState::kTracked;
   }
 }
@@ -537,10 +559,11 @@ absl::StatusOr<std::vector<TrackedPerson>> BodyTracker::Track(const DepthImageMm
     TrackedPerson& person = people[i];
     ids.push_back(person.person_id);
     if (impl_->refiner) RETURN_IF_ERROR(impl_->Refine(views[i], intrinsics, &person));
-    for (TrackedJoint& joint : person.joints) {
+    for (int j = 0; j < body::kNumKinectV2Joints; ++j) {
+      TrackedJoint& joint = person.joints[j];
       if (joint.state == JointState::kNotTracked) continue;
       if (auto pixel = intrinsics.Project(joint.position_in_camera_m)) joint.pixel = *pixel;
-      impl_->SetState(depth, *labels, intrinsics, person.mask_label, &joint);
+      impl_->SetState(depth, *labels, intrinsics, person.mask_label, j, &joint);
       if (impl_->net) {
         joint.confidence =
             joint.state == JointState::kTracked ? kNetworkSeenConfidence : kNetworkUnseenConfidence;

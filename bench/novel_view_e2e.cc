@@ -38,7 +38,11 @@
 // a baked atlas (which holds the light the sensors saw) can pass it. Body
 // configurations therefore also get "truth geometry": the true posed mesh
 // with the atlas our texturing (server/recon/body/body_texturing.h) bakes
-// on it from the take, which parts texturing errors from geometry errors.
+// on it from the take, which parts texturing errors from geometry errors
+// (geoP, geoS), and the same with the per-frame appearance video baked on
+// it too (geoAP, geoAS). Body methods run with their default options, so
+// with the appearance video; --option appearance=false measures the static
+// atlas alone.
 // Takes are cached in --work under a name that holds every synthesis
 // setting. A quick run: --seconds 1 --fps 10 --color-width 960
 // --color-height 540 --motions 09_06-run --wardrobes solid.
@@ -96,6 +100,8 @@ std::string ImagesName(const std::string& take_path, const std::string& what) {
 struct Score {
   double psnr = NAN, ssim = NAN, iou = NAN;
   double seconds = 0;  // Method run time (0 for a ceiling).
+  // A body's appearance video, bytes per second of take (0: none).
+  double appearance_bytes_per_s = 0;
 };
 
 absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
@@ -188,6 +194,10 @@ absl::StatusOr<Score> RunConfiguration(const Settings& s, const std::string& tak
   ASSIGN_OR_RETURN(const auto take, TakeReader::Open(take_path));
   ASSIGN_OR_RETURN(Score score, Evaluate(data, *take, s, ImagesName(take_path, configuration)));
   score.seconds = seconds;
+  if (data.is_body() && !data.body->appearance_mp4.empty() && !data.frames.empty()) {
+    score.appearance_bytes_per_s = static_cast<double>(data.body->appearance_mp4.size()) *
+                                   data.info.fps / static_cast<double>(data.frames.size());
+  }
   return score;
 }
 
@@ -207,9 +217,14 @@ absl::StatusOr<Score> Ceiling(const Settings& s, const std::string& take_path,
 }
 
 // The true body (MakeTruthBodyReenactment) with the atlas BakeBodyAtlas
-// makes of the take on the true posed mesh.
-absl::StatusOr<Score> TruthGeometry(const Settings& s, const std::string& take_path,
-                                    const body::BodyModel& model) {
+// makes of the take on the true posed mesh: first with that static atlas
+// alone, then with the per-frame appearance (BakeAppearanceVideo, default
+// options) on it too.
+struct TruthGeometryScores {
+  Score static_atlas, appearance;
+};
+absl::StatusOr<TruthGeometryScores> TruthGeometry(const Settings& s, const std::string& take_path,
+                                                  const body::BodyModel& model) {
   ASSIGN_OR_RETURN(const auto take, TakeReader::Open(take_path));
   ASSIGN_OR_RETURN(Reenactment data, view::testing::MakeTruthBodyReenactment(*take, model));
   ASSIGN_OR_RETURN(const auto frames, recon::TakeFrames::Load(take_path));
@@ -222,19 +237,30 @@ absl::StatusOr<Score> TruthGeometry(const Settings& s, const std::string& take_p
   ASSIGN_OR_RETURN(const recon::AtlasResult atlas, recon::BakeBodyAtlas(*frames, mesh, posed));
   ASSIGN_OR_RETURN(std::string jpeg, EncodeJpeg(atlas.atlas, 90));
   data.body->atlas_jpeg = std::move(jpeg);
-  return Evaluate(data, *take, s, ImagesName(take_path, "truth-geometry"));
+  TruthGeometryScores scores;
+  ASSIGN_OR_RETURN(scores.static_atlas,
+                   Evaluate(data, *take, s, ImagesName(take_path, "truth-geometry")));
+  const recon::AppearanceOptions appearance;
+  const recon::AtlasOptions atlas_options;
+  RETURN_IF_ERROR(recon::BakeAppearanceVideo(*frames, posed, atlas.atlas, atlas_options, appearance,
+                                             /*crf=*/23, &*data.body));
+  ASSIGN_OR_RETURN(scores.appearance,
+                   Evaluate(data, *take, s, ImagesName(take_path, "truth-geometry-appearance")));
+  return scores;
 }
 
 struct Row {
   std::string motion, wardrobe, configuration;
-  Score score, ceiling, truth_geometry;
+  Score score, ceiling, truth_geometry, truth_appearance;
 };
 
 void PrintRow(const Row& row) {
-  std::printf("%-13s %-8s %-16s %7.2f %6.3f %6.3f   %7.2f %6.3f %6.3f   %7.2f %6.3f  %6.1f\n",
-              row.motion.c_str(), row.wardrobe.c_str(), row.configuration.c_str(), row.score.psnr,
-              row.score.ssim, row.score.iou, row.ceiling.psnr, row.ceiling.ssim, row.ceiling.iou,
-              row.truth_geometry.psnr, row.truth_geometry.ssim, row.score.seconds);
+  std::printf(
+      "%-13s %-8s %-16s %7.2f %6.3f %6.3f   %7.2f %6.3f %6.3f   %7.2f %6.3f %7.2f %6.3f  %6.1f\n",
+      row.motion.c_str(), row.wardrobe.c_str(), row.configuration.c_str(), row.score.psnr,
+      row.score.ssim, row.score.iou, row.ceiling.psnr, row.ceiling.ssim, row.ceiling.iou,
+      row.truth_geometry.psnr, row.truth_geometry.ssim, row.truth_appearance.psnr,
+      row.truth_appearance.ssim, row.score.seconds);
   std::fflush(stdout);
 }
 
@@ -242,23 +268,33 @@ void PrintRow(const Row& row) {
 void PrintMeans(const Settings& s, const std::vector<Row>& rows) {
   std::printf("\nmean over %zu motions x %zu wardrobes:\n", s.motions.size(), s.wardrobes.size());
   for (const std::string& configuration : s.methods) {
-    Row mean{"all", "all", configuration, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}};
+    Row mean{"all", "all", configuration, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}};
     int n = 0;
     for (const Row& row : rows) {
       if (row.configuration != configuration) continue;
       for (auto [to, from] :
            {std::pair{&mean.score, &row.score}, std::pair{&mean.ceiling, &row.ceiling},
-            std::pair{&mean.truth_geometry, &row.truth_geometry}}) {
+            std::pair{&mean.truth_geometry, &row.truth_geometry},
+            std::pair{&mean.truth_appearance, &row.truth_appearance}}) {
         to->psnr += from->psnr, to->ssim += from->ssim, to->iou += from->iou;
         to->seconds += from->seconds;
       }
       ++n;
     }
     if (n == 0) continue;
-    for (Score* score : {&mean.score, &mean.ceiling, &mean.truth_geometry}) {
+    for (Score* score :
+         {&mean.score, &mean.ceiling, &mean.truth_geometry, &mean.truth_appearance}) {
       score->psnr /= n, score->ssim /= n, score->iou /= n, score->seconds /= n;
     }
     PrintRow(mean);
+    double video_bytes_per_s = 0.0;
+    for (const Row& row : rows) {
+      if (row.configuration == configuration) video_bytes_per_s += row.score.appearance_bytes_per_s;
+    }
+    if (video_bytes_per_s > 0) {
+      std::printf("  %s: appearance video %.0f kB per second of take\n", configuration.c_str(),
+                  video_bytes_per_s / n / 1000.0);
+    }
   }
 }
 
@@ -272,18 +308,22 @@ nlohmann::json ToJson(const Settings& s, const std::vector<Row>& rows) {
                       {"rows", nlohmann::json::array()}};
   const auto finite = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; };
   for (const Row& row : rows) {
-    j["rows"].push_back({{"motion", row.motion},
-                         {"wardrobe", row.wardrobe},
-                         {"method", row.configuration},
-                         {"psnr_db_90", finite(row.score.psnr)},
-                         {"ssim_90", finite(row.score.ssim)},
-                         {"iou_90", finite(row.score.iou)},
-                         {"ceiling_psnr_db_90", finite(row.ceiling.psnr)},
-                         {"ceiling_ssim_90", finite(row.ceiling.ssim)},
-                         {"ceiling_iou_90", finite(row.ceiling.iou)},
-                         {"truth_geometry_psnr_db_90", finite(row.truth_geometry.psnr)},
-                         {"truth_geometry_ssim_90", finite(row.truth_geometry.ssim)},
-                         {"method_s", row.score.seconds}});
+    j["rows"].push_back(
+        {{"motion", row.motion},
+         {"wardrobe", row.wardrobe},
+         {"method", row.configuration},
+         {"psnr_db_90", finite(row.score.psnr)},
+         {"ssim_90", finite(row.score.ssim)},
+         {"iou_90", finite(row.score.iou)},
+         {"ceiling_psnr_db_90", finite(row.ceiling.psnr)},
+         {"ceiling_ssim_90", finite(row.ceiling.ssim)},
+         {"ceiling_iou_90", finite(row.ceiling.iou)},
+         {"truth_geometry_psnr_db_90", finite(row.truth_geometry.psnr)},
+         {"truth_geometry_ssim_90", finite(row.truth_geometry.ssim)},
+         {"truth_geometry_appearance_psnr_db_90", finite(row.truth_appearance.psnr)},
+         {"truth_geometry_appearance_ssim_90", finite(row.truth_appearance.ssim)},
+         {"method_s", row.score.seconds},
+         {"appearance_bytes_per_s", row.score.appearance_bytes_per_s}});
   }
   return j;
 }
@@ -293,7 +333,7 @@ absl::Status RunTake(const Settings& s, const body::BodyModel& model, const std:
                      const std::string& wardrobe, std::vector<Row>* rows) {
   ASSIGN_OR_RETURN(const std::string take, EnsureTake(s, motion, wardrobe));
   std::map<std::string, Score> ceilings;  // Body configurations share one.
-  std::optional<Score> truth_geometry;
+  std::optional<TruthGeometryScores> truth_geometry;
   for (const std::string& configuration : s.methods) {
     const std::string kind = configuration.rfind("body", 0) == 0 ? "body" : configuration;
     if (!ceilings.count(kind) && s.ceilings) {
@@ -302,8 +342,11 @@ absl::Status RunTake(const Settings& s, const body::BodyModel& model, const std:
     if (kind == "body" && !truth_geometry && s.ceilings) {
       ASSIGN_OR_RETURN(truth_geometry, TruthGeometry(s, take, model));
     }
-    Row row{motion, wardrobe, configuration, {}, ceilings[kind], Score{}};
-    if (truth_geometry && kind == "body") row.truth_geometry = *truth_geometry;
+    Row row{motion, wardrobe, configuration, {}, ceilings[kind], Score{}, Score{}};
+    if (truth_geometry && kind == "body") {
+      row.truth_geometry = truth_geometry->static_atlas;
+      row.truth_appearance = truth_geometry->appearance;
+    }
     ASSIGN_OR_RETURN(row.score, RunConfiguration(s, take, configuration));
     PrintRow(row);
     rows->push_back(row);
@@ -327,9 +370,9 @@ int Run(int argc, char** argv) {
   }
   std::printf("novel view 90 deg, 2 sensors, %g s at %g fps, colour %dx%d, every %d-th instant\n",
               s.seconds, s.fps, s.color_width, s.color_height, s.every);
-  std::printf("%-13s %-8s %-16s %7s %6s %6s   %7s %6s %6s   %7s %6s  %6s\n", "motion", "wardrobe",
-              "method", "PSNR90", "SSIM90", "IoU90", "ceilP", "ceilS", "ceilI", "geoP", "geoS",
-              "run_s");
+  std::printf("%-13s %-8s %-16s %7s %6s %6s   %7s %6s %6s   %7s %6s %7s %6s  %6s\n", "motion",
+              "wardrobe", "method", "PSNR90", "SSIM90", "IoU90", "ceilP", "ceilS", "ceilI", "geoP",
+              "geoS", "geoAP", "geoAS", "run_s");
   std::vector<Row> rows;
   for (const std::string& motion : s.motions) {
     for (const std::string& wardrobe : s.wardrobes) {

@@ -10,6 +10,7 @@
 #include "common/geometry/camera.h"
 #include "common/io/jpeg.h"
 #include "common/io/mask_codec.h"
+#include "common/io/video_reader.h"
 #include "common/render/intrinsics_camera.h"
 #include "common/render/mesh_data.h"
 
@@ -102,6 +103,11 @@ struct ReenactmentRenderer::Body {
   bool uploaded = false;    // Upload tried (mesh and atlas).
   render::MeshId gpu_mesh;  // Over the texture vertices; positions per frame.
   render::TextureId atlas;  // Invalid: no atlas (lit flat colour).
+  // Per-frame appearance: the video's reader (null: the static atlas) and
+  // the texture of the frame last drawn.
+  std::unique_ptr<VideoReader> appearance;
+  render::TextureId frame_texture;
+  int frame_texture_index = -1;
 };
 
 absl::StatusOr<TextureMode> ParseTextureMode(const std::string& name) {
@@ -155,6 +161,9 @@ ReenactmentRenderer::~ReenactmentRenderer() {
   }
   if (body_ != nullptr && body_->atlas.valid()) {
     renderer_->ReleaseTexture(body_->atlas).IgnoreError();
+  }
+  if (body_ != nullptr && body_->frame_texture.valid()) {
+    renderer_->ReleaseTexture(body_->frame_texture).IgnoreError();
   }
   for (auto& [keyframe, texture] : textures_) renderer_->ReleaseTexture(texture.id).IgnoreError();
   for (render::TextureId id : baked_) {
@@ -362,7 +371,54 @@ absl::Status ReenactmentRenderer::UploadBody(FrameStats* stats) {
   }
   mesh.triangles = body.texture_triangles;
   ASSIGN_OR_RETURN(body_->gpu_mesh, renderer_->UploadMesh(mesh));
+  OpenAppearance();
   return atlas_status;
+}
+
+void ReenactmentRenderer::OpenAppearance() {
+  const BodyMesh& body = *data_.body;
+  if (!options_.appearance || body.appearance_mp4.empty()) return;
+  const int frames = static_cast<int>(data_.frames.size());
+  const auto fall_back = [this](const std::string& why) {
+    appearance_note_ = absl::StrCat("per-frame appearance not drawn (", why,
+                                    "): the static atlas is drawn instead");
+    body_->appearance.reset();
+  };
+  if (body.appearance_frame_count != frames) {
+    return fall_back(absl::StrCat("the video says ", body.appearance_frame_count, " frames for ",
+                                  frames, " instants"));
+  }
+  auto reader = VideoReader::Open(body.appearance_mp4);
+  if (!reader.ok()) return fall_back(std::string(reader.status().message()));
+  if ((*reader)->frame_count() != frames) {
+    return fall_back(absl::StrCat("the video holds ", (*reader)->frame_count(), " frames for ",
+                                  frames, " instants"));
+  }
+  body_->appearance = std::move(*reader);
+}
+
+render::TextureId ReenactmentRenderer::BodyTexture(int frame, FrameStats* stats) {
+  if (body_->appearance == nullptr) return body_->atlas;
+  if (body_->frame_texture_index == frame) {
+    stats->per_frame_appearance = true;
+    return body_->frame_texture;
+  }
+  absl::StatusOr<RgbImage> image = body_->appearance->Frame(frame);
+  absl::StatusOr<render::TextureId> id = image.ok()
+                                             ? renderer_->UploadTexture(*image)
+                                             : absl::StatusOr<render::TextureId>(image.status());
+  if (!id.ok()) {
+    appearance_note_ = absl::StrCat("per-frame appearance not drawn (frame ", frame, ": ",
+                                    id.status().message(), "): the static atlas is drawn instead");
+    body_->appearance.reset();
+    return body_->atlas;
+  }
+  if (body_->frame_texture.valid()) renderer_->ReleaseTexture(body_->frame_texture).IgnoreError();
+  body_->frame_texture = *id;
+  body_->frame_texture_index = frame;
+  ++stats->textures_uploaded;
+  stats->per_frame_appearance = true;
+  return *id;
 }
 
 absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCamera& camera,
@@ -377,8 +433,8 @@ absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCame
         renderer_->UpdateMeshPositions(body_->gpu_mesh, posed.vertices_m.cast<float>()));
     render::DrawItem item;
     item.mesh = body_->gpu_mesh;
-    item.texture = body_->atlas;
-    item.lit = !body_->atlas.valid();  // The atlas already carries the light.
+    item.texture = BodyTexture(frame, stats);
+    item.lit = !item.texture.valid();  // The atlas already carries the light.
     item.cull_back_faces = true;       // The body model is a closed surface.
     item.colour_srgb = options_.untextured_srgb;
     item.label = 1;

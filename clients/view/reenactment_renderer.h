@@ -32,13 +32,20 @@
 // pose that is not valid hides the body (as an invalid part pose does). The
 // mesh is decoded once (Create) and uploaded once with the atlas (first
 // Render, counted in FrameStats::textures_uploaded); each frame updates only
-// its positions. The label of the body is 1.
+// its positions. The label of the body is 1. A body with an appearance
+// video (BodyMesh::appearance_mp4) is drawn at each instant with that
+// instant's atlas, decoded in step with the frames asked for (the next frame
+// decodes on, a jump back seeks to the key frame before it) and uploaded
+// over the previous one; a video that holds another number of frames, does
+// not decode or breaks part-way leaves the static atlas drawn from then on,
+// and appearance_note() says why.
 #pragma once
 
 #include <cstdint>
 #include <list>
 #include <map>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -75,6 +82,9 @@ struct ReenactmentRendererOptions {
   int64_t texture_cache_bytes = int64_t{256} << 20;
   // Colour of parts without any texture, sRGB in [0,1] (drawn lit).
   Eigen::Vector3f untextured_srgb{0.6f, 0.6f, 0.6f};
+  // Bodies: draw each instant's atlas from the reenactment's appearance
+  // video when it has one (false: the static atlas at every instant).
+  bool appearance = true;
 
   // InvalidArgument naming the first bad field.
   absl::Status Validate() const;
@@ -95,6 +105,8 @@ struct FrameStats {
   std::vector<int> best_keyframe;
   // Keyframe textures decoded and uploaded during this call.
   int textures_uploaded = 0;
+  // A body drawn with the instant's atlas of its appearance video.
+  bool per_frame_appearance = false;
 };
 
 class ReenactmentRenderer {
@@ -121,6 +133,9 @@ class ReenactmentRenderer {
   const VdtmModel& model() const { return model_; }
   // Bytes of keyframe textures held on the GPU now.
   int64_t cached_texture_bytes() const { return cache_bytes_; }
+  // Why a body's appearance video is not drawn (it is missing no reason:
+  // empty), for the user; set by the first Render that finds out.
+  const std::string& appearance_note() const { return appearance_note_; }
 
  private:
   struct CachedTexture {
@@ -146,6 +161,11 @@ class ReenactmentRenderer {
   absl::Status BuildBakedGroups(int frame, std::vector<Group>* groups, FrameStats* stats);
   absl::StatusOr<render::MeshData> GroupMesh(int frame, const Group& group) const;
   absl::Status UploadBody(FrameStats* stats);
+  // Opens the body's appearance video, or says in appearance_note_ why not.
+  void OpenAppearance();
+  // The texture of the body at `frame`: the instant's atlas from the video,
+  // or the static atlas (after a failure, for the rest of the run).
+  render::TextureId BodyTexture(int frame, FrameStats* stats);
   absl::Status RenderBody(int frame, const render::RenderCamera& camera, render::RenderOutputs* out,
                           FrameStats* stats);
 
@@ -161,6 +181,7 @@ class ReenactmentRenderer {
   std::vector<render::TextureId> baked_;  // By part; invalid until uploaded.
   std::vector<bool> baked_tried_;
   std::unique_ptr<Body> body_;  // Null for rigid-part reenactments.
+  std::string appearance_note_;
 };
 
 // The colour camera of `calibration` as a render camera of width x height

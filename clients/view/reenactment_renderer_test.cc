@@ -1,8 +1,12 @@
 #include "clients/view/reenactment_renderer.h"
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -10,6 +14,7 @@
 #include "common/io/jpeg.h"
 #include "common/io/reenactment_convert.h"
 #include "common/io/testing/small_reenactment.h"
+#include "common/io/video_writer.h"
 
 namespace reenact::view {
 namespace {
@@ -355,6 +360,116 @@ TEST(ReenactmentRenderer, BodyReenactmentHidesInvalidPosesAndReportsABadAtlas) {
   data.body->skin_joints.pop_back();
   EXPECT_EQ(ReenactmentRenderer::Create(data, renderer.get()).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+// An appearance video of `frames` solid-colour atlases (64 x 64), frame k
+// in kAppearanceColours[k % 5], as the body method stores it.
+const std::array<Eigen::Vector3i, 5> kAppearanceColours = {
+    Eigen::Vector3i(220, 40, 40), Eigen::Vector3i(40, 200, 60), Eigen::Vector3i(40, 60, 220),
+    Eigen::Vector3i(220, 210, 40), Eigen::Vector3i(40, 200, 210)};
+
+std::string SolidAppearanceVideo(int frames) {
+  const std::string path = ::testing::TempDir() + "/appearance.mp4";
+  VideoWriterOptions options;
+  options.keyframe_interval = 2;
+  auto writer = VideoWriter::Open(path, 64, 64, 15.0, options);
+  EXPECT_TRUE(writer.ok()) << writer.status();
+  if (!writer.ok()) return "";
+  for (int k = 0; k < frames; ++k) {
+    RgbImage atlas(64, 64);
+    for (int i = 0; i < 64 * 64; ++i) {
+      for (int c = 0; c < 3; ++c) {
+        atlas.data[3 * i + c] = static_cast<uint8_t>(kAppearanceColours[k % 5][c]);
+      }
+    }
+    EXPECT_TRUE((*writer)->Append(atlas).ok());
+  }
+  EXPECT_TRUE((*writer)->Close().ok());
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// The mean colour of the body's pixels (label 1).
+Eigen::Vector3d MeanBodyColour(const render::RenderOutputs& out) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (int y = 0; y < out.label.height; ++y) {
+    for (int x = 0; x < out.label.width; ++x) {
+      if (out.label.at(x, y) != 1) continue;
+      for (int c = 0; c < 3; ++c) sum[c] += out.colour.at(x, y, c);
+      ++n;
+    }
+  }
+  return n > 0 ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Constant(-1.0);
+}
+
+// A body with an appearance video is drawn with each instant's atlas,
+// whatever order the frames are asked in (on, back, again); a video of
+// another length, one that does not decode and one cut short leave the
+// static atlas drawn and say why; nothing fails.
+TEST(ReenactmentRenderer, BodyAppearanceVideoGivesEachInstantItsAtlas) {
+  auto renderer = MakeBodyRenderer();
+  ASSERT_NE(renderer, nullptr);
+  Reenactment data = ReenactmentFromProto(reenact::testing::MakeTestBodyReenactment(5)).value();
+  BodyMesh& mesh = *data.body;
+  mesh.appearance_mp4 = SolidAppearanceVideo(5);
+  ASSERT_FALSE(mesh.appearance_mp4.empty());
+  mesh.appearance_size_px = 64;
+  mesh.appearance_frame_count = 5;
+  const render::RenderCamera camera = BodyCamera();
+  {
+    auto view = ReenactmentRenderer::Create(data, renderer.get());
+    ASSERT_TRUE(view.ok()) << view.status();
+    double worst = 0.0;
+    for (int frame : {0, 1, 2, 4, 1, 3, 0}) {
+      render::RenderOutputs out;
+      FrameStats stats;
+      ASSERT_TRUE((*view)->Render(frame, camera, &out, &stats).ok()) << frame;
+      EXPECT_TRUE(stats.per_frame_appearance);
+      const Eigen::Vector3d mean = MeanBodyColour(out);
+      const double error = (mean - kAppearanceColours[frame].cast<double>()).cwiseAbs().maxCoeff();
+      worst = std::max(worst, error);
+      EXPECT_LT(error, 8.0) << "frame " << frame << ": " << mean.transpose();
+    }
+    EXPECT_TRUE((*view)->appearance_note().empty());
+    std::printf("appearance video: worst mean body colour off by %.2f levels\n", worst);
+  }
+  // The static atlas (a gradient) is what the fallbacks draw.
+  ReenactmentRendererOptions no_video;
+  no_video.appearance = false;
+  render::RenderOutputs reference;
+  {
+    auto view = ReenactmentRenderer::Create(data, renderer.get(), no_video);
+    ASSERT_TRUE(view.ok());
+    FrameStats stats;
+    ASSERT_TRUE((*view)->Render(2, camera, &reference, &stats).ok());
+    EXPECT_FALSE(stats.per_frame_appearance);
+  }
+  const Eigen::Vector3d static_mean = MeanBodyColour(reference);
+  const auto expect_static = [&](const Reenactment& broken, const std::string& what) {
+    auto view = ReenactmentRenderer::Create(broken, renderer.get());
+    ASSERT_TRUE(view.ok()) << what;
+    for (int frame = 0; frame < 5; ++frame) {
+      render::RenderOutputs out;
+      FrameStats stats;
+      ASSERT_TRUE((*view)->Render(frame, camera, &out, &stats).ok()) << what << " " << frame;
+      if (stats.per_frame_appearance) continue;  // Frames before the cut.
+      if (frame == 2) {
+        EXPECT_LT((MeanBodyColour(out) - static_mean).cwiseAbs().maxCoeff(), 1.0) << what;
+      }
+    }
+    EXPECT_NE((*view)->appearance_note().find("static atlas"), std::string::npos) << what;
+    std::printf("%s: %s\n", what.c_str(), (*view)->appearance_note().c_str());
+  };
+  Reenactment longer = data;
+  longer.body->appearance_frame_count = 6;
+  expect_static(longer, "frame count that differs");
+  Reenactment garbage = data;
+  garbage.body->appearance_mp4 = std::string(2048, '\x5a');
+  expect_static(garbage, "bytes that are no video");
+  Reenactment cut = data;
+  cut.body->appearance_mp4.resize(cut.body->appearance_mp4.size() / 2);
+  expect_static(cut, "video cut in half");
 }
 
 TEST(OrbitCamera, TurnsAboutTheVerticalThroughThePivot) {

@@ -87,7 +87,10 @@ absl::StatusOr<HeadlessSummary> RenderToDir(const Reenactment& data, const std::
     render::RenderOutputs out;
     out.requested = render::kRenderColour | (options.alpha ? render::kRenderLabel : 0u);
     const Clock::time_point drawn = Clock::now();
-    RETURN_IF_ERROR(view->Render(data.frames[shots[i].frame].frame_index, shots[i].camera, &out));
+    view::FrameStats stats;
+    RETURN_IF_ERROR(
+        view->Render(data.frames[shots[i].frame].frame_index, shots[i].camera, &out, &stats));
+    summary.per_frame_appearance |= stats.per_frame_appearance;
     summary.render_seconds += SecondsSince(drawn);
     const std::string path =
         (std::filesystem::path(dir) / absl::StrFormat("frame_%05d.png", options.name_by_instant
@@ -116,6 +119,7 @@ absl::StatusOr<HeadlessSummary> RenderToDir(const Reenactment& data, const std::
     }
   }
   if (!summary.mp4_problem.empty()) summary.mp4_path.clear();
+  summary.appearance_note = view->appearance_note();
   summary.total_seconds = SecondsSince(start);
   return summary;
 }

@@ -49,9 +49,13 @@ struct HeadlessOptions {
 
 struct HeadlessSummary {
   int images = 0;
-  std::string first_image;      // Path of the first PNG.
-  std::string mp4_path;         // Empty when no MP4 was written.
-  std::string mp4_problem;      // Why not, when one was asked for.
+  std::string first_image;  // Path of the first PNG.
+  std::string mp4_path;     // Empty when no MP4 was written.
+  std::string mp4_problem;  // Why not, when one was asked for.
+  // A body's per-frame appearance: whether it was drawn, or why not
+  // (ReenactmentRenderer::appearance_note; empty when it was or none exists).
+  bool per_frame_appearance = false;
+  std::string appearance_note;
   double render_seconds = 0.0;  // Drawing and reading back only.
   double total_seconds = 0.0;   // Everything, files included.
 };

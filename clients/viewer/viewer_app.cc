@@ -138,9 +138,10 @@ absl::StatusOr<WindowSummary> RunOrbitWindow(const Reenactment& data,
     if (options.hud) {
       DrawTimeline(playback.fraction(), &out.colour);
       DrawStatusLine(
-          absl::StrFormat("%s  instant %d/%d  %.2gx%s%s  %.0f fps", data.info.method, frame + 1,
+          absl::StrFormat("%s  instant %d/%d  %.2gx%s%s  %.0f fps%s", data.info.method, frame + 1,
                           playback.frame_count(), playback.speed(), playback.loop() ? "  loop" : "",
-                          playback.playing() ? "" : "  paused", fps_shown),
+                          playback.playing() ? "" : "  paused", fps_shown,
+                          view->appearance_note().empty() ? "" : "  static atlas (no video)"),
           0, &out.colour);
     }
     RETURN_IF_ERROR(window->Show(out.colour));

@@ -139,9 +139,14 @@ int RenderHeadless(const Flags& flags, const Reenactment& data, view::TextureMod
   if (!summary.ok()) return Fail(summary.status(), err);
   const double fps = summary->render_seconds > 0 ? summary->images / summary->render_seconds : 0.0;
   if (flags.Has("json")) {
-    out << nlohmann::json{{"images", summary->images}, {"dir", dir},
-                          {"mp4", summary->mp4_path},  {"mp4_problem", summary->mp4_problem},
-                          {"render_fps", fps},         {"seconds", summary->total_seconds}}
+    out << nlohmann::json{{"images", summary->images},
+                          {"dir", dir},
+                          {"mp4", summary->mp4_path},
+                          {"mp4_problem", summary->mp4_problem},
+                          {"render_fps", fps},
+                          {"seconds", summary->total_seconds},
+                          {"per_frame_appearance", summary->per_frame_appearance},
+                          {"appearance_note", summary->appearance_note}}
                .dump()
         << "\n";
   }
@@ -150,6 +155,9 @@ int RenderHeadless(const Flags& flags, const Reenactment& data, view::TextureMod
   if (!summary->mp4_path.empty()) err << "reenact-viewer: video " << summary->mp4_path << "\n";
   if (!summary->mp4_problem.empty()) {
     err << "reenact-viewer: no MP4: " << summary->mp4_problem << "\n";
+  }
+  if (!summary->appearance_note.empty()) {
+    err << "reenact-viewer: " << summary->appearance_note << "\n";
   }
   return kExitOk;
 }

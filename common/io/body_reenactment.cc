@@ -151,6 +151,16 @@ absl::StatusOr<DecodedBodyMesh> DecodeBodyMesh(const v1::BodyMesh& mesh) {
   out.shape_names.assign(mesh.shape_names().begin(), mesh.shape_names().end());
   out.joint_names.assign(mesh.joint_names().begin(), mesh.joint_names().end());
   out.atlas_jpeg = mesh.atlas_jpeg();
+  // The appearance video is kept as it is: a video that does not decode, or
+  // does not match the frames, is the viewers' to report (they fall back to
+  // the static atlas), not a reason to refuse the reenactment.
+  if (mesh.has_appearance()) {
+    const v1::AppearanceVideo& video = mesh.appearance();
+    out.appearance_mp4 = video.mp4();
+    out.appearance_size_px = video.size_px();
+    out.appearance_frame_count = video.frame_count();
+    out.appearance_codec = video.codec();
+  }
   return out;
 }
 

@@ -280,6 +280,13 @@ v1::BodyMesh BodyMeshToProto(const BodyMesh& mesh) {
     for (int c = 0; c < 3; ++c) m.add_texture_triangle_indices(static_cast<uint32_t>(t[c]));
   }
   m.set_atlas_jpeg(mesh.atlas_jpeg);
+  if (!mesh.appearance_mp4.empty()) {
+    v1::AppearanceVideo& video = *m.mutable_appearance();
+    video.set_mp4(mesh.appearance_mp4);
+    video.set_size_px(mesh.appearance_size_px);
+    video.set_frame_count(mesh.appearance_frame_count);
+    video.set_codec(mesh.appearance_codec);
+  }
   return m;
 }
 

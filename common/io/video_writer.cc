@@ -1,9 +1,7 @@
 #include "common/io/video_writer.h"
 
 #include <algorithm>
-#include <cstdarg>
 #include <filesystem>
-#include <mutex>
 #include <string_view>
 
 extern "C" {
@@ -16,26 +14,10 @@ extern "C" {
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/io/av_log.h"
 
 namespace reenact {
 namespace {
-
-// The last error libav logged on this thread (see the header's "Logging").
-thread_local std::string last_av_error;
-
-void QuietLogCallback(void* context, int level, const char* format, va_list args) {
-  if (level > AV_LOG_ERROR) return;
-  char line[1024];
-  int print_prefix = 1;
-  av_log_format_line2(context, level, format, args, line, sizeof(line), &print_prefix);
-  last_av_error = line;
-  while (!last_av_error.empty() && last_av_error.back() == '\n') last_av_error.pop_back();
-}
-
-void InstallQuietLog() {
-  static std::once_flag once;
-  std::call_once(once, [] { av_log_set_callback(QuietLogCallback); });
-}
 
 // A Status for libav error `error` from `what`, with the logged detail. libav
 // errors that wrap errno values (AVERROR(e) == -e) keep their meaning, e.g. a
@@ -44,8 +26,9 @@ absl::Status AvStatus(int error, absl::string_view what) {
   char text[AV_ERROR_MAX_STRING_SIZE] = {};
   av_strerror(error, text, sizeof(text));
   std::string message = absl::StrCat(what, ": ", text);
-  if (!last_av_error.empty()) absl::StrAppend(&message, " (", last_av_error, ")");
-  last_av_error.clear();
+  if (const std::string detail = TakeLastAvError(); !detail.empty()) {
+    absl::StrAppend(&message, " (", detail, ")");
+  }
   absl::StatusCode code = absl::StatusCode::kInternal;
   if (error < 0 && -error < 4096) {
     code = absl::ErrnoToStatusCode(-error);
@@ -215,7 +198,7 @@ absl::StatusOr<std::unique_ptr<VideoWriter>> VideoWriter::Open(const std::string
                                                    " fps (sizes must be even and positive, "
                                                    "fps in (0, 1000])"));
   }
-  InstallQuietLog();
+  InstallQuietAvLog();
   const AVCodec* encoder = FindEncoder(options.codec);
   if (encoder == nullptr)
     return absl::UnavailableError("VideoWriter: libavcodec has no encoder of the requested kind");

@@ -159,6 +159,12 @@ struct BodyMesh {
   std::vector<Eigen::Vector2f> texture_uvs;
   std::vector<Eigen::Vector3i> texture_triangles;
   std::string atlas_jpeg;  // Empty while texturing has not run.
+  // Per-frame appearance (AppearanceVideo): the atlas of every instant as
+  // an MP4 video, frame k for reenactment frame k; empty: none.
+  std::string appearance_mp4;
+  int appearance_size_px = 0;
+  int appearance_frame_count = 0;
+  std::string appearance_codec;
 
   int num_vertices() const { return static_cast<int>(rest_vertices_m.cols()); }
 };

@@ -10,6 +10,7 @@
 #include <numeric>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <zstd.h>
@@ -73,11 +74,17 @@ struct AtlasFigures {
   double observed_fraction = 0.0;  // Of its surface texels, seen at least once.
   int views = 0;                   // (instant, sensor) images used.
   double seconds = 0.0;            // Baking and encoding.
+  // Per-frame appearance (none when off).
+  int appearance_frames = 0;
+  double appearance_observed_fraction = 0.0;  // Mean over frames.
+  int64_t appearance_bytes = 0;
+  double appearance_seconds = 0.0;  // Baking and encoding.
 };
 
 // The mesh of the fitted shape with its atlas.
 struct TexturedMesh {
   BodyMesh mesh;
+  RgbImage atlas_image;  // The atlas before JPEG.
   AtlasFigures atlas;
 };
 
@@ -401,10 +408,29 @@ absl::StatusOr<TexturedMesh> BakeAtlas(const TakeFrames& take, const LoadedModel
   ASSIGN_OR_RETURN(const AtlasResult atlas, BakeBodyAtlas(take, out.mesh, PosedVertices(fits),
                                                           options, stages.ForStage("texture")));
   ASSIGN_OR_RETURN(out.mesh.atlas_jpeg, EncodeJpeg(atlas.atlas, 90));
+  out.atlas_image = atlas.atlas;
   out.atlas.seconds = SecondsSince(texture_start);
   out.atlas.observed_fraction = atlas.observed_fraction;
   out.atlas.views = atlas.views;
   return out;
+}
+
+// Per-frame appearance: every instant's atlas encoded as a video into the
+// mesh's AppearanceVideo (BakeAppearanceVideo).
+absl::Status BakeAppearance(const TakeFrames& take, const FrameFits& fits,
+                            const BodyMethodOptions& o, const StageProgress& stages,
+                            TexturedMesh* textured) {
+  const auto start = std::chrono::steady_clock::now();
+  AppearanceFigures figures;
+  RETURN_IF_ERROR(BakeAppearanceVideo(take, PosedVertices(fits), textured->atlas_image, o.atlas,
+                                      o.appearance_options, o.appearance_crf, &textured->mesh,
+                                      stages.ForStage("appearance"), &figures));
+  AtlasFigures& out = textured->atlas;
+  out.appearance_frames = figures.frames;
+  out.appearance_observed_fraction = figures.mean_observed_fraction;
+  out.appearance_bytes = static_cast<int64_t>(textured->mesh.appearance_mp4.size());
+  out.appearance_seconds = SecondsSince(start);
+  return absl::OkStatus();
 }
 
 // What the reenactment's figures sum over the fits.
@@ -484,6 +510,12 @@ Reenactment AssembleReenactment(const TakeFrames& take, const body::BodyModel& m
   figures["fit_seconds"] = fits.fit_seconds;
   figures["texture_seconds"] = atlas.seconds;
   figures["atlas_observed_fraction"] = atlas.observed_fraction;
+  if (atlas.appearance_frames > 0) {
+    figures["appearance_seconds"] = atlas.appearance_seconds;
+    figures["appearance_observed_fraction"] = atlas.appearance_observed_fraction;
+    figures["appearance_bytes_per_second"] =
+        static_cast<double>(atlas.appearance_bytes) * take.fps() / atlas.appearance_frames;
+  }
   figures["model_vertices"] = model.num_vertices();
   return data;
 }
@@ -564,6 +596,18 @@ absl::Status BodyMethodOptions::Read(OptionReader& reader) {
   RETURN_IF_ERROR(
       reader.Double("measured_m", &atlas.measured_threshold_m, 0, 10,
                     "texels must lie this near the sensor's own depth, metres (0: off)"));
+  RETURN_IF_ERROR(reader.Bool("appearance", &appearance,
+                              "per-frame appearance: every instant's atlas from what the sensors "
+                              "saw then, stored as an H.264 video (off: the static atlas alone)"));
+  RETURN_IF_ERROR(reader.Int("appearance_px", &appearance_options.size_px, 16, 4096,
+                             "side of each instant's atlas in the appearance video, pixels"));
+  RETURN_IF_ERROR(reader.Int("appearance_window", &appearance_options.window, 0, 16,
+                             "instants either side blended into each instant's atlas"));
+  RETURN_IF_ERROR(reader.Double("appearance_prior", &appearance_options.prior_weight, 1e-6, 1e6,
+                                "weight of the static atlas in each instant's, in frontal "
+                                "observations"));
+  RETURN_IF_ERROR(reader.Int("appearance_crf", &appearance_crf, 0, 51,
+                             "H.264 constant rate factor of the appearance video"));
   return reader.Double("segment_warmup_s", &segment_warmup_s, 0, 60,
                        "a take split across workers: each segment's fit starts this long "
                        "before its first instant, seconds (those fits are not kept)");
@@ -587,7 +631,16 @@ int64_t BodyMethodOptions::MemoryBytes(const TakeSize& take) const {
   // and its JPEG; each thread decodes its colour at 1/texture_scale.
   const int64_t side = atlas.size_px;
   const int64_t atlas_bytes = side * side * 40;
-  return kModelBytes + fits + shape + atlas_bytes;
+  // The appearance: a window of instants' observations (sparse, at most a
+  // texel each), the sums and the frame, and the video (at most ~1 byte a
+  // texel per frame at the lowest rate factors).
+  const int64_t frame_side = appearance_options.size_px;
+  const int64_t appearance_bytes =
+      appearance
+          ? frame_side * frame_side * (24 * (2 * appearance_options.window + 1) * sensors + 24) +
+                frame_side * frame_side * instants / 4
+          : 0;
+  return kModelBytes + fits + shape + atlas_bytes + appearance_bytes;
 }
 
 absl::Status BodyMethodOptions::Validate() const {
@@ -598,6 +651,10 @@ absl::Status BodyMethodOptions::Validate() const {
         model.substr(0, 80), "'"));
   }
   RETURN_IF_ERROR(fit.Validate());
+  RETURN_IF_ERROR(appearance_options.Validate());
+  if (appearance_crf < 0 || appearance_crf > 51) {
+    return absl::InvalidArgumentError("appearance_crf outside [0, 51]");
+  }
   return atlas.Validate();
 }
 
@@ -618,9 +675,10 @@ ReenactmentFrame BodyFrame(int frame_index, int64_t stamp_ns, const bodyfit::Fra
 absl::StatusOr<Reenactment> RunBody(const TakeFrames& take, const BodyMethodOptions& o,
                                     const MethodContext& context) {
   RETURN_IF_ERROR(o.Validate());
-  const StageProgress stages(
-      context.progress,
-      {{"model", 0.05}, {"clouds", 0.15}, {"shape", 0.1}, {"fit", 0.45}, {"texture", 0.25}});
+  std::vector<std::pair<std::string, double>> stage_weights = {
+      {"model", 0.05}, {"clouds", 0.15}, {"shape", 0.1}, {"fit", 0.45}, {"texture", 0.25}};
+  if (o.appearance) stage_weights.emplace_back("appearance", 0.15);
+  const StageProgress stages(context.progress, std::move(stage_weights));
   // Stage times from one clock: each is the time since the previous ended.
   const auto start = std::chrono::steady_clock::now();
   StageSeconds seconds;
@@ -642,6 +700,7 @@ absl::StatusOr<Reenactment> RunBody(const TakeFrames& take, const BodyMethodOpti
                    FitAllFrames(take, clouds, *loaded.fitter, stages, o.look_ahead));
   if (context.log && fits.backward > 0) context.log(LookAheadLine(fits.backward));
   ASSIGN_OR_RETURN(TexturedMesh textured, BakeAtlas(take, loaded, fits, o.atlas, stages));
+  if (o.appearance) RETURN_IF_ERROR(BakeAppearance(take, fits, o, stages, &textured));
   Reenactment data =
       AssembleReenactment(take, *loaded.model, std::move(textured.mesh), FittedFrames(take, fits),
                           FiguresOf(fits), seconds, textured.atlas);

@@ -87,6 +87,11 @@ struct BodyMethodOptions {
   std::string model = "procedural";
   bodyfit::BodyFitOptions fit;
   AtlasOptions atlas;
+  // Per-frame appearance (body_texturing.h), stored as an H.264 video in
+  // the reenactment (AppearanceVideo); off: the static atlas alone.
+  bool appearance = true;
+  AppearanceOptions appearance_options;
+  int appearance_crf = 23;  // H.264 constant rate factor of that video.
   double segment_warmup_s = 1.0;
   bool look_ahead = true;
   // InvalidArgument naming the key for a value that does not parse or lies

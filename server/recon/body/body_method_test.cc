@@ -4,6 +4,7 @@
 #include "server/recon/body/body_method.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -16,9 +17,11 @@
 #include "common/base/status_macros.h"
 #include "common/body/joint_set.h"
 #include "common/io/body_reenactment.h"
+#include "common/io/jpeg.h"
 #include "common/io/proto_convert.h"
 #include "common/io/reenactment_file.h"
 #include "common/io/take.h"
+#include "common/io/video_reader.h"
 #include "common/synth/synthesizer.h"
 #include "common/testing/test_data.h"
 #include "server/recon/methods.h"
@@ -187,6 +190,46 @@ TEST(RunBody, ProceduralBodyFittedWithTheProceduralModelMeetsTheJointFloor) {
   EXPECT_LE(mpjpe_mm, 15.0);
   ASSERT_GT(vertex_frames, 0);
   EXPECT_LE(vertex_sum_mm / vertex_frames, 15.0);
+
+  // The per-frame appearance: one 512 px atlas per instant in a video that
+  // decodes, each close to the static atlas (the same clothes) but not it
+  // (what the sensors saw at that instant).
+  ASSERT_FALSE(mesh->appearance_mp4.empty());
+  EXPECT_EQ(mesh->appearance_frame_count, data->info.frame_count());
+  auto video = VideoReader::Open(mesh->appearance_mp4);
+  ASSERT_TRUE(video.ok()) << video.status();
+  EXPECT_EQ((*video)->frame_count(), data->info.frame_count());
+  EXPECT_EQ((*video)->width(), 512);
+  auto atlas = DecodeJpeg(mesh->atlas_jpeg);
+  ASSERT_TRUE(atlas.ok());
+  double min_difference = 1e9, max_difference = 0.0;
+  for (int k = 0; k < (*video)->frame_count(); k += 7) {
+    auto frame = (*video)->Frame(k);
+    ASSERT_TRUE(frame.ok()) << frame.status();
+    // Mean absolute difference to the static atlas (256 px: every other
+    // texel of the 512 px frame).
+    double sum = 0.0;
+    for (int y = 0; y < atlas->height; ++y) {
+      for (int x = 0; x < atlas->width; ++x) {
+        for (int c = 0; c < 3; ++c) {
+          sum += std::abs(frame->at(2 * x, 2 * y, c) - atlas->at(x, y, c));
+        }
+      }
+    }
+    const double difference = sum / (3.0 * atlas->width * atlas->height);
+    min_difference = std::min(min_difference, difference);
+    max_difference = std::max(max_difference, difference);
+  }
+  const double bytes_per_s = result->figures["appearance_bytes_per_second"];
+  std::printf(
+      "appearance video: %zu bytes for %d frames (%.0f kB/s), %.1f s to bake; its frames differ "
+      "from the static atlas by %.2f-%.2f levels on average\n",
+      mesh->appearance_mp4.size(), (*video)->frame_count(), bytes_per_s / 1000.0,
+      result->figures["appearance_seconds"], min_difference, max_difference);
+  EXPECT_GT(min_difference, 0.3);
+  EXPECT_LT(max_difference, 12.0);
+  EXPECT_GT(bytes_per_s, 0.0);
+  EXPECT_LT(bytes_per_s, 4e6);
 }
 
 // The tracker made worse on purpose (issue figures): 80 mm of noise on the

@@ -3,11 +3,22 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
+#include <map>
+#include <memory>
 #include <mutex>
+#include <string>
+#include <utility>
+
+#include <unistd.h>
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
+#include "common/io/video_writer.h"
 
 namespace reenact::recon {
 namespace {
@@ -150,6 +161,154 @@ void PushPull(std::vector<Eigen::Vector4f>* sums, int size) {
   }
 }
 
+// Per pixel of a depth buffer of the posed mesh, the distance in pixels to
+// its nearest edge: a pixel off the mesh, or one whose depth jumps by more
+// than `jump_m` to a neighbour (an occlusion edge). Two-pass chamfer
+// distance (1 along rows and columns, sqrt 2 diagonally), capped at 64.
+std::vector<float> EdgeDistance(const std::vector<float>& depth, int width, int height,
+                                float jump_m) {
+  constexpr float kFar = 64.0f;
+  constexpr float kDiagonal = 1.41421356f;
+  std::vector<float> d(depth.size(), kFar);
+  const auto at = [&](int x, int y) { return depth[static_cast<size_t>(y) * width + x]; };
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const float z = at(x, y);
+      bool edge = !std::isfinite(z);
+      if (!edge && x + 1 < width) edge = !(std::abs(at(x + 1, y) - z) <= jump_m);
+      if (!edge && y + 1 < height) edge = !(std::abs(at(x, y + 1) - z) <= jump_m);
+      if (!edge && x > 0) edge = !(std::abs(at(x - 1, y) - z) <= jump_m);
+      if (!edge && y > 0) edge = !(std::abs(at(x, y - 1) - z) <= jump_m);
+      if (edge) d[static_cast<size_t>(y) * width + x] = 0.0f;
+    }
+  }
+  const auto relax = [&](int x, int y, int dx, int dy, float step) {
+    const int u = x + dx, v = y + dy;
+    if (u < 0 || v < 0 || u >= width || v >= height) return;
+    float& here = d[static_cast<size_t>(y) * width + x];
+    here = std::min(here, d[static_cast<size_t>(v) * width + u] + step);
+  };
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      relax(x, y, -1, 0, 1.0f);
+      relax(x, y, 0, -1, 1.0f);
+      relax(x, y, -1, -1, kDiagonal);
+      relax(x, y, 1, -1, kDiagonal);
+    }
+  }
+  for (int y = height - 1; y >= 0; --y) {
+    for (int x = width - 1; x >= 0; --x) {
+      relax(x, y, 1, 0, 1.0f);
+      relax(x, y, 0, 1, 1.0f);
+      relax(x, y, 1, 1, kDiagonal);
+      relax(x, y, -1, 1, kDiagonal);
+    }
+  }
+  return d;
+}
+
+// The observations of the atlas's texels in one (instant, sensor) view:
+// per seen texel its colour times its weight, and the weight (cos^p of the
+// angle to the normal; with `edge_falloff_px` > 0 also ramped from 0 at the
+// posed mesh's silhouette and occlusion edges to 1 that many colour pixels
+// away from them).
+absl::Status ObserveView(const TakeFrames& take, const BodyMesh& mesh,
+                         const std::vector<Texel>& texels, const Eigen::Matrix3Xd& posed,
+                         int instant, int sensor, const AtlasOptions& options,
+                         double edge_falloff_px,
+                         std::vector<std::pair<int, Eigen::Vector4f>>* observations) {
+  ASSIGN_OR_RETURN(const RgbImage colour,
+                   take.LoadColor(instant, sensor, options.colour_denominator));
+  ASSIGN_OR_RETURN(const CameraIntrinsics intrinsics, take.ColorIntrinsicsForImage(sensor, colour));
+  const TakeSensor& info = take.sensors()[sensor];
+  const Rigid3d color_from_world =
+      (info.world_from_depth * info.color_from_depth.Inverse()).Inverse();
+  const int v_count = mesh.num_vertices();
+  // The sensor's own depth, for the measured-surface test.
+  DepthImageMm measured;
+  if (options.measured_threshold_m > 0) {
+    ASSIGN_OR_RETURN(measured, take.LoadActorDepth(instant, sensor));
+  }
+  const Rigid3d depth_from_color = info.color_from_depth.Inverse();
+  const float measured_threshold_mm = static_cast<float>(1000.0 * options.measured_threshold_m);
+  std::vector<Eigen::Vector3f> in_camera(v_count);
+  std::vector<Eigen::Vector2f> pixels(v_count);
+  for (int v = 0; v < v_count; ++v) {
+    const Eigen::Vector3d p = color_from_world * Eigen::Vector3d(posed.col(v));
+    in_camera[v] = p.cast<float>();
+    const auto pixel = intrinsics.Project(p);
+    pixels[v] = pixel ? pixel->cast<float>() : Eigen::Vector2f(-1e6f, -1e6f);
+  }
+  const std::vector<float> depth =
+      RenderDepth(mesh.triangles, in_camera, pixels, colour.width, colour.height);
+  // Face normals in the camera frame.
+  std::vector<Eigen::Vector3f> face_normal(mesh.triangles.size());
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = mesh.triangles[t];
+    face_normal[t] = (in_camera[tri[1]] - in_camera[tri[0]])
+                         .cross(in_camera[tri[2]] - in_camera[tri[0]])
+                         .normalized();
+  }
+  std::vector<float> edge_distance_px;
+  if (edge_falloff_px > 0) {
+    edge_distance_px = EdgeDistance(depth, colour.width, colour.height,
+                                    static_cast<float>(options.visibility_threshold_m));
+  }
+  std::vector<std::pair<int, Eigen::Vector4f>>& local = *observations;
+  local.clear();
+  local.reserve(texels.size() / 4);
+  const float threshold = static_cast<float>(options.visibility_threshold_m);
+  const float power = static_cast<float>(options.frontality_power);
+  for (const Texel& texel : texels) {
+    const Eigen::Vector3i& tri = mesh.triangles[texel.triangle];
+    const Eigen::Vector3f p =
+        texel.b0 * in_camera[tri[0]] + texel.b1 * in_camera[tri[1]] + texel.b2 * in_camera[tri[2]];
+    const float facing = -face_normal[texel.triangle].dot(p.normalized());
+    if (!(facing > 0.1f)) continue;
+    const Eigen::Vector2f q =
+        texel.b0 * pixels[tri[0]] + texel.b1 * pixels[tri[1]] + texel.b2 * pixels[tri[2]];
+    const int x = static_cast<int>(std::floor(q.x()));
+    const int y = static_cast<int>(std::floor(q.y()));
+    if (x < 0 || y < 0 || x + 1 >= colour.width || y + 1 >= colour.height) continue;
+    const float rendered =
+        NearDepth(depth, colour.width, colour.height, static_cast<int>(std::lround(q.x())),
+                  static_cast<int>(std::lround(q.y())));
+    if (p.z() > rendered + threshold) continue;  // Hidden (thesis 4.4, T).
+    if (!measured.empty()) {
+      // The sensor must have measured this surface there (not a hand in
+      // front of it that the fit put elsewhere).
+      const Eigen::Vector3d in_depth = depth_from_color * p.cast<double>();
+      const auto dp = info.depth_intrinsics.Project(in_depth);
+      if (!dp) continue;
+      const int dx = static_cast<int>(std::lround(dp->x()));
+      const int dy = static_cast<int>(std::lround(dp->y()));
+      if (dx < 0 || dy < 0 || dx >= measured.width || dy >= measured.height) continue;
+      const uint16_t d = measured.at(dx, dy);
+      if (d == 0 || std::abs(static_cast<float>(d) - 1000.0f * static_cast<float>(in_depth.z())) >
+                        measured_threshold_mm) {
+        continue;
+      }
+    }
+    if (!TapsOnSurface(depth, colour.width, x, y, p.z() + threshold)) continue;
+    const float fx = q.x() - x, fy = q.y() - y;
+    Eigen::Vector3f rgb;
+    for (int c = 0; c < 3; ++c) {
+      rgb[c] = (1 - fx) * (1 - fy) * colour.at(x, y, c) + fx * (1 - fy) * colour.at(x + 1, y, c) +
+               (1 - fx) * fy * colour.at(x, y + 1, c) + fx * fy * colour.at(x + 1, y + 1, c);
+    }
+    float weight = std::pow(facing, power);
+    if (!edge_distance_px.empty()) {
+      const float d = edge_distance_px[static_cast<size_t>(std::lround(q.y())) * colour.width +
+                                       std::lround(q.x())];
+      weight *= std::min(1.0f, d / static_cast<float>(edge_falloff_px));
+      if (!(weight > 0)) continue;
+    }
+    local.emplace_back(
+        texel.index, Eigen::Vector4f(weight * rgb.x(), weight * rgb.y(), weight * rgb.z(), weight));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::Status AtlasOptions::Validate() const {
@@ -206,87 +365,10 @@ absl::StatusOr<AtlasSums> AccumulateBodyAtlas(const TakeFrames& take, const Body
     const int instant = views[k].first;
     const int sensor = views[k].second;
     absl::Status status = [&]() -> absl::Status {
-      ASSIGN_OR_RETURN(const RgbImage colour,
-                       take.LoadColor(instant, sensor, options.colour_denominator));
-      ASSIGN_OR_RETURN(const CameraIntrinsics intrinsics,
-                       take.ColorIntrinsicsForImage(sensor, colour));
-      const TakeSensor& info = take.sensors()[sensor];
-      const Rigid3d color_from_world =
-          (info.world_from_depth * info.color_from_depth.Inverse()).Inverse();
-      const Eigen::Matrix3Xd& posed = posed_vertices_m[instant];
-      const int v_count = mesh.num_vertices();
-      // The sensor's own depth, for the measured-surface test.
-      DepthImageMm measured;
-      if (options.measured_threshold_m > 0) {
-        ASSIGN_OR_RETURN(measured, take.LoadActorDepth(instant, sensor));
-      }
-      const Rigid3d depth_from_color = info.color_from_depth.Inverse();
-      const float measured_threshold_mm = static_cast<float>(1000.0 * options.measured_threshold_m);
-      std::vector<Eigen::Vector3f> in_camera(v_count);
-      std::vector<Eigen::Vector2f> pixels(v_count);
-      for (int v = 0; v < v_count; ++v) {
-        const Eigen::Vector3d p = color_from_world * Eigen::Vector3d(posed.col(v));
-        in_camera[v] = p.cast<float>();
-        const auto pixel = intrinsics.Project(p);
-        pixels[v] = pixel ? pixel->cast<float>() : Eigen::Vector2f(-1e6f, -1e6f);
-      }
-      const std::vector<float> depth =
-          RenderDepth(mesh.triangles, in_camera, pixels, colour.width, colour.height);
-      // Face normals in the camera frame.
-      std::vector<Eigen::Vector3f> face_normal(mesh.triangles.size());
-      for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-        const Eigen::Vector3i& tri = mesh.triangles[t];
-        face_normal[t] = (in_camera[tri[1]] - in_camera[tri[0]])
-                             .cross(in_camera[tri[2]] - in_camera[tri[0]])
-                             .normalized();
-      }
       std::vector<std::pair<int, Eigen::Vector4f>> local;
-      local.reserve(texels.size() / 4);
-      const float threshold = static_cast<float>(options.visibility_threshold_m);
-      const float power = static_cast<float>(options.frontality_power);
-      for (const Texel& texel : texels) {
-        const Eigen::Vector3i& tri = mesh.triangles[texel.triangle];
-        const Eigen::Vector3f p = texel.b0 * in_camera[tri[0]] + texel.b1 * in_camera[tri[1]] +
-                                  texel.b2 * in_camera[tri[2]];
-        const float facing = -face_normal[texel.triangle].dot(p.normalized());
-        if (!(facing > 0.1f)) continue;
-        const Eigen::Vector2f q =
-            texel.b0 * pixels[tri[0]] + texel.b1 * pixels[tri[1]] + texel.b2 * pixels[tri[2]];
-        const int x = static_cast<int>(std::floor(q.x()));
-        const int y = static_cast<int>(std::floor(q.y()));
-        if (x < 0 || y < 0 || x + 1 >= colour.width || y + 1 >= colour.height) continue;
-        const float rendered =
-            NearDepth(depth, colour.width, colour.height, static_cast<int>(std::lround(q.x())),
-                      static_cast<int>(std::lround(q.y())));
-        if (p.z() > rendered + threshold) continue;  // Hidden (thesis 4.4, T).
-        if (!measured.empty()) {
-          // The sensor must have measured this surface there (not a hand in
-          // front of it that the fit put elsewhere).
-          const Eigen::Vector3d in_depth = depth_from_color * p.cast<double>();
-          const auto dp = info.depth_intrinsics.Project(in_depth);
-          if (!dp) continue;
-          const int dx = static_cast<int>(std::lround(dp->x()));
-          const int dy = static_cast<int>(std::lround(dp->y()));
-          if (dx < 0 || dy < 0 || dx >= measured.width || dy >= measured.height) continue;
-          const uint16_t d = measured.at(dx, dy);
-          if (d == 0 ||
-              std::abs(static_cast<float>(d) - 1000.0f * static_cast<float>(in_depth.z())) >
-                  measured_threshold_mm) {
-            continue;
-          }
-        }
-        if (!TapsOnSurface(depth, colour.width, x, y, p.z() + threshold)) continue;
-        const float fx = q.x() - x, fy = q.y() - y;
-        Eigen::Vector3f rgb;
-        for (int c = 0; c < 3; ++c) {
-          rgb[c] = (1 - fx) * (1 - fy) * colour.at(x, y, c) +
-                   fx * (1 - fy) * colour.at(x + 1, y, c) + (1 - fx) * fy * colour.at(x, y + 1, c) +
-                   fx * fy * colour.at(x + 1, y + 1, c);
-        }
-        const float weight = std::pow(facing, power);
-        local.emplace_back(texel.index, Eigen::Vector4f(weight * rgb.x(), weight * rgb.y(),
-                                                        weight * rgb.z(), weight));
-      }
+      RETURN_IF_ERROR(ObserveView(take, mesh, texels, posed_vertices_m[instant], instant, sensor,
+                                  options,
+                                  /*edge_falloff_px=*/0.0, &local));
       std::lock_guard<std::mutex> lock(mutex);
       for (const auto& [index, value] : local) sums[index] += value;
       return absl::OkStatus();
@@ -357,6 +439,202 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const BodyMesh
   ASSIGN_OR_RETURN(AtlasSums sums,
                    AccumulateBodyAtlas(take, mesh, posed_vertices_m, options, progress));
   return FinishBodyAtlas(mesh, std::move(sums));
+}
+
+absl::Status AppearanceOptions::Validate() const {
+  if (size_px < 16 || size_px > 8192) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("appearance size ", size_px, " outside [16, 8192]"));
+  }
+  if (window < 0 || window > 16) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("appearance window ", window, " outside [0, 16]"));
+  }
+  if (!(prior_weight > 0) || !(edge_falloff_px >= 0)) {
+    return absl::InvalidArgumentError("appearance prior weight must be > 0 and edge falloff >= 0");
+  }
+  return absl::OkStatus();
+}
+
+namespace {
+
+// Bilinear sample of `image` at texel (x, y) of a size x size atlas over
+// the same uvs (texel centres aligned).
+Eigen::Vector3f SampleAtlas(const RgbImage& image, int size, int x, int y) {
+  const float px = (static_cast<float>(x) + 0.5f) * image.width / size - 0.5f;
+  const float py = (static_cast<float>(y) + 0.5f) * image.height / size - 0.5f;
+  const int x0 = std::clamp(static_cast<int>(std::floor(px)), 0, image.width - 1);
+  const int y0 = std::clamp(static_cast<int>(std::floor(py)), 0, image.height - 1);
+  const int x1 = std::min(x0 + 1, image.width - 1), y1 = std::min(y0 + 1, image.height - 1);
+  const float fx = std::clamp(px - static_cast<float>(x0), 0.0f, 1.0f);
+  const float fy = std::clamp(py - static_cast<float>(y0), 0.0f, 1.0f);
+  Eigen::Vector3f out;
+  for (int c = 0; c < 3; ++c) {
+    out[c] = (1 - fx) * (1 - fy) * image.at(x0, y0, c) + fx * (1 - fy) * image.at(x1, y0, c) +
+             (1 - fx) * fy * image.at(x0, y1, c) + fx * fy * image.at(x1, y1, c);
+  }
+  return out;
+}
+
+using Observations = std::vector<std::pair<int, Eigen::Vector4f>>;
+
+}  // namespace
+
+absl::Status BakeBodyAppearance(
+    const TakeFrames& take, const BodyMesh& mesh,
+    const std::vector<Eigen::Matrix3Xd>& posed_vertices_m, const RgbImage& static_atlas,
+    const AtlasOptions& atlas_options, const AppearanceOptions& options,
+    const std::function<absl::Status(int instant, const RgbImage& atlas)>& sink,
+    const ProgressCallback& progress, AppearanceFigures* figures) {
+  RETURN_IF_ERROR(atlas_options.Validate());
+  RETURN_IF_ERROR(options.Validate());
+  if (posed_vertices_m.size() != static_cast<size_t>(take.num_instants())) {
+    return absl::InvalidArgumentError("one posed mesh per instant expected");
+  }
+  if (static_atlas.width < 1 || static_atlas.height < 1 ||
+      static_atlas.data.size() !=
+          static_cast<size_t>(static_atlas.width) * static_atlas.height * 3) {
+    return absl::InvalidArgumentError("appearance needs the static atlas");
+  }
+  const int size = options.size_px;
+  const int n = take.num_instants();
+  const std::vector<Texel> texels = RasteriseAtlas(mesh, size);
+  // The prior: the static atlas's colour at every surface texel.
+  std::vector<Eigen::Vector3f> prior(texels.size());
+  for (size_t t = 0; t < texels.size(); ++t) {
+    prior[t] = SampleAtlas(static_atlas, size, texels[t].index % size, texels[t].index / size);
+  }
+  // Observations of the instants in the window, combined over sensors.
+  std::map<int, Observations> observed;
+  const auto observe = [&](int instant) -> absl::Status {
+    if (observed.count(instant) > 0) return absl::OkStatus();
+    Observations& all = observed[instant];
+    if (posed_vertices_m[instant].cols() != mesh.num_vertices()) return absl::OkStatus();
+    std::vector<int> sensors;
+    for (int s = 0; s < take.num_sensors(); ++s) {
+      const SensorView& view = take.instant(instant).views[s];
+      if (view.present && !view.color_jpeg.empty()) sensors.push_back(s);
+    }
+    std::vector<Observations> per_sensor(sensors.size());
+    std::vector<absl::Status> status(sensors.size());
+    take.pool().ParallelFor(0, static_cast<int>(sensors.size()), [&](int k) {
+      status[k] = ObserveView(take, mesh, texels, posed_vertices_m[instant], instant, sensors[k],
+                              atlas_options, options.edge_falloff_px, &per_sensor[k]);
+    });
+    for (size_t k = 0; k < sensors.size(); ++k) {
+      RETURN_IF_ERROR(status[k]);
+      all.insert(all.end(), per_sensor[k].begin(), per_sensor[k].end());
+    }
+    return absl::OkStatus();
+  };
+  const float lambda = static_cast<float>(options.prior_weight);
+  std::vector<Eigen::Vector4f> sums(static_cast<size_t>(size) * size);
+  std::vector<uint8_t> seen(static_cast<size_t>(size) * size);
+  RgbImage atlas(size, size);
+  double observed_sum = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const int first = std::max(0, i - options.window);
+    const int last = std::min(n - 1, i + options.window);
+    for (int k = first; k <= last; ++k) RETURN_IF_ERROR(observe(k));
+    while (!observed.empty() && observed.begin()->first < first) observed.erase(observed.begin());
+    std::fill(sums.begin(), sums.end(), Eigen::Vector4f::Zero());
+    std::fill(seen.begin(), seen.end(), 0);
+    for (size_t t = 0; t < texels.size(); ++t) {
+      sums[texels[t].index] = Eigen::Vector4f(lambda * prior[t].x(), lambda * prior[t].y(),
+                                              lambda * prior[t].z(), lambda);
+    }
+    if (posed_vertices_m[i].cols() == mesh.num_vertices()) {
+      for (int k = first; k <= last; ++k) {
+        const float temporal = std::ldexp(1.0f, -std::abs(k - i));
+        for (const auto& [index, value] : observed[k]) {
+          sums[index] += temporal * value;
+          seen[index] = 1;
+        }
+      }
+    }
+    int seen_count = 0;
+    for (const Texel& texel : texels) seen_count += seen[texel.index];
+    observed_sum += texels.empty() ? 0.0 : static_cast<double>(seen_count) / texels.size();
+    PushPull(&sums, size);
+    for (int p = 0; p < size * size; ++p) {
+      const Eigen::Vector4f& v = sums[p];
+      for (int c = 0; c < 3; ++c) {
+        const float value = v.w() > 0 ? v[c] / v.w() : 128.0f;
+        atlas.data[3 * p + c] = static_cast<uint8_t>(std::clamp(value + 0.5f, 0.0f, 255.0f));
+      }
+    }
+    RETURN_IF_ERROR(sink(i, atlas));
+    if (progress && !progress({"appearance", static_cast<double>(i + 1) / n, i + 1, n})) {
+      return absl::CancelledError("cancelled while baking the appearance");
+    }
+  }
+  if (figures != nullptr) {
+    figures->frames = n;
+    figures->mean_observed_fraction = n > 0 ? observed_sum / n : 0.0;
+  }
+  return absl::OkStatus();
+}
+
+namespace {
+
+// A file in the system's temporary folder, removed with this object.
+class TemporaryFile {
+ public:
+  static absl::StatusOr<TemporaryFile> Create(const std::string& suffix) {
+    std::error_code error;
+    const std::filesystem::path folder = std::filesystem::temp_directory_path(error);
+    if (error) return absl::InternalError("no temporary folder: " + error.message());
+    std::string path = (folder / ("reenact-XXXXXX" + suffix)).string();
+    const int fd = mkstemps(path.data(), static_cast<int>(suffix.size()));
+    if (fd < 0) return absl::InternalError(absl::StrCat("cannot create ", path));
+    close(fd);
+    return TemporaryFile(std::move(path));
+  }
+  TemporaryFile(TemporaryFile&& other) noexcept : path_(std::exchange(other.path_, "")) {}
+  TemporaryFile& operator=(TemporaryFile&&) = delete;
+  TemporaryFile(const TemporaryFile&) = delete;
+  TemporaryFile& operator=(const TemporaryFile&) = delete;
+  ~TemporaryFile() {
+    if (!path_.empty()) std::remove(path_.c_str());
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  explicit TemporaryFile(std::string path) : path_(std::move(path)) {}
+  std::string path_;
+};
+
+}  // namespace
+
+absl::Status BakeAppearanceVideo(const TakeFrames& take,
+                                 const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                 const RgbImage& static_atlas, const AtlasOptions& atlas_options,
+                                 const AppearanceOptions& options, int crf, BodyMesh* mesh,
+                                 const ProgressCallback& progress, AppearanceFigures* figures) {
+  ASSIGN_OR_RETURN(const TemporaryFile file, TemporaryFile::Create(".mp4"));
+  VideoWriterOptions video;
+  video.crf = crf;
+  // One key frame a second: a player seeks to any instant decoding at most
+  // a second of frames.
+  video.keyframe_interval = std::max(1, static_cast<int>(std::lround(take.fps())));
+  const int size = options.size_px;
+  ASSIGN_OR_RETURN(std::unique_ptr<VideoWriter> writer,
+                   VideoWriter::Open(file.path(), size, size, take.fps(), video));
+  RETURN_IF_ERROR(BakeBodyAppearance(
+      take, *mesh, posed_vertices_m, static_atlas, atlas_options, options,
+      [&writer](int /*instant*/, const RgbImage& atlas) { return writer->Append(atlas); }, progress,
+      figures));
+  RETURN_IF_ERROR(writer->Close());
+  std::ifstream in(file.path(), std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad() || bytes.empty()) {
+    return absl::InternalError("cannot read back the appearance video");
+  }
+  mesh->appearance_mp4 = std::move(bytes);
+  mesh->appearance_size_px = size;
+  mesh->appearance_frame_count = take.num_instants();
+  mesh->appearance_codec = writer->codec_name();
+  return absl::OkStatus();
 }
 
 }  // namespace reenact::recon

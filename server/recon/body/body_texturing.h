@@ -33,6 +33,7 @@
 // tests/body_fidelity_test.cc 25.37 -> 25.29 dB.
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -104,5 +105,62 @@ absl::StatusOr<AtlasResult> BakeBodyAtlas(const TakeFrames& take, const BodyMesh
                                           const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
                                           const AtlasOptions& options = {},
                                           const ProgressCallback& progress = {});
+
+// Per-frame appearance: the atlas of every instant from what the sensors saw
+// at that instant. The thesis keeps per-frame colours per triangle for the
+// triangles seen at an instant and the sequence's average for the others
+// (4.4); here every texel of instant i blends
+//   * the observations of instants i-w .. i+w (temporal weight 2^-|k|),
+//     each weighted as in the static atlas (cos^p of the angle to the
+//     normal, the visibility and measured-surface tests) and, beyond the
+//     thesis, ramped down near the posed mesh's silhouette and occlusion
+//     edges in the sensor's image, where the fit's small misplacements put
+//     the lookup on another surface or the background;
+//   * the static atlas, with the weight of `prior_weight` frontal
+//     observations, so that a texel no sensor sees at an instant shows the
+//     static atlas and one seen squarely shows that instant's colour,
+//     with a smooth passage between the two (no seam where a sensor's view
+//     ends).
+// A turning limb's shading and a shirt's folds thus follow the performance,
+// which one static atlas cannot hold.
+struct AppearanceOptions {
+  int size_px = 512;             // Side of each instant's atlas, pixels.
+  int window = 1;                // w: instants either side blended in.
+  double prior_weight = 0.1;     // Of the static atlas, in frontal observations.
+  double edge_falloff_px = 4.0;  // Ramp width at image edges, decoded colour pixels.
+  absl::Status Validate() const;
+};
+
+struct AppearanceFigures {
+  int frames = 0;
+  // Mean over frames of the share of surface texels observed in the frame's
+  // window (the rest show the static atlas).
+  double mean_observed_fraction = 0.0;
+};
+
+// Calls `sink(i, atlas_i)` for every instant i of the take in order, with
+// the per-frame atlas (size_px square; instants without a posed mesh get
+// the static atlas resampled). `static_atlas` is the finished atlas
+// (FinishBodyAtlas) of any size; `atlas_options` gives the visibility,
+// measured-surface, frontality and colour-scale settings. Errors as
+// BakeBodyAtlas, and those `sink` returns; Cancelled when `progress`
+// returns false (stage "appearance").
+absl::Status BakeBodyAppearance(
+    const TakeFrames& take, const BodyMesh& mesh,
+    const std::vector<Eigen::Matrix3Xd>& posed_vertices_m, const RgbImage& static_atlas,
+    const AtlasOptions& atlas_options, const AppearanceOptions& options,
+    const std::function<absl::Status(int instant, const RgbImage& atlas)>& sink,
+    const ProgressCallback& progress = {}, AppearanceFigures* figures = nullptr);
+
+// BakeBodyAppearance encoded as an H.264 video (MPEG-4 part 2 where
+// libavcodec has no H.264 encoder) at constant rate factor `crf`, one key
+// frame a second, into `mesh`'s appearance fields (AppearanceVideo). Errors
+// as BakeBodyAppearance and VideoWriter.
+absl::Status BakeAppearanceVideo(const TakeFrames& take,
+                                 const std::vector<Eigen::Matrix3Xd>& posed_vertices_m,
+                                 const RgbImage& static_atlas, const AtlasOptions& atlas_options,
+                                 const AppearanceOptions& options, int crf, BodyMesh* mesh,
+                                 const ProgressCallback& progress = {},
+                                 AppearanceFigures* figures = nullptr);
 
 }  // namespace reenact::recon

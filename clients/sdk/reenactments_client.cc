@@ -23,14 +23,18 @@ using internal::SetDeadline;
 using internal::WithAddress;
 
 // Puts one streamed message into `data`, checking the order the service
-// promises: info, the body mesh (body-model reenactments), part meshes,
-// frame batches, keyframes.
+// promises: info, the body mesh (body-model reenactments) and the pieces of
+// its appearance video, part meshes, frame batches, keyframes.
 absl::Status Accept(v1::FetchReenactmentChunk& chunk, ReenactmentData* data, int* stage) {
   const int kind = static_cast<int>(chunk.chunk_case());
   if (kind == 0) return absl::DataLossError("the server sent an empty Fetch message");
   // Rank of each kind in the promised order (the body mesh's field number is
   // the newest, but it comes second).
-  const auto rank = [](int k) { return k == v1::FetchReenactmentChunk::kBodyMesh ? 3 : 2 * k; };
+  const auto rank = [](int k) {
+    if (k == v1::FetchReenactmentChunk::kBodyMesh) return 3;
+    if (k == v1::FetchReenactmentChunk::kAppearanceMp4Piece) return 3;
+    return 2 * k;
+  };
   const int info_rank = rank(v1::FetchReenactmentChunk::kInfo);
   if (rank(kind) < *stage || (rank(kind) != info_rank && *stage == 0) ||
       (rank(kind) == info_rank && *stage != 0)) {
@@ -44,6 +48,12 @@ absl::Status Accept(v1::FetchReenactmentChunk& chunk, ReenactmentData* data, int
       break;
     case v1::FetchReenactmentChunk::kBodyMesh:
       data->body.push_back(std::move(*chunk.mutable_body_mesh()));
+      break;
+    case v1::FetchReenactmentChunk::kAppearanceMp4Piece:
+      if (data->body.empty()) {
+        return absl::DataLossError("the server sent a piece of an appearance video with no body");
+      }
+      data->body.back().mutable_appearance()->mutable_mp4()->append(chunk.appearance_mp4_piece());
       break;
     case v1::FetchReenactmentChunk::kPartMesh:
       data->parts.push_back(std::move(*chunk.mutable_part_mesh()));

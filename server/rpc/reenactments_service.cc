@@ -98,9 +98,19 @@ class FetchStream final : public grpc::ServerWriteReactor<v1::FetchReenactmentCh
     *chunk.mutable_info() = std::move(data.info);
     RETURN_IF_ERROR(Push(std::move(chunk)));
     for (v1::BodyMesh& body : data.body) {
+      // The appearance video after the mesh, in pieces (the proto's rule).
+      std::string video;
+      if (body.has_appearance()) video = std::move(*body.mutable_appearance()->mutable_mp4());
+      if (body.has_appearance()) body.mutable_appearance()->clear_mp4();
       chunk.Clear();
       *chunk.mutable_body_mesh() = std::move(body);
       RETURN_IF_ERROR(Push(std::move(chunk)));
+      constexpr size_t kPieceBytes = size_t{1} << 20;
+      for (size_t at = 0; at < video.size(); at += kPieceBytes) {
+        chunk.Clear();
+        chunk.set_appearance_mp4_piece(video.substr(at, kPieceBytes));
+        RETURN_IF_ERROR(Push(std::move(chunk)));
+      }
     }
     for (v1::PartMesh& mesh : data.parts) {
       chunk.Clear();

@@ -106,6 +106,14 @@ Fetched Fetch(ServiceFixture& f, const std::string& id, bool skip_keyframes) {
       case v1::FetchReenactmentChunk::kBodyMesh:
         out.data.body.push_back(chunk.body_mesh());
         break;
+      case v1::FetchReenactmentChunk::kAppearanceMp4Piece:
+        if (out.data.body.empty()) {
+          ADD_FAILURE() << "a piece of an appearance video before the body mesh";
+          break;
+        }
+        out.data.body.back().mutable_appearance()->mutable_mp4()->append(
+            chunk.appearance_mp4_piece());
+        break;
       default:
         ADD_FAILURE() << "empty chunk";
     }
@@ -222,6 +230,35 @@ TEST(Reenactments, FetchOfABodyReenactmentStreamsTheBodyMeshAfterTheInfo) {
     EXPECT_EQ(got.data.frames[frame].SerializeAsString(),
               written.frames[frame].SerializeAsString());
   }
+  EXPECT_LT(got.largest_message_bytes, kDefaultMaxMessageBytes / 2);
+}
+
+// A body's appearance video larger than any message may be streams after
+// the body mesh in pieces of at most 1 MiB, and arrives whole.
+TEST(Reenactments, FetchStreamsALargeAppearanceVideoInPiecesAfterTheBodyMesh) {
+  ServiceFixture f("rsvc_appearance");
+  ReenactmentData data = reenact::testing::MakeTestBodyReenactment(30, "r-video");
+  v1::AppearanceVideo& video = *data.body[0].mutable_appearance();
+  std::string bytes(6 * (size_t{1} << 20) + 12345, '\0');
+  for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>((i * 2654435761u) >> 13);
+  video.set_mp4(bytes);
+  video.set_size_px(512);
+  video.set_frame_count(30);
+  video.set_codec("libx264");
+  const ReenactmentData written = f.Store(data);
+
+  const Fetched got = Fetch(f, "r-video", /*skip_keyframes=*/true);
+  ASSERT_TRUE(got.status.ok()) << got.status.error_message();
+  ASSERT_GE(got.kinds.size(), 9u);
+  EXPECT_EQ(got.kinds[1], v1::FetchReenactmentChunk::kBodyMesh);
+  for (size_t i = 2; i < 9; ++i) {
+    EXPECT_EQ(got.kinds[i], v1::FetchReenactmentChunk::kAppearanceMp4Piece) << i;
+  }
+  EXPECT_EQ(got.kinds[9], v1::FetchReenactmentChunk::kFrames);
+  ASSERT_EQ(got.data.body.size(), 1u);
+  EXPECT_EQ(got.data.body[0].appearance().mp4().size(), bytes.size());
+  EXPECT_TRUE(got.data.body[0].appearance().mp4() == bytes);
+  EXPECT_EQ(got.data.body[0].SerializeAsString(), written.body[0].SerializeAsString());
   EXPECT_LT(got.largest_message_bytes, kDefaultMaxMessageBytes / 2);
 }
 

@@ -264,7 +264,34 @@ TEST(ReenactCli, ShowsAndExportsABodyReenactment) {
             std::string::npos)
       << show.out;
   EXPECT_NE(show.out.find("atlas       64 x 64 JPEG"), std::string::npos) << show.out;
+  EXPECT_NE(show.out.find("appearance  the static atlas alone"), std::string::npos) << show.out;
   EXPECT_EQ(show.out.find("parts "), std::string::npos) << show.out;
+  {
+    // With an appearance video over several Fetch messages: show says so,
+    // and Fetch and FetchBodyMesh put it back together.
+    ReenactmentData with_video = testing::MakeTestBodyReenactment(6, "r-body-video");
+    v1::AppearanceVideo& video = *with_video.body[0].mutable_appearance();
+    std::string bytes((size_t{5} << 19) + 7, '\0');
+    for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>(i * 131 >> 5);
+    video.set_mp4(bytes);
+    video.set_size_px(512);
+    video.set_frame_count(6);
+    video.set_codec("libx264");
+    f.Store(with_video);
+    const CliRun shown = Cli({"reenactments", "show", "r-body-video", "--server", server});
+    ASSERT_EQ(shown.code, 0) << shown.err;
+    EXPECT_NE(shown.out.find("appearance  6 frames of 512 x 512, libx264 video (2.5 MiB)"),
+              std::string::npos)
+        << shown.out;
+    const client::ReenactmentsClient client(f.connection);
+    auto mesh = client.FetchBodyMesh("r-body-video");
+    ASSERT_TRUE(mesh.ok()) << mesh.status();
+    EXPECT_TRUE(mesh->appearance().mp4() == bytes);
+    auto fetched = client.Fetch("r-body-video", /*skip_keyframes=*/true);
+    ASSERT_TRUE(fetched.ok()) << fetched.status();
+    EXPECT_TRUE(fetched->body->appearance_mp4 == bytes);
+    EXPECT_EQ(fetched->body->appearance_frame_count, 6);
+  }
   const CliRun json = Cli({"reenactments", "show", "r-body-cli", "--server", server, "--json"});
   ASSERT_EQ(json.code, 0) << json.err;
   const nlohmann::json shown = nlohmann::json::parse(json.out);

@@ -80,6 +80,10 @@ struct BodyFacts {
   int64_t vertices = 0, triangles = 0, texture_vertices = 0;
   int atlas_width = 0, atlas_height = 0;  // 0 when the atlas is missing or undecodable.
   int64_t atlas_bytes = 0;
+  // The per-frame appearance video (AppearanceVideo); 0 bytes: none.
+  int64_t appearance_bytes = 0;
+  int appearance_size_px = 0, appearance_frames = 0;
+  std::string appearance_codec;
 };
 
 BodyFacts FactsOf(const v1::BodyMesh& mesh) {
@@ -96,6 +100,10 @@ BodyFacts FactsOf(const v1::BodyMesh& mesh) {
     facts.atlas_width = atlas->width;
     facts.atlas_height = atlas->height;
   }
+  facts.appearance_bytes = static_cast<int64_t>(mesh.appearance().mp4().size());
+  facts.appearance_size_px = mesh.appearance().size_px();
+  facts.appearance_frames = mesh.appearance().frame_count();
+  facts.appearance_codec = mesh.appearance().codec();
   return facts;
 }
 
@@ -109,7 +117,11 @@ nlohmann::json BodyJson(const BodyFacts& facts) {
           {"texture_vertices", facts.texture_vertices},
           {"atlas_width", facts.atlas_width},
           {"atlas_height", facts.atlas_height},
-          {"atlas_bytes", facts.atlas_bytes}};
+          {"atlas_bytes", facts.atlas_bytes},
+          {"appearance_bytes", facts.appearance_bytes},
+          {"appearance_size_px", facts.appearance_size_px},
+          {"appearance_frames", facts.appearance_frames},
+          {"appearance_codec", facts.appearance_codec}};
 }
 
 // The summary; for a body-model reenactment (`body` set) its model, shape,
@@ -132,6 +144,14 @@ void PrintSummary(const v1::ReenactmentSummary& s, const BodyFacts* body, std::o
                            body->vertices, body->triangles, body->texture_vertices)
         << absl::StrFormat("atlas       %d x %d JPEG (%s)\n", body->atlas_width, body->atlas_height,
                            HumanBytes(body->atlas_bytes));
+    if (body->appearance_bytes > 0) {
+      out << absl::StrFormat("appearance  %d frames of %d x %d, %s video (%s)\n",
+                             body->appearance_frames, body->appearance_size_px,
+                             body->appearance_size_px, body->appearance_codec,
+                             HumanBytes(body->appearance_bytes));
+    } else {
+      out << "appearance  the static atlas alone\n";
+    }
   } else {
     out << "parts       " << s.part_count() << "\n"
         << "keyframes   " << s.keyframe_count() << " from " << info.sensors_size()

@@ -178,11 +178,17 @@ absl::StatusOr<v1::BodyMesh> ReenactmentsClient::FetchBodyMesh(
   v1::FetchReenactmentChunk chunk;
   int stage = 0;
   absl::Status failure;
-  // The body mesh comes right after the info; anything else there means none.
+  // The body mesh comes right after the info, then the pieces of its
+  // appearance video; anything else after the info means no body.
   bool ended = false;
-  for (int read = 0; read < 2 && failure.ok() && data.body.empty(); ++read) {
+  for (int read = 0; failure.ok(); ++read) {
     if (!reader->Read(&chunk)) {
       ended = true;
+      break;
+    }
+    const auto kind = chunk.chunk_case();
+    if (read > 0 && kind != v1::FetchReenactmentChunk::kBodyMesh &&
+        kind != v1::FetchReenactmentChunk::kAppearanceMp4Piece) {
       break;
     }
     failure = Accept(chunk, &data, &stage);

@@ -46,8 +46,8 @@ class ReenactmentsClient {
   absl::StatusOr<Reenactment> Fetch(const std::string& reenactment_id, bool skip_keyframes = false,
                                     const ProgressCallback& progress = {}) const;
   // The BodyMesh of a body-model reenactment: the start of Fetch's stream
-  // (info, then the body mesh), cancelled once the mesh has arrived, so the
-  // frames stay on the server. NotFound for an unknown id;
+  // (info, the body mesh and its appearance video), cancelled once those
+  // have arrived, so the frames stay on the server. NotFound for an unknown id;
   // FailedPrecondition when the reenactment has no body mesh (rigid parts);
   // DataLoss when the stream is out of order.
   absl::StatusOr<v1::BodyMesh> FetchBodyMesh(const std::string& reenactment_id) const;

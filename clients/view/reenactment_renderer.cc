@@ -403,22 +403,27 @@ render::TextureId ReenactmentRenderer::BodyTexture(int frame, FrameStats* stats)
     stats->per_frame_appearance = true;
     return body_->frame_texture;
   }
+  // The video's frames share one size, so one texture is updated in place
+  // frame after frame; it is allocated with the first.
   absl::StatusOr<RgbImage> image = body_->appearance->Frame(frame);
-  absl::StatusOr<render::TextureId> id = image.ok()
-                                             ? renderer_->UploadTexture(*image)
-                                             : absl::StatusOr<render::TextureId>(image.status());
-  if (!id.ok()) {
+  absl::Status status = image.status();
+  if (status.ok() && body_->frame_texture.valid()) {
+    status = renderer_->UpdateTexture(body_->frame_texture, *image);
+  } else if (status.ok()) {
+    absl::StatusOr<render::TextureId> id = renderer_->UploadTexture(*image);
+    status = id.status();
+    if (id.ok()) body_->frame_texture = *id;
+  }
+  if (!status.ok()) {
     appearance_note_ = absl::StrCat("per-frame appearance not drawn (frame ", frame, ": ",
-                                    id.status().message(), "): the static atlas is drawn instead");
+                                    status.message(), "): the static atlas is drawn instead");
     body_->appearance.reset();
     return body_->atlas;
   }
-  if (body_->frame_texture.valid()) renderer_->ReleaseTexture(body_->frame_texture).IgnoreError();
-  body_->frame_texture = *id;
   body_->frame_texture_index = frame;
   ++stats->textures_uploaded;
   stats->per_frame_appearance = true;
-  return *id;
+  return body_->frame_texture;
 }
 
 absl::Status ReenactmentRenderer::RenderBody(int frame, const render::RenderCamera& camera,

@@ -670,6 +670,34 @@ absl::Status OffscreenRenderer::ReleaseMesh(MeshId id) {
   return CheckGl("ReleaseMesh");
 }
 
+absl::Status OffscreenRenderer::UpdateTexture(TextureId id, const RgbImage& image_srgb) {
+  RETURN_IF_ERROR(impl_->MakeCurrent());
+  if (id.value < 0 || id.value >= static_cast<int>(impl_->textures.size()) ||
+      impl_->textures[id.value] == 0) {
+    return absl::NotFoundError(absl::StrCat("UpdateTexture: unknown texture id ", id.value));
+  }
+  glBindTexture(GL_TEXTURE_2D, impl_->textures[id.value]);
+  GLint width = 0;
+  GLint height = 0;
+  GLint format = 0;
+  glGetTexLevelParameteriv(GL_TEXTURE_2D, 0, GL_TEXTURE_WIDTH, &width);
+  glGetTexLevelParameteriv(GL_TEXTURE_2D, 0, GL_TEXTURE_HEIGHT, &height);
+  glGetTexLevelParameteriv(GL_TEXTURE_2D, 0, GL_TEXTURE_INTERNAL_FORMAT, &format);
+  if (width != image_srgb.width || height != image_srgb.height || format != GL_SRGB8 ||
+      image_srgb.data.size() != static_cast<size_t>(width) * height * 3) {
+    glBindTexture(GL_TEXTURE_2D, 0);
+    return absl::InvalidArgumentError(absl::StrCat(
+        "UpdateTexture: an opaque image of ", image_srgb.width, "x", image_srgb.height,
+        " for a texture of ", width, "x", height, format == GL_SRGB8 ? "" : " with alpha"));
+  }
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RGB, GL_UNSIGNED_BYTE,
+                  image_srgb.data.data());
+  glGenerateMipmap(GL_TEXTURE_2D);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  return CheckGl("UpdateTexture");
+}
+
 absl::Status OffscreenRenderer::ReleaseTexture(TextureId id) {
   RETURN_IF_ERROR(impl_->MakeCurrent());
   if (id.value < 0 || id.value >= static_cast<int>(impl_->textures.size()) ||

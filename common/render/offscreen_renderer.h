@@ -64,6 +64,11 @@ class OffscreenRenderer {
   // (linear, 0..255 -> 0..1) is below 0.5 are discarded, so they write no
   // colour, depth, label or normal (e.g. texels that are not the actor).
   absl::StatusOr<TextureId> UploadTexture(const RgbaImage& image_srgb_alpha);
+  // Replaces the texels of an uploaded opaque texture in place (and its
+  // mipmaps), e.g. each frame of a texture video, without a new allocation.
+  // NotFound for an unknown id; InvalidArgument when the image's size is not
+  // the texture's.
+  absl::Status UpdateTexture(TextureId texture, const RgbImage& image_srgb);
 
   // Frees a mesh or a texture; NotFound for an unknown id. A later upload
   // may reuse a freed id.

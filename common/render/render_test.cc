@@ -235,6 +235,41 @@ TEST(OffscreenRendererTexture, CheckerboardShowsExpectedColours) {
   }
 }
 
+TEST(OffscreenRendererTexture, UpdateReplacesTexelsInPlaceAndRejectsAnotherSize) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  RgbImage red(32, 32);
+  RgbImage green(32, 32);
+  for (int y = 0; y < 32; ++y) {
+    for (int x = 0; x < 32; ++x) {
+      red.at(x, y, 0) = 210;
+      green.at(x, y, 1) = 190;
+    }
+  }
+  auto texture = renderer->UploadTexture(red);
+  auto mesh = renderer->UploadMesh(MakeRectangle(-0.5, -0.5, 0.5, 0.5, 2.0));
+  ASSERT_TRUE(texture.ok() && mesh.ok());
+  DrawItem item;
+  item.mesh = *mesh;
+  item.texture = *texture;
+  item.lit = false;
+  const RenderCamera camera = TestCamera();
+  const int u = camera.width / 2, v = camera.height / 2;
+  RenderOutputs out;
+  ASSERT_TRUE(renderer->Render(camera, {item}, &out).ok());
+  EXPECT_NEAR(out.colour.at(u, v, 0), 210, 2);
+  ASSERT_TRUE(renderer->UpdateTexture(*texture, green).ok());
+  ASSERT_TRUE(renderer->Render(camera, {item}, &out).ok());
+  EXPECT_NEAR(out.colour.at(u, v, 0), 0, 2);
+  EXPECT_NEAR(out.colour.at(u, v, 1), 190, 2);
+  EXPECT_EQ(renderer->UpdateTexture(*texture, RgbImage(16, 32)).code(),
+            absl::StatusCode::kInvalidArgument);
+  auto with_alpha = renderer->UploadTexture(RgbaImage(32, 32, 100));
+  ASSERT_TRUE(with_alpha.ok());
+  EXPECT_EQ(renderer->UpdateTexture(*with_alpha, green).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(renderer->UpdateTexture(TextureId{99}, green).code(), absl::StatusCode::kNotFound);
+}
+
 // Left half transparent (alpha 0), right half opaque red (220, 0, 0).
 RgbaImage HalfTransparentRed() {
   RgbaImage texture(64, 64);

@@ -364,9 +364,6 @@ absl::StatusOr<TrackedPerson> BodyTracker::Impl::TrackPersonNet(const PersonView
   return person;
 }
 
-namespace {
-
-// The trunk's joints: spine, neck and hips (max_behind_surface_trunk_m).
 bool IsTrunkJoint(int joint) {
   switch (static_cast<body::KinectV2Joint>(joint)) {
     case body::KinectV2Joint::kSpineBase:
@@ -380,8 +377,6 @@ bool IsTrunkJoint(int joint) {
       return false;
   }
 }
-
-}  // namespace
 
 // Left and right joints of the limbs, paired.
 constexpr std::array<std::pair<body::KinectV2Joint, body::KinectV2Joint>, 10> kSides = {{

@@ -102,6 +102,11 @@ struct BodyTrackerOptions {
 // $REENACT_TRACKER_FOREST when set.
 std::string DefaultForestPath();
 
+// Whether a Kinect v2 joint index is one of the trunk's (spine, neck, hips),
+// which count as seen up to BodyTrackerOptions::max_behind_surface_trunk_m
+// behind the surface; the others up to max_behind_surface_m.
+bool IsTrunkJoint(int joint);
+
 class BodyTracker {
  public:
   // Loads the network (or the forest): NotFound / DataLoss / InvalidArgument

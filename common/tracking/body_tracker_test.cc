@@ -255,13 +255,7 @@ TEST(BodyTracker, JointsTheSensorCannotSeeAreInferredWithALowConfidence) {
           const double behind_m =
               joint.position_in_camera_m.z() - 0.001 * image.full_depth_mm.at(u, v);
           EXPECT_GT(behind_m, -0.05) << body::KinectV2JointName(static_cast<KinectV2Joint>(j));
-          const bool trunk = j == body::Index(KinectV2Joint::kSpineBase) ||
-                             j == body::Index(KinectV2Joint::kSpineMid) ||
-                             j == body::Index(KinectV2Joint::kSpineShoulder) ||
-                             j == body::Index(KinectV2Joint::kNeck) ||
-                             j == body::Index(KinectV2Joint::kHipLeft) ||
-                             j == body::Index(KinectV2Joint::kHipRight);
-          EXPECT_LT(behind_m, trunk ? 0.35 : 0.2)
+          EXPECT_LT(behind_m, IsTrunkJoint(j) ? 0.35 : 0.2)
               << body::KinectV2JointName(static_cast<KinectV2Joint>(j));
         } else {
           EXPECT_LE(joint.confidence, 0.5);

@@ -632,13 +632,13 @@ int64_t BodyMethodOptions::MemoryBytes(const TakeSize& take) const {
   const int64_t side = atlas.size_px;
   const int64_t atlas_bytes = side * side * 40;
   // The appearance: a window of instants' observations (sparse, at most a
-  // texel each), the sums and the frame, and the video (at most ~1 byte a
-  // texel per frame at the lowest rate factors).
+  // texel each), the sums and the frame, and the video (measured 2-6 kB a
+  // frame at 512 px and rate factor 23; counted as a byte per 16 texels).
   const int64_t frame_side = appearance_options.size_px;
   const int64_t appearance_bytes =
       appearance
           ? frame_side * frame_side * (24 * (2 * appearance_options.window + 1) * sensors + 24) +
-                frame_side * frame_side * instants / 4
+                frame_side * frame_side * instants / 16
           : 0;
   return kModelBytes + fits + shape + atlas_bytes + appearance_bytes;
 }

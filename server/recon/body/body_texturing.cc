@@ -577,7 +577,10 @@ absl::Status BakeBodyAppearance(
 
 namespace {
 
-// A file in the system's temporary folder, removed with this object.
+// A file in the system's temporary folder, removed with this object. The
+// video goes through a file because the MP4 muxer's faststart pass (the index
+// moved to the front, so a player can start before the whole file has
+// arrived) reopens its output by name to shift the data.
 class TemporaryFile {
  public:
   static absl::StatusOr<TemporaryFile> Create(const std::string& suffix) {

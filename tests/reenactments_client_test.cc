@@ -5,6 +5,8 @@
 #include "clients/sdk/reenactments_client.h"
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -291,6 +293,22 @@ TEST(ReenactCli, ShowsAndExportsABodyReenactment) {
     ASSERT_TRUE(fetched.ok()) << fetched.status();
     EXPECT_TRUE(fetched->body->appearance_mp4 == bytes);
     EXPECT_EQ(fetched->body->appearance_frame_count, 6);
+    // `export --format appearance` writes the video as stored; without one
+    // it says why and writes nothing.
+    const std::string out_dir = testing::MakeTempDir("rcli_appearance_out");
+    const CliRun exported = Cli({"export", "--server", server, "--reenactment", "r-body-video",
+                                 "--format", "appearance", "--out", out_dir + "/a.mp4", "--quiet"});
+    ASSERT_EQ(exported.code, 0) << exported.err;
+    EXPECT_NE(exported.out.find("6 frames of 512x512"), std::string::npos) << exported.out;
+    std::ifstream in(out_dir + "/a.mp4", std::ios::binary);
+    const std::string written((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
+    EXPECT_TRUE(written == bytes) << written.size() << " bytes";
+    const CliRun none = Cli({"export", "--server", server, "--reenactment", "r-body-cli",
+                             "--format", "appearance", "--out", out_dir + "/none.mp4", "--quiet"});
+    EXPECT_EQ(none.code, cli::kExitFailure) << none.err;
+    EXPECT_NE(none.err.find("has no appearance video"), std::string::npos) << none.err;
+    EXPECT_FALSE(std::filesystem::exists(out_dir + "/none.mp4"));
   }
   const CliRun json = Cli({"reenactments", "show", "r-body-cli", "--server", server, "--json"});
   ASSERT_EQ(json.code, 0) << json.err;

@@ -244,10 +244,11 @@ std::vector<Command> BuildCommandTable() {
        "server, and received here - arrived), then p50/p95/max",
        RunReenactmentsFollow},
       {{"export"},
-       "(--server HOST:PORT --reenactment ID | --in FILE.reen) --format glb|bvh --out FILE "
-       "[--no-textures] [--quiet] [--json]",
+       "(--server HOST:PORT --reenactment ID | --in FILE.reen) --format glb|bvh|appearance "
+       "--out FILE [--no-textures] [--quiet] [--json]",
        "export a reenactment as glTF 2.0 (.glb: textured part nodes, or a body model's skinned "
-       "mesh, with their animation) or a body model's fitted skeleton as BVH",
+       "mesh, with their animation), a body model's fitted skeleton as BVH, or its per-frame "
+       "appearance video (MP4; frame i textures the glb's frame i)",
        RunExport},
       {{"render"},
        "(--server HOST:PORT --reenactment ID | --in FILE.reen) --camera orbit:DEG|sensor:N "

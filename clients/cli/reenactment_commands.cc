@@ -21,6 +21,7 @@
 #include "clients/cli/remote_flags.h"
 #include "clients/sdk/follow_stats.h"
 #include "clients/sdk/reenactments_client.h"
+#include "common/base/files.h"
 #include "common/base/flags.h"
 #include "common/base/terminal_text.h"
 #include "common/base/time.h"
@@ -231,6 +232,47 @@ int ExportBvh(const Reenactment& data, const Flags& flags, const std::string& pa
   out << "wrote " << path << " (" << HumanBytes(ec ? 0 : bytes)
       << "): bvh: " << motion->joints().size() << " Kinect v2 joints, " << motion->num_frames()
       << absl::StrFormat(" frames at %.2f fps, centimetres", motion->fps()) << "\n";
+  return kExitOk;
+}
+
+// `reenact export --format appearance`: a body reenactment's per-frame
+// appearance video as it is stored (frame i is the atlas of instant i, in the
+// glb's texture layout), for tools that take a movie as a texture.
+int ExportAppearance(const Reenactment& data, const Flags& flags, const std::string& path,
+                     std::ostream& out, std::ostream& err) {
+  if (!data.is_body() || data.body->appearance_mp4.empty()) {
+    return ReportError(absl::NotFoundError(absl::StrCat(
+                           "reenactment ", data.info.reenactment_id, " has no appearance video (",
+                           data.is_body() ? "its body job ran with appearance=false, or was split"
+                                          : "it is made of rigid parts",
+                           "): its texture is the static one in --format glb")),
+                       err);
+  }
+  const BodyMesh& body = *data.body;
+  if (absl::Status written = WriteFileAtomically(path, body.appearance_mp4); !written.ok()) {
+    return ReportError(written, err);
+  }
+  const auto bytes = static_cast<int64_t>(body.appearance_mp4.size());
+  const double seconds = data.info.fps > 0 ? body.appearance_frame_count / data.info.fps : 0.0;
+  if (flags.Has("json")) {
+    out << nlohmann::json{{"out", path},
+                          {"format", "appearance"},
+                          {"reenactment_id", data.info.reenactment_id},
+                          {"frames", body.appearance_frame_count},
+                          {"fps", data.info.fps},
+                          {"size_px", body.appearance_size_px},
+                          {"codec", body.appearance_codec},
+                          {"bytes", bytes}}
+               .dump(2)
+        << "\n";
+    return kExitOk;
+  }
+  out << "wrote " << path << " (" << HumanBytes(bytes) << "): appearance video, "
+      << body.appearance_frame_count << " frames of " << body.appearance_size_px << "x"
+      << body.appearance_size_px
+      << absl::StrFormat(" at %.2f fps (%.0f kB per second), ", data.info.fps,
+                         seconds > 0 ? bytes / seconds / 1000 : 0.0)
+      << body.appearance_codec << "; frame i is the texture of the glb's frame i\n";
   return kExitOk;
 }
 
@@ -445,11 +487,12 @@ int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostr
   auto out_path = flags->Required("out");
   if (!out_path.ok()) return ReportError(out_path.status(), err);
   const std::string format = flags->GetOr("format", "glb");
-  if (format != "glb" && format != "bvh") {
+  if (format != "glb" && format != "bvh" && format != "appearance") {
     return ReportError(absl::InvalidArgumentError(absl::StrCat(
                            "--format ", format,
                            " is not supported (glb: glTF 2.0 binary; bvh: the fitted skeleton "
-                           "of a body-model reenactment)")),
+                           "of a body-model reenactment; appearance: its per-frame texture "
+                           "video, MP4)")),
                        err);
   }
   if (!flags->positional().empty() || flags->Has("in") == flags->Has("reenactment") ||
@@ -473,8 +516,9 @@ int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostr
     bar.Finish();
     if (!data.ok()) return ReportRemoteError(data.status(), err);
   }
-  return format == "bvh" ? ExportBvh(*data, *flags, *out_path, out, err)
-                         : ExportGlb(*data, *flags, *out_path, out, err);
+  if (format == "bvh") return ExportBvh(*data, *flags, *out_path, out, err);
+  if (format == "appearance") return ExportAppearance(*data, *flags, *out_path, out, err);
+  return ExportGlb(*data, *flags, *out_path, out, err);
 }
 
 }  // namespace reenact::cli

@@ -622,8 +622,8 @@ absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptio
   WebApiOptions api_options;
   api_options.auth = server->auth_enabled();
   api_options.tls = options.tls.enabled();
-  api_options.glb_path = [server](const std::string& id) {
-    return server->reenactments().DerivedPathFor(id, ".glb");
+  api_options.derived_path = [server](const std::string& id, const std::string& extension) {
+    return server->reenactments().DerivedPathFor(id, extension);
   };
   api_options.still_stored = [server](const std::string& id) {
     return server->reenactments().Get(id).ok();

@@ -223,6 +223,15 @@ class HttpFrontTest : public ::testing::Test {
     ASSERT_TRUE(store.Add(id).ok());
   }
 
+  // Reenactments.Delete, as a client would.
+  void DeleteReenactment(const std::string& id) {
+    grpc::ClientContext context;
+    v1::DeleteReenactmentRequest request;
+    request.set_reenactment_id(id);
+    v1::DeleteReenactmentResponse deleted;
+    ASSERT_TRUE(v1::Reenactments::NewStub(t_->channel)->Delete(&context, request, &deleted).ok());
+  }
+
   std::string dir_;
   std::unique_ptr<TestServer> t_;
   std::unique_ptr<HttpFront> front_;
@@ -325,11 +334,67 @@ TEST_F(HttpFrontTest, ModelIsTheExportedGlbWithEtagRangesAndGoesWithTheReenactme
   EXPECT_EQ(head.Header("Content-Length"), std::to_string(expected->size()));
 
   // Deleted: the glb goes with it.
-  grpc::ClientContext context;
-  v1::DeleteReenactmentRequest request;
-  request.set_reenactment_id(id);
-  v1::DeleteReenactmentResponse deleted;
-  ASSERT_TRUE(v1::Reenactments::NewStub(t_->channel)->Delete(&context, request, &deleted).ok());
+  ASSERT_NO_FATAL_FAILURE(DeleteReenactment(id));
+  EXPECT_FALSE(std::filesystem::exists(cached));
+  EXPECT_EQ(Request(port_, path).status, 404);
+}
+
+TEST_F(HttpFrontTest, AppearanceVideoIsServedWithRangesAndIsNotFoundWhereThereIsNone) {
+  ASSERT_NO_FATAL_FAILURE(Start());
+  // A body reenactment with an appearance video of 1.5 MB: more than one
+  // of the Fetch stream's pieces. The server keeps the bytes as they are (the
+  // clients decode them), so any bytes show how they are served.
+  ReenactmentData body = reenact::testing::MakeTestBodyReenactment(30);
+  std::string video(1536 * 1024, '\0');
+  for (size_t i = 0; i < video.size(); ++i) video[i] = static_cast<char>((i * 2654435761u) >> 13);
+  v1::AppearanceVideo& appearance = *body.body.front().mutable_appearance();
+  appearance.set_mp4(video);
+  appearance.set_size_px(256);
+  appearance.set_frame_count(30);
+  appearance.set_codec("libx264");
+  ASSERT_NO_FATAL_FAILURE(AddReenactment(body));
+  const std::string id = body.info.reenactment_id();
+  const std::string path = "/api/v1/reenactments/" + id + "/appearance.mp4";
+
+  const Reply whole = Request(port_, path);
+  ASSERT_EQ(whole.status, 200) << whole.body.substr(0, 300);
+  EXPECT_EQ(whole.Header("Content-Type"), "video/mp4");
+  EXPECT_EQ(whole.Header("Accept-Ranges"), "bytes");
+  EXPECT_TRUE(whole.body == video) << whole.body.size() << " bytes vs " << video.size();
+  const std::string cached = t_->server->reenactments().DerivedPathFor(id, ".appearance.mp4");
+  EXPECT_TRUE(std::filesystem::exists(cached));
+  // The glb was built by the same fetch, with the static atlas.
+  EXPECT_TRUE(std::filesystem::exists(t_->server->reenactments().DerivedPathFor(id, ".glb")));
+  const std::string etag = whole.Header("ETag");
+  EXPECT_EQ(Request(port_, path, {{"If-None-Match", etag}}).status, 304);
+  // What a browser's media stack asks: an open range, then pieces of it.
+  const Reply open = Request(port_, path, {{"Range", "bytes=0-"}});
+  EXPECT_EQ(open.status, 206);
+  EXPECT_EQ(open.Header("Content-Range"),
+            absl::StrCat("bytes 0-", video.size() - 1, "/", video.size()));
+  const Reply piece = Request(port_, path, {{"Range", "bytes=1048570-1048589"}});
+  EXPECT_EQ(piece.status, 206);
+  EXPECT_TRUE(piece.body == video.substr(1048570, 20));
+  EXPECT_EQ(Request(port_, path, {{"Range", absl::StrCat("bytes=", video.size(), "-")}}).status,
+            416);
+
+  // A reenactment without a video (rigid parts): 404 that says why, and
+  // its glb is still served.
+  const ReenactmentData rigid = reenact::testing::MakeTestReenactment();
+  ASSERT_NO_FATAL_FAILURE(AddReenactment(rigid));
+  const std::string rigid_path =
+      "/api/v1/reenactments/" + rigid.info.reenactment_id() + "/appearance.mp4";
+  for (int attempt = 0; attempt < 2; ++attempt) {  // Built, then remembered.
+    const Reply none = Request(port_, rigid_path);
+    EXPECT_EQ(none.status, 404);
+    EXPECT_NE(none.body.find("no appearance video"), std::string::npos) << none.body;
+  }
+  EXPECT_EQ(
+      Request(port_, "/api/v1/reenactments/" + rigid.info.reenactment_id() + "/model.glb").status,
+      200);
+
+  // Deleted: the video goes with it.
+  ASSERT_NO_FATAL_FAILURE(DeleteReenactment(id));
   EXPECT_FALSE(std::filesystem::exists(cached));
   EXPECT_EQ(Request(port_, path).status, 404);
 }

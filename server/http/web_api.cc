@@ -252,7 +252,8 @@ WebResponse WebApi::Handle(const WebRequest& request) {
       return ErrorResponse(absl::NotFoundError(absl::StrCat("no such path: ", path)));
     }
     if (parts.size() == 1) return GetReenactment(request, parts[0]);
-    if (parts[1] == "model.glb") return Model(request, parts[0]);
+    if (parts[1] == "model.glb") return ServeAsset(request, parts[0], Asset::kGlb);
+    if (parts[1] == "appearance.mp4") return ServeAsset(request, parts[0], Asset::kAppearance);
   }
   if (!FollowJobId(path).empty()) {
     return ErrorResponse(absl::InvalidArgumentError(
@@ -331,10 +332,14 @@ WebResponse WebApi::GetReenactment(const WebRequest& request, const std::string&
   return JsonResponse(ReenactmentJson(summary, TakeName(channel, summary.info().take_id())));
 }
 
-absl::Status WebApi::EnsureGlb(const std::string& id, const WebRequest& request, std::string* path,
-                               std::string* etag, int64_t* size) {
+const char* WebApi::AssetExtension(Asset asset) {
+  return asset == Asset::kGlb ? ".glb" : ".appearance.mp4";
+}
+
+absl::Status WebApi::EnsureAsset(const std::string& id, Asset asset, const WebRequest& request,
+                                 AssetFile* file) {
   const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token, request.client);
-  // Existence and the caller's right to read it, every time: a cached glb
+  // Existence and the caller's right to read it, every time: a cached file
   // is served only to whom the service would give the reenactment.
   {
     grpc::ClientContext context;
@@ -346,8 +351,11 @@ absl::Status WebApi::EnsureGlb(const std::string& id, const WebRequest& request,
         !status.ok()) {
       if (status.error_code() == grpc::StatusCode::NOT_FOUND) {
         std::lock_guard<std::mutex> lock(mutex_);
-        etags_.erase(id);
+        for (const Asset a : {Asset::kGlb, Asset::kAppearance}) {
+          etags_.erase(options_.derived_path(id, AssetExtension(a)));
+        }
         build_locks_.erase(id);
+        without_appearance_.erase(id);
       }
       return FromGrpcStatus(status);
     }
@@ -360,76 +368,106 @@ absl::Status WebApi::EnsureGlb(const std::string& id, const WebRequest& request,
     build_lock = slot;
   }
   std::lock_guard<std::mutex> building(*build_lock);
-  *path = options_.glb_path(id);
-  std::error_code error;
-  const auto on_disk = std::filesystem::file_size(*path, error);
-  if (!error) {
-    *size = static_cast<int64_t>(on_disk);
+  const auto no_video = [&id] {
+    return absl::NotFoundError(absl::StrCat(
+        "reenactment ", id,
+        " has no appearance video (rigid parts, or a body job run with appearance=false): the "
+        "static atlas in model.glb is its texture"));
+  };
+  if (asset == Asset::kAppearance) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (const auto it = etags_.find(id); it != etags_.end()) {
-      *etag = it->second;
-      return absl::OkStatus();
-    }
+    if (without_appearance_.contains(id)) return no_video();
   }
-  std::string bytes;
+  file->path = options_.derived_path(id, AssetExtension(asset));
+  std::error_code error;
+  const auto on_disk = std::filesystem::file_size(file->path, error);
   if (!error) {
-    // On disk from before a restart: its ETag from its bytes.
-    ASSIGN_OR_RETURN(bytes, ReadRange(*path, 0, *size));
-  } else {
-    const auto started = std::chrono::steady_clock::now();
-    client::ConnectionOptions connection;
-    connection.timeout_s = options_.call_timeout_s;
-    ASSIGN_OR_RETURN(
-        const Reenactment data,
-        client::ReenactmentsClient(channel, connection).Fetch(id, /*skip_keyframes=*/true));
-    GltfExportSummary summary;
-    ASSIGN_OR_RETURN(bytes, ExportReenactmentGlb(data, GltfExportOptions{}, &summary));
-    RETURN_IF_ERROR(WriteFileAtomically(*path, bytes));
-    if (!options_.still_stored(id)) {
-      // Deleted while it was built: what it shows must not stay.
-      std::filesystem::remove(*path, error);
-      return absl::NotFoundError(absl::StrCat("no reenactment ", id));
+    file->size = static_cast<int64_t>(on_disk);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (const auto it = etags_.find(file->path); it != etags_.end()) {
+        file->etag = it->second;
+        return absl::OkStatus();
+      }
     }
-    log::Info("glb_built",
-              {{"reenactment_id", id},
-               {"bytes", static_cast<int64_t>(bytes.size())},
-               {"seconds",
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}},
-              absl::StrCat("built the glTF of reenactment ", id, ": ", summary.BriefReport()));
+    // On disk from before a restart: its ETag from its bytes.
+    ASSIGN_OR_RETURN(const std::string bytes, ReadRange(file->path, 0, file->size));
+    file->etag = EtagOf(bytes);
+    std::lock_guard<std::mutex> lock(mutex_);
+    etags_[file->path] = file->etag;
+    return absl::OkStatus();
   }
-  *size = static_cast<int64_t>(bytes.size());
-  *etag = EtagOf(bytes);
+  // Missing: the reenactment is fetched once and both files are written
+  // from it (the glb with the static atlas, and the body's appearance video
+  // when it has one).
+  const auto started = std::chrono::steady_clock::now();
+  client::ConnectionOptions connection;
+  connection.timeout_s = options_.call_timeout_s;
+  ASSIGN_OR_RETURN(
+      const Reenactment data,
+      client::ReenactmentsClient(channel, connection).Fetch(id, /*skip_keyframes=*/true));
+  GltfExportSummary summary;
+  ASSIGN_OR_RETURN(const std::string glb,
+                   ExportReenactmentGlb(data, GltfExportOptions{}, &summary));
+  const std::string glb_path = options_.derived_path(id, AssetExtension(Asset::kGlb));
+  const std::string video_path = options_.derived_path(id, AssetExtension(Asset::kAppearance));
+  const std::string* video =
+      data.body && !data.body->appearance_mp4.empty() ? &data.body->appearance_mp4 : nullptr;
+  RETURN_IF_ERROR(WriteFileAtomically(glb_path, glb));
+  if (video != nullptr) RETURN_IF_ERROR(WriteFileAtomically(video_path, *video));
+  if (!options_.still_stored(id)) {
+    // Deleted while they were built: what they show must not stay.
+    std::filesystem::remove(glb_path, error);
+    std::filesystem::remove(video_path, error);
+    return absl::NotFoundError(absl::StrCat("no reenactment ", id));
+  }
+  log::Info("glb_built",
+            {{"reenactment_id", id},
+             {"bytes", static_cast<int64_t>(glb.size())},
+             {"appearance_bytes", static_cast<int64_t>(video ? video->size() : 0)},
+             {"seconds",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()}},
+            absl::StrCat("built the glTF of reenactment ", id, ": ", summary.BriefReport()));
   std::lock_guard<std::mutex> lock(mutex_);
-  etags_[id] = *etag;
+  etags_[glb_path] = EtagOf(glb);
+  if (video != nullptr) {
+    etags_[video_path] = EtagOf(*video);
+  } else {
+    without_appearance_.insert(id);
+  }
+  if (asset == Asset::kAppearance && video == nullptr) return no_video();
+  file->size = static_cast<int64_t>(asset == Asset::kGlb ? glb.size() : video->size());
+  file->etag = etags_[file->path];
   return absl::OkStatus();
 }
 
-WebResponse WebApi::Model(const WebRequest& request, const std::string& id) {
-  std::string path, etag;
-  int64_t size = 0;
-  if (absl::Status status = EnsureGlb(id, request, &path, &etag, &size); !status.ok()) {
+WebResponse WebApi::ServeAsset(const WebRequest& request, const std::string& id, Asset asset) {
+  AssetFile file;
+  if (absl::Status status = EnsureAsset(id, asset, request, &file); !status.ok()) {
     return ErrorResponse(status);
   }
+  const int64_t size = file.size;
   WebResponse response;
-  response.content_type = "model/gltf-binary";
-  response.headers.emplace_back("ETag", etag);
+  response.content_type = asset == Asset::kGlb ? "model/gltf-binary" : "video/mp4";
+  response.headers.emplace_back("ETag", file.etag);
   response.headers.emplace_back("Accept-Ranges", "bytes");
   response.headers.emplace_back("Cache-Control", "private, no-cache");
   if (!request.if_none_match.empty() &&
-      (request.if_none_match == etag || request.if_none_match == "*" ||
-       absl::StrContains(request.if_none_match, etag))) {
+      (request.if_none_match == file.etag || request.if_none_match == "*" ||
+       absl::StrContains(request.if_none_match, file.etag))) {
     response.status = 304;
     return response;
   }
   int64_t first = 0, last = size - 1;
   bool partial = false;
-  if (!request.range.empty() && (request.if_range.empty() || request.if_range == etag)) {
+  if (!request.range.empty() && (request.if_range.empty() || request.if_range == file.etag)) {
     bool ignore = false;
     if (ParseByteRange(request.range, size, &first, &last, &ignore)) {
       partial = true;
     } else if (!ignore) {
       WebResponse refused = ErrorResponse(absl::OutOfRangeError(
-          absl::StrCat("range ", request.range, " is outside the ", size, " bytes of the glb")));
+          absl::StrCat("range ", request.range, " is outside the ", size, " bytes of the ",
+                       asset == Asset::kGlb ? "glb" : "appearance video")));
       refused.status = 416;
       refused.headers.emplace_back("Content-Range", absl::StrCat("bytes */", size));
       return refused;
@@ -447,7 +485,7 @@ WebResponse WebApi::Model(const WebRequest& request, const std::string& id) {
     response.headers.emplace_back("Content-Length", absl::StrCat(last - first + 1));
     return response;
   }
-  absl::StatusOr<std::string> bytes = ReadRange(path, first, last - first + 1);
+  absl::StatusOr<std::string> bytes = ReadRange(file.path, first, last - first + 1);
   if (!bytes.ok()) return ErrorResponse(bytes.status());
   response.body = *std::move(bytes);
   return response;

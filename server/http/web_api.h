@@ -17,6 +17,11 @@
 //       the glTF 2.0 binary of `reenact export` (common/io/gltf_export.h),
 //       built once and kept beside the reenactment (removed with it); ETag,
 //       If-None-Match (304), single byte ranges (206, 416), If-Range.
+//   GET /api/v1/reenactments/{id}/appearance.mp4
+//       a body reenactment's per-frame appearance: the texture video whose
+//       frame i is the atlas of instant i (H.264 in MP4, the model.glb's
+//       texture layout), kept and served like model.glb; 404 when the
+//       reenactment has none (rigid parts, or appearance=false).
 //   GET /api/v1/jobs[?live=1&page_size=N&page_token=T]
 //       JSON array, newest first, of {"id", "take_id", "method", "state",
 //       "live", "reenactment_id", "created_unix_ns", "stage", "fraction",
@@ -39,6 +44,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -81,11 +87,12 @@ struct WebApiOptions {
   // Shown by /api/v1/info.
   bool auth = false;
   bool tls = false;
-  // Where the .glb of a reenactment is kept: DerivedPathFor(id, ".glb") of
-  // the reenactment store, and whether the reenactment is still stored
-  // (after a glb is written, so that one of a reenactment deleted meanwhile
-  // is removed at once).
-  std::function<std::string(const std::string& reenactment_id)> glb_path;
+  // Where files derived from a reenactment are kept (model.glb, the
+  // appearance video): the reenactment store's DerivedPathFor(id,
+  // extension); and whether the reenactment is still stored (after they are
+  // written, so that those of a reenactment deleted meanwhile go at once).
+  std::function<std::string(const std::string& reenactment_id, const std::string& extension)>
+      derived_path;
   std::function<bool(const std::string& reenactment_id)> still_stored;
   // Deadline of the unary calls it makes, seconds.
   double call_timeout_s = 10.0;
@@ -130,23 +137,35 @@ class WebApi {
   WebResponse Info() const;
   WebResponse ListReenactments(const WebRequest& request);
   WebResponse GetReenactment(const WebRequest& request, const std::string& id);
-  WebResponse Model(const WebRequest& request, const std::string& id);
+  // The files served beside a reenactment.
+  enum class Asset { kGlb, kAppearance };
+  static const char* AssetExtension(Asset asset);
+  // model.glb or appearance.mp4 with ETag, ranges and HEAD.
+  WebResponse ServeAsset(const WebRequest& request, const std::string& id, Asset asset);
   WebResponse ListJobs(const WebRequest& request);
   // The name of take `take_id`; "" when it is gone (or the id is empty).
   std::string TakeName(const std::shared_ptr<grpc::Channel>& channel,
                        const std::string& take_id) const;
 
-  // The glb of `id` on disk (built when missing) and its ETag.
-  absl::Status EnsureGlb(const std::string& id, const WebRequest& request, std::string* path,
-                         std::string* etag, int64_t* size);
+  // A file of `id` on disk (both built when one is missing) and its ETag.
+  // NotFound for an appearance video of a reenactment that has none.
+  struct AssetFile {
+    std::string path;
+    std::string etag;
+    int64_t size = 0;
+  };
+  absl::Status EnsureAsset(const std::string& id, Asset asset, const WebRequest& request,
+                           AssetFile* file);
 
   WebApiOptions options_;
   ChannelFactory channel_for_;
   std::mutex mutex_;
-  // Per reenactment: a lock held while its glb is built (one build at a
-  // time), and the ETag of the glb on disk.
+  // Per reenactment: a lock held while its files are built (one build at a
+  // time); per file on disk, its ETag; the reenactments known to have no
+  // appearance video.
   std::map<std::string, std::shared_ptr<std::mutex>> build_locks_;
   std::map<std::string, std::string> etags_;
+  std::set<std::string> without_appearance_;
 };
 
 }  // namespace reenact::server::http

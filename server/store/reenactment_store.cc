@@ -24,7 +24,7 @@ constexpr char kExtension[] = ".reen";
 // WriteReenactmentFile writes through "<path>.tmp".
 constexpr char kTempExtension[] = ".reen.tmp";
 // Copies in other formats (DerivedPathFor), removed with their reenactment.
-constexpr const char* kDerivedExtensions[] = {".glb"};
+constexpr const char* kDerivedExtensions[] = {".glb", ".appearance.mp4"};
 
 bool IsValidReenactmentId(const std::string& id) {
   return !id.empty() && id.size() <= 128 && std::all_of(id.begin(), id.end(), [](char c) {

@@ -27,9 +27,9 @@ class ReenactmentStore {
   // Where the file of `reenactment_id` lives (a worker writes it there).
   std::string PathFor(const std::string& reenactment_id) const;
   // Where a copy of it in another format may be kept (the HTTP front's
-  // glTF export, `extension` ".glb"): beside the file, so that Delete
-  // removes it with the reenactment and Open removes copies whose
-  // reenactment is gone.
+  // glTF export ".glb" and appearance video ".appearance.mp4"): beside the
+  // file, so that Delete removes it with the reenactment and Open removes
+  // copies whose reenactment is gone.
   std::string DerivedPathFor(const std::string& reenactment_id, const std::string& extension) const;
 
   // Indexes the file a worker finished at PathFor(id): reads and validates

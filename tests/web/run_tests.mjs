@@ -401,6 +401,40 @@ async function waitState(page, states, timeoutS = 60) {
 
 const twoFrames = (page) => page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
 
+// Waits until the body's appearance video shows instant `frame`.
+async function waitAppearanceFrame(page, frame, timeoutS = 30) {
+  try {
+    await page.waitForFunction(
+      (k) => {
+        const a = window.reenactPlayer().appearance;
+        return a && a.mode === 'video' && a.shown_frame === k;
+      },
+      frame,
+      { timeout: timeoutS * 1000 },
+    );
+  } catch {
+    const a = await page.evaluate(() => window.reenactPlayer().appearance);
+    throw new Error(`the appearance video does not show frame ${frame}: ${JSON.stringify(a)}`);
+  }
+}
+
+// PSNR (dB) of the colours of two RGBA PNGs over the pixels both silhouettes
+// hold.
+function colourPsnr(pngA, pngB, maskA, maskB) {
+  let sum = 0;
+  let n = 0;
+  for (let i = 0; i < maskA.mask.length; ++i) {
+    if (!maskA.mask[i] || !maskB.mask[i]) continue;
+    for (let c = 0; c < 3; ++c) {
+      const d = pngA.data[4 * i + c] - pngB.data[4 * i + c];
+      sum += d * d;
+    }
+    n += 3;
+  }
+  if (n === 0) return 0;
+  return 10 * Math.log10((255 * 255) / Math.max(1e-9, sum / n));
+}
+
 async function seekTo(page, t) {
   await page.evaluate((x) => {
     const s = document.getElementById('scrub');
@@ -537,6 +571,7 @@ async function main() {
       await page.goto(`${base()}/?reenactment=${id}&t=${t}&paused=1&yaw=0&mirror=0&bg=000000&controls=0`);
       const state = await waitState(page, ['ready', 'error']);
       check(state === 'ready', `state ${state}: ${await page.textContent('#error')}`);
+      if (kind === 'body') await waitAppearanceFrame(page, K);
       await twoFrames(page);
       const camera = await page.evaluate(() => window.reenactCamera());
       const frame = (await page.evaluate(() => window.reenactStats())).frame;
@@ -560,6 +595,14 @@ async function main() {
       log(`${kind}: silhouette IoU ${r.iou.toFixed(4)} (page ${r.a} px, render ${r.b} px)`);
       check(r.a > 2000, `the page drew only ${r.a} pixels`);
       check(r.iou >= 0.9, `silhouette IoU ${r.iou.toFixed(4)} < 0.9`);
+      if (kind === 'body') {
+        // Colour where both drew the body: both show the instant's atlas
+        // from the appearance video.
+        const psnr = colourPsnr(decodePng(shot), decodePng(fs.readFileSync(path.join(out, pngs[0]))), a, b);
+        figures.body_render_psnr_db = Number(psnr.toFixed(2));
+        log(`body: colour PSNR page vs reenact render ${psnr.toFixed(2)} dB`);
+        check(psnr >= 20, `colour PSNR ${psnr.toFixed(2)} dB < 20 dB`);
+      }
     });
   }
 
@@ -604,6 +647,103 @@ async function main() {
     check(Math.abs(rq / r1 - 0.25) <= 0.05, `0.25x / 1x = ${(rq / r1).toFixed(3)}`);
     await closePage(page);
   });
+
+  await test('body: the appearance video keeps in step at 1x, 2x, 0.25x, on seek and while paused', async () => {
+    const page = await newPage({ width: 1024, height: 768 });
+    await page.goto(`${base()}/?reenactment=${bodyId}`);
+    check((await waitState(page, ['playing', 'error'])) === 'playing', 'not playing');
+    await page.waitForFunction(() => window.reenactPlayer().appearance?.mode === 'video', null, { timeout: 30000 });
+    // The share of drawn frames whose video frame is within one of the
+    // animation's, per speed.
+    const inStep = async (ms) => {
+      const a0 = await page.evaluate(() => window.reenactPlayer().appearance);
+      await sleep(ms);
+      const a1 = await page.evaluate(() => window.reenactPlayer().appearance);
+      const ticks = a1.ticks - a0.ticks;
+      log(`  last frames drawn [animation, video, video time]: ${JSON.stringify(a1.recent)}`);
+      return {
+        share: ticks > 0 ? (a1.in_step - a0.in_step) / ticks : 0,
+        offset: ticks > 0 ? (a1.offset_sum - a0.offset_sum) / ticks : 99,
+        presented: a1.presented - a0.presented,
+        ticks,
+        seeks: a1.seeks - a0.seeks,
+      };
+    };
+    // Each speed is measured after a second to settle.
+    await sleep(1000);
+    const s1 = await inStep(3000);
+    await page.selectOption('#speed', '2');
+    await sleep(1000);
+    const s2 = await inStep(3000);
+    await page.selectOption('#speed', '0.25');
+    await sleep(1000);
+    const sq = await inStep(3000);
+    const rows = [['1x', 1, s1], ['2x', 2, s2], ['0.25x', 0.25, sq]];
+    for (const [speed, , r] of rows) {
+      figures[`appearance_in_step_${speed}`] = Number(r.share.toFixed(3));
+      figures[`appearance_offset_frames_${speed}`] = Number(r.offset.toFixed(2));
+      log(`appearance video at ${speed}: ${(100 * r.share).toFixed(1)} % of drawn frames within a frame of the animation's, ` +
+        `mean offset ${r.offset.toFixed(2)} frames (${r.ticks} drawn, ${r.presented} video frames presented, ${r.seeks} seeks)`);
+    }
+    // The browser presents the video's frames at its own pace P (on this
+    // machine's software decoder and compositor, 13-18 a second), so at
+    // speed s a presented frame stands for s x fps / P of the animation's
+    // and is on average half that off even when the sync is right: the
+    // bound is that, measured, plus one frame.
+    const takeFps = glbs.body.extras.fps;
+    for (const [speed, x, r] of rows) {
+      check(r.presented >= 5, `${speed}: only ${r.presented} video frames presented`);
+      const bound = 1 + (0.5 * x * takeFps) / (r.presented / 3);
+      check(r.offset <= bound, `${speed}: the drawn video frame is ${r.offset.toFixed(2)} frames off on average (bound ${bound.toFixed(2)})`);
+    }
+    // Paused: a seek, then frame steps, each shown exactly.
+    await page.click('#play');
+    await seekTo(page, 2.0);
+    let frame = (await page.evaluate(() => window.reenactStats())).frame;
+    await waitAppearanceFrame(page, frame, 10);
+    for (const key of ['ArrowRight', 'ArrowRight', 'ArrowLeft']) {
+      await page.keyboard.press(key);
+      frame = (await page.evaluate(() => window.reenactStats())).frame;
+      await waitAppearanceFrame(page, frame, 10);
+    }
+    await seekTo(page, 0);
+    await waitAppearanceFrame(page, 0, 10);
+    const fps = [];
+    await page.click('#play');
+    await sleep(1000);
+    for (let i = 0; i < 3; ++i) {
+      await sleep(1000);
+      fps.push((await page.evaluate(() => window.reenactStats())).fps);
+    }
+    figures.page_fps_1024x768_appearance_video = percentile(fps, 50);
+    log(`page fps at 1024x768 with the appearance video: ${fps.join(', ')}`);
+    check(page.errors.length === 0, `page errors: ${page.errors.join('; ')}`);
+    await closePage(page);
+  });
+
+  for (const [what, setup, says] of [
+    ['none on the server', (page) => page.route('**/appearance.mp4*', (route) => route.fulfill({ status: 404, contentType: 'application/json', body: JSON.stringify({ error: { code: 'NOT_FOUND', message: 'no appearance video' } }) })), /no appearance video/],
+    ['not a video', (page) => page.route('**/appearance.mp4*', (route) => route.fulfill({ status: 200, contentType: 'video/mp4', body: Buffer.from('this is not an MP4 file, only text') })), /does not play/],
+    ['no H.264 in the browser', (page) => page.addInitScript(() => {
+      HTMLMediaElement.prototype.canPlayType = () => '';
+    }), /cannot decode H\.264/],
+  ]) {
+    await test(`body appearance video ${what}: the static atlas, and the note says why`, async () => {
+      const page = await newPage();
+      await setup(page);
+      await page.goto(`${base()}/?reenactment=${bodyId}`);
+      check((await waitState(page, ['playing', 'error'])) === 'playing', 'not playing');
+      await page.waitForFunction(() => window.reenactPlayer().appearance?.mode === 'atlas', null, { timeout: 30000 });
+      const note = await page.textContent('#appearance-note');
+      log(`appearance ${what}: ${note}`);
+      check(says.test(note), `note "${note}"`);
+      const s0 = await page.evaluate(() => window.reenactStats());
+      await sleep(700);
+      check((await page.evaluate(() => window.reenactStats())).frame !== s0.frame, 'the animation stopped');
+      check(page.errors.length === 0, `page errors: ${page.errors.join('; ')}`);
+      await closePage(page);
+    });
+  }
 
   await test('A-B loop repeats A..B', async () => {
     const page = await newPage();

@@ -3,10 +3,12 @@
 // teacher's turn, orbit/zoom/pan, fullscreen and AR placement.
 //
 // Deep link: &t=SECONDS &paused=1 &yaw=DEG &mirror=0|1 &speed=X &a=S&b=S
-// &bg=RRGGBB &controls=0 (the view alone: kiosks, tests).
+// &bg=RRGGBB &controls=0 (the view alone: kiosks, tests) &appearance=0 (the
+// static atlas, not the per-frame appearance video).
 
 import { AnimationMixer, LoopRepeat } from 'three';
 import { apiJson, fetchGlb } from './api.js';
+import { Appearance } from './appearance.js';
 import { setupAr } from './ar.js';
 import { analyseMotion, frameTimes, nearestFrame, parseGlb } from './model.js';
 import { Stage } from './stage.js';
@@ -72,7 +74,9 @@ export async function startPlayer(id, params) {
     b: player.b,
     yaw_deg: stage.yawDeg,
     duration: player.duration,
+    appearance: appearance ? appearance.stats() : null,
   });
+  let appearance = null;
 
   // Metadata for the title (the glb's extras hold the rest).
   apiJson(`/api/v1/reenactments/${encodeURIComponent(id)}`)
@@ -108,6 +112,22 @@ export async function startPlayer(id, params) {
   const motion = analyseMotion(model, clip);
   stage.setModel(model, motion);
   stage.frame(motion);
+
+  // The body's per-frame appearance, drawn once its video has loaded (the
+  // static atlas until then, and where it cannot be).
+  const appearanceNote = h('span', { id: 'appearance-note', class: 'note', role: 'status' }, '');
+  appearance = new Appearance({
+    id,
+    model,
+    frames: player.frames,
+    fps: info.fps || (player.duration > 0 ? (player.frames - 1) / player.duration : 30),
+    onChange: () => {
+      appearanceNote.textContent = appearance.note;
+      stage.invalidate();
+    },
+  });
+  if (params.get('appearance') === '0') appearance.fallBack('per-frame appearance turned off (appearance=0)');
+  else appearance.load();
 
   const mixer = new AnimationMixer(model);
   const action = clip ? mixer.clipAction(clip) : null;
@@ -179,7 +199,7 @@ export async function startPlayer(id, params) {
   });
   hud.append(
     h('div', { class: 'row scrub-row' }, playButton, prevFrame, slider, nextFrame),
-    h('div', { class: 'row readout' }, timeLabel, frameLabel, abLabel, moreButton),
+    h('div', { class: 'row readout' }, timeLabel, frameLabel, abLabel, appearanceNote, moreButton),
     h(
       'div',
       { class: 'row more' },
@@ -324,6 +344,7 @@ export async function startPlayer(id, params) {
       player.time = t;
       apply();
     }
+    appearance.sync(player.time, player.frame, player.playing, player.speed);
     updateReadout();
   };
 

@@ -15,6 +15,7 @@
 //       [--shape random:5] [--work DIR] [--data DIR] [--json FILE]
 //       [--option k=v,...]  (extra options of the body method, e.g. texture_scale=1)
 //       [--no-ceilings]  (the methods alone, for quick comparisons)
+//       [--figures]  (print each method run's own figures, e.g. part_restarts)
 //       [--images DIR]  (every evaluated novel view, reenactment left and truth
 //                        right, under DIR/TAKE/WHAT/)
 //
@@ -87,6 +88,7 @@ struct Settings : bench::TakeSettings {
   std::vector<std::string> wardrobes;
   std::vector<std::string> methods;
   bool ceilings = true;  // False (--no-ceilings): the methods alone.
+  bool figures = false;  // --figures: print each run's method figures.
   std::string images;    // Where novel views go (--images); empty: nowhere.
 };
 
@@ -108,7 +110,7 @@ absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   std::set<std::string> names = bench::kTakeFlags;
   names.insert({"motions", "wardrobes", "methods", "images"});
-  ASSIGN_OR_RETURN(Flags flags, Flags::Parse(args, names, {"no-ceilings"}));
+  ASSIGN_OR_RETURN(Flags flags, Flags::Parse(args, names, {"no-ceilings", "figures"}));
   Settings s;
   s.work = "/tmp/reenact_novel_view_e2e";
   s.data = REENACT_TEST_DATA_DIR;
@@ -118,6 +120,7 @@ absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
   s.methods = bench::SplitList(
       flags.GetOr("methods", "body-same,body-procedural,rigid-carved,rigid-cylinders"));
   s.ceilings = !flags.Has("no-ceilings");
+  s.figures = flags.Has("figures");
   s.images = flags.GetOr("images", "");
   for (const std::string& m : s.methods) {
     if (m != "body-same" && m != "body-procedural" && m != "rigid-carved" &&
@@ -187,7 +190,10 @@ absl::StatusOr<Score> RunConfiguration(const Settings& s, const std::string& tak
   input.asset_roots = {(fs::path(s.data) / "body").string()};
   const std::string out = (fs::path(s.work) / (configuration + ".reen")).string();
   const auto start = std::chrono::steady_clock::now();
-  RETURN_IF_ERROR(recon::RunMethod(input, out).status());
+  ASSIGN_OR_RETURN(const recon::MethodResult result, recon::RunMethod(input, out));
+  if (s.figures) {
+    for (const auto& [key, value] : result.figures) std::printf("  %s %g\n", key.c_str(), value);
+  }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   ASSIGN_OR_RETURN(const Reenactment data, ReadReenactment(out));

@@ -28,6 +28,12 @@ struct RigidCarvedOptions {
   // Voxel side and truncation mu of Eq. 3.11, millimetres ("voxel_mm", "mu_mm").
   double voxel_mm = 8.0;
   double mu_mm = 20.0;
+  // Fast motion ("max_drift_mm", 0: off): a part whose registered pose
+  // puts its joint anchors farther than this from where the instant's
+  // skeleton puts them (the chain drifted, or the step jumped to another
+  // surface), or that found nothing to register against, restarts from the
+  // skeleton's pose at that instant.
+  double max_drift_mm = 60.0;
   // Registration ("max_iterations", "max_pair_distance_mm",
   // "max_normal_angle_deg", "min_update_deg", "min_update_mm").
   int max_iterations = 10;
@@ -65,8 +71,11 @@ struct RigidCarvedOptions {
   // nominal shape count as inside (-mu) when meshing ("fill_unseen").
   bool fill_unseen = true;
   // Depth pixels without a return that lie off the actor mask carve their
-  // whole ray as free space ("carve_no_return"; see MarkFreeRays).
+  // ray as free space ("carve_no_return"; see MarkFreeRays), up to
+  // free_ray_max_mm from the sensor ("free_ray_max_mm": beyond the sensor's
+  // range an actor returns nothing either).
   bool carve_no_return = true;
+  double free_ray_max_mm = 4000.0;
   // Label pixels by the nearest nominal part ("ownership"; false: the
   // thesis' volumes: a part registers every point inside its box and fuses
   // every pixel).

@@ -60,7 +60,7 @@ float TsdfVolume::value(int i, int j, int k) const {
 
 absl::Status TsdfVolume::Integrate(const PosedCamera& camera, const DepthImageMm& depth_mm,
                                    const Rigid3d& world_from_part,
-                                   const SurfaceOwnership* ownership) {
+                                   const SurfaceOwnership* ownership, float free_ray_max_m) {
   const int width = depth_mm.width;
   const int height = depth_mm.height;
   if (width != camera.width() || height != camera.height()) {
@@ -109,6 +109,12 @@ absl::Status TsdfVolume::Integrate(const PosedCamera& camera, const DepthImageMm
         // NOLINTEND(bugprone-incorrect-roundings)
         const uint16_t observed_mm = depth_mm.at(x, y);
         if (observed_mm == 0) continue;
+        if (observed_mm == kFreeRayMm) {
+          if (in_camera.z() > free_ray_max_m) continue;  // Past the sensor's reach.
+          sum_[index] += mu;
+          ++count_[index];
+          continue;
+        }
         const float eta = observed_mm * 0.001f - in_camera.z();  // Projective distance.
         if (eta < -mu) continue;  // Eq. 3.11: behind the surface, ignored.
         float contribution = mu;

@@ -27,6 +27,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -69,8 +70,10 @@ VolumeBox BoneBox(double y_min_m, double y_max_m, double radius_m, double voxel_
 // depth pixel on the grid of every `step`-th pixel (pixel (x, y) reads label
 // (x / step, y / step)), and the labels the volume accepts. Pixels with
 // other labels add free-space values only.
-// A depth value (mm) that marks a pixel whose whole ray is free space
-// (no return, off the actor): Integrate counts every voxel on it as free.
+// A depth value (mm) that marks a pixel whose ray is free space as far as
+// the sensor reaches (no return, off the actor): Integrate counts every voxel
+// on it up to its free_ray_max_m as free, and leaves those beyond unobserved
+// (an actor past the sensor's range returns nothing either).
 inline constexpr uint16_t kFreeRayMm = 65535;
 
 struct SurfaceOwnership {
@@ -87,10 +90,12 @@ class TsdfVolume {
   // Adds the contribution of one depth image (Eq. 3.11) for the part posed
   // at `world_from_part` (T_{b,n}). `ownership` may be null. InvalidArgument
   // when the depth size differs from the camera's or the labels' grid does
-  // not cover it.
+  // not cover it. `free_ray_max_m`: how far a kFreeRayMm pixel's ray counts
+  // as free.
   absl::Status Integrate(const PosedCamera& camera, const DepthImageMm& depth_mm,
                          const Rigid3d& world_from_part,
-                         const SurfaceOwnership* ownership = nullptr);
+                         const SurfaceOwnership* ownership = nullptr,
+                         float free_ray_max_m = std::numeric_limits<float>::infinity());
 
   // F(v) of Eq. 3.10 per voxel with observed = (N*(v) > 0), in the part frame.
   SdfGrid ToSdfGrid() const;

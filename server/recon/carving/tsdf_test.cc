@@ -51,6 +51,16 @@ TEST(VolumeBox, BoneBoxCoversTheBoneAndValidates) {
   EXPECT_FALSE(TsdfVolume::Create(box, 0.0).ok());
 }
 
+// 21 voxels of 1 cm along the Z axis from z = -0.1 to z = +0.1.
+VolumeBox AxisColumn() {
+  VolumeBox box;
+  box.voxel_m = 0.01;
+  box.nx = box.ny = 1;
+  box.nz = 21;
+  box.min_corner_in_part_m = Eigen::Vector3d(0, 0, -0.1);
+  return box;
+}
+
 TEST(TsdfVolume, TruncationFollowsEq311) {
   // One camera looking down -Z at a wall at z = 0 (2 m away).
   const PosedCamera camera = LookAtCamera(Eigen::Vector3d(0, 0, 2.0), Eigen::Vector3d::Zero());
@@ -58,11 +68,7 @@ TEST(TsdfVolume, TruncationFollowsEq311) {
       camera, Box(Eigen::Vector3d(3, 3, 0.5),
                   Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, -0.5))));
   // A column of voxels along the optical axis from z = +0.1 to z = -0.1.
-  VolumeBox box;
-  box.voxel_m = 0.01;
-  box.nx = box.ny = 1;
-  box.nz = 21;
-  box.min_corner_in_part_m = Eigen::Vector3d(0, 0, -0.1);
+  const VolumeBox box = AxisColumn();
   const double mu = 0.03;
   absl::StatusOr<TsdfVolume> volume = TsdfVolume::Create(box, mu);
   ASSERT_TRUE(volume.ok()) << volume.status();
@@ -82,6 +88,33 @@ TEST(TsdfVolume, TruncationFollowsEq311) {
     }
   }
   EXPECT_FALSE(volume->Integrate(camera, DepthImageMm(4, 4), Rigid3d()).ok());
+}
+
+TEST(TsdfVolume, RaysWithoutAReturnAreFreeOnlyAsFarAsTheSensorReaches) {
+  // A camera at z = +2 looking down -Z, every pixel marked as a free ray,
+  // and a column of voxels from 1.9 m to 2.1 m in front of it.
+  const PosedCamera camera = LookAtCamera(Eigen::Vector3d(0, 0, 2.0), Eigen::Vector3d::Zero());
+  DepthImageMm free(camera.width(), camera.height());
+  std::fill(free.data.begin(), free.data.end(), kFreeRayMm);
+  const VolumeBox box = AxisColumn();
+  const double mu = 0.03;
+  absl::StatusOr<TsdfVolume> volume = TsdfVolume::Create(box, mu);
+  ASSERT_TRUE(volume.ok()) << volume.status();
+  // Reaching 2 m: the voxels nearer than 2 m are free, those beyond unseen.
+  ASSERT_TRUE(volume->Integrate(camera, free, Rigid3d(), nullptr, 2.0f).ok());
+  for (int k = 0; k < box.nz; ++k) {
+    const double depth_m = 2.0 - (-0.1 + 0.01 * k);  // From the camera.
+    if (depth_m < 2.0 - 1e-3) {
+      EXPECT_EQ(volume->count(0, 0, k), 1) << "depth " << depth_m;
+      EXPECT_FLOAT_EQ(volume->value(0, 0, k), static_cast<float>(mu)) << "depth " << depth_m;
+    } else if (depth_m > 2.0 + 1e-3) {
+      EXPECT_EQ(volume->count(0, 0, k), 0) << "depth " << depth_m;
+    }
+  }
+  // With no bound the whole ray is free.
+  ASSERT_TRUE(volume->Integrate(camera, free, Rigid3d()).ok());
+  EXPECT_EQ(volume->count(0, 0, 0), 1);
+  EXPECT_EQ(volume->count(0, 0, box.nz - 1), 2);
 }
 
 // Fuses a box moving through several poses (each depth image integrated

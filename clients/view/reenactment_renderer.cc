@@ -94,6 +94,7 @@ struct ReenactmentRenderer::Group {
   int keyframe = -1;          // Texture source; -1: baked or untextured.
   bool baked = false;         // Baked texture and the mesh's own uvs.
   bool underlay = false;      // Drawn behind the keyframe groups (DrawItem::underlay).
+  float blend_weight = 1.0f;  // Below 1: a second keyframe blended over the first.
   render::TextureId texture;  // Invalid: untextured (lit flat colour).
   int texture_width = 0, texture_height = 0;
   std::vector<int> triangles;  // Indices into the part's triangles.
@@ -220,15 +221,21 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
                                                   const Eigen::Isometry3d& camera_from_world,
                                                   std::vector<Group>* groups, FrameStats* stats) {
   std::vector<int> pose_ranking;
+  std::vector<double> pose_distances;
   if (selection_ == TextureSelection::kPose) {
-    pose_ranking = model_.RankByPose(frame, camera_from_world);  // Eq. 3.6, all parts.
+    // Eq. 3.6, all parts.
+    pose_ranking = model_.RankByPose(frame, camera_from_world, &pose_distances);
   }
   for (int b = 0; b < model_.num_parts(); ++b) {
     if (!model_.pose(frame, b).valid || model_.part(b).triangles.empty()) continue;
     ++stats->parts_drawn;
-    const std::vector<int> ranking = selection_ == TextureSelection::kPose
-                                         ? pose_ranking
-                                         : model_.RankByRotation(frame, b, camera_from_world);
+    std::vector<double> angles;
+    const std::vector<int> ranking =
+        selection_ == TextureSelection::kPose
+            ? pose_ranking
+            : model_.RankByRotation(frame, b, camera_from_world, &angles);
+    const std::vector<double>& distances =
+        selection_ == TextureSelection::kPose ? pose_distances : angles;
     int best = -1;
     for (int k : ranking) {
       if (model_.pose(model_.keyframe(k).frame, b).valid) {
@@ -238,7 +245,9 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
     }
     stats->best_keyframe[b] = best;
     int next_best = 0;
-    const std::vector<int> chosen = model_.AssignTriangles(b, ranking, &next_best);
+    std::vector<int> second;
+    const std::vector<int> chosen = model_.AssignTriangles(
+        b, ranking, &next_best, options_.blend_keyframes ? &second : nullptr);
     stats->triangles_next_best += next_best;
     ASSIGN_OR_RETURN(render::TextureId baked, BakedTexture(b));
     if (baked.valid() && underlay_baked_) {
@@ -262,6 +271,30 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
       group.part = b;
       group.triangles.push_back(static_cast<int>(t));
     }
+    // The second keyframe over the first, weighted by the inverse of the
+    // ranking distances: w2 = d1 / (d1 + d2), so a view that matches the
+    // first exactly shows it alone and one halfway between shows both
+    // equally. Grouped by keyframe and weight (in 1/32 steps).
+    std::map<std::pair<int, int>, Group> blended;
+    if (!second.empty()) {
+      std::map<int, double> distance_of;
+      for (size_t r = 0; r < ranking.size() && r < distances.size(); ++r) {
+        distance_of[ranking[r]] = distances[r];
+      }
+      for (size_t t = 0; t < chosen.size(); ++t) {
+        if (chosen[t] < 0 || second[t] < 0) continue;
+        const double d1 = distance_of[chosen[t]];
+        const double d2 = distance_of[second[t]];
+        if (!std::isfinite(d1) || !std::isfinite(d2) || d1 + d2 <= 0.0) continue;
+        const int steps = static_cast<int>(std::lround(32.0 * d1 / (d1 + d2)));
+        if (steps < 2) continue;  // Under 1/16: the first alone.
+        Group& group = blended[{second[t], steps}];
+        group.part = b;
+        group.blend_weight = static_cast<float>(steps) / 32.0f;
+        group.triangles.push_back(static_cast<int>(t));
+        ++stats->triangles_blended;
+      }
+    }
     for (auto& [source, group] : by_keyframe) {
       if (source >= 0) {
         ASSIGN_OR_RETURN(const CachedTexture* texture,
@@ -274,6 +307,15 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
         group.baked = true;
         group.texture = baked;
       }
+      groups->push_back(std::move(group));
+    }
+    for (auto& [key, group] : blended) {
+      ASSIGN_OR_RETURN(const CachedTexture* texture,
+                       KeyframeTexture(key.first, &stats->textures_uploaded));
+      group.keyframe = key.first;
+      group.texture = texture->id;
+      group.texture_width = texture->width;
+      group.texture_height = texture->height;
       groups->push_back(std::move(group));
     }
   }
@@ -491,8 +533,11 @@ absl::Status ReenactmentRenderer::Render(int frame_index, const render::RenderCa
     item.colour_srgb = options_.untextured_srgb;
     item.label = group.part + 1;
     item.underlay = group.underlay;
+    item.blend_weight = group.blend_weight;
     items.push_back(item);
-    if (!group.underlay) s.triangles += static_cast<int>(group.triangles.size());
+    if (!group.underlay && group.blend_weight >= 1.0f) {
+      s.triangles += static_cast<int>(group.triangles.size());
+    }
   }
   s.draw_items = static_cast<int>(items.size());
   if (status.ok()) status = renderer_->Render(camera, items, out);

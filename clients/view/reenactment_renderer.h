@@ -76,6 +76,11 @@ struct ReenactmentRendererOptions {
   // (kPose: there it is extraneous geometry, thesis 3.4.2).
   bool underlay_from_method = true;
   bool underlay_baked = false;
+  // VDTM: blend each triangle's two best visible keyframes (true), weighted
+  // by the inverse of their ranking distance (angle of Eq. 3.13, or pose
+  // distance of Eq. 3.6), so that the texture changes smoothly as the view
+  // turns; false: the thesis' single best frame.
+  bool blend_keyframes = true;
   // GPU memory for keyframe textures (RGBA with mipmaps), bytes: after each
   // frame, the least recently used are released until the cache fits (a
   // frame's textures stay while it is drawn, whatever the budget).
@@ -100,6 +105,9 @@ struct FrameStats {
   // that no keyframe shows (baked or best-ranked fallback).
   int triangles_next_best = 0;
   int triangles_unseen = 0;
+  // VDTM with blend_keyframes: triangles drawn with a second keyframe
+  // blended over the first.
+  int triangles_blended = 0;
   // Per part: the best-ranked usable keyframe (index into
   // Reenactment::keyframes), -1 where the part is hidden or has none.
   std::vector<int> best_keyframe;

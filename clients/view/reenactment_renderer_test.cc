@@ -59,11 +59,18 @@ void ExpectColour(const render::RenderOutputs& out, const Eigen::Vector2i& pixel
   }
 }
 
+// The thesis' selection (Eq. 3.13): one keyframe per triangle.
+ReenactmentRendererOptions SingleKeyframe() {
+  ReenactmentRendererOptions options;
+  options.blend_keyframes = false;
+  return options;
+}
+
 TEST(ReenactmentRenderer, VdtmDrawsTheRotationClosestKeyframe) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
   const Reenactment data = ThreeSensorScene();
-  auto view = ReenactmentRenderer::Create(data, renderer.get());
+  auto view = ReenactmentRenderer::Create(data, renderer.get(), SingleKeyframe());
   ASSERT_TRUE(view.ok()) << view.status();
   for (auto [yaw, expected, colour] :
        {std::tuple{30.0, 2, kBlue}, std::tuple{-25.0, 0, kRed}, std::tuple{5.0, 1, kGreen}}) {
@@ -80,12 +87,46 @@ TEST(ReenactmentRenderer, VdtmDrawsTheRotationClosestKeyframe) {
   }
 }
 
+// Blending (the default): the two nearest keyframes by the angle of Eq.
+// 3.13, weighted w2 = a1 / (a1 + a2), mixed in linear light. At a keyframe's
+// own direction it shows alone; halfway between two they mix equally.
+TEST(ReenactmentRenderer, VdtmBlendsTheTwoNearestKeyframesByTheirAngles) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  const Reenactment data = ThreeSensorScene();
+  auto view = ReenactmentRenderer::Create(data, renderer.get());
+  ASSERT_TRUE(view.ok()) << view.status();
+  const auto linear = [](double srgb) {
+    const double x = srgb / 255.0;
+    return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4);
+  };
+  const auto srgb = [](double v) {
+    return 255.0 * (v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055);
+  };
+  for (auto [yaw, w2, first, second] :
+       {std::tuple{40.0, 0.0, kBlue, kGreen}, std::tuple{20.0, 0.5, kBlue, kGreen},
+        std::tuple{30.0, 0.25, kBlue, kGreen}, std::tuple{-10.0, 0.25, kGreen, kRed}}) {
+    const render::RenderCamera camera = ViewerCamera(yaw);
+    render::RenderOutputs out;
+    FrameStats stats;
+    ASSERT_TRUE((*view)->Render(0, camera, &out, &stats).ok());
+    EXPECT_EQ(stats.triangles_blended, w2 > 0.0 ? 128 : 0) << "yaw " << yaw;
+    const Eigen::Vector2i centre = PixelOf(camera, {0.0, 0.0, 0.0});
+    for (int c = 0; c < 3; ++c) {
+      const double expected = srgb((1.0 - w2) * linear(first[c]) + w2 * linear(second[c]));
+      // The weights come in 1/32 steps; JPEG keeps flat colours within a few levels.
+      EXPECT_NEAR(out.colour.at(centre.x(), centre.y(), c), expected, 8)
+          << "yaw " << yaw << " channel " << c;
+    }
+  }
+}
+
 TEST(ReenactmentRenderer, OccludedTrianglesShowTheNextBestKeyframe) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
   Reenactment data = ThreeSensorScene();
   testing::HideVertices(&data.keyframes[2], -1e-6);  // Left half hidden in s2.
-  auto view = ReenactmentRenderer::Create(data, renderer.get());
+  auto view = ReenactmentRenderer::Create(data, renderer.get(), SingleKeyframe());
   ASSERT_TRUE(view.ok()) << view.status();
   const render::RenderCamera camera = ViewerCamera(30.0);
   render::RenderOutputs out;
@@ -107,7 +148,7 @@ TEST(ReenactmentRenderer, LookupsOnMaskBackgroundAreDiscarded) {
     for (int x = 0; x < mask.width / 2; ++x) mask.at(x, y) = 0;
   }
   data.keyframes[2].mask_rle = EncodeMaskRle(mask);
-  auto view = ReenactmentRenderer::Create(data, renderer.get());
+  auto view = ReenactmentRenderer::Create(data, renderer.get(), SingleKeyframe());
   ASSERT_TRUE(view.ok()) << view.status();
   const render::RenderCamera camera = ViewerCamera(30.0);
   render::RenderOutputs out;
@@ -156,7 +197,7 @@ TEST(ReenactmentRenderer, TextureCacheStaysWithinItsBudget) {
   auto renderer = MakeRenderer();
   ASSERT_NE(renderer, nullptr);
   const Reenactment data = ThreeSensorScene();
-  ReenactmentRendererOptions options;
+  ReenactmentRendererOptions options = SingleKeyframe();
   auto view = ReenactmentRenderer::Create(data, renderer.get(), options);
   ASSERT_TRUE(view.ok());
   render::RenderOutputs out;

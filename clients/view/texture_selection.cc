@@ -188,23 +188,29 @@ bool VdtmModel::VertexVisible(int keyframe, int part, int vertex) const {
 }
 
 std::vector<int> VdtmModel::AssignTriangles(int part, const std::vector<int>& ranking,
-                                            int* not_best) const {
+                                            int* not_best, std::vector<int>* second) const {
   std::vector<int> usable;
   for (int k : ranking) {
     if (pose(keyframes_[k].frame, part).valid) usable.push_back(k);
   }
   const std::vector<Eigen::Vector3i>& triangles = data_->parts[part].triangles;
   std::vector<int> chosen(triangles.size(), -1);
+  if (second != nullptr) second->assign(triangles.size(), -1);
   int fallbacks = 0;
   for (size_t t = 0; t < triangles.size(); ++t) {
     for (size_t r = 0; r < usable.size(); ++r) {
       const int k = usable[r];
-      if (VertexVisible(k, part, triangles[t][0]) && VertexVisible(k, part, triangles[t][1]) &&
-          VertexVisible(k, part, triangles[t][2])) {
-        chosen[t] = k;
-        if (r > 0) ++fallbacks;  // Occluded in the better ones: next-best frame.
+      if (!VertexVisible(k, part, triangles[t][0]) || !VertexVisible(k, part, triangles[t][1]) ||
+          !VertexVisible(k, part, triangles[t][2])) {
+        continue;
+      }
+      if (chosen[t] >= 0) {
+        (*second)[t] = k;
         break;
       }
+      chosen[t] = k;
+      if (r > 0) ++fallbacks;  // Occluded in the better ones: next-best frame.
+      if (second == nullptr) break;
     }
   }
   if (not_best != nullptr) *not_best = fallbacks;

@@ -319,6 +319,8 @@ struct OffscreenRenderer::Impl {
   absl::Status CheckItems(const std::vector<DrawItem>& items);
   void SetFrameUniforms(const RenderCamera& camera);
   void DrawItems(const RenderCamera& camera, const std::vector<DrawItem>& items);
+  void DrawOne(const Eigen::Matrix4d& camera_from_world, const Eigen::Matrix4d& clip_from_world,
+               const DrawItem& item);
   void Resolve(int width, int height, uint32_t requested);
   void ReadBack(int width, int height, RenderOutputs* out);
 };
@@ -408,6 +410,10 @@ absl::Status OffscreenRenderer::Impl::CheckItems(const std::vector<DrawItem>& it
       return absl::InvalidArgumentError(
           absl::StrCat("OffscreenRenderer: label ", item.label, " outside [0, 255]"));
     }
+    if (!(item.blend_weight > 0.0f && item.blend_weight <= 1.0f)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("OffscreenRenderer: blend_weight ", item.blend_weight, " outside (0, 1]"));
+    }
     if (!item.world_from_model.matrix().allFinite()) {
       return absl::InvalidArgumentError("OffscreenRenderer: world_from_model is not finite");
     }
@@ -435,7 +441,41 @@ void OffscreenRenderer::Impl::DrawItems(const RenderCamera& camera,
   const Eigen::Matrix4d camera_from_world = camera.world_from_camera.inverse().matrix();
   const Eigen::Matrix4d clip_from_world = ClipFromCamera(camera) * camera_from_world;
   glActiveTexture(GL_TEXTURE0);
-  for (const DrawItem& item : items) {
+  // Opaque items first, then the blended ones over them (colour only, where
+  // their depth equals what is drawn: the same triangles again).
+  bool blending = false;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (const DrawItem& item : items) {
+      if ((item.blend_weight < 1.0f) != (pass == 1)) continue;
+      if (pass == 1 && !blending) {
+        blending = true;
+        glDepthFunc(GL_EQUAL);
+        glDepthMask(GL_FALSE);
+        for (int i = 1; i < kNumColourAttachments; ++i) {
+          glColorMaski(i, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+        }
+        glEnablei(GL_BLEND, 0);
+        glBlendFunci(0, GL_CONSTANT_ALPHA, GL_ONE_MINUS_CONSTANT_ALPHA);
+      }
+      if (pass == 1) glBlendColor(0.0f, 0.0f, 0.0f, item.blend_weight);
+      DrawOne(camera_from_world, clip_from_world, item);
+    }
+  }
+  if (blending) {
+    glDisablei(GL_BLEND, 0);
+    for (int i = 1; i < kNumColourAttachments; ++i) {
+      glColorMaski(i, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    }
+    glDepthMask(GL_TRUE);
+    glDepthFunc(GL_LESS);
+  }
+  glBindVertexArray(0);
+}
+
+void OffscreenRenderer::Impl::DrawOne(const Eigen::Matrix4d& camera_from_world,
+                                      const Eigen::Matrix4d& clip_from_world,
+                                      const DrawItem& item) {
+  {
     const MeshRecord& mesh = meshes[item.mesh.value];
     const Eigen::Matrix4d& world_from_model = item.world_from_model.matrix();
     const Eigen::Vector4d camera_z_from_model =
@@ -465,7 +505,6 @@ void OffscreenRenderer::Impl::DrawItems(const RenderCamera& camera,
     if (item.underlay) glDisable(GL_POLYGON_OFFSET_FILL);
     if (item.cull_back_faces) glDisable(GL_CULL_FACE);
   }
-  glBindVertexArray(0);
 }
 
 void OffscreenRenderer::Impl::Resolve(int width, int height, uint32_t requested) {

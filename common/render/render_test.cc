@@ -270,6 +270,52 @@ TEST(OffscreenRendererTexture, UpdateReplacesTexelsInPlaceAndRejectsAnotherSize)
   EXPECT_EQ(renderer->UpdateTexture(TextureId{99}, green).code(), absl::StatusCode::kNotFound);
 }
 
+TEST(OffscreenRendererBlend, BlendedItemMixesItsColourOverTheOpaqueOneAtTheSameDepth) {
+  auto renderer = MakeRenderer();
+  ASSERT_NE(renderer, nullptr);
+  auto mesh = renderer->UploadMesh(MakeRectangle(-0.5, -0.5, 0.5, 0.5, 2.0));
+  auto behind = renderer->UploadMesh(MakeRectangle(-0.5, -0.5, 0.5, 0.5, 2.5));
+  ASSERT_TRUE(mesh.ok() && behind.ok());
+  DrawItem red;
+  red.mesh = *mesh;
+  red.lit = false;
+  red.label = 7;
+  red.colour_srgb = Eigen::Vector3f(0.8f, 0.0f, 0.0f);
+  DrawItem green = red;
+  green.colour_srgb = Eigen::Vector3f(0.0f, 0.8f, 0.0f);
+  green.label = 9;
+  green.blend_weight = 0.25f;
+  const RenderCamera camera = TestCamera();
+  const int u = camera.width / 2, v = camera.height / 2;
+  RenderOutputs out;
+  out.requested = kRenderColour | kRenderLabel | kRenderDepth;
+  // Listed first, drawn after the opaque one.
+  ASSERT_TRUE(renderer->Render(camera, {green, red}, &out).ok());
+  // Blended in linear light: 0.75 x 0.8 and 0.25 x 0.8 (sRGB) per channel.
+  const auto srgb = [](double linear) {
+    return 255.0 *
+           (linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(linear, 1 / 2.4) - 0.055);
+  };
+  const double red_linear = std::pow((0.8 + 0.055) / 1.055, 2.4);
+  EXPECT_NEAR(out.colour.at(u, v, 0), srgb(0.75 * red_linear), 3);
+  EXPECT_NEAR(out.colour.at(u, v, 1), srgb(0.25 * red_linear), 3);
+  EXPECT_EQ(out.label.at(u, v), 7) << "a blended item writes colour only";
+  EXPECT_NEAR(out.depth_m.at(u, v), 2.0, 1e-3);
+  // Behind the opaque surface, or over the background, it does not show.
+  green.mesh = *behind;
+  ASSERT_TRUE(renderer->Render(camera, {red, green}, &out).ok());
+  EXPECT_NEAR(out.colour.at(u, v, 0), 204, 2);
+  EXPECT_NEAR(out.colour.at(u, v, 1), 0, 2);
+  green.mesh = *mesh;
+  ASSERT_TRUE(renderer->Render(camera, {green}, &out).ok());
+  EXPECT_NEAR(out.colour.at(u, v, 1), 0, 2);
+  EXPECT_EQ(out.label.at(u, v), 0);
+  // A weight outside (0, 1] is refused.
+  green.blend_weight = 0.0f;
+  EXPECT_EQ(renderer->Render(camera, {red, green}, &out).code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
 // Left half transparent (alpha 0), right half opaque red (220, 0, 0).
 RgbaImage HalfTransparentRed() {
   RgbaImage texture(64, 64);

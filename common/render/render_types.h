@@ -92,6 +92,14 @@ struct DrawItem {
   // software renderer (llvmpipe) rasterising them costs about a third of a
   // body's frame. Open meshes keep both sides (false).
   bool cull_back_faces = false;
+  // Opaque when 1. Below 1 (in (0, 1)): blended over what the opaque items
+  // drew at the same depth, colour = w x this + (1 - w) x that, e.g. a second
+  // texture of the same triangles (view-dependent texture blending). Such
+  // items are drawn after every opaque one, in their order, pass only where
+  // their depth equals what is drawn there (the same triangles drawn again,
+  // so never over the background, a discarded texel or a nearer surface),
+  // and write only the colour (not the depth, label or normal).
+  float blend_weight = 1.0f;
 };
 
 // Light and background shared by all items of a frame.

@@ -93,7 +93,7 @@ class ServerProcess {
                                    options);
     ASSERT_TRUE(child.ok()) << child.status();
     process_ = std::move(*child);
-    address_ = WaitForLine(port_file, 20, process_.get());
+    address_ = WaitForLine(port_file, 120, process_.get());  // Long under load.
     ASSERT_FALSE(address_.empty()) << "reenact-server did not start:\n"
                                    << ReadText(dir_ + "/server.log");
   }

@@ -65,7 +65,7 @@ class LiveFollowEndToEnd : public ::testing::Test {
                            {Bin("reenact-server"), "--data", dir_ + "/data", "--listen",
                             "127.0.0.1:0", "--port-file", dir_ + "/server.port", "--jobs", "1"});
     ASSERT_NE(server_, nullptr);
-    for (int i = 0; i < 200 && address_.empty(); ++i) {
+    for (int i = 0; i < 2400 && address_.empty(); ++i) {  // Up to 2 min under load.
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       const std::string text = ReadText(dir_ + "/server.port");
       if (const auto nl = text.find('\n'); nl != std::string::npos) address_ = text.substr(0, nl);

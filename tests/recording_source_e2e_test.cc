@@ -75,7 +75,7 @@ TEST(RecordingSourceE2e, TumFolderStreamsThroughReenactdIntoTheServer) {
                                    "127.0.0.1:0", "--port-file", dir + "/server.port"},
                                   server_options);
   ASSERT_TRUE(server.ok()) << server.status();
-  const std::string address = WaitForLine(dir + "/server.port", 20, server->get());
+  const std::string address = WaitForLine(dir + "/server.port", 120, server->get());
   ASSERT_FALSE(address.empty()) << ReadText(dir + "/server.log");
 
   SubprocessOptions daemon_options;

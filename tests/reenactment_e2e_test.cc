@@ -50,7 +50,16 @@ using testing::RunCommand;
 
 class ReenactmentEndToEnd : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
+  // The suite's take, server and recording, made once. A failure here
+  // fails every test (SetUp) with its reason: gtest would report the tests
+  // of a suite whose SetUpTestSuite failed as skipped.
+  static void SetUpTestSuite() { setup_error_() = Prepare(); }
+
+  void SetUp() override {
+    if (!setup_error_().empty()) FAIL() << "the suite's setup failed: " << setup_error_();
+  }
+
+  static std::string Prepare() {
     dir_ = new std::string(
         (fs::temp_directory_path() / absl::StrCat("reenact_e2e_", ::getpid())).string());
     fs::remove_all(*dir_);
@@ -65,7 +74,7 @@ class ReenactmentEndToEnd : public ::testing::Test {
     options.color_width = 960;
     options.color_height = 540;
     auto summary = synth::SynthesizeTake(options, *dir_ + "/source.mcap");
-    ASSERT_TRUE(summary.ok()) << summary.status();
+    if (!summary.ok()) return absl::StrCat("synthesis: ", summary.status().ToString());
 
     // Server with two job slots.
     SubprocessOptions server_options;
@@ -75,28 +84,35 @@ class ReenactmentEndToEnd : public ::testing::Test {
         Subprocess::Start({Bin("reenact-server"), "--data", *dir_ + "/data", "--listen",
                            "127.0.0.1:0", "--port-file", *dir_ + "/server.port", "--jobs", "2"},
                           server_options);
-    ASSERT_TRUE(server.ok()) << server.status();
+    if (!server.ok()) return absl::StrCat("reenact-server: ", server.status().ToString());
     server_ = server->release();
-    for (int i = 0; i < 200 && address_().empty(); ++i) {
+    // Up to 2 minutes: a loaded machine (tests in parallel, sanitizers) can
+    // take long to start it; waiting is right, skipping is not.
+    for (int i = 0; i < 2400 && address_().empty(); ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       std::string text = ReadText(*dir_ + "/server.port");
       if (const auto nl = text.find('\n'); nl != std::string::npos) address_() = text.substr(0, nl);
     }
-    ASSERT_FALSE(address_().empty()) << ReadText(*dir_ + "/server.log");
+    if (address_().empty()) {
+      return absl::StrCat("reenact-server wrote no port within 2 minutes: ",
+                          ReadText(*dir_ + "/server.log"));
+    }
 
     // The daemon plays the take into the server as fast as it can.
     CommandResult daemon = RunCommand(
         *dir_, "reenactd",
         {Bin("reenactd"), "--server", address_(), "--source", "playback:" + *dir_ + "/source.mcap",
          "--fast", "--once", "--take-name", "e2e", "--spool", *dir_ + "/spool"});
-    ASSERT_EQ(daemon.exit_code, 0) << daemon.err;
+    if (daemon.exit_code != 0) return absl::StrCat("reenactd: ", daemon.err);
     CommandResult list = RunCommand(
         *dir_, "takes-list", {Bin("reenact"), "takes", "list", "--server", address_(), "--json"});
-    ASSERT_EQ(list.exit_code, 0) << list.err;
+    if (list.exit_code != 0) return absl::StrCat("takes list: ", list.err);
     auto takes = nlohmann::json::parse(list.out, nullptr, false);
-    ASSERT_FALSE(takes.is_discarded()) << list.out;
-    ASSERT_EQ(takes.size(), 1u) << list.out;
+    if (takes.is_discarded() || takes.size() != 1u) {
+      return absl::StrCat("takes list did not list the one take: ", list.out);
+    }
     take_id_() = takes[0]["take_id"].get<std::string>();
+    return "";
   }
 
   static void TearDownTestSuite() {
@@ -120,6 +136,10 @@ class ReenactmentEndToEnd : public ::testing::Test {
   static std::string& take_id_() {
     static std::string id;
     return id;
+  }
+  static std::string& setup_error_() {
+    static std::string error;
+    return error;
   }
 
   // Parses the --json output of `reenact jobs submit --wait`: the reenactment id.

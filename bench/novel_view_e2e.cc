@@ -1,7 +1,8 @@
 // End-to-end novel-view benchmark (a command, not a Google Benchmark: it
 // measures accuracy). For every held-out motion x wardrobe it synthesises a
 // 2-sensor take of a random-shape MakeHuman body (sensor skeletons: the
-// jittered truth), runs each method configuration in-process as the worker
+// jittered truth, or with --skeleton tracked none, so that the job tracks
+// it as the server does), runs each method configuration in-process as the worker
 // does (recon::RunMethod) and measures the reenactment as `reenact eval`
 // does (view::EvaluateReenactment: PSNR90, SSIM90 and IoU90 of the view 90
 // degrees from sensor 0), beside the ceiling of the same take: a reenactment
@@ -13,6 +14,8 @@
 //       [--methods body-same,body-procedural,rigid-carved,rigid-cylinders]
 //       [--seconds 2] [--fps 15] [--every 2] [--color-width 1920 --color-height 1080]
 //       [--shape random:5] [--work DIR] [--data DIR] [--json FILE]
+//       [--skeleton truth|tracked]  (the sensors' skeletons: the jittered
+//                        truth, or none, so that the job tracks the take)
 //       [--option k=v,...]  (extra options of the body method, e.g. texture_scale=1)
 //       [--no-ceilings]  (the methods alone, for quick comparisons)
 //       [--figures]  (print each method run's own figures, e.g. part_restarts)
@@ -87,6 +90,10 @@ struct Settings : bench::TakeSettings {
   std::vector<std::string> motions;
   std::vector<std::string> wardrobes;
   std::vector<std::string> methods;
+  // "truth": the sensors carry the jittered true skeleton (a vendor SDK
+  // stand-in); "tracked": none, and the job tracks the take with the capture
+  // daemon's tracker as the server does (recon::LoadTakeForMethod).
+  std::string skeleton = "truth";
   bool ceilings = true;  // False (--no-ceilings): the methods alone.
   bool figures = false;  // --figures: print each run's method figures.
   std::string images;    // Where novel views go (--images); empty: nowhere.
@@ -109,7 +116,7 @@ struct Score {
 absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   std::set<std::string> names = bench::kTakeFlags;
-  names.insert({"motions", "wardrobes", "methods", "images"});
+  names.insert({"motions", "wardrobes", "methods", "images", "skeleton"});
   ASSIGN_OR_RETURN(Flags flags, Flags::Parse(args, names, {"no-ceilings", "figures"}));
   Settings s;
   s.work = "/tmp/reenact_novel_view_e2e";
@@ -122,6 +129,10 @@ absl::StatusOr<Settings> ParseSettings(int argc, char** argv) {
   s.ceilings = !flags.Has("no-ceilings");
   s.figures = flags.Has("figures");
   s.images = flags.GetOr("images", "");
+  s.skeleton = flags.GetOr("skeleton", "truth");
+  if (s.skeleton != "truth" && s.skeleton != "tracked") {
+    return absl::InvalidArgumentError("--skeleton must be truth or tracked, not " + s.skeleton);
+  }
   for (const std::string& m : s.methods) {
     if (m != "body-same" && m != "body-procedural" && m != "rigid-carved" &&
         m != "rigid-cylinders") {
@@ -136,7 +147,8 @@ absl::StatusOr<synth::SynthOptions> TakeOptions(const Settings& s, const std::st
                                                 const std::string& wardrobe) {
   synth::SynthOptions options;
   RETURN_IF_ERROR(bench::SetCmuMotion(s.data, motion, &options));
-  options.sensor_skeleton = synth::SynthOptions::SensorSkeleton::kTruth;
+  options.sensor_skeleton = s.skeleton == "tracked" ? synth::SynthOptions::SensorSkeleton::kNone
+                                                    : synth::SynthOptions::SensorSkeleton::kTruth;
   options.body = "makehuman:" + (fs::path(s.data) / "body" / "makehuman").string();
   options.shape = s.shape;
   options.wardrobe = wardrobe;
@@ -151,9 +163,11 @@ absl::StatusOr<synth::SynthOptions> TakeOptions(const Settings& s, const std::st
 absl::StatusOr<std::string> EnsureTake(const Settings& s, const std::string& motion,
                                        const std::string& wardrobe) {
   ASSIGN_OR_RETURN(const synth::SynthOptions options, TakeOptions(s, motion, wardrobe));
+  // Takes with the true skeleton keep the names they had before --skeleton.
+  const std::string skeleton = s.skeleton == "tracked" ? "-tracked" : "";
   const std::string path =
-      absl::StrFormat("%s/%s-%s-%s-%gs-%gfps-%dx%d.mcap", s.work, motion, wardrobe, s.shape,
-                      s.seconds, s.fps, s.color_width, s.color_height);
+      absl::StrFormat("%s/%s-%s%s-%s-%gs-%gfps-%dx%d.mcap", s.work, motion, wardrobe, skeleton,
+                      s.shape, s.seconds, s.fps, s.color_width, s.color_height);
   if (fs::exists(path)) return path;
   std::fprintf(stderr, "novel_view_e2e: synthesising %s\n", path.c_str());
   RETURN_IF_ERROR(synth::SynthesizeTake(options, path).status());
@@ -311,6 +325,7 @@ nlohmann::json ToJson(const Settings& s, const std::vector<Row>& rows) {
                       {"color_width", s.color_width},
                       {"color_height", s.color_height},
                       {"shape", s.shape},
+                      {"skeleton", s.skeleton},
                       {"rows", nlohmann::json::array()}};
   const auto finite = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; };
   for (const Row& row : rows) {
@@ -374,8 +389,10 @@ int Run(int argc, char** argv) {
     std::cerr << "novel_view_e2e: the MakeHuman body: " << model.status().message() << "\n";
     return 1;
   }
-  std::printf("novel view 90 deg, 2 sensors, %g s at %g fps, colour %dx%d, every %d-th instant\n",
-              s.seconds, s.fps, s.color_width, s.color_height, s.every);
+  std::printf(
+      "novel view 90 deg, 2 sensors, %g s at %g fps, colour %dx%d, every %d-th instant, %s "
+      "skeletons\n",
+      s.seconds, s.fps, s.color_width, s.color_height, s.every, s.skeleton.c_str());
   std::printf("%-13s %-8s %-16s %7s %6s %6s   %7s %6s %6s   %7s %6s %7s %6s  %6s\n", "motion",
               "wardrobe", "method", "PSNR90", "SSIM90", "IoU90", "ceilP", "ceilS", "ceilI", "geoP",
               "geoS", "geoAP", "geoAS", "run_s");

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <numbers>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "common/base/status_macros.h"
@@ -277,14 +280,22 @@ absl::Status ReenactmentRenderer::BuildVdtmGroups(int frame,
     // equally. Grouped by keyframe and weight (in 1/32 steps).
     std::map<std::pair<int, int>, Group> blended;
     if (!second.empty()) {
-      std::map<int, double> distance_of;
+      // Ranking distance per keyframe (NaN: not ranked).
+      std::vector<double> distance_of(static_cast<size_t>(model_.num_keyframes()),
+                                      std::numeric_limits<double>::quiet_NaN());
       for (size_t r = 0; r < ranking.size() && r < distances.size(); ++r) {
-        distance_of[ranking[r]] = distances[r];
+        if (ranking[r] >= 0 && ranking[r] < model_.num_keyframes()) {
+          distance_of[ranking[r]] = distances[r];
+        }
       }
+      const auto distance = [&](int k) {
+        return k < static_cast<int>(distance_of.size()) ? distance_of[k]
+                                                        : std::numeric_limits<double>::quiet_NaN();
+      };
       for (size_t t = 0; t < chosen.size(); ++t) {
         if (chosen[t] < 0 || second[t] < 0) continue;
-        const double d1 = distance_of[chosen[t]];
-        const double d2 = distance_of[second[t]];
+        const double d1 = distance(chosen[t]);
+        const double d2 = distance(second[t]);
         if (!std::isfinite(d1) || !std::isfinite(d2) || d1 + d2 <= 0.0) continue;
         const int steps = static_cast<int>(std::lround(32.0 * d1 / (d1 + d2)));
         if (steps < 2) continue;  // Under 1/16: the first alone.

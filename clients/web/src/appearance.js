@@ -84,7 +84,6 @@ export class Appearance {
     this.presented = 0;
     this.ticks = 0;
     this.inStep = 0;
-    this.recent = [];
     this.lead = 0;
     this.leadSpeed = 1;
     this.offsetSum = 0;
@@ -219,8 +218,6 @@ export class Appearance {
     const offset = this.shownFrame >= 0 ? loopOffset(this.shownFrame, frame, this.frames) : 0;
     if (this.shownFrame >= 0 && Math.abs(offset) <= 1) ++this.inStep;
     this.offsetSum += Math.abs(offset);
-    this.recent.push([frame, this.shownFrame, Math.round(video.currentTime * 1000) / 1000]);
-    if (this.recent.length > 12) this.recent.shift();
     if (video.paused) video.play().catch(() => {});
     if (video.seeking) return;
     // The frame on screen trails the video's clock by the browser's
@@ -276,7 +273,6 @@ export class Appearance {
       in_step: this.inStep,
       offset_sum: this.offsetSum,
       lead_s: this.lead,
-      recent: this.recent.slice(),
       seeks: this.seeks,
       seek_ms: this.seekMs,
     };
@@ -289,11 +285,5 @@ export class Appearance {
       this.video.remove();
     }
     this.video = null;
-  }
-
-  dispose() {
-    if (this.texture) this.texture.dispose();
-    this.texture = null;
-    this.release();
   }
 }

@@ -4,7 +4,8 @@ against each other and against the programs they run:
 
   python3 tests/deploy/check_kubernetes.py --server-bin build/bin/reenact-server \
       --worker-bin build/bin/reenact-worker [--cli-bin build/bin/reenact] \
-      [--manifests DIR] [--dockerfile FILE] [--skip-flag-check] [--skip-kubectl]
+      [--manifests DIR] [--dockerfile FILE] [--dockerignore FILE] [--skip-flag-check] \
+      [--skip-kubectl]
 
 - every manifest parses, each object has an apiVersion/kind that Kubernetes
   1.27+ serves and a string metadata.name; kustomization.yaml lists exactly
@@ -15,6 +16,9 @@ against each other and against the programs they run:
   kubelet's probe dials without TLS), runAsUser is the Dockerfile's uid;
 - each Service selects a workload and its targetPorts name or number one of
   that workload's containerPorts;
+- each StatefulSet's serviceName is a Service of the folder that is headless
+  (clusterIP: None) and selects the StatefulSet's pods, as Kubernetes wants
+  of a StatefulSet's governing Service;
 - the HorizontalPodAutoscaler scales a Deployment of the folder that runs
   reenact-worker, and its External metrics are gauges reenact-server exports;
 - every --flag of a container that runs a Reenact program is in that
@@ -23,7 +27,25 @@ against each other and against the programs they run:
 - the Dockerfile's stages are Debian 12 (bookworm), the last one
   debian:bookworm-slim with a non-root USER, and it installs every program
   the manifests run into a bin folder (and the web app where the server
-  looks for it);
+  looks for it); it copies the tracker's models that CMakeLists.txt's
+  install() rule installs (models/tracker) to PREFIX/share/reenact/models/
+  tracker beside the bin folder of reenact, where the installed programs
+  look for them, and after that a RUN of the last stage runs the installed
+  `reenact track` (no --model, no $REENACT_TRACKER_MODEL, no `|| true`), so
+  that the image build fails when the model is not where it looks;
+- .dockerignore: the build context leaves out the secrets and data the
+  README's commands write into the checkout (tls/ and certs/ of
+  deploy/make-certs.sh, *.key, *.pem, *.token, tokens.json, takes *.mcap,
+  reenactments *.reen, exports *.glb/*.bvh/*.mp4, stores' *.sqlite, reports,
+  frames), tried on sample paths (IGNORED_SAMPLES), and leaves in everything
+  the Dockerfile copies from the context: each COPY/ADD source exists, and
+  no file of it that git tracks (for `COPY . .`: every tracked file) is left
+  out. Patterns are matched as Docker's moby/patternmatcher does (one regular
+  expression per pattern: * and ? stop at "/", **/ is any number of folders,
+  a path is left out when it or a folder above it matches, the last matching
+  pattern deciding, ! patterns taking back); Docker's quirks beyond that
+  (e.g. escapes on Windows) are not modelled. Without git only the COPY
+  sources themselves are tried;
 - with kubectl on PATH: `kubectl kustomize` builds the folder (offline), then
   `kubectl apply --dry-run=client -k`, skipped loudly where that needs an API
   server.
@@ -34,6 +56,7 @@ deploy/setup-debian.sh installs it).
 """
 
 import argparse
+import json
 import os
 import re
 import shutil
@@ -282,6 +305,44 @@ def check_service(name, obj, workloads):
                  f"(declared: {declared})")
 
 
+def check_governing_services(objects):
+    """Each StatefulSet's serviceName: a headless Service of the folder that
+    selects the StatefulSet's pods (Kubernetes makes the pods' DNS names
+    through it; a Service with a cluster IP gives them none)."""
+    services = {(o.get("metadata") or {}).get("name"): (n, o) for n, o in objects
+                if o.get("kind") == "Service"}
+    for name, obj in objects:
+        if obj.get("kind") != "StatefulSet":
+            continue
+        where = f"{name} {ident(obj)}"
+        spec = obj.get("spec") or {}
+        service_name = spec.get("serviceName")
+        labels = ((spec.get("template") or {}).get("metadata") or {}).get("labels") or {}
+        if not service_name:
+            fail(where, "spec.serviceName is missing: a StatefulSet needs a headless "
+                 "governing Service")
+            continue
+        if service_name not in services:
+            fail(where, f"spec.serviceName {service_name!r} names no Service of these "
+                 "manifests")
+            continue
+        service_file, service = services[service_name]
+        service_spec = service.get("spec") or {}
+        selector = service_spec.get("selector") or {}
+        problems_before = len(problems)
+        if service_spec.get("clusterIP") != "None":
+            fail(where, f"spec.serviceName {service_name!r} is not headless: "
+                 f"{service_file} Service/{service_name} has clusterIP "
+                 f"{service_spec.get('clusterIP', '(unset: one is allocated)')!r}, "
+                 "a StatefulSet's governing Service needs clusterIP: None")
+        if not selector or not all(labels.get(k) == v for k, v in selector.items()):
+            fail(where, f"spec.serviceName {service_name!r}: its selector {selector} does "
+                 f"not select the StatefulSet's pods (labels {labels})")
+        if len(problems) == problems_before:
+            ok(f"{where}: governed by the headless Service/{service_name} "
+               f"({service_file}), which selects its pods")
+
+
 def check_hpa(name, obj, workloads, server_bin):
     where = f"{name} {ident(obj)}"
     spec = obj.get("spec") or {}
@@ -506,7 +567,267 @@ def check_dockerfile(path, run_programs):
              f"PREFIX/bin/reenact-server ({server_folder}), where the server looks for it")
     elif server_folder:
         ok(f"{where}: the web app is in {web[0]}/web, where reenact-server finds it")
+    check_dockerfile_models(where, final, installed)
     return uid
+
+
+def installed_models():
+    """The tracker's model files that CMakeLists.txt's install() rule puts in
+    DATADIR/reenact/models/tracker (paths relative to the checkout)."""
+    try:
+        with open(os.path.join(ROOT, "CMakeLists.txt"), encoding="utf-8") as f:
+            text = f.read()
+    except OSError:
+        return []
+    files = []
+    for m in re.finditer(r"install\s*\(\s*FILES\s+([^)]*?)\s+DESTINATION\s+([^\s)]+)", text):
+        if m.group(2).endswith("/reenact/models/tracker"):
+            files += m.group(1).split()
+    return files
+
+
+# Ways a RUN could pass without the installed model: a masked exit status,
+# or a model named past the lookup of the installed programs.
+MASKED = re.compile(r"\|\|\s*(?:true|:|exit\s+0)\b|set\s+\+e\b")
+BYPASS = re.compile(r"--model\b|REENACT_TRACKER_(?:MODEL|FOREST)=\S")
+
+
+def check_dockerfile_models(where, final, installed):
+    """The last stage installs the tracker's models where the installed
+    programs look (PREFIX/share/reenact/models/tracker beside PREFIX/bin, see
+    common/tracking/pose_net.h) and then runs the installed `reenact track`,
+    so that a build whose image would not find the model fails."""
+    models = installed_models()
+    if not models:
+        fail("CMakeLists.txt", "no install(FILES models/tracker/... DESTINATION "
+             "${CMAKE_INSTALL_DATADIR}/reenact/models/tracker) rule: which models to check?")
+        return
+    for model in models:
+        if not os.path.isfile(os.path.join(ROOT, model)):
+            fail("CMakeLists.txt", f"installs {model}, which is not in the checkout")
+    cli_folder = installed.get("reenact")
+    if not (cli_folder and cli_folder.endswith("/bin")):
+        fail(where, "the last stage does not COPY reenact into a bin folder, so nothing "
+             "checks that its model is found")
+        return
+    expected = os.path.dirname(cli_folder) + "/share/reenact/models/tracker"
+    copied_at = None  # index of the last line that installs a model
+    names = {os.path.basename(model) for model in models}
+    for index, (instruction, line) in enumerate(final["lines"]):
+        if instruction in ("COPY", "ADD") and names & {os.path.basename(w.rstrip("/"))
+                                                       for w in line.split()[1:-1]}:
+            copied_at = index
+    for model in models:
+        folder = installed.get(os.path.basename(model))
+        if folder != expected:
+            fail(where, f"the last stage does not COPY {model} into {expected}/, where "
+                 f"{cli_folder}/reenact and the other installed programs look for it "
+                 f"(CMakeLists.txt installs it; found: {folder or 'not copied'})")
+        else:
+            ok(f"{where}: installs {model} into {folder}, where the installed programs "
+               "look for it")
+    # The check must come after the models are copied (from the start of the
+    # stage where they are not: then it cannot pass either).
+    start = 0 if copied_at is None else copied_at + 1
+    runs = [line for instruction, line in final["lines"][start:]
+            if instruction == "RUN" and re.search(r"(?<![\w/.-])reenact\s+track\b", line)]
+    if not runs:
+        fail(where, "no RUN of the last stage runs the installed `reenact track` after the "
+             "models are copied, so a build whose model is not found would pass")
+    for line in runs:
+        if MASKED.search(line):
+            fail(where, f"the RUN of `reenact track` masks its failure "
+                 f"({MASKED.search(line).group(0)!r})")
+        elif BYPASS.search(line):
+            fail(where, f"the RUN of `reenact track` names a model itself "
+                 f"({BYPASS.search(line).group(0)!r}) instead of testing the installed "
+                 "lookup")
+        else:
+            ok(f"{where}: a RUN of the last stage runs the installed `reenact track`: the "
+               "build fails when its model is not found")
+
+
+# --- build context (.dockerignore) ------------------------------------------
+
+# Paths the README's commands (and deploy/make-certs.sh, deploy/kubernetes'
+# README) write into the checkout when run from it, which the build context
+# must leave out: secrets first, then takes and what is made from them.
+IGNORED_SAMPLES = [
+    "tls/server.key", "tls/ca.pem", "tls/tokens.json", "certs/server.key", "certs/ca.pem",
+    "server.key", "client.pem", "deploy/kubernetes/server.key", "clients/ca.pem",
+    "capture.token", "node7.token", "deploy/kubernetes/worker.token",
+    "tokens.json", "deploy/tokens.json",
+    "take.mcap", "walk.mcap", "learner.mcap", "stored.mcap", "tests/take.mcap",
+    "teacher.reen", "data/reenactments/x.reen", "data/catalog.sqlite",
+    "data/catalog.sqlite-wal",
+    "teacher.glb", "teacher.bvh", "teacher-appearance.mp4", "ar/video.mp4",
+    "recording.mkv", "recording.oni",
+    "sheet.png", "board.png", "c.jpg", "d.png",
+    "frames/000000.png", "mirror/video.mp4", "reports/rep-001.json", "grade/grade.json",
+    "out/demo/tls/server.key", "build/bin/reenact", ".git/config",
+    "clients/web/node_modules/three/package.json", "clients/web/dist/index.html",
+]
+
+
+def dockerignore_patterns(path):
+    """[(regex, exclusion)] of a .dockerignore, read as Docker reads it:
+    comments and blank lines dropped, each pattern cleaned (a leading / and
+    ./ removed), ! taking back what an earlier pattern left out."""
+    patterns = []
+    with open(path, encoding="utf-8") as f:
+        for raw in f:
+            line = raw.strip()
+            if not line or line.startswith("#"):
+                continue
+            exclusion = line.startswith("!")
+            if exclusion:
+                line = line[1:].strip()
+            line = os.path.normpath(line).lstrip("/")
+            if not line or line == ".":
+                continue
+            patterns.append((docker_regex(line), exclusion))
+    return patterns
+
+
+def docker_regex(pattern):
+    """The regular expression moby/patternmatcher builds of a pattern."""
+    out, i = "", 0
+    while i < len(pattern):
+        ch = pattern[i]
+        if ch == "*":
+            if i + 1 < len(pattern) and pattern[i + 1] == "*":
+                i += 1
+                if i + 1 < len(pattern) and pattern[i + 1] == "/":
+                    i += 1
+                out += ".*" if i + 1 == len(pattern) else "(.*/)?"
+            else:
+                out += "[^/]*"
+        elif ch == "?":
+            out += "[^/]"
+        elif ch == "\\" and i + 1 < len(pattern):
+            i += 1
+            out += re.escape(pattern[i])
+        elif ch == "[":
+            end = pattern.find("]", i + 1)
+            if end < 0:
+                out += re.escape(ch)
+            else:
+                body = pattern[i + 1:end]
+                out += "[" + ("^" + body[1:] if body.startswith("^") else body) + "]"
+                i = end
+        else:
+            out += re.escape(ch)
+        i += 1
+    return re.compile("^" + out + "$")
+
+
+def docker_ignores(patterns, path):
+    """Whether the build context leaves `path` (relative, with /) out: it or
+    a folder above it matches a pattern, the last that decides winning."""
+    parts = path.split("/")
+    candidates = ["/".join(parts[:i]) for i in range(1, len(parts) + 1)]
+    matched = False
+    for regex, exclusion in patterns:
+        if exclusion != matched:
+            continue  # only a pattern that could change the answer
+        if any(regex.match(c) for c in candidates):
+            matched = not exclusion
+    return matched
+
+
+def context_sources(dockerfile):
+    """The paths that COPY/ADD instructions take from the build context
+    (not --from another stage or image), relative to it."""
+    _, stages = parse_dockerfile(dockerfile)
+    sources = []
+    for stage in stages:
+        for instruction, line in stage["lines"]:
+            if instruction not in ("COPY", "ADD"):
+                continue
+            m = re.match(r"\S+\s+((?:--\S+\s+)*)(.*)", line.strip())
+            if not m:
+                continue
+            flags, body = m.groups()
+            if any(f.startswith("--from=") for f in flags.split()):
+                continue
+            if body.startswith("["):  # the exec form: ["SRC", ..., "DEST"]
+                try:
+                    words = json.loads(body)
+                except ValueError:
+                    fail(os.path.relpath(dockerfile, ROOT), f"cannot read {line.strip()}")
+                    continue
+            else:
+                words = body.split()
+            for source in words[:-1]:
+                if re.match(r"^[a-z]+://", source):
+                    continue  # ADD of a URL
+                source = os.path.normpath(source).lstrip("/")
+                sources.append("." if source in ("", ".") else source)
+    return sources
+
+
+def tracked_files():
+    """The files git tracks in the checkout, or None outside git."""
+    git = shutil.which("git")
+    if not git or not os.path.exists(os.path.join(ROOT, ".git")):
+        return None
+    try:
+        listed = subprocess.run([git, "-C", ROOT, "ls-files", "-z"], capture_output=True,
+                                timeout=60, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return [p for p in listed.decode("utf-8", "replace").split("\0") if p]
+
+
+def check_docker_context(dockerignore, dockerfile):
+    where = os.path.relpath(dockerignore, ROOT)
+    try:
+        patterns = dockerignore_patterns(dockerignore)
+    except OSError as e:
+        fail(where, f"cannot be read: {e} (the build context would hold the whole checkout)")
+        return
+    kept = [p for p in IGNORED_SAMPLES if not docker_ignores(patterns, p)]
+    for path in kept:
+        fail(where, f"{path} would be in the build context (the README's commands write "
+             "such secrets or data into the checkout): add a pattern that leaves it out")
+    if not kept:
+        ok(f"{where}: leaves out secrets and data ({len(IGNORED_SAMPLES)} sample paths: "
+           "tls/, certs/, *.key, *.pem, *.token, tokens.json, *.mcap, *.reen, *.glb, "
+           "*.bvh, *.mp4, stores, reports, frames)")
+    try:
+        sources = context_sources(dockerfile)
+    except OSError as e:
+        fail(os.path.relpath(dockerfile, ROOT), f"cannot be read: {e}")
+        return
+    tracked = tracked_files()
+    if tracked is None:
+        print(f"note {where}: not a git checkout: only the COPY sources themselves are "
+              "tried, not the files under them")
+    for source in sources:
+        if not glob_free(source):
+            continue
+        if source != "." and not os.path.exists(os.path.join(ROOT, source)):
+            fail(os.path.relpath(dockerfile, ROOT), f"COPY {source}: not in the checkout")
+            continue
+        if source != "." and docker_ignores(patterns, source):
+            fail(where, f"leaves out {source}, which the Dockerfile copies")
+            continue
+        if tracked is None:
+            ok(f"{where}: keeps {source}, which the Dockerfile copies")
+            continue
+        files = [p for p in tracked if source == "." or p == source or
+                 p.startswith(source.rstrip("/") + "/")]
+        dropped = [p for p in files if docker_ignores(patterns, p)]
+        if dropped:
+            fail(where, f"leaves out {len(dropped)} tracked file(s) that COPY {source} "
+                 f"copies: {', '.join(dropped[:8])}{' ...' if len(dropped) > 8 else ''} "
+                 "(narrow the pattern, or take them back with !PATH)")
+        else:
+            ok(f"{where}: keeps all {len(files)} tracked file(s) that COPY {source} copies")
+
+
+def glob_free(path):
+    return not any(c in path for c in "*?[")
 
 
 # --- kubectl -----------------------------------------------------------------
@@ -556,6 +877,9 @@ def main():
     parser.add_argument("--manifests", default=os.path.join(ROOT, "deploy", "kubernetes"))
     parser.add_argument("--dockerfile",
                         default=os.path.join(ROOT, "deploy", "docker", "Dockerfile"))
+    parser.add_argument("--dockerignore", default=os.path.join(ROOT, ".dockerignore"),
+                        help="the build context's .dockerignore (the Dockerfile builds from "
+                             "the top of the checkout)")
     parser.add_argument("--server-bin", help="reenact-server, for its --help and metric names")
     parser.add_argument("--worker-bin", help="reenact-worker, for its --help")
     parser.add_argument("--cli-bin", help="reenact, for its --help (if a manifest runs it)")
@@ -575,6 +899,7 @@ def main():
     run_programs = {program_of(c) for _, o in objects if o.get("kind") in WORKLOADS
                     for _, c in containers(o)} & set(PROGRAMS)
     uid = check_dockerfile(os.path.abspath(args.dockerfile), run_programs)
+    check_docker_context(os.path.abspath(args.dockerignore), os.path.abspath(args.dockerfile))
 
     workloads = []
     for name, obj in objects:
@@ -588,6 +913,7 @@ def main():
             check_service(name, obj, workloads)
         elif obj.get("kind") == "HorizontalPodAutoscaler":
             check_hpa(name, obj, workloads, args.server_bin)
+    check_governing_services(objects)
     if not any(o.get("kind") == "HorizontalPodAutoscaler" for _, o in objects):
         fail(folder, "no HorizontalPodAutoscaler for the workers")
     check_insecure(objects)

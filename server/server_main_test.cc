@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <regex>
 #include <string>
@@ -115,6 +116,25 @@ TEST(ServerMain, UsageErrorsExitWithTwo) {
     EXPECT_TRUE(info.exited);
     EXPECT_EQ(info.exit_code, 2) << err;
     EXPECT_NE(err.find("usage: reenact-server"), std::string::npos) << err;
+  }
+}
+
+// --help reads as a page: grouped, every line under 100 characters.
+TEST(ServerMain, HelpIsAPageOfShortLines) {
+  const std::string usage = reenact::server::kServerUsage;
+  size_t lines = 0, longest = 0, start = 0;
+  while (start <= usage.size()) {
+    size_t end = usage.find('\n', start);
+    if (end == std::string::npos) end = usage.size();
+    longest = std::max(longest, end - start);
+    ++lines;
+    start = end + 1;
+  }
+  std::printf("reenact-server --help: %zu lines, the longest %zu characters\n", lines, longest);
+  EXPECT_LT(longest, 100u);
+  EXPECT_GT(lines, 40u);
+  for (const char* heading : {"Jobs and workers:", "Security:", "Limits on what clients send:"}) {
+    EXPECT_NE(usage.find(heading), std::string::npos) << heading;
   }
 }
 

@@ -424,8 +424,8 @@ TEST_F(ReenactmentEndToEnd, BodyModelFromIngestToExport) {
   const int frames = summary["frame_count"].get<int>();
   EXPECT_GT(frames, 0);
 
-  // The fitted skeleton as BVH (centimetres): our reader finds every Kinect
-  // v2 joint and every frame.
+  // The fitted skeleton as BVH (metres, the default --units): our reader
+  // finds every Kinect v2 joint and every frame.
   const std::string bvh = *dir_ + "/" + body + ".bvh";
   const CommandResult exported =
       RunCommand(*dir_, "export-bvh-" + body,
@@ -433,7 +433,7 @@ TEST_F(ReenactmentEndToEnd, BodyModelFromIngestToExport) {
                   "--format", "bvh", "--out", bvh, "--quiet"});
   ASSERT_EQ(exported.exit_code, 0) << exported.err;
   body::BvhOptions bvh_options;
-  bvh_options.metres_per_unit = 0.01;
+  bvh_options.metres_per_unit = 1.0;
   const absl::StatusOr<body::Motion> motion = body::ReadBvh(bvh, bvh_options);
   ASSERT_TRUE(motion.ok()) << motion.status();
   EXPECT_EQ(motion->num_frames(), frames);
@@ -448,6 +448,19 @@ TEST_F(ReenactmentEndToEnd, BodyModelFromIngestToExport) {
     }
   }
   EXPECT_EQ(named, body::kNumKinectV2Joints);
+  // three.js's BVHLoader (tests/js/check_bvh.mjs): continuous channels, End
+  // Sites instead of zero-length bones, a person's height in metres.
+  const std::string js = std::string(REENACT_SOURCE_DIR) + "/tests/js";
+  if (fs::exists(js + "/node_modules/three") &&
+      std::system("node --version > /dev/null 2>&1") == 0) {
+    const CommandResult check =
+        RunCommand(*dir_, "bvh-loader-" + body, {"node", js + "/check_bvh.mjs", bvh});
+    EXPECT_EQ(check.exit_code, 0) << check.out << check.err;
+    std::cout << "[ BVH      ] " << check.out << std::flush;
+  } else {
+    std::cout << "*** node or the npm three is missing (bash deploy/setup-debian.sh installs "
+                 "them); the BVH check did not run ***\n";
+  }
 
   const nlohmann::json figures = Eval(body);
   ASSERT_TRUE(figures.is_object());

@@ -1,10 +1,13 @@
 // Interoperability of reenactments: the .glb export must pass the Khronos
 // glTF-Validator (tests/js/check_gltf.mjs, npm gltf-validator) with zero
-// errors, and reenactment files must open in an independent MCAP reader
+// errors, the BVH export must read in three.js's BVHLoader with continuous
+// channels and no zero-length bone (tests/js/check_bvh.mjs, npm three), and
+// reenactment files must open in an independent MCAP reader
 // (tests/js/check_take.mjs, @mcap/core).
 //
 // Setup (once per checkout; deploy/setup-debian.sh does it for CI):
 //   npm ci --prefix tests/js   or   npm install --prefix tests/js
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -16,7 +19,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/str_cat.h"
 #include "common/base/files.h"
+#include "common/body/motion.h"
+#include "common/io/body_reenactment_motion.h"
 #include "common/io/gltf_export.h"
 #include "common/io/reenactment_file.h"
 #include "common/io/testing/small_reenactment.h"
@@ -44,9 +50,12 @@ const std::string kJsDir = std::string(REENACT_SOURCE_DIR) + "/tests/js";
     }                                                                                     \
   } while (false)
 
-// Runs `node tests/js/<script> <path>` and parses the JSON it prints.
-nlohmann::json RunNode(const std::string& script, const std::string& path, int* exit_code) {
-  const std::string command = "node '" + kJsDir + "/" + script + "' '" + path + "' 2>&1";
+// Runs `node tests/js/<script> <args...>` and parses the JSON it prints.
+nlohmann::json RunNode(const std::string& script, const std::vector<std::string>& args,
+                       int* exit_code) {
+  std::string command = "node '" + kJsDir + "/" + script + "'";
+  for (const std::string& arg : args) command += " '" + arg + "'";
+  command += " 2>&1";
   std::FILE* pipe = ::popen(command.c_str(), "r");
   EXPECT_NE(pipe, nullptr) << command;
   if (pipe == nullptr) return {};
@@ -58,6 +67,10 @@ nlohmann::json RunNode(const std::string& script, const std::string& path, int* 
   const nlohmann::json result = nlohmann::json::parse(output, nullptr, false);
   EXPECT_FALSE(result.is_discarded()) << script << " printed no JSON:\n" << output;
   return result;
+}
+
+nlohmann::json RunNode(const std::string& script, const std::string& path, int* exit_code) {
+  return RunNode(script, std::vector<std::string>{path}, exit_code);
 }
 
 // Exports `data` to `path` and validates it; returns the validator's report.
@@ -164,6 +177,84 @@ TEST(GltfValidator, ReportsErrorsInADamagedFile) {
   const nlohmann::json report = RunNode("check_gltf.mjs", path, &exit_code);
   EXPECT_EQ(exit_code, 1);
   EXPECT_GE(report.value("num_errors", 0), 1) << report.dump(2);
+}
+
+// The fitted skeleton as BVH, read by three.js's BVHLoader (check_bvh.mjs):
+// every joint, an End Site on each of the 7 leaves instead of a zero-length
+// bone, channels continuous from frame to frame (no jump between equivalent
+// Euler angles, so a linear blend between frames turns the short way), and
+// a person's height at the reader's default scale in metres, the same
+// figure read as centimetres.
+TEST(BvhLoader, BodySkeletonIsContinuousWithEndSitesInMetresOrCentimetres) {
+  REQUIRE_NODE_PACKAGE("three");
+  const std::string dir = testing::MakeTempDir("bvh_loader");
+  // A performer who spins once and a quarter (15 degrees a frame) while every
+  // joint turns steadily about its own axis: rotations that cross every
+  // Euler branch cut.
+  ReenactmentData data = testing::MakeTestBodyReenactment(30);
+  for (int f = 0; f < 30; ++f) {
+    v1::BodyPose* message = data.frames[f].mutable_body();
+    auto pose = BodyPoseFromProto(*message);
+    ASSERT_TRUE(pose.ok()) << pose.status();
+    pose->local_rotation[0] = Eigen::AngleAxisd(f * 15.0 * M_PI / 180.0, Eigen::Vector3d::UnitY());
+    for (int j = 1; j < body::kNumKinectV2Joints; ++j) {
+      pose->local_rotation[j] = Eigen::AngleAxisd(
+          0.12 * f, Eigen::Vector3d(std::sin(j), std::cos(2.0 * j), 0.5).normalized());
+    }
+    *message = BodyPoseToProto(*pose);
+  }
+  const absl::StatusOr<body::Motion> motion = BodyReenactmentMotion(testing::ToPlain(data));
+  ASSERT_TRUE(motion.ok()) << motion.status();
+  double height_m[2] = {0.0, 0.0};
+  int k = 0;
+  for (const auto& [unit, metres_per_unit] :
+       std::vector<std::pair<std::string, double>>{{"m", 1.0}, {"cm", 0.01}}) {
+    const std::string path = dir + "/body_" + unit + ".bvh";
+    body::BvhWriteOptions options;
+    options.metres_per_unit = metres_per_unit;
+    ASSERT_TRUE(body::WriteBvh(*motion, path, options).ok());
+    int exit_code = -1;
+    const nlohmann::json report = RunNode(
+        "check_bvh.mjs", {path, "--metres-per-unit", absl::StrCat(metres_per_unit)}, &exit_code);
+    ASSERT_TRUE(report.contains("bones")) << report.dump(2);
+    EXPECT_EQ(exit_code, 0) << report.dump(2);
+    EXPECT_EQ(report["bones"].get<int>(), body::kNumKinectV2Joints);
+    EXPECT_EQ(report["end_sites"].get<int>(), 7);
+    EXPECT_EQ(report["frames"].get<int>(), 30);
+    EXPECT_TRUE(report["zero_length_bones"].empty()) << report["zero_length_bones"].dump();
+    EXPECT_LE(report["excess_jump_deg"].get<double>(), 1.0);
+    EXPECT_LE(report["max_blend_error_deg"].get<double>(), 5.0);
+    height_m[k++] = report["height_m"].get<double>();
+    std::printf(
+        "BVH in %s, read by BVHLoader: %.3f m tall, excess jump %.3f deg, blend error %.2f deg, "
+        "%d channel changes over 90 deg\n",
+        unit.c_str(), report["height_m"].get<double>(), report["excess_jump_deg"].get<double>(),
+        report["max_blend_error_deg"].get<double>(), report["channel_jumps_over_90"].get<int>());
+  }
+  // Frame 0 is the rest pose: the test body's stature.
+  EXPECT_GT(height_m[0], 1.5);
+  EXPECT_LT(height_m[0], 2.0);
+  EXPECT_NEAR(height_m[1], height_m[0], 1e-3);
+
+  // The checker can fail: one channel turned by a whole turn in one frame
+  // (the same rotation, a jump a player would blend through).
+  auto text = ReadFileToString(dir + "/body_m.bvh");
+  ASSERT_TRUE(text.ok());
+  const size_t motion_at = text->find("Frame Time:");
+  ASSERT_NE(motion_at, std::string::npos);
+  size_t line = motion_at;
+  for (int skip = 0; skip < 11; ++skip) line = text->find('\n', line) + 1;
+  // The fourth number of frame 10: the root's first rotation channel.
+  size_t at = line;
+  for (int skip = 0; skip < 3; ++skip) at = text->find(' ', at) + 1;
+  const size_t end = text->find(' ', at);
+  const double value = std::stod(text->substr(at, end - at));
+  text->replace(at, end - at, absl::StrCat(value + 360.0));
+  ASSERT_TRUE(WriteFileAtomically(dir + "/jump.bvh", *text).ok());
+  int exit_code = -1;
+  const nlohmann::json jump = RunNode("check_bvh.mjs", {dir + "/jump.bvh"}, &exit_code);
+  EXPECT_EQ(exit_code, 1) << jump.dump(2);
+  EXPECT_NEAR(jump.value("excess_jump_deg", 0.0), 360.0, 1.0) << jump.dump(2);
 }
 
 // Writes `data` to `path` and reads it with @mcap/core (check_take.mjs):

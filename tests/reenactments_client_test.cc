@@ -328,9 +328,10 @@ TEST(ReenactCli, ShowsAndExportsABodyReenactment) {
   const nlohmann::json bvh_summary = ExportJson(server, "r-body-cli", "bvh", dir + "/body.bvh");
   EXPECT_EQ(bvh_summary["joints"], 25);
   EXPECT_EQ(bvh_summary["frames"], 6);
-  // The file reads back as the posed joints (0.1 mm).
+  EXPECT_EQ(bvh_summary["units"], "m");
+  // The file reads back as the posed joints (0.1 mm), in metres by default.
   body::BvhOptions options;
-  options.metres_per_unit = 0.01;
+  options.metres_per_unit = 1.0;
   auto motion = body::ReadBvh(dir + "/body.bvh", options);
   ASSERT_TRUE(motion.ok()) << motion.status();
   auto mesh = DecodeBodyMesh(stored.body[0]);
@@ -351,6 +352,25 @@ TEST(ReenactCli, ShowsAndExportsABodyReenactment) {
   EXPECT_NE(local.out.find("25 Kinect v2 joints, 6 frames"), std::string::npos) << local.out;
   EXPECT_EQ(std::filesystem::file_size(dir + "/local.bvh"),
             std::filesystem::file_size(dir + "/body.bvh"));
+  // --units cm: the same joints read as centimetres; a unit it does not know
+  // is a usage error.
+  const CliRun cm = Cli({"export", "--in", f.store->PathFor("r-body-cli"), "--format", "bvh",
+                         "--units", "cm", "--out", dir + "/cm.bvh"});
+  ASSERT_EQ(cm.code, 0) << cm.err;
+  EXPECT_NE(cm.out.find("centimetres"), std::string::npos) << cm.out;
+  options.metres_per_unit = 0.01;
+  auto in_cm = body::ReadBvh(dir + "/cm.bvh", options);
+  ASSERT_TRUE(in_cm.ok()) << in_cm.status();
+  const auto world_m = motion->WorldFromJoints(3);
+  const auto world_cm = in_cm->WorldFromJoints(3);
+  for (size_t j = 0; j < world_m.size(); ++j) {
+    EXPECT_LT((world_m[j].translation() - world_cm[j].translation()).norm(), 0.1e-3) << j;
+  }
+  const CliRun inches = Cli({"export", "--in", f.store->PathFor("r-body-cli"), "--format", "bvh",
+                             "--units", "in", "--out", dir + "/in.bvh"});
+  EXPECT_EQ(inches.code, cli::kExitUsage);
+  EXPECT_NE(inches.err.find("--units in is not supported"), std::string::npos) << inches.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/in.bvh"));
 }
 
 }  // namespace

@@ -167,7 +167,7 @@ TEST_F(TrackedUploadE2e, AnImportedRecordingOfAPersonGetsSkeletonsAndABodyJob) {
                   "bvh", "--out", bvh, "--quiet"});
   ASSERT_EQ(exported.exit_code, 0) << exported.err;
   body::BvhOptions bvh_options;
-  bvh_options.metres_per_unit = 0.01;
+  bvh_options.metres_per_unit = 1.0;  // The export's default unit, metres.
   const absl::StatusOr<body::Motion> fitted = body::ReadBvh(bvh, bvh_options);
   ASSERT_TRUE(fitted.ok()) << fitted.status();
   ASSERT_EQ(fitted->num_frames(), kFrames);

@@ -213,15 +213,15 @@ std::vector<Command> BuildCommandTable() {
        "jobs of a reenact-server, newest first (all of them, N a call)",
        RunJobsList},
       {{"jobs", "show"},
-       "--job ID [--server HOST:PORT] [--json]",
+       "JOB_ID|--job ID [--server HOST:PORT] [--json]",
        "one job: state, progress, times, result or error",
        RunJobsShow},
       {{"jobs", "watch"},
-       "--job ID [--server HOST:PORT] [--logs] [--json]",
+       "JOB_ID|--job ID [--server HOST:PORT] [--logs] [--json]",
        "follow a job to its end (progress bar, or one JSON object per event)",
        RunJobsWatch},
       {{"jobs", "cancel"},
-       "--job ID [--server HOST:PORT] [--json]",
+       "JOB_ID|--job ID [--server HOST:PORT] [--json]",
        "stop a queued or running job",
        RunJobsCancel},
       {{"reenactments", "list"},
@@ -245,10 +245,11 @@ std::vector<Command> BuildCommandTable() {
        RunReenactmentsFollow},
       {{"export"},
        "(--server HOST:PORT --reenactment ID | --in FILE.reen) --format glb|bvh|appearance "
-       "--out FILE [--no-textures] [--quiet] [--json]",
+       "--out FILE [--no-textures] [--units m|cm] [--quiet] [--json]",
        "export a reenactment as glTF 2.0 (.glb: textured part nodes, or a body model's skinned "
-       "mesh, with their animation), a body model's fitted skeleton as BVH, or its per-frame "
-       "appearance video (MP4; frame i textures the glb's frame i)",
+       "mesh, with their animation), a body model's fitted skeleton as BVH (--units: metres, "
+       "Blender's default scale, or centimetres), or its per-frame appearance video (MP4; frame "
+       "i textures the glb's frame i)",
        RunExport},
       {{"render"},
        "(--server HOST:PORT --reenactment ID | --in FILE.reen) --camera orbit:DEG|sensor:N "

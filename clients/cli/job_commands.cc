@@ -14,6 +14,7 @@
 #include <optional>
 #include <ostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -373,6 +374,27 @@ int RunJobsMethods(const std::vector<std::string>& args, std::ostream& out, std:
     out << j.dump(2) << "\n";
     return kExitOk;
   }
+  // Advice first, in the words of what a coach wants, for the methods this
+  // server has; the details (and the thesis sections) follow.
+  const std::vector<std::pair<std::string, std::string>> advice = {
+      {"body",
+       "a person: a fitted body model that moves smoothly, for the mirror, grading and exports "
+       "to animation tools (--model makehuman:NAME where the server has the assets)"},
+      {"rigid-carved",
+       "whatever the sensors saw, props and loose clothes included, as rigid parts carved from "
+       "the depth (two or more sensors)"},
+      {"rigid-cylinders", "the quickest look: rigid parts shaped as cylinders round the skeleton"},
+  };
+  bool advised = false;
+  for (const auto& [name, words] : advice) {
+    for (const v1::MethodDescription& method : *methods) {
+      if (method.name() != name) continue;
+      if (!advised) out << "Which to pick:\n";
+      advised = true;
+      out << absl::StrFormat("  %-16s %s\n", name, words);
+    }
+  }
+  if (advised) out << "\n";
   for (const v1::MethodDescription& method : *methods) {
     const nlohmann::json j = MethodJson(method);
     out << method.name() << ": " << method.summary() << "\n"

@@ -1,10 +1,14 @@
 // `reenact jobs ...` against a fake Jobs service on 127.0.0.1:0: flags,
 // options, progress bar, JSON output and exit codes.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
@@ -199,6 +203,90 @@ TEST(Dispatch, AGroupWithoutItsCommandListsTheGroup) {
   std::ostringstream out4, err4;
   EXPECT_EQ(Dispatch({"nothing"}, out4, err4), kExitUsage);
   EXPECT_NE(err4.str().find("unknown command 'nothing'"), std::string::npos);
+}
+
+// `reenact help`: commands under headings, each with the first clause of its
+// summary (folded under 100 characters), and the next step at the end.
+TEST(Dispatch, HelpGroupsTheCommandsUnderHeadings) {
+  std::ostringstream out, err;
+  ASSERT_EQ(Dispatch({"help"}, out, err), kExitOk);
+  const std::string help = out.str();
+  for (const char* heading :
+       {"Record with a reenactd beside the sensors:", "Takes on this machine:",
+        "A reenact-server: takes, jobs and reenactments:", "Skeleton tracking:"}) {
+    EXPECT_NE(help.find(heading), std::string::npos) << heading;
+  }
+  for (const Command& c : AllCommands()) {
+    std::string name;
+    for (const auto& p : c.path) name += (name.empty() ? "" : " ") + p;
+    EXPECT_NE(help.find("\n  " + name + " "), std::string::npos) << name;
+  }
+  size_t longest = 0;
+  std::istringstream lines(help);
+  for (std::string line; std::getline(lines, line);) longest = std::max(longest, line.size());
+  EXPECT_LE(longest, 100u) << help;
+  EXPECT_NE(help.find("--help: what it does, its arguments and flags"), std::string::npos);
+  std::printf("reenact help: %zu lines, the longest %zu characters\n",
+              static_cast<size_t>(std::count(help.begin(), help.end(), '\n')), longest);
+  std::ostringstream group, group_err;
+  ASSERT_EQ(Dispatch({"help", "jobs"}, group, group_err), kExitOk);
+  EXPECT_NE(group.str().find("jobs submit"), std::string::npos);
+  EXPECT_EQ(group.str().find("takes upload"), std::string::npos) << "only the group's commands";
+}
+
+TEST(Dispatch, VersionPrintsTheProjectVersion) {
+  for (const char* flag : {"--version", "version"}) {
+    std::ostringstream out, err;
+    EXPECT_EQ(Dispatch({flag}, out, err), kExitOk);
+    EXPECT_EQ(out.str(), std::string("reenact ") + REENACT_VERSION + "\n");
+  }
+}
+
+// A mistyped command or flag names the nearest one.
+TEST(Dispatch, AMistypedCommandOrFlagSuggestsTheNearest) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"jobs", "sumbit"}, "did you mean 'reenact jobs submit'?"},
+      {{"reenactment", "list"}, "did you mean 'reenact reenactments list'?"},
+      {{"exprot", "--out", "x"}, "did you mean 'reenact export'?"},
+      {{"jobs", "list", "--sever", "127.0.0.1:1"}, "unknown flag --sever (did you mean --server?)"},
+  };
+  for (const auto& [args, says] : cases) {
+    std::ostringstream out, err;
+    EXPECT_EQ(Dispatch(args, out, err), kExitUsage) << args[0];
+    EXPECT_NE(err.str().find(says), std::string::npos) << err.str();
+  }
+  std::ostringstream out, err;
+  EXPECT_EQ(Dispatch({"frobnicate"}, out, err), kExitUsage);
+  EXPECT_EQ(err.str().find("did you mean"), std::string::npos) << "no near command";
+}
+
+// A server that is not there, an address without a port, and REENACT_SERVER.
+TEST(RemoteErrors, AnUnreachableServerSaysWhatToTryNext) {
+  {
+    std::ostringstream out, err;
+    EXPECT_EQ(Dispatch({"jobs", "list", "--server", "127.0.0.1:1", "--timeout", "5"}, out, err),
+              kExitFailure);
+    EXPECT_NE(err.str().find("UNAVAILABLE"), std::string::npos) << err.str();
+    EXPECT_NE(err.str().find("hint: nothing answers there: is reenact-server running"),
+              std::string::npos)
+        << err.str();
+  }
+  for (const std::string address :
+       {"localhost", "localhost:", ":50051", "localhost:0", "localhost:99999", "::1:50051"}) {
+    std::ostringstream out, err;
+    EXPECT_EQ(Dispatch({"jobs", "list", "--server", address}, out, err), kExitUsage) << address;
+    EXPECT_NE(err.str().find("give HOST:PORT, e.g. 127.0.0.1:50051"), std::string::npos)
+        << err.str();
+  }
+  ASSERT_EQ(::setenv("REENACT_SERVER", "127.0.0.1:1", 1), 0);
+  std::ostringstream out, err;
+  EXPECT_EQ(Dispatch({"jobs", "list", "--timeout", "5"}, out, err), kExitFailure);
+  EXPECT_NE(err.str().find("127.0.0.1:1"), std::string::npos) << err.str();
+  ::setenv("REENACT_SERVER", "no-port", 1);
+  std::ostringstream out2, err2;
+  EXPECT_EQ(Dispatch({"jobs", "list"}, out2, err2), kExitUsage);
+  EXPECT_NE(err2.str().find("--server \"no-port\": no port"), std::string::npos) << err2.str();
+  ::unsetenv("REENACT_SERVER");
 }
 
 TEST_F(JobCommands, SubmitWaitJsonPrintsTheJobAndTheReenactment) {

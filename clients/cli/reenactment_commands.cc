@@ -200,10 +200,29 @@ int ExportGlb(const Reenactment& data, const Flags& flags, const std::string& pa
   return kExitOk;
 }
 
+// The length unit of a BVH export (--units): metres by default, which
+// Blender's importer and three.js's BVHLoader take at their default scale;
+// centimetres for tools that expect them (MotionBuilder, CMU-style files).
+struct BvhUnits {
+  std::string name;  // "m" or "cm".
+  double metres_per_unit = 1.0;
+};
+
+absl::StatusOr<BvhUnits> BvhUnitsFromFlags(const Flags& flags) {
+  const std::string units = flags.GetOr("units", "m");
+  if (units == "m") return BvhUnits{"m", 1.0};
+  if (units == "cm") return BvhUnits{"cm", 0.01};
+  return absl::InvalidArgumentError(
+      absl::StrCat("--units ", units,
+                   " is not supported (m: metres, Blender's default scale; cm: centimetres)"));
+}
+
 // `reenact export --format bvh`: the fitted skeleton of a body-model
-// reenactment (BodyReenactmentMotion) as BVH, centimetres.
+// reenactment (BodyReenactmentMotion) as BVH, in --units.
 int ExportBvh(const Reenactment& data, const Flags& flags, const std::string& path,
               std::ostream& out, std::ostream& err) {
+  const absl::StatusOr<BvhUnits> units = BvhUnitsFromFlags(flags);
+  if (!units.ok()) return ReportError(units.status(), err);
   if (!data.is_body()) {
     return ReportError(
         absl::InvalidArgumentError(absl::StrCat(
@@ -213,7 +232,9 @@ int ExportBvh(const Reenactment& data, const Flags& flags, const std::string& pa
   }
   auto motion = BodyReenactmentMotion(data);
   if (!motion.ok()) return ReportRemoteError(motion.status(), err);
-  const absl::Status written = body::WriteBvh(*motion, path);
+  body::BvhWriteOptions options;
+  options.metres_per_unit = units->metres_per_unit;
+  const absl::Status written = body::WriteBvh(*motion, path, options);
   if (!written.ok()) return ReportRemoteError(written, err);
   std::error_code ec;
   const auto bytes = static_cast<int64_t>(std::filesystem::file_size(path, ec));
@@ -224,6 +245,7 @@ int ExportBvh(const Reenactment& data, const Flags& flags, const std::string& pa
                           {"joints", motion->joints().size()},
                           {"frames", motion->num_frames()},
                           {"fps", motion->fps()},
+                          {"units", units->name},
                           {"bytes", ec ? -1 : bytes}}
                .dump(2)
         << "\n";
@@ -231,7 +253,9 @@ int ExportBvh(const Reenactment& data, const Flags& flags, const std::string& pa
   }
   out << "wrote " << path << " (" << HumanBytes(ec ? 0 : bytes)
       << "): bvh: " << motion->joints().size() << " Kinect v2 joints, " << motion->num_frames()
-      << absl::StrFormat(" frames at %.2f fps, centimetres", motion->fps()) << "\n";
+      << absl::StrFormat(" frames at %.2f fps, %s", motion->fps(),
+                         units->name == "m" ? "metres" : "centimetres")
+      << "\n";
   return kExitOk;
 }
 
@@ -481,12 +505,22 @@ int RunReenactmentsFollow(const std::vector<std::string>& args, std::ostream& ou
 
 int RunExport(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   auto flags = Flags::Parse(
-      args, {"server", "timeout", "tls-ca", "token-file", "reenactment", "in", "format", "out"},
+      args,
+      {"server", "timeout", "tls-ca", "token-file", "reenactment", "in", "format", "out", "units"},
       {"no-textures", "quiet", "json"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   auto out_path = flags->Required("out");
   if (!out_path.ok()) return ReportError(out_path.status(), err);
   const std::string format = flags->GetOr("format", "glb");
+  if (flags->Has("units") && format != "bvh") {
+    return ReportError(absl::InvalidArgumentError("--units applies to --format bvh alone"), err);
+  }
+  if (format == "bvh") {
+    // Before the fetch: a bad unit costs no download.
+    if (const auto units = BvhUnitsFromFlags(*flags); !units.ok()) {
+      return ReportError(units.status(), err);
+    }
+  }
   if (format != "glb" && format != "bvh" && format != "appearance") {
     return ReportError(absl::InvalidArgumentError(absl::StrCat(
                            "--format ", format,

@@ -17,18 +17,23 @@ namespace reenact::cli {
 inline constexpr char kDefaultServer[] = "127.0.0.1:50051";
 inline constexpr char kDefaultDaemon[] = "127.0.0.1:50052";
 
-// The address from `--<address_flag>` (else `fallback`), the RPC deadline
-// from --timeout seconds (else `default_timeout_s`), the server's CA from
-// --tls-ca (else $REENACT_TLS_CA) and the token from --token-file (else
-// $REENACT_TOKEN). InvalidArgument for a timeout that is not a positive
-// number or an unreadable CA or token file.
+// $REENACT_SERVER when it is set and not empty, else `fallback`.
+std::string ServerAddressFromEnvironment(const char* fallback = kDefaultServer);
+
+// The address from `--<address_flag>` (else, for --server, $REENACT_SERVER;
+// else `fallback`), the RPC deadline from --timeout seconds (else
+// `default_timeout_s`), the server's CA from --tls-ca (else
+// $REENACT_TLS_CA) and the token from --token-file (else $REENACT_TOKEN).
+// InvalidArgument for an address that is not HOST:PORT (or unix:PATH), a
+// timeout that is not a positive number or an unreadable CA or token file.
 absl::StatusOr<client::ConnectionOptions> ConnectionFromFlags(const Flags& flags,
                                                               const char* address_flag = "server",
                                                               const char* fallback = kDefaultServer,
                                                               double default_timeout_s = 10.0);
 
-// Prints the error with its status name ("PERMISSION_DENIED: ...") and
-// returns kExitFailure: a failed RPC is a failure, not a usage error,
+// Prints the error with its status name ("PERMISSION_DENIED: ...") and,
+// for an unreachable server, a missing token or the like, a line on what to
+// try next; returns kExitFailure: a failed RPC is a failure, not a usage error,
 // whatever its code.
 int ReportRemoteError(const absl::Status& status, std::ostream& err);
 

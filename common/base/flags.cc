@@ -2,6 +2,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "common/base/nearest_name.h"
 
 namespace reenact {
 
@@ -33,7 +34,12 @@ absl::StatusOr<Flags> Flags::Parse(const std::vector<std::string>& args,
       }
       flags.values_[name] = *value;
     } else {
-      return absl::InvalidArgumentError(absl::StrCat("unknown flag --", name));
+      std::vector<std::string> known(value_flags.begin(), value_flags.end());
+      known.insert(known.end(), bool_flags.begin(), bool_flags.end());
+      const std::optional<std::string> near = NearestName(name, known);
+      return absl::InvalidArgumentError(
+          absl::StrCat("unknown flag --", name,
+                       near ? absl::StrCat(" (did you mean --", *near, "?)") : std::string()));
     }
   }
   return flags;

@@ -7,9 +7,20 @@
 // its position channels carry Motion::root_translation_m. A joint named
 // "<parent>_end" without children (how ReadBvh names an End Site) is written
 // back as that parent's End Site; any other joint without children gets an
-// End Site of zero offset, which ReadBvh reads back as an extra
-// "<joint>_end" joint at the joint itself.
+// End Site along its own bone (EndSiteOffset), so that no bone of the file
+// has zero length: importers that make a bone per joint (Blender) give the
+// leaf a bone from the joint to its End Site.
+//
+// Angles are continuous from frame to frame: of the two Z-X-Y triples of a
+// rotation, (a, b, c) and (a + 180, 180 - b, c + 180), and of their turns by
+// whole multiples of 360 degrees, each frame writes the one nearest to the
+// previous frame's, so that a player interpolating channels linearly
+// between frames turns the short way.
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -26,6 +37,39 @@ bool IsEndSite(const Motion& motion, const std::vector<std::vector<int>>& childr
   const MotionJoint& j = motion.joints()[joint];
   return j.parent >= 0 && children[joint].empty() &&
          j.name == motion.joints()[j.parent].name + "_end";
+}
+
+// The offset of the End Site of a leaf joint whose own offset from its
+// parent is `offset_m`: half the leaf's bone onward, at least 2 cm; 5 cm up
+// for a leaf that sits on its parent.
+Eigen::Vector3d EndSiteOffset(const Eigen::Vector3d& offset_m) {
+  constexpr double kMinLengthM = 0.02;
+  const double length = offset_m.norm();
+  if (!(length > 1e-9)) return Eigen::Vector3d(0.0, 0.05, 0.0);
+  return offset_m * (std::max(0.5 * length, kMinLengthM) / length);
+}
+
+// Z-X-Y Euler angles (radians) of `rotation`, the triple nearest `previous`
+// (see the file comment); `previous` null: Eigen's principal triple.
+Eigen::Vector3d ContinuousZxy(const Eigen::Matrix3d& rotation, const Eigen::Vector3d* previous) {
+  Eigen::Vector3d principal = rotation.eulerAngles(2, 0, 1);
+  if (previous == nullptr) return principal;
+  constexpr double kPi = std::numbers::pi;
+  const std::array<Eigen::Vector3d, 2> candidates = {
+      principal, Eigen::Vector3d(principal[0] + kPi, kPi - principal[1], principal[2] + kPi)};
+  Eigen::Vector3d best = principal;
+  double best_distance = std::numeric_limits<double>::infinity();
+  for (Eigen::Vector3d candidate : candidates) {
+    for (int k = 0; k < 3; ++k) {
+      candidate[k] += 2.0 * kPi * std::round(((*previous)[k] - candidate[k]) / (2.0 * kPi));
+    }
+    const double distance = (candidate - *previous).cwiseAbs().sum();
+    if (distance < best_distance) {
+      best_distance = distance;
+      best = candidate;
+    }
+  }
+  return best;
 }
 
 class Writer {
@@ -102,7 +146,7 @@ class Writer {
     }
     if (children_[j].empty()) {
       absl::StrAppend(&out_, indent, "  End Site\n", indent, "  {\n");
-      AppendOffset(indent + "    ", Eigen::Vector3d::Zero());
+      AppendOffset(indent + "    ", EndSiteOffset(joint.offset_m));
       absl::StrAppend(&out_, indent, "  }\n");
     }
     absl::StrAppend(&out_, indent, "}\n");
@@ -118,14 +162,18 @@ class Writer {
     absl::StrAppendFormat(&line, "%.*f %.*f %.*f", options_.decimals, Units(root_m.x()),
                           options_.decimals, Units(root_m.y()), options_.decimals,
                           Units(root_m.z()));
-    for (int j : order_) {
+    const bool first = previous_.size() != order_.size();
+    if (first) previous_.assign(order_.size(), Eigen::Vector3d::Zero());
+    for (size_t slot = 0; slot < order_.size(); ++slot) {
+      const int j = order_[slot];
       const Eigen::Quaterniond& q = rotations[j];
       if (!q.coeffs().allFinite() || !(q.norm() > 1e-9)) {
         return absl::InvalidArgumentError(absl::StrCat(
             "WriteBvh: frame ", f, ": joint '", motion_.joints()[j].name, "' rotation not valid"));
       }
       // R = Rz(a) * Rx(b) * Ry(c).
-      const Eigen::Vector3d zxy = q.normalized().toRotationMatrix().eulerAngles(2, 0, 1);
+      Eigen::Vector3d& zxy = previous_[slot];
+      zxy = ContinuousZxy(q.normalized().toRotationMatrix(), first ? nullptr : &zxy);
       for (int k = 0; k < 3; ++k) {
         absl::StrAppendFormat(&line, " %.*f", options_.decimals, zxy[k] * 180.0 / M_PI);
       }
@@ -138,6 +186,9 @@ class Writer {
   const BvhWriteOptions& options_;
   std::vector<std::vector<int>> children_;
   std::vector<int> order_;  // Joints in channel order (depth first).
+  // The angles last written per joint of order_, radians (empty before the
+  // first frame).
+  std::vector<Eigen::Vector3d> previous_;
   std::string out_;
 };
 

@@ -152,11 +152,12 @@ struct BvhWriteOptions {
 };
 
 // Writes `motion` as BVH (bvh_writer.cc: one root with position channels,
-// "Zrotation Xrotation Yrotation" everywhere, angles in degrees, joints
-// depth first), through a temporary file. ReadBvh reads it back: the same
-// joints (End Sites included), frame rate, root translations and rotations,
-// except that a leaf joint that was not an End Site gains a "<leaf>_end"
-// joint at its own position. InvalidArgument for more or fewer than one
+// "Zrotation Xrotation Yrotation" everywhere, angles in degrees continuous
+// from frame to frame, joints depth first), through a temporary file.
+// ReadBvh reads it back: the same joints (End Sites included), frame rate,
+// root translations and rotations, except that a leaf joint that was not an
+// End Site gains a "<leaf>_end" joint half its bone onward (at least 2 cm),
+// so that no bone has zero length. InvalidArgument for more or fewer than one
 // root, a parent listed after its child, names with white space or braces,
 // non-finite values, zero rotations or bad options.
 absl::Status WriteBvh(const Motion& motion, const std::string& path,

@@ -45,6 +45,7 @@ inline v1::SensorCalibration TestSensor(const std::string& id) {
 
 inline std::vector<std::string> SensorIds(int count) {
   std::vector<std::string> ids;
+  ids.reserve(count);
   for (int i = 0; i < count; ++i) ids.push_back("k" + std::to_string(i));
   return ids;
 }

@@ -435,6 +435,55 @@ function colourPsnr(pngA, pngB, maskA, maskB) {
   return 10 * Math.log10((255 * 255) / Math.max(1e-9, sum / n));
 }
 
+// The horizontal angle (degrees) of the camera about its target.
+function azimuthDeg(camera) {
+  return (Math.atan2(camera.eye[0] - camera.target[0], camera.eye[2] - camera.target[2]) * 180) / Math.PI;
+}
+
+// Waits until the camera stops moving (a damped drag glides on); returns
+// reenactCamera() then.
+async function settledCamera(page, timeoutS = 10) {
+  let last = await page.evaluate(() => window.reenactCamera());
+  const deadline = Date.now() + timeoutS * 1000;
+  while (Date.now() < deadline) {
+    await sleep(150);
+    const now = await page.evaluate(() => window.reenactCamera());
+    if (JSON.stringify(now.eye) === JSON.stringify(last.eye)) return now;
+    last = now;
+  }
+  throw new Error(`the camera still moves after ${timeoutS} s`);
+}
+
+// Lit pixels (any channel above `threshold`) of a PNG over a black
+// background.
+function litPixels(png, threshold = 10) {
+  let n = 0;
+  for (let i = 0; i < png.width * png.height; ++i) {
+    if (png.data[4 * i] > threshold || png.data[4 * i + 1] > threshold || png.data[4 * i + 2] > threshold) ++n;
+  }
+  return n;
+}
+
+// axe-core's audit of the page as it is now: its violations, each as
+// {id, impact, nodes, help, targets}. The source goes in as an evaluated
+// script: the server's Content-Security-Policy refuses inline ones (and
+// eval), as it should.
+let axeSource = '';
+async function axeViolations(page) {
+  axeSource = axeSource || fs.readFileSync(requireWeb.resolve('axe-core/axe.min.js'), 'utf8');
+  await page.evaluate(axeSource);
+  return page.evaluate(async () => {
+    const result = await window.axe.run(document, { resultTypes: ['violations'] });
+    return result.violations.map((v) => ({
+      id: v.id,
+      impact: v.impact,
+      nodes: v.nodes.length,
+      help: v.help,
+      targets: v.nodes.slice(0, 3).map((n) => n.target.join(' ')),
+    }));
+  });
+}
+
 async function seekTo(page, t) {
   await page.evaluate((x) => {
     const s = document.getElementById('scrub');
@@ -541,6 +590,90 @@ async function main() {
     await closePage(page);
   });
 
+  await test('library cards are titled by method and take, with the date and the uploaded file', async () => {
+    const page = await newPage({ width: 1024, height: 768 });
+    // The rigid reenactment's take as if uploaded from a file.
+    const file = 'coach-anna_squats.mcap';
+    await page.route(/\/api\/v1\/reenactments\?/, async (route) => {
+      const response = await route.fetch();
+      const list = (await response.json()).map((r) => (r.id === rigidId ? { ...r, take_name: file } : r));
+      await route.fulfill({ response, json: list });
+    });
+    await page.goto(`${base()}/`);
+    check((await waitState(page, ['ready', 'error'])) === 'ready', 'library not ready');
+    const cards = await page.$$eval('.card[data-id]', (els) =>
+      els.map((e) => ({
+        id: e.dataset.id,
+        title: e.querySelector('.card-title').textContent,
+        when: e.querySelector('.card-when')?.textContent || '',
+        file: e.querySelector('.card-file')?.textContent || '',
+      })),
+    );
+    const body = cards.find((c) => c.id === bodyId);
+    const rigid = cards.find((c) => c.id === rigidId);
+    log(`card titles: "${body.title}" (${body.when}); "${rigid.title}" (${rigid.when}; ${rigid.file})`);
+    check(body.title === 'Body · front-kick', `body card title "${body.title}"`);
+    check(/\d/.test(body.when), `body card date "${body.when}"`);
+    check(body.file === '', `a recorded take shows a file: "${body.file}"`);
+    check(rigid.title === 'Rigid cylinders · coach-anna squats', `uploaded take's card title "${rigid.title}"`);
+    check(!rigid.title.includes('.mcap'), 'the title shows the file name');
+    check(rigid.file.includes(file), `the file name is not kept as secondary text: "${rigid.file}"`);
+    check(page.errors.length === 0, `page errors: ${page.errors.join('; ')}`);
+    await closePage(page);
+  });
+
+  await test('an empty library says how to make a reenactment', async () => {
+    const page = await newPage({ width: 1024, height: 768 });
+    await page.route(/\/api\/v1\/reenactments\?/, (route) => route.fulfill({ status: 200, contentType: 'application/json', body: '[]' }));
+    await page.goto(`${base()}/`);
+    check((await waitState(page, ['ready', 'error'])) === 'ready', 'library not ready');
+    check(await page.isVisible('#empty-note'), 'no note for an empty library');
+    const text = await page.innerText('#empty-note');
+    log(`empty library says: ${text.replace(/\s+/g, ' ')}`);
+    for (const says of [/No reenactments yet/, /reenact takes upload/, /reenactd/, /reenact jobs submit .*--take/, /README/]) {
+      check(says.test(text), `the note does not say ${says}: "${text}"`);
+    }
+    check((await page.$$('.card')).length === 0, 'cards in an empty library');
+    await closePage(page);
+  });
+
+  await test('a reenactment is as long on its card as in the player (frames / fps)', async () => {
+    const page = await newPage({ width: 1024, height: 768 });
+    await page.goto(`${base()}/`);
+    check((await waitState(page, ['ready', 'error'])) === 'ready', 'library not ready');
+    const lengths = {};
+    for (const kind of ['body', 'rigid']) {
+      const { id, extras } = glbs[kind];
+      const card = (await page.textContent(`.card[data-id="${id}"] .length`)).trim();
+      const title = await page.textContent(`.card[data-id="${id}"] .card-title`);
+      lengths[kind] = { card, title, expected: `${(extras.frame_count / extras.fps).toFixed(2)} s` };
+    }
+    for (const kind of ['body', 'rigid']) {
+      const { id } = glbs[kind];
+      await page.goto(`${base()}/?reenactment=${id}&paused=1&t=0.5`);
+      check((await waitState(page, ['ready', 'error'])) === 'ready', 'player not ready');
+      await page.waitForFunction(() => / s · /.test(document.getElementById('subtitle').textContent), null, { timeout: 10000 });
+      const readout = await page.textContent('#time');
+      const subtitle = await page.textContent('#subtitle');
+      const p = await page.evaluate(() => window.reenactPlayer());
+      lengths[kind].readout = readout;
+      lengths[kind].subtitle = subtitle;
+      lengths[kind].timeline_end_s = p.duration;
+      const { card, expected } = lengths[kind];
+      log(`${kind}: card ${card}, player "${readout}", subtitle "${subtitle}", frames/fps ${expected}, last frame at ${p.duration.toFixed(3)} s`);
+      check(card === expected, `${kind}: the card says ${card}, frames / fps is ${expected}`);
+      check(readout.endsWith(`/ ${card}`), `${kind}: the player says "${readout}", the card ${card}`);
+      check(subtitle.includes(card), `${kind}: the player's subtitle "${subtitle}" lacks ${card}`);
+      check(Math.abs(p.length_s - Number.parseFloat(card)) < 0.006, `${kind}: reenactPlayer().length_s ${p.length_s}`);
+      // The player is titled as the card is.
+      const title = await page.textContent('#title');
+      check(title === lengths[kind].title, `${kind}: the player's title "${title}", the card's "${lengths[kind].title}"`);
+    }
+    figures.lengths = lengths;
+    check(page.errors.length === 0, `page errors: ${page.errors.join('; ')}`);
+    await closePage(page);
+  });
+
   // ---- play
   for (const kind of ['body', 'rigid']) {
     await test(`${kind} reenactment plays and its frames advance`, async () => {
@@ -568,7 +701,7 @@ async function main() {
       const { id, times } = glbs[kind];
       const t = times[K];
       const page = await newPage({ width: 960, height: 540 });
-      await page.goto(`${base()}/?reenactment=${id}&t=${t}&paused=1&yaw=0&mirror=0&bg=000000&controls=0`);
+      await page.goto(`${base()}/?reenactment=${id}&t=${t}&paused=1&yaw=0&mirror=0&bg=000000&controls=0&floor=0`);
       const state = await waitState(page, ['ready', 'error']);
       check(state === 'ready', `state ${state}: ${await page.textContent('#error')}`);
       if (kind === 'body') await waitAppearanceFrame(page, K);
@@ -660,7 +793,6 @@ async function main() {
       await sleep(ms);
       const a1 = await page.evaluate(() => window.reenactPlayer().appearance);
       const ticks = a1.ticks - a0.ticks;
-      log(`  last frames drawn [animation, video, video time]: ${JSON.stringify(a1.recent)}`);
       return {
         share: ticks > 0 ? (a1.in_step - a0.in_step) / ticks : 0,
         offset: ticks > 0 ? (a1.offset_sum - a0.offset_sum) / ticks : 99,
@@ -724,6 +856,12 @@ async function main() {
   for (const [what, setup, says] of [
     ['none on the server', (page) => page.route('**/appearance.mp4*', (route) => route.fulfill({ status: 404, contentType: 'application/json', body: JSON.stringify({ error: { code: 'NOT_FOUND', message: 'no appearance video' } }) })), /no appearance video/],
     ['not a video', (page) => page.route('**/appearance.mp4*', (route) => route.fulfill({ status: 200, contentType: 'video/mp4', body: Buffer.from('this is not an MP4 file, only text') })), /does not play/],
+    // The server's video cut in half: its index promises every frame, its
+    // data holds the first half.
+    ['truncated', (page) => page.route('**/appearance.mp4*', async (route) => {
+      const whole = await (await route.fetch({ headers: { ...route.request().headers(), range: 'bytes=0-' } })).body();
+      await route.fulfill({ status: 200, contentType: 'video/mp4', body: whole.subarray(0, Math.floor(whole.length / 2)) });
+    }), /stopped decoding|stalled|does not play/],
     ['no H.264 in the browser', (page) => page.addInitScript(() => {
       HTMLMediaElement.prototype.canPlayType = () => '';
     }), /cannot decode H\.264/],
@@ -782,12 +920,90 @@ async function main() {
     await closePage(page);
   });
 
+  await test('the A-B loop buttons say what they do, on screen and by name', async () => {
+    for (const viewport of [{ width: 1024, height: 768 }, { width: 390, height: 844 }]) {
+      const page = await newPage(viewport);
+      await page.goto(`${base()}/?reenactment=${bodyId}&paused=1`);
+      check((await waitState(page, ['ready', 'error'])) === 'ready', 'not ready');
+      if (await page.isVisible('#more')) await page.click('#more');
+      const seen = [];
+      for (const [id, name] of [['set-a', 'Loop start'], ['set-b', 'Loop end'], ['clear-ab', 'Clear loop']]) {
+        check(await page.isVisible(`#${id}`), `#${id} is not visible at ${viewport.width}x${viewport.height}`);
+        const text = (await page.innerText(`#${id}`)).trim();
+        const byName = await page.getByRole('button', { name, exact: true }).evaluateAll((els) => els.map((e) => e.id));
+        seen.push(`#${id} "${text}"`);
+        check(text === name, `#${id} shows "${text}", wanted "${name}"`);
+        check(byName.length === 1 && byName[0] === id, `the button named "${name}" is ${JSON.stringify(byName)}`);
+      }
+      log(`A-B buttons at ${viewport.width}x${viewport.height}: ${seen.join(', ')}`);
+      await closePage(page);
+    }
+  });
+
+  await test('Space and Enter press a focused control and leave playback alone', async () => {
+    const page = await newPage({ width: 1280, height: 720 });
+    await page.goto(`${base()}/?reenactment=${bodyId}&paused=1&t=0.5`);
+    check((await waitState(page, ['ready', 'error'])) === 'ready', 'not ready');
+    const playing = () => page.evaluate(() => window.reenactPlayer().playing);
+    // On the page itself Space still plays and pauses.
+    await page.evaluate(() => document.activeElement && document.activeElement.blur());
+    await page.keyboard.press('Space');
+    check((await waitState(page, 'playing', 5)) === 'playing', 'Space on the page does not play');
+    await page.keyboard.press('Space');
+    check((await waitState(page, 'ready', 5)) === 'ready', 'Space on the page does not pause');
+    await seekTo(page, 0.5);
+    const outcomes = [];
+    // Space and Enter on the mirror button: mirrored, then not; still paused.
+    for (const [key, pressed] of [['Space', 'true'], ['Enter', 'false']]) {
+      await page.focus('#mirror');
+      await page.keyboard.press(key);
+      await sleep(150);
+      const now = await page.getAttribute('#mirror', 'aria-pressed');
+      outcomes.push(`${key} on Mirror: aria-pressed ${now}, playing ${await playing()}`);
+      check(now === pressed, `${key} on Mirror left aria-pressed ${now}`);
+      check(!(await playing()), `${key} on Mirror toggled playback`);
+    }
+    // Enter and Space on Loop start / Loop end set the loop, once.
+    await page.focus('#set-a');
+    await page.keyboard.press('Enter');
+    await seekTo(page, 1.5);
+    await page.focus('#set-b');
+    await page.keyboard.press('Space');
+    await sleep(150);
+    const ab = await page.evaluate(() => window.reenactPlayer());
+    outcomes.push(`Enter on Loop start, Space on Loop end: A-B ${ab.a}..${ab.b}, playing ${ab.playing}`);
+    check(Math.abs(ab.a - 0.5) < 1e-6 && Math.abs(ab.b - 1.5) < 1e-6, `A-B ${ab.a}..${ab.b}`);
+    check(!ab.playing, 'Space on Loop end toggled playback');
+    // Space on the play button plays once (not twice, which would pause).
+    await page.focus('#play');
+    await page.keyboard.press('Space');
+    await sleep(300);
+    outcomes.push(`Space on Play: playing ${await playing()}`);
+    check(await playing(), 'Space on the play button did not play (or toggled twice)');
+    await page.keyboard.press('Space');
+    await sleep(300);
+    check(!(await playing()), 'Space on the pause button did not pause');
+    // Space on the time slider, the speed list and a link: no toggle.
+    for (const selector of ['#scrub', '#speed', '.back']) {
+      await page.focus(selector);
+      await page.keyboard.press('Space');
+      await sleep(150);
+      outcomes.push(`Space on ${selector}: playing ${await playing()}`);
+      check(!(await playing()), `Space on ${selector} toggled playback`);
+      await page.keyboard.press('Escape');
+    }
+    check(page.url().includes('reenactment='), `a key left the player: ${page.url()}`);
+    log(outcomes.join('; '));
+    check(page.errors.length === 0, `page errors: ${page.errors.join('; ')}`);
+    await closePage(page);
+  });
+
   await test('mirror flips the image', async () => {
     const shots = [];
     const drags = [];
     for (const mirror of [0, 1]) {
       const page = await newPage({ width: 960, height: 540 });
-      await page.goto(`${base()}/?reenactment=${bodyId}&t=${glbs.body.times[K]}&paused=1&yaw=0&mirror=${mirror}&bg=000000&controls=0`);
+      await page.goto(`${base()}/?reenactment=${bodyId}&t=${glbs.body.times[K]}&paused=1&yaw=0&mirror=${mirror}&bg=000000&controls=0&floor=0`);
       check((await waitState(page, ['ready', 'error'])) === 'ready', 'not ready');
       await twoFrames(page);
       const cam = await page.evaluate(() => window.reenactCamera());
@@ -831,6 +1047,65 @@ async function main() {
     check(await page.isDisabled('#ar-place'), 'Place (AR) is enabled without immersive-ar');
     log(`AR: "${await page.textContent('#ar-note')}"`);
     await closePage(page);
+  });
+
+  await test('the floor grid: at y = 0 by default, off with &floor=0 and with its button', async () => {
+    const url = `${base()}/?reenactment=${bodyId}&t=1&paused=1&yaw=0&bg=000000`;
+    const page = await newPage({ width: 960, height: 540 });
+    await page.goto(url);
+    check((await waitState(page, ['ready', 'error'])) === 'ready', 'not ready');
+    await twoFrames(page);
+    const cam = await page.evaluate(() => window.reenactCamera());
+    check(cam.floor.visible && cam.floor.y === 0, `floor ${JSON.stringify(cam.floor)}`);
+    check((await page.getAttribute('#floor', 'aria-pressed')) === 'true', 'the Floor button is not pressed');
+    const withFloor = litPixels(decodePng(await page.locator('#view').screenshot()));
+    await page.click('#floor');
+    await twoFrames(page);
+    check(!(await page.evaluate(() => window.reenactPlayer().floor)), 'the Floor button did not hide it');
+    const withoutFloor = litPixels(decodePng(await page.locator('#view').screenshot()));
+    await closePage(page);
+    const off = await newPage({ width: 960, height: 540 });
+    await off.goto(`${url}&floor=0`);
+    check((await waitState(off, ['ready', 'error'])) === 'ready', 'not ready with floor=0');
+    await twoFrames(off);
+    check(!(await off.evaluate(() => window.reenactCamera().floor.visible)), 'floor=0 shows the floor');
+    const linked = litPixels(decodePng(await off.locator('#view').screenshot()));
+    await closePage(off);
+    figures.floor_lit_px = { with: withFloor, without: withoutFloor, floor0: linked };
+    log(`lit pixels: with the floor ${withFloor}, after its button ${withoutFloor}, with floor=0 ${linked}`);
+    check(withFloor > withoutFloor + 2000, 'the floor grid draws (almost) nothing');
+    check(Math.abs(linked - withoutFloor) <= 0.01 * withoutFloor, 'floor=0 and the button differ');
+  });
+
+  await test('orbit: a drag turns the view gently (degrees per pixel) and glides to a stop', async () => {
+    const rows = [];
+    for (const viewport of [{ width: 960, height: 540 }, { width: 1024, height: 768 }, { width: 390, height: 844 }]) {
+      const page = await newPage(viewport);
+      await page.goto(`${base()}/?reenactment=${bodyId}&t=1&paused=1&controls=0`);
+      check((await waitState(page, ['ready', 'error'])) === 'ready', 'not ready');
+      await twoFrames(page);
+      const before = await page.evaluate(() => window.reenactCamera());
+      const dx = Math.round(viewport.width / 4);
+      const x0 = Math.round(viewport.width / 2 - dx / 2);
+      const y0 = Math.round(viewport.height / 2);
+      await page.mouse.move(x0, y0);
+      await page.mouse.down();
+      await page.mouse.move(x0 + dx, y0, { steps: 10 });
+      await page.mouse.up();
+      const released = await page.evaluate(() => window.reenactCamera());
+      const after = await settledCamera(page);
+      let turned = azimuthDeg(after) - azimuthDeg(before);
+      turned = ((((turned + 180) % 360) + 360) % 360) - 180;
+      const glide = Math.abs(azimuthDeg(after) - azimuthDeg(released));
+      const perPx = Math.abs(turned) / dx;
+      rows.push({ viewport: `${viewport.width}x${viewport.height}`, drag_px: dx, turned_deg: Number(turned.toFixed(2)), deg_per_px: Number(perPx.toFixed(4)), glide_deg: Number(glide.toFixed(2)), full_width_deg: Math.round(perPx * viewport.width) });
+      check(Math.abs(perPx - after.orbit_deg_per_px) < 0.03, `${viewport.width}x${viewport.height}: turned ${perPx.toFixed(4)} deg/px, the page says ${after.orbit_deg_per_px}`);
+      check(perPx >= 0.15 && perPx <= 0.45, `${viewport.width}x${viewport.height}: ${perPx.toFixed(4)} deg/px`);
+      check(glide > 0.5, `${viewport.width}x${viewport.height}: no glide after the release (${glide.toFixed(2)} deg)`);
+      await closePage(page);
+    }
+    figures.orbit = rows;
+    log(`orbit: ${rows.map((r) => `${r.viewport} ${r.deg_per_px} deg/px (a ${r.drag_px} px drag turned ${r.turned_deg} deg, ${r.glide_deg} of it after the release; full width ${r.full_width_deg} deg)`).join('; ')}`);
   });
 
   await test('page frame rate at 1280x720', async () => {
@@ -931,6 +1206,70 @@ async function main() {
     await closePage(page);
   });
 
+  // ---- structure and accessibility
+  const livePageJob = async () => {
+    if (liveJobId) return liveJobId;
+    const live = await startLiveJob('landmarks', 3);
+    await live.daemon.exited;
+    liveJobId = live.jobId;
+    return liveJobId;
+  };
+
+  await test('each page keeps its content in one <main>', async () => {
+    const jobId = await livePageJob();
+    for (const [what, url, inside] of [
+      ['library', '/', ['#reenactments', '#live-list']],
+      ['player', `/?reenactment=${bodyId}&paused=1`, ['#stage', '#hud', '#scrub']],
+      ['live preview', `/?job=${jobId}`, ['#stage', '#hud', '#latency']],
+    ]) {
+      const page = await newPage({ width: 1024, height: 768 });
+      await page.goto(`${base()}${url}`);
+      await waitState(page, ['ready', 'playing', 'error']);
+      const r = await page.evaluate((sel) => {
+        const mains = document.querySelectorAll('main, [role="main"]');
+        return { mains: mains.length, inside: sel.map((s) => !!(mains[0] && mains[0].querySelector(s))) };
+      }, inside);
+      log(`${what}: ${r.mains} main landmark(s); ${inside.map((s, i) => `${s} ${r.inside[i] ? 'in' : 'OUTSIDE'}`).join(', ')}`);
+      check(r.mains === 1, `${what}: ${r.mains} main landmarks`);
+      check(r.inside.every(Boolean), `${what}: content outside <main>`);
+      await closePage(page);
+    }
+  });
+
+  await test('accessibility: axe-core finds nothing serious or critical (library, player, live preview; tablet and phone)', async () => {
+    try {
+      requireWeb.resolve('axe-core/axe.min.js');
+    } catch (e) {
+      throw new Error(`axe-core is missing (cd clients/web && npm ci): ${e.message}`);
+    }
+    const jobId = await livePageJob();
+    const counts = {};
+    const bad = [];
+    for (const [size, viewport] of [['tablet', { width: 1024, height: 768 }], ['phone', { width: 390, height: 844 }]]) {
+      for (const [what, url, ready] of [
+        ['library', '/', async (page) => page.waitForFunction(() => document.querySelectorAll('.still img').length >= 2, null, { timeout: 60000 })],
+        ['player', `/?reenactment=${bodyId}&paused=1&t=1`, null],
+        ['live', `/?job=${jobId}`, null],
+      ]) {
+        const page = await newPage(viewport);
+        await page.goto(`${base()}${url}`);
+        await waitState(page, ['ready', 'playing', 'error']);
+        if (ready) await ready(page);
+        await twoFrames(page);
+        const violations = await axeViolations(page);
+        const tally = { critical: 0, serious: 0, moderate: 0, minor: 0 };
+        for (const v of violations) tally[v.impact] = (tally[v.impact] || 0) + v.nodes;
+        counts[`${what}_${size}`] = tally;
+        log(`axe ${what} ${size} ${viewport.width}x${viewport.height}: ${JSON.stringify(tally)}` +
+          (violations.length ? ` ${violations.map((v) => `${v.impact} ${v.id} x${v.nodes} (${v.targets.join(' | ')})`).join('; ')}` : ''));
+        for (const v of violations) if (v.impact === 'serious' || v.impact === 'critical') bad.push(`${what} ${size}: ${v.impact} ${v.id} (${v.help}) at ${v.targets.join(' | ')}`);
+        await closePage(page);
+      }
+    }
+    figures.axe = counts;
+    check(bad.length === 0, `axe: ${bad.join('; ')}`);
+  });
+
   // ---- bad input
   await test('unknown reenactment: error state with a message', async () => {
     const page = await newPage();
@@ -987,7 +1326,7 @@ async function main() {
   });
 
   // ---- tokens
-  await test('tokens: prompt on 401, #token= kept, role refused on 403, WebSocket with access_token', async () => {
+  await test('tokens: prompt on 401 in a browser user\'s words, #token= kept, role refused on 403, WebSocket with access_token', async () => {
     const tokens = path.join(W, 'tokens.json');
     fs.rmSync(tokens, { force: true });
     const token = {};
@@ -1003,7 +1342,13 @@ async function main() {
     await page.goto(`${base()}/`);
     check((await waitState(page, ['error', 'ready'])) === 'error', 'no error without a token');
     check(await page.isVisible('#token-input'), 'no token prompt');
-    log(`no token: "${await page.textContent('#error-message')}"`);
+    const asked = await page.innerText('#error');
+    log(`no token: "${asked.replace(/\s+/g, ' ')}"`);
+    // A coach's words: what a token is and who has one, not the command
+    // line's flags.
+    check(!/--token-file|REENACT_TOKEN|--[a-z]/.test(asked), `the prompt speaks command line: "${asked}"`);
+    check(/access token/i.test(asked) && /whoever runs the Reenact server/.test(asked), `the prompt does not say what a token is or who has one: "${asked}"`);
+    check((await page.getByLabel('Access token').count()) === 1, 'the token field has no label');
     // Typing the token in the prompt.
     await page.fill('#token-input', token.viewer);
     await Promise.all([page.waitForNavigation(), page.click('.token-form button')]);
@@ -1038,6 +1383,16 @@ async function main() {
     const text = await page.textContent('#error-message');
     log(`capture token: "${text}"`);
     check(/role/.test(text), `403 message: ${text}`);
+    await closePage(page);
+
+    // A token the server does not know: the prompt again, saying so.
+    page = await newPage();
+    await page.goto(`${base()}/#token=rnt_not-a-token-of-this-server`);
+    check((await waitState(page, ['error', 'ready'])) === 'error', 'an unknown token is let in?');
+    const refused = await page.textContent('#error-message');
+    log(`unknown token: "${refused}"`);
+    check(await page.isVisible('#token-input'), 'no token prompt for an unknown token');
+    check(/not one the server knows/.test(refused) && /whoever runs the Reenact server/.test(refused) && !/--[a-z]/.test(refused), `unknown token message: ${refused}`);
     await closePage(page);
   });
 }

@@ -183,7 +183,14 @@ export function webSocketUrl(path) {
 // A sentence for an error, with what the user can do about it.
 export function describeError(e) {
   if (e instanceof ApiError) {
-    if (e.status === 401) return `The server needs an access token (${e.message}).`;
+    if (e.status === 401) {
+      // The server's own words name the command line's flags; a browser
+      // user needs to know what a token is and who has one.
+      return getToken()
+        ? 'The access token this browser has is not one the server knows (mistyped, or withdrawn). ' +
+            'Ask whoever runs the Reenact server for a new one.'
+        : 'This Reenact server lets in only people with an access token.';
+    }
     if (e.status === 403) return `This token's role may not do this (${e.message}).`;
     if (e.status === 404) return `Not found: ${e.message}`;
     if (e.status === 0) return e.message;

@@ -6,10 +6,55 @@
 import { ApiError, apiJson, apiJsonAllPages, describeError } from './api.js';
 import { still } from './stills.js';
 import { backgroundFromParams } from './player.js';
-import { clearError, formatDate, formatSeconds, h, setState, setStatus, showError } from './ui.js';
+import {
+  cardTitle,
+  clearError,
+  formatDate,
+  formatSeconds,
+  h,
+  lengthSeconds,
+  setState,
+  setStatus,
+  showError,
+  uploadedFileName,
+} from './ui.js';
 
 const REFRESH_MS = 5000;
 const RETRY_MS = 3000;
+
+// What to do when there is nothing to show yet: the commands a coach's
+// technician runs (README.md, "Capturing" and "Reenactments").
+function emptyHelp() {
+  const code = (text) => h('code', {}, text);
+  return [
+    h('strong', {}, 'No reenactments yet. '),
+    'A reenactment is made from a recorded take in two steps:',
+    h(
+      'ol',
+      {},
+      h(
+        'li',
+        {},
+        'Record a take with the sensors (',
+        code('reenactd --server HOST:50051 --once'),
+        ') or upload a recording made elsewhere (',
+        code('reenact takes upload FILE.mcap --server HOST:50051'),
+        ').',
+      ),
+      h(
+        'li',
+        {},
+        'Run a job on it: ',
+        code('reenact jobs submit --server HOST:50051 --take TAKE_ID --method body --wait'),
+        ' (',
+        code('reenact takes list'),
+        ' shows the take ids).',
+      ),
+    ),
+    'It appears here by itself a few seconds after the job ends. ',
+    'The README\'s "Capturing" and "Reenactments" sections say more.',
+  ];
+}
 
 export function startLibrary(params) {
   document.body.classList.add('page-library');
@@ -20,11 +65,11 @@ export function startLibrary(params) {
   const liveList = h('ul', { id: 'live-list', class: 'live-list' });
   const liveNote = h('p', { id: 'live-note', class: 'note' }, '');
   const grid = h('ul', { id: 'reenactments', class: 'grid' });
-  const emptyNote = h('p', { id: 'empty-note', class: 'note', hidden: true }, 'No reenactments yet.');
+  const emptyNote = h('div', { id: 'empty-note', class: 'note empty-note', hidden: true }, emptyHelp());
   const serverLine = h('p', { id: 'server-line', class: 'note' }, '');
   document.getElementById('app').append(
     h(
-      'main',
+      'div',
       { class: 'library' },
       h('header', { class: 'library-head' }, h('h1', {}, 'Reenact'), serverLine),
       h('section', { id: 'live', 'aria-labelledby': 'live-title' }, h('h2', { id: 'live-title' }, 'Live'), liveNote, liveList),
@@ -55,7 +100,7 @@ export function startLibrary(params) {
     frame.classList.add('busy');
     still(id)
       .then((url) => {
-        frame.replaceChildren(h('img', { src: url, alt: `Still of ${id}`, draggable: false }));
+        frame.replaceChildren(h('img', { src: url, alt: '', draggable: false }));
         frame.classList.remove('busy');
         frame.classList.add('done');
       })
@@ -71,6 +116,8 @@ export function startLibrary(params) {
 
   function card(r) {
     const created = formatDate(r.created_unix_ns);
+    const file = uploadedFileName(r.take_name);
+    const length = lengthSeconds(r.frames, r.fps) || Number(r.duration_s);
     return h(
       'li',
       { class: 'card-item' },
@@ -81,18 +128,18 @@ export function startLibrary(params) {
         h(
           'div',
           { class: 'card-body' },
-          h('h3', { class: 'take-name' }, r.take_name || r.take_id || r.id),
+          h('h3', { class: 'card-title' }, cardTitle(r)),
+          created ? h('p', { class: 'card-when' }, created) : null,
+          file ? h('p', { class: 'card-file', title: 'The file this take was uploaded from' }, `from ${file}`) : null,
           h(
             'dl',
             { class: 'facts' },
             h('dt', {}, 'Method'),
             h('dd', { class: 'method' }, r.method),
             h('dt', {}, 'Length'),
-            h('dd', { class: 'length' }, `${formatSeconds(Number(r.duration_s))} s`),
+            h('dd', { class: 'length' }, `${formatSeconds(length)} s`),
             h('dt', {}, 'Frames'),
             h('dd', { class: 'frames' }, String(r.frames)),
-            h('dt', {}, 'Created'),
-            h('dd', { class: 'created' }, created),
           ),
         ),
       ),

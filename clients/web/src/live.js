@@ -34,6 +34,7 @@ export function startLive(jobId, params) {
   const framesLabel = h('output', { id: 'live-frames', class: 'time' }, '');
   const fpsLabel = h('output', { id: 'live-fps', class: 'time' }, '');
   const mirrorButton = h('button', { class: 'btn toggle', id: 'mirror', type: 'button', 'aria-pressed': 'false' }, 'Mirror');
+  const floorButton = h('button', { class: 'btn toggle', id: 'floor', type: 'button', 'aria-pressed': 'false' }, 'Floor');
   const yawSlider = h('input', { id: 'yaw', type: 'range', min: '-180', max: '180', step: '1', value: '0', 'aria-label': 'Turn' });
   const yawLabel = h('output', { id: 'yaw-value', class: 'time' }, '0°');
   const faceMe = h('button', { class: 'btn', id: 'face-me', type: 'button' }, 'Face me');
@@ -48,6 +49,7 @@ export function startLive(jobId, params) {
       'div',
       { class: 'row' },
       mirrorButton,
+      floorButton,
       h('label', { class: 'field yaw' }, 'Turn ', yawSlider, yawLabel),
       faceMe,
       resetView,
@@ -72,6 +74,7 @@ export function startLive(jobId, params) {
   const stage = new Stage(stageEl, {
     background: backgroundFromParams(params, '#1b1f24'),
     antialias: (window.devicePixelRatio || 1) >= 2 && params.get('aa') !== '0',
+    floor: params.get('floor') !== '0',
   });
   const live = {
     frames_received: 0,
@@ -121,7 +124,11 @@ export function startLive(jobId, params) {
     stage.setMirror(on);
     mirrorButton.setAttribute('aria-pressed', on ? 'true' : 'false');
   };
+  const setFloor = (on) => {
+    floorButton.setAttribute('aria-pressed', stage.setFloor(on) ? 'true' : 'false');
+  };
   mirrorButton.addEventListener('click', () => setMirror(!stage.mirror));
+  floorButton.addEventListener('click', () => setFloor(!stage.floor.visible));
   yawSlider.addEventListener('input', () => setYaw(Number(yawSlider.value)));
   faceMe.addEventListener('click', () => setYaw(stage.faceCameraYaw()));
   resetView.addEventListener('click', () => stage.resetView());
@@ -131,6 +138,7 @@ export function startLive(jobId, params) {
     else document.documentElement.requestFullscreen().catch(() => {});
   });
   setMirror(params.get('mirror') === '1');
+  setFloor(params.get('floor') !== '0');
   if (params.has('yaw')) setYaw(Number(params.get('yaw')) || 0);
 
   // The job, for the title and for 401/403/404 answers a WebSocket cannot

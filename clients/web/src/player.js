@@ -4,7 +4,8 @@
 //
 // Deep link: &t=SECONDS &paused=1 &yaw=DEG &mirror=0|1 &speed=X &a=S&b=S
 // &bg=RRGGBB &controls=0 (the view alone: kiosks, tests) &appearance=0 (the
-// static atlas, not the per-frame appearance video).
+// static atlas, not the per-frame appearance video) &floor=0 (no floor
+// grid: pixel comparisons with `reenact render`, which draws none).
 
 import { AnimationMixer, LoopRepeat } from 'three';
 import { apiJson, fetchGlb } from './api.js';
@@ -12,13 +13,28 @@ import { Appearance } from './appearance.js';
 import { setupAr } from './ar.js';
 import { analyseMotion, frameTimes, nearestFrame, parseGlb } from './model.js';
 import { Stage } from './stage.js';
-import { clearError, formatSeconds, h, setState, setStatus, showError } from './ui.js';
+import { cardTitle, clearError, formatSeconds, h, lengthSeconds, setState, setStatus, showError } from './ui.js';
 
 const SPEEDS = [0.25, 0.5, 0.75, 1, 1.25, 1.5, 2];
 
 export function backgroundFromParams(params, fallback) {
   const bg = (params.get('bg') || '').replace(/^#/, '');
   return /^[0-9a-fA-F]{6}$/.test(bg) ? `#${bg}` : fallback;
+}
+
+// Keys a focused control answers itself: Space and Enter press a button or
+// follow a link, type into a field, move a slider, open a list. The page's
+// shortcuts leave them alone there.
+export function controlTakesKey(target, key) {
+  if (!(target instanceof Element)) return false;
+  if (target instanceof HTMLInputElement || target instanceof HTMLSelectElement || target instanceof HTMLTextAreaElement) {
+    return true;
+  }
+  if (target.isContentEditable) return true;
+  if (key !== ' ' && key !== 'Enter') return false;
+  return !!target.closest(
+    'button, a[href], summary, [role="button"], [role="link"], [role="checkbox"], [role="switch"], [role="slider"], [role="menuitem"], [role="tab"], [role="option"]',
+  );
 }
 
 function numberParam(params, name) {
@@ -46,7 +62,10 @@ export async function startPlayer(id, params) {
   overlay.append(stageEl, hud);
   if (params.get('controls') === '0') document.body.classList.add('no-controls');
 
-  const stage = new Stage(stageEl, { background: backgroundFromParams(params, '#1b1f24') });
+  const stage = new Stage(stageEl, {
+    background: backgroundFromParams(params, '#1b1f24'),
+    floor: params.get('floor') !== '0',
+  });
   const player = {
     time: 0,
     playing: false,
@@ -56,7 +75,11 @@ export async function startPlayer(id, params) {
     frame: 0,
     frames: 0,
     times: new Float64Array(0),
+    // The timeline runs from the first frame's instant to the last's
+    // (duration); the reenactment lasts frames / fps (length, as on its
+    // library card).
     duration: 0,
+    length: 0,
   };
 
   window.reenactStats = () => ({
@@ -74,6 +97,8 @@ export async function startPlayer(id, params) {
     b: player.b,
     yaw_deg: stage.yawDeg,
     duration: player.duration,
+    length_s: player.length,
+    floor: stage.floor.visible,
     appearance: appearance ? appearance.stats() : null,
   });
   let appearance = null;
@@ -81,8 +106,9 @@ export async function startPlayer(id, params) {
   // Metadata for the title (the glb's extras hold the rest).
   apiJson(`/api/v1/reenactments/${encodeURIComponent(id)}`)
     .then((r) => {
-      title.textContent = r.take_name || r.take_id || 'Reenactment';
-      subtitle.textContent = `${r.method} · ${formatSeconds(r.duration_s)} s · ${r.frames} frames`;
+      title.textContent = cardTitle(r);
+      const length = lengthSeconds(r.frames, r.fps) || Number(r.duration_s);
+      subtitle.textContent = `${r.method} · ${formatSeconds(length)} s · ${r.frames} frames`;
       document.title = `${title.textContent} – Reenact`;
     })
     .catch(() => {});
@@ -109,6 +135,10 @@ export async function startPlayer(id, params) {
   player.times = frameTimes(clip, info);
   player.frames = player.times.length;
   player.duration = clip ? Math.max(clip.duration, player.times[player.times.length - 1] || 0) : 0;
+  {
+    const fps = info.fps || (player.duration > 0 && player.frames > 1 ? (player.frames - 1) / player.duration : 0);
+    player.length = lengthSeconds(player.frames, fps) || player.duration;
+  }
   const motion = analyseMotion(model, clip);
   stage.setModel(model, motion);
   stage.frame(motion);
@@ -164,13 +194,16 @@ export async function startPlayer(id, params) {
     { id: 'speed', 'aria-label': 'Speed' },
     SPEEDS.map((s) => h('option', { value: String(s), selected: s === 1 }, `${s}×`)),
   );
-  const aButton = h('button', { class: 'btn', id: 'set-a', type: 'button', title: 'Loop start here' }, 'A');
-  const bButton = h('button', { class: 'btn', id: 'set-b', type: 'button', title: 'Loop end here' }, 'B');
-  const clearAb = h('button', { class: 'btn', id: 'clear-ab', type: 'button', title: 'No loop' }, 'A-B ✕');
+  // The A-B loop's buttons say what they do on screen (a touch screen
+  // shows no hover titles); the title adds when.
+  const aButton = h('button', { class: 'btn', id: 'set-a', type: 'button', title: 'Start the loop at the current time' }, 'Loop start');
+  const bButton = h('button', { class: 'btn', id: 'set-b', type: 'button', title: 'End the loop at the current time' }, 'Loop end');
+  const clearAb = h('button', { class: 'btn', id: 'clear-ab', type: 'button', title: 'Play the whole reenactment again' }, 'Clear loop');
   const abLabel = h('output', { id: 'ab', class: 'time' }, '');
   const prevFrame = h('button', { class: 'btn', id: 'prev-frame', type: 'button', 'aria-label': 'Previous frame' }, '‹');
   const nextFrame = h('button', { class: 'btn', id: 'next-frame', type: 'button', 'aria-label': 'Next frame' }, '›');
   const mirrorButton = h('button', { class: 'btn toggle', id: 'mirror', type: 'button', 'aria-pressed': 'false' }, 'Mirror');
+  const floorButton = h('button', { class: 'btn toggle', id: 'floor', type: 'button', 'aria-pressed': 'false' }, 'Floor');
   const yawSlider = h('input', {
     id: 'yaw',
     type: 'range',
@@ -208,6 +241,7 @@ export async function startPlayer(id, params) {
       bButton,
       clearAb,
       mirrorButton,
+      floorButton,
     ),
     h(
       'div',
@@ -252,6 +286,10 @@ export async function startPlayer(id, params) {
     mirrorButton.setAttribute('aria-pressed', on ? 'true' : 'false');
   }
 
+  function setFloor(on) {
+    floorButton.setAttribute('aria-pressed', stage.setFloor(on) ? 'true' : 'false');
+  }
+
   function updateAb() {
     const { a, b } = player;
     if (a === null && b === null) abLabel.textContent = '';
@@ -266,7 +304,7 @@ export async function startPlayer(id, params) {
     if (player.time !== shownTime) {
       shownTime = player.time;
       if (document.activeElement !== slider) slider.value = String(player.time);
-      timeLabel.textContent = `${formatSeconds(player.time)} / ${formatSeconds(player.duration)} s`;
+      timeLabel.textContent = `${formatSeconds(player.time)} / ${formatSeconds(player.length)} s`;
     }
     if (player.frame !== shownFrame) {
       shownFrame = player.frame;
@@ -304,6 +342,7 @@ export async function startPlayer(id, params) {
     updateAb();
   });
   mirrorButton.addEventListener('click', () => setMirror(!stage.mirror));
+  floorButton.addEventListener('click', () => setFloor(!stage.floor.visible));
   yawSlider.addEventListener('input', () => setYaw(Number(yawSlider.value)));
   faceMe.addEventListener('click', () => setYaw(stage.faceCameraYaw()));
   resetView.addEventListener('click', () => stage.resetView());
@@ -318,9 +357,13 @@ export async function startPlayer(id, params) {
   document.addEventListener('fullscreenchange', () => {
     fullscreen.textContent = document.fullscreenElement ? 'Exit fullscreen' : 'Fullscreen';
   });
+  // Shortcuts: Space plays and pauses, the arrows step a frame, M mirrors;
+  // never with a modifier, nor on a control that answers the key itself.
   document.addEventListener('keydown', (e) => {
-    if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+    if (e.defaultPrevented || e.ctrlKey || e.metaKey || e.altKey) return;
+    if (controlTakesKey(e.target, e.key)) return;
     if (e.key === ' ') {
+      if (e.repeat) return;
       e.preventDefault();
       playButton.click();
     } else if (e.key === 'ArrowLeft') stepFrame(-1);
@@ -357,6 +400,7 @@ export async function startPlayer(id, params) {
   if (speed0 !== null) setSpeed(speed0);
   if (yaw0 !== null) setYaw(yaw0);
   setMirror(params.get('mirror') === '1');
+  setFloor(params.get('floor') !== '0');
   if (a0 !== null) player.a = Math.max(0, a0);
   if (b0 !== null && (player.a === null || b0 > player.a)) player.b = Math.min(player.duration, b0);
   updateAb();

@@ -1,12 +1,14 @@
 // The 3D stage shared by the player and the live preview: renderer, camera
 // (horizontal field of view fixed, like the server's renderer), orbit/pinch
 // controls, the teacher's turn about the vertical through its mean
-// position, the mirror image, the frame-rate count, and AR placement.
+// position, the mirror image, a floor grid at y = 0 (to judge a squat's
+// depth or a step's length by), the frame-rate count, and AR placement.
 
 import {
   Color,
   DirectionalLight,
   HemisphereLight,
+  GridHelper,
   Group,
   MathUtils,
   PerspectiveCamera,
@@ -20,9 +22,20 @@ import { showError } from './ui.js';
 
 export const DEFAULT_HFOV_DEG = 50;
 
+// Orbiting: degrees the view turns per pixel dragged. A drag across the
+// whole canvas turns about 180 degrees, within these bounds (a phone's
+// narrow screen still turns gently, a wide one not sluggishly).
+export const ORBIT_DEG_PER_PX_MIN = 0.2;
+export const ORBIT_DEG_PER_PX_MAX = 0.4;
+
+// The floor grid: 6 m square, 0.5 m cells, lines faint against the
+// background so the teacher stays what the eye goes to.
+const FLOOR_SIZE_M = 6;
+const FLOOR_CELLS = 12;
+
 export class Stage {
   // container: the element the canvas fills. options.background: '#rrggbb'.
-  constructor(container, { background = '#1b1f24', hfovDeg = DEFAULT_HFOV_DEG, antialias = true } = {}) {
+  constructor(container, { background = '#1b1f24', hfovDeg = DEFAULT_HFOV_DEG, antialias = true, floor = true } = {}) {
     this.container = container;
     this.hfovDeg = hfovDeg;
     this.renderer = new WebGLRenderer({ antialias, alpha: true });
@@ -30,6 +43,7 @@ export class Stage {
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
     this.canvas = this.renderer.domElement;
     this.canvas.id = 'view';
+    this.canvas.setAttribute('role', 'img');
     this.canvas.setAttribute('aria-label', '3D view of the teacher');
     container.prepend(this.canvas);
     this.canvas.addEventListener('webglcontextlost', (e) => {
@@ -53,7 +67,10 @@ export class Stage {
     this.camera.position.set(0, 1.2, 4);
 
     this.controls = new OrbitControls(this.camera, this.canvas);
-    this.controls.enableDamping = false;
+    // Damped: a drag glides to a stop rather than halting under the finger
+    // (tick() calls update() every frame while it glides).
+    this.controls.enableDamping = true;
+    this.controls.dampingFactor = 0.12;
     this.controls.screenSpacePanning = true;
     this.controls.minDistance = 0.3;
     this.controls.maxDistance = 30;
@@ -81,6 +98,18 @@ export class Stage {
     this.placement.add(this.rig);
     this.rig.add(this.offset);
     this.scene.add(this.placement);
+
+    // The floor: y = 0 of the reenactment's frame, under the actor's mean
+    // position; it turns with the AR placement, not with the teacher.
+    this.floor = new GridHelper(FLOOR_SIZE_M, FLOOR_CELLS, 0x8a96a3, 0x56606b);
+    for (const m of Array.isArray(this.floor.material) ? this.floor.material : [this.floor.material]) {
+      m.transparent = true;
+      m.opacity = 0.45;
+      m.depthWrite = false;
+    }
+    this.floor.renderOrder = -1;
+    this.floor.visible = !!floor;
+    this.placement.add(this.floor);
 
     this.model = null;
     this.pivot = new Vector3();
@@ -117,6 +146,7 @@ export class Stage {
     this.width = w;
     this.height = h;
     this.renderer.setSize(w, h, true);
+    this.controls.rotateSpeed = orbitRotateSpeed(w, h);
     this.camera.aspect = w / h;
     this.camera.fov = verticalFovDeg(this.hfovDeg, w / h);
     this.camera.updateProjectionMatrix();
@@ -137,6 +167,7 @@ export class Stage {
       this.pivot.set(motion.mean.x, 0, motion.mean.z);
       this.facing.copy(motion.facing);
       this.rig.position.copy(this.pivot);
+      this.floor.position.set(this.pivot.x, 0, this.pivot.z);
       this.offset.position.set(-this.pivot.x, 0, -this.pivot.z);
     }
     this.invalidate();
@@ -152,6 +183,9 @@ export class Stage {
 
   resetView() {
     if (!this.homeView) return;
+    // A glide still under way would carry the view off home again.
+    if (this.controls._sphericalDelta) this.controls._sphericalDelta.set(0, 0, 0);
+    if (this.controls._panOffset) this.controls._panOffset.set(0, 0, 0);
     this.camera.position.copy(this.homeView.eye);
     this.controls.target.copy(this.homeView.target);
     this.camera.lookAt(this.homeView.target);
@@ -183,6 +217,12 @@ export class Stage {
     return MathUtils.radToDeg(wanted - facing - placementYaw);
   }
 
+  setFloor(on) {
+    this.floor.visible = !!on;
+    this.invalidate();
+    return this.floor.visible;
+  }
+
   setMirror(on) {
     this.mirror = !!on;
     this.canvas.classList.toggle('mirrored', this.mirror);
@@ -194,6 +234,8 @@ export class Stage {
     const dt = Math.min(0.25, Math.max(0, (now - this.lastTick) / 1000));
     this.lastTick = now;
     if (this.onFrame) this.onFrame(dt, xrFrame);
+    // Damping: the view glides on after a drag ('change' marks it dirty).
+    if (!this.renderer.xr.isPresenting) this.controls.update();
     if (!this.dirty && !this.renderer.xr.isPresenting) return;
     this.dirty = false;
     this.renderer.render(this.scene, this.camera);
@@ -219,6 +261,8 @@ export class Stage {
       width: this.width,
       height: this.height,
       mirror: this.mirror,
+      floor: { visible: this.floor.visible, y: this.floor.position.y },
+      orbit_deg_per_px: orbitDegPerPx(this.width),
     };
   }
 }
@@ -243,6 +287,17 @@ export function framing(motion, hfovDeg, aspect) {
     .addScaledVector(facing, distance)
     .add(new Vector3(0, 0.12 * distance, 0));
   return { eye, target };
+}
+
+// Degrees turned per pixel dragged on a canvas `width` pixels wide.
+export function orbitDegPerPx(width) {
+  return MathUtils.clamp(180 / Math.max(1, width), ORBIT_DEG_PER_PX_MIN, ORBIT_DEG_PER_PX_MAX);
+}
+
+// OrbitControls turns 2 pi x rotateSpeed / (the canvas height) radians per
+// pixel: the rotateSpeed that turns orbitDegPerPx(width) degrees.
+function orbitRotateSpeed(width, height) {
+  return (orbitDegPerPx(width) * Math.max(1, height)) / 360;
 }
 
 export function verticalFovDeg(hfovDeg, aspect) {

@@ -60,13 +60,15 @@ export function clearError() {
   box.replaceChildren();
 }
 
+// The prompt for an access token, in a browser user's words: what a token
+// is and who has one; the mechanics (kept in this browser, sent with every
+// request) are api.js's.
 function tokenPrompt() {
   const input = h('input', {
     type: 'password',
     id: 'token-input',
     autocomplete: 'off',
-    placeholder: 'Access token',
-    'aria-label': 'Access token',
+    spellcheck: 'false',
   });
   return h(
     'form',
@@ -78,6 +80,14 @@ function tokenPrompt() {
         window.location.reload();
       },
     },
+    h(
+      'p',
+      { id: 'token-help', class: 'token-help' },
+      'An access token is a long password made for one person or tablet. ',
+      'Ask whoever runs the Reenact server for one, then paste it here; ',
+      'this browser remembers it.',
+    ),
+    h('label', { class: 'field token-field', for: 'token-input' }, 'Access token'),
     input,
     h('button', { class: 'btn', type: 'submit' }, 'Use token'),
   );
@@ -94,6 +104,45 @@ export function setStatus(text) {
 export function formatSeconds(s) {
   if (!Number.isFinite(s)) return '–';
   return s.toFixed(2);
+}
+
+// A method's name as a person reads it: body -> Body, rigid-cylinders ->
+// Rigid cylinders.
+export function methodLabel(method) {
+  const words = String(method || '').replace(/[-_]+/g, ' ').trim();
+  return words ? words[0].toUpperCase() + words.slice(1) : 'Reenactment';
+}
+
+// A take named after the file it was uploaded from (ak.mcap,
+// /data/2024-05-03_squat.mkv): the file name, else ''.
+export function uploadedFileName(takeName) {
+  const name = String(takeName || '').trim();
+  return /\.[A-Za-z][A-Za-z0-9]{1,4}$/.test(name) ? name : '';
+}
+
+// What a reenactment is called (its library card, the player's title):
+// the method and the take (its name without a file's folder and extension;
+// the take id when it has no name).
+export function cardTitle(r) {
+  let take = String(r.take_name || '').trim();
+  if (uploadedFileName(take)) {
+    take = take
+      .replace(/^.*[\\/]/, '')
+      .replace(/\.[A-Za-z][A-Za-z0-9]{1,4}$/, '')
+      .replace(/[_]+/g, ' ')
+      .trim();
+  }
+  if (!take) take = r.take_id ? `take ${r.take_id}` : r.id;
+  return `${methodLabel(r.method)} · ${take}`;
+}
+
+// A reenactment's length: frames / fps, as the server's duration_s (each
+// frame stands for 1/fps seconds; the last one starts at (frames - 1)/fps).
+// The library's cards and the player both show this.
+export function lengthSeconds(frames, fps) {
+  const n = Number(frames);
+  const f = Number(fps);
+  return n > 0 && f > 0 ? n / f : 0;
 }
 
 export function formatDate(unixNs) {

@@ -1,7 +1,7 @@
 // End-to-end live benchmark (a command, not a Google Benchmark): the real
 // reenactd plays a synthetic 2-sensor take in real time (30 fps) into the
 // real reenact-server over loopback; as soon as the take is recording, a
-// live body job follows it (jobs submit --method body --option live=true)
+// live body job follows it (jobs submit --method body --live)
 // and a Follow subscriber in this process receives its preview. Reports the
 // latency of each fitted frame from the FrameSet's arrival at the server's
 // Ingest handler to its publication (published - arrived, server clock) and
@@ -113,7 +113,8 @@ absl::StatusOr<v1::Job> SubmitLiveJob(const client::ConnectionOptions& connectio
     absl::StatusOr<std::vector<v1::Take>> recording = takes.List(v1::TAKE_STATE_RECORDING);
     if (recording.ok() && !recording->empty()) {
       absl::StatusOr<v1::Job> job =
-          jobs.Submit(recording->front().take_id(), "body", {{"live", "true"}, {"model", model}});
+          jobs.Submit(recording->front().take_id(), "body", {{"model", model}}, /*segments=*/0,
+                      /*live=*/true);
       // Unavailable: the take is being opened; try again.
       if (job.ok() || !absl::IsUnavailable(job.status())) return job;
     }

@@ -21,11 +21,11 @@
 #include <boost/asio/steady_timer.hpp>
 #include <nlohmann/json.hpp>
 
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "capture_daemon/sensors/usb_hotplug.h"
 #include "common/base/files.h"
+#include "common/base/flags.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/metrics/http_exposer.h"
@@ -101,13 +101,9 @@ absl::Status DaemonOptions::Validate() const {
                                      control_tls.enabled(), !control_auth_file.empty(), insecure,
                                      "start takes and watch the sensors"));
   if (!metrics_address.empty()) {
-    const size_t colon = metrics_address.rfind(':');
-    int port = -1;
-    if (colon == std::string::npos || colon == 0 ||
-        !absl::SimpleAtoi(metrics_address.substr(colon + 1), &port) || port < 0 || port > 65535) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--metrics \"", metrics_address, "\" is not HOST:PORT (port 0..65535)"));
-    }
+    std::string host;
+    int port = 0;
+    RETURN_IF_ERROR(SplitHostPort("--metrics", metrics_address, &host, &port));
   }
   // The metrics endpoint is plain HTTP without tokens.
   RETURN_IF_ERROR(rpc::CheckExposure(absl::StrCat("--metrics ", metrics_address), metrics_address,
@@ -940,7 +936,7 @@ void Daemon::Impl::StartSensor(SensorEntry* entry, bool returning) {
 // then, and without hardware sources.
 std::unique_ptr<UsbHotplugMonitor> Daemon::Impl::StartHotplug() {
   const bool hardware = std::any_of(options.sources.begin(), options.sources.end(),
-                                    [](const SourceSpec& s) { return s.backend != "playback"; });
+                                    [](const SourceSpec& s) { return IsHardware(s); });
   if (!hardware) return nullptr;
   auto monitor = UsbHotplugMonitor::Start([this](const UsbHotplugEvent& event) {
     logger.Info("usb_event",
@@ -964,7 +960,7 @@ void Daemon::Impl::OnUsbEvent(const UsbEvent& event) {
 void Daemon::Impl::RescanHardware() {
   std::vector<SourceSpec> hardware;
   for (const SourceSpec& spec : options.sources) {
-    if (spec.backend != "playback") hardware.push_back(spec);
+    if (IsHardware(spec)) hardware.push_back(spec);
   }
   if (hardware.empty()) return;
   const std::set<std::string> streaming = sensors.StreamingKeys();
@@ -1342,10 +1338,10 @@ absl::StatusOr<std::unique_ptr<Daemon>> Daemon::Create(const DaemonOptions& opti
   impl->recorder_options.spool_root = options.spool_dir;
   impl->recorder_options.spool_max_bytes = options.spool_max_mb << 20;
   impl->recorder_options.uplink = options.uplink;
-  // Recordings can wait for the server; live sensors cannot.
+  // Takes and recordings can wait for the server; live sensors cannot.
   impl->recorder_options.wait_when_full =
-      std::all_of(options.sources.begin(), options.sources.end(),
-                  [](const SourceSpec& s) { return s.backend == "playback"; });
+      std::none_of(options.sources.begin(), options.sources.end(),
+                   [](const SourceSpec& s) { return IsHardware(s); });
   if (impl->recorder_options.wait_when_full) {
     impl->options.anchor.queued_frames = impl->options.anchor.frames;
   }

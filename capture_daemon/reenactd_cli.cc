@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "capture_daemon/sensors/source_backends.h"
 #include "common/base/files.h"
 #include "common/base/flags.h"
 #include "common/base/status_macros.h"
@@ -112,14 +114,24 @@ absl::StatusOr<ProcessingOptions::Mode> ParseMode(const Flags& flags, const std:
       absl::StrCat("--", name, ": auto, on or off, not \"", value, "\""));
 }
 
+// "usage: ..." and the --source lines: one per backend of the table, those
+// this build cannot open marked.
+std::string SourcesUsage() {
+  std::string out =
+      "usage: reenactd --server HOST:PORT --source SPEC [--source SPEC ...] [flags]\n"
+      "  --source SPEC           a sensor or recording to capture (repeat, or separate\n"
+      "                          with commas):\n";
+  for (const SourceBackend& backend : SourceBackends()) {
+    absl::StrAppend(&out, absl::StrFormat("      %-24s%s%s\n", backend.syntax, backend.description,
+                                          backend.built() ? "" : " [not in this build]"));
+  }
+  return out;
+}
+
 }  // namespace
 
 std::string ReenactdUsage() {
-  return "usage: reenactd --server HOST:PORT --source SPEC [--source SPEC ...] [flags]\n"
-         "  --source SPEC           playback:FILE | freenect:0|SERIAL|all | openni2:any|URI |\n"
-         "                          freenect2:any|SERIAL | azure-mkv:FILE | tum:DIR | oni:FILE\n"
-         "                          (repeat or separate with commas; the last three play\n"
-         "                          recordings of other tools)\n"
+  return SourcesUsage() +
          "  --server HOST:PORT      Ingest service of reenact-server (default 127.0.0.1:50051)\n"
          "  --fast                  playback, recordings: as fast as the pipeline takes frames\n"
          "  --loop                  playback, recordings: start over at the end\n"

@@ -6,7 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
-#include "capture_daemon/playback_sensor.h"
+#include "capture_daemon/sensors/source_backends.h"
 
 namespace reenact::capture {
 
@@ -26,35 +26,28 @@ int NextIndex(const std::set<std::string>& taken, const std::string& prefix) {
 
 absl::StatusOr<SensorList> OpenOne(const SourceSpec& spec, int source_number,
                                    const std::set<std::string>& taken, SourceOptions options) {
-  if (spec.backend == "playback") {
-    options.id_prefix.clear();
-    absl::StatusOr<SensorList> sensors = OpenPlaybackSensors(spec.argument, options);
-    if (!sensors.ok()) return sensors;
-    bool clash = false;
-    for (const auto& sensor : *sensors) clash |= taken.count(sensor->info().sensor_id()) > 0;
-    if (!clash) return sensors;
-    options.id_prefix = absl::StrCat("p", source_number, "-");
-    options.first_index = 0;
-    return OpenPlaybackSensors(spec.argument, options);
+  const SourceBackend* backend = FindSourceBackend(spec.backend);
+  if (backend == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("unknown backend \"", spec.backend, "\""));
   }
-  if (spec.backend == "azure-mkv" || spec.backend == "tum" || spec.backend == "oni") {
-    // Recordings of other tools: Kinect ids for Azure Kinect and TUM (a
-    // Kinect v1), OpenNI2 ids for .oni files.
-    options.id_prefix = spec.backend == "oni" ? "o" : "k";
-    options.first_index = NextIndex(taken, options.id_prefix);
-    return OpenRecordingSensors(spec.backend, spec.argument, options);
-  }
+  // "all" and "any" ask a hardware backend for whichever devices are there.
   const std::string argument =
-      spec.argument == "all" || spec.argument == "any" ? "" : spec.argument;
-  if (spec.backend == "freenect" || spec.backend == "freenect2") {
-    options.id_prefix = "k";
-    options.first_index = NextIndex(taken, "k");
-    return spec.backend == "freenect" ? OpenFreenectSensors(argument, options)
-                                      : OpenFreenect2Sensors(argument, options);
+      backend->hardware && (spec.argument == "all" || spec.argument == "any") ? "" : spec.argument;
+  if (!backend->id_prefix.empty()) {
+    options.id_prefix = std::string(backend->id_prefix);
+    options.first_index = NextIndex(taken, options.id_prefix);
+    return backend->open(argument, options);
   }
-  options.id_prefix = "o";
-  options.first_index = NextIndex(taken, "o");
-  return OpenOpenni2Sensors(argument, options);
+  // The source's own ids, unless they clash with those already taken.
+  options.id_prefix.clear();
+  absl::StatusOr<SensorList> sensors = backend->open(argument, options);
+  if (!sensors.ok()) return sensors;
+  bool clash = false;
+  for (const auto& sensor : *sensors) clash |= taken.count(sensor->info().sensor_id()) > 0;
+  if (!clash) return sensors;
+  options.id_prefix = absl::StrCat("p", source_number, "-");
+  options.first_index = 0;
+  return backend->open(argument, options);
 }
 
 }  // namespace
@@ -68,33 +61,30 @@ absl::StatusOr<std::vector<SourceSpec>> ParseSourceSpecs(const std::vector<std::
       SourceSpec spec;
       spec.backend = std::string(item.substr(0, colon));
       spec.argument = colon == absl::string_view::npos ? "" : std::string(item.substr(colon + 1));
-      if (spec.backend == "playback") {
-        if (spec.argument.empty()) {
-          return absl::InvalidArgumentError(absl::StrCat(
-              "source \"", std::string(item), "\": playback needs a file (playback:FILE)"));
-        }
-      } else if (spec.backend == "azure-mkv" || spec.backend == "tum" || spec.backend == "oni") {
-        if (spec.argument.empty()) {
+      const SourceBackend* backend = FindSourceBackend(spec.backend);
+      if (backend == nullptr) {
+        return absl::InvalidArgumentError(absl::StrCat("source \"", std::string(item),
+                                                       "\": unknown backend (expected ",
+                                                       SourceSyntaxList(), ")"));
+      }
+      if (spec.argument.empty()) {
+        if (backend->default_argument.empty()) {
           return absl::InvalidArgumentError(
-              absl::StrCat("source \"", std::string(item), "\": ", spec.backend, " needs a ",
-                           spec.backend == "tum" ? "folder (tum:DIR)"
-                                                 : absl::StrCat("file (", spec.backend, ":FILE)")));
+              absl::StrCat("source \"", std::string(item), "\": ", backend->name, " needs ",
+                           backend->needs, " (", backend->syntax, ")"));
         }
-      } else if (spec.backend == "freenect") {
-        if (spec.argument.empty()) spec.argument = "all";
-      } else if (spec.backend == "openni2" || spec.backend == "freenect2") {
-        if (spec.argument.empty()) spec.argument = "any";
-      } else {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "source \"", std::string(item),
-            "\": unknown backend (expected playback:FILE, freenect:0|SERIAL|all, openni2:any|URI, "
-            "freenect2:any|SERIAL, azure-mkv:FILE, tum:DIR or oni:FILE)"));
+        spec.argument = std::string(backend->default_argument);
       }
       out.push_back(std::move(spec));
     }
   }
   if (out.empty()) return absl::InvalidArgumentError("no --source given");
   return out;
+}
+
+bool IsHardware(const SourceSpec& spec) {
+  const SourceBackend* backend = FindSourceBackend(spec.backend);
+  return backend != nullptr && backend->hardware;
 }
 
 absl::StatusOr<SensorList> OpenSources(const std::vector<SourceSpec>& specs,

@@ -1,19 +1,12 @@
 // Sensor factory of reenactd: turns `--source` specs into open sensors.
-//
-//   playback:FILE            an MCAP take (capture_daemon/playback_sensor.h)
-//   freenect:0|SERIAL|all    Kinect v1 through libfreenect
-//   openni2:any|URI          an OpenNI2 device
-//   freenect2:any|SERIAL     Kinect v2 through libfreenect2
-//   azure-mkv:FILE           an Azure Kinect recording (k4arecorder .mkv)
-//   tum:DIR                  a TUM RGB-D benchmark folder
-//   oni:FILE                 an OpenNI2 recording (.oni)
-// (the last three: common/io/recordings played by OpenRecordingSensors)
+// The backends, their syntax, defaults and id prefixes are the table of
+// capture_daemon/sensors/source_backends.h (`reenactd --help` lists them).
 //
 // Several sources may be given (a list, or comma-separated in one spec).
-// Sensor ids are unique across sources: hardware sensors are numbered on
-// ("k0", "k1", ... for Kinects and Azure Kinect / TUM recordings, "o0", ...
-// for OpenNI2 devices and .oni recordings) past the ids already
-// taken, and a take whose ids are taken plays under "p<source>-<n>".
+// Sensor ids are unique across sources: hardware sensors and recordings are
+// numbered on past the ids already taken ("k0", "k1", ... for Kinects and
+// Azure Kinect / TUM recordings, "o0", ... for OpenNI2 devices and .oni
+// recordings), and a take whose ids are taken plays under "p<source>-<n>".
 #pragma once
 
 #include <string>
@@ -26,7 +19,7 @@
 namespace reenact::capture {
 
 struct SourceSpec {
-  // "playback", "freenect", "openni2", "freenect2", "azure-mkv", "tum", "oni".
+  // A SourceBackend's name ("playback", "freenect", ...).
   std::string backend;
   std::string argument;  // File or folder, device index/serial/URI, or "all"/"any".
   std::string ToString() const { return backend + ":" + argument; }
@@ -34,8 +27,13 @@ struct SourceSpec {
 
 // Parses specs, splitting each at commas. InvalidArgument naming the spec
 // for an unknown backend or a missing argument (playback and the recordings
-// need a file or folder; the hardware backends default to "all"/"any").
+// need a file or folder; the hardware backends default to "all"/"any"), the
+// error listing the backends.
 absl::StatusOr<std::vector<SourceSpec>> ParseSourceSpecs(const std::vector<std::string>& specs);
+
+// Whether the spec names devices on a bus (SourceBackend.hardware): USB
+// arrivals rescan it, and frames cannot wait for the server.
+bool IsHardware(const SourceSpec& spec);
 
 // Opens every source in order. `options` (fast, loop) apply to all; the id
 // fields are set per source. The first failing source's error is returned,

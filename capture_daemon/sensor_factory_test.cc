@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "capture_daemon/sensors/source_backends.h"
 #include "common/io/testing/small_take.h"
 #include "common/testing/test_data.h"
 
@@ -28,6 +29,15 @@ TEST(ParseSourceSpecs, RejectsBadSpecs) {
   EXPECT_TRUE(absl::IsInvalidArgument(ParseSourceSpecs({}).status()));
   const absl::Status s = ParseSourceSpecs({"kinect:0"}).status();
   EXPECT_NE(s.message().find("kinect:0"), std::string::npos) << s;
+  // The error lists every backend of the table.
+  for (const SourceBackend& backend : SourceBackends()) {
+    EXPECT_NE(s.message().find(backend.syntax), std::string::npos) << backend.name << ": " << s;
+  }
+  // A spec that never went through the parser is refused, not opened by
+  // some other backend.
+  const absl::Status unknown = OpenSources({{"webcam", "0"}}, {}).status();
+  EXPECT_TRUE(absl::IsInvalidArgument(unknown)) << unknown;
+  EXPECT_NE(unknown.message().find("unknown backend"), std::string::npos) << unknown;
 }
 
 TEST(OpenSources, PlaybackIdsStayUniqueAcrossSources) {

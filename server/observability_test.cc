@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -216,7 +217,45 @@ TEST_F(ObservedServer, HealthMetricsAndJsonLogsTellWhatHappened) {
   }
   ASSERT_EQ(job.state(), v1::JOB_STATE_SUCCEEDED) << job.error();
 
+  // A method no service has: UNIMPLEMENTED that says so.
+  {
+    grpc::GenericStub stub(channel_);
+    grpc::ClientContext context;
+    grpc::CompletionQueue queue;
+    auto call =
+        stub.PrepareUnaryCall(&context, "/reenact.v1.Nothing/Here", grpc::ByteBuffer(), &queue);
+    call->StartCall();
+    grpc::ByteBuffer response;
+    grpc::Status status;
+    call->Finish(&response, &status, &queue);
+    void* tag = nullptr;
+    bool ok = false;
+    ASSERT_TRUE(queue.Next(&tag, &ok));
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
+    EXPECT_NE(status.error_message().find("no such method on this server"), std::string::npos)
+        << status.error_message();
+    queue.Shutdown();
+    while (queue.Next(&tag, &ok)) {
+    }
+  }
+
   const std::map<std::string, double> samples = Scrape();
+  // Latency histograms: one Submit timed, one job run and waited for.
+  EXPECT_EQ(samples.at("reenact_rpc_duration_seconds_count{method=\"/reenact.v1.Jobs/Submit\"}"),
+            1);
+  EXPECT_EQ(samples.at("reenact_rpc_duration_seconds_bucket{method=\"/reenact.v1.Jobs/Submit\","
+                       "le=\"+Inf\"}"),
+            1);
+  EXPECT_GT(samples.at("reenact_rpc_duration_seconds_sum{method=\"/reenact.v1.Jobs/Submit\"}"),
+            0.0);
+  EXPECT_EQ(samples.at("reenact_rpc_requests_total{method=\"other\",code=\"UNIMPLEMENTED\"}"), 1);
+  EXPECT_EQ(samples.at("reenact_job_duration_seconds_count{method=\"rigid-carved\","
+                       "outcome=\"succeeded\"}"),
+            1);
+  EXPECT_EQ(samples.at("reenact_job_wait_seconds_count{method=\"rigid-carved\"}"), 1);
+  EXPECT_GT(samples.at("process_cpu_seconds_total"), 0.0);
+  EXPECT_GT(samples.at("process_open_fds"), 3);
+  EXPECT_EQ(samples.count("reenact_build_info{version=\"" REENACT_VERSION "\"}"), 1u);
   EXPECT_EQ(samples.at("reenact_ingest_frame_sets_total"), kSets);
   EXPECT_EQ(samples.at("reenact_ingest_bytes_total"), sent_bytes);
   EXPECT_EQ(samples.at("reenact_takes_open"), 0);

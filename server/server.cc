@@ -21,13 +21,13 @@
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "reenact/v1/takes_service.grpc.pb.h"
+#include "server/metrics/server_metrics.h"
 #include "server/rpc/ingest_service.h"
 #include "server/rpc/jobs_service.h"
 #include "server/rpc/reenactments_service.h"
 #include "server/rpc/rpc_auth.h"
 #include "server/rpc/takes_service.h"
 #include "server/rpc/work_service.h"
-#include "server/server_metrics.h"
 
 namespace reenact::server {
 namespace {
@@ -350,6 +350,21 @@ void Server::Shutdown() {
 
 void Server::Wait() {
   if (grpc_server_ != nullptr) grpc_server_->Wait();
+}
+
+http::HttpBackend HttpBackendOf(Server* server) {
+  http::HttpBackend backend;
+  backend.auth = server->auth_enabled();
+  backend.channel = [server](const std::string& token, const std::string& client) {
+    return server->InProcessChannel(token, client);
+  };
+  backend.derived_path = [server](const std::string& id, const std::string& extension) {
+    return server->reenactments().DerivedPathFor(id, extension);
+  };
+  backend.still_stored = [server](const std::string& id) {
+    return server->reenactments().Get(id).ok();
+  };
+  return backend;
 }
 
 }  // namespace reenact::server

@@ -20,6 +20,7 @@
 #include "common/rpc/auth.h"
 #include "common/rpc/channel.h"
 #include "common/rpc/health_service.h"
+#include "server/http/http_front.h"
 #include "server/jobs/job_scheduler.h"
 #include "server/jobs/job_store.h"
 #include "server/jobs/local_workers.h"
@@ -54,7 +55,7 @@ struct ServerOptions {
   JobSchedulerOptions jobs;
   // The live hub (server/live/live_hub.h): its factory makes the followers
   // of live jobs; without one, live jobs of recording takes are refused.
-  // reenact-server plugs in the body model's (server/live/live_body_follower.h).
+  // reenact-server plugs in the registry's (server/live/live_method_follower.h).
   LiveHubOptions live;
   // TLS for the listening port (common/rpc/channel.h); off when empty.
   rpc::ServerTlsFiles tls{};
@@ -177,5 +178,10 @@ class Server {
 
 // The services of the server, registered in this one place.
 std::vector<std::unique_ptr<grpc::Service>> MakeServices(ServerContext& context);
+
+// What the HTTP front (server/http/http_front.h) serves of `server`: its
+// tokens, its in-process channel and its reenactment store's files.
+// `server` must outlive the front.
+http::HttpBackend HttpBackendOf(Server* server);
 
 }  // namespace reenact::server

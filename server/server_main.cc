@@ -23,7 +23,7 @@
 #include "server/http/http_front.h"
 #include "server/jobs/slurm_launcher.h"
 #include "server/listener_guard.h"
-#include "server/live/live_body_follower.h"
+#include "server/live/live_method_follower.h"
 #include "server/recon/methods.h"
 #include "server/recon/registry.h"
 #include "server/server.h"
@@ -78,11 +78,15 @@ int main(int argc, char** argv) {
   const int64_t descriptor_limit = RaiseDescriptorLimit();
   WatchGrpcLog([] { ::kill(::getpid(), SIGUSR1); });
   ServerOptions options = command_line->options;
-  // Live jobs of method body.
-  options.live.factory = MakeLiveBodyFollowerFactory(options.jobs.asset_roots);
+  // Live jobs: each method's own follower, from the registry.
+  options.live.factory = MakeLiveMethodFollowerFactory(options.jobs.asset_roots);
   // The methods jobs may name: the registry's, checked as the worker will.
   options.jobs.methods = reenact::recon::MethodSpecs();
-  options.jobs.check_job = reenact::recon::CheckJob;
+  options.jobs.check_job = [roots = options.jobs.asset_roots](
+                               const std::string& method,
+                               const std::map<std::string, std::string>& job_options) {
+    return reenact::recon::CheckJob(method, job_options, roots);
+  };
   // Jobs estimated over --job-memory-mb are refused at submit.
   options.jobs.job_memory = [](const std::string& method,
                                const std::map<std::string, std::string>& job_options,
@@ -136,7 +140,7 @@ int main(int argc, char** argv) {
     web_options.max_connections = command_line->http.max_connections;
     web_options.max_connections_per_client = command_line->http.max_connections_per_client;
     absl::StatusOr<std::unique_ptr<http::HttpFront>> started =
-        http::HttpFront::Start(web_options, server->get());
+        http::HttpFront::Start(web_options, HttpBackendOf(server->get()));
     if (!started.ok()) {
       (*server)->Shutdown();
       return FailRunning(started.status());

@@ -10,7 +10,7 @@
 //                  [--memory-limit-mb N]
 //
 // One job (what the network mode runs as a child for each job, and what a
-// person can run by hand): server/jobs/worker_protocol.h describes the
+// person can run by hand): server/worker/worker_protocol.h describes the
 // protocol; server/recon/methods.h the methods.
 //
 //   reenact-worker --take FILE --method METHOD --out FILE

@@ -1,7 +1,7 @@
 // The live body model end to end over loopback: the real reenactd plays a
 // synthetic 2-sensor take of the procedural body in real time into the real
 // reenact-server; as soon as the take shows up RECORDING (`reenact takes
-// list`), `reenact jobs submit --method body --option live=true` starts a
+// list`), `reenact jobs submit --method body --live` starts a
 // live job and `reenact reenactments follow --json` subscribes to it. The
 // preview must bring the mesh first, then posed frames with joints in take
 // order, then the end (take complete); the same job then runs the offline
@@ -130,10 +130,9 @@ TEST_F(LiveFollowEndToEnd, LiveBodyJobFollowsATakeWhileItIsRecorded) {
 
   CommandResult submit;
   for (int attempt = 0; attempt < 20; ++attempt) {  // Unavailable while the take opens.
-    submit = RunCommand(
-        dir_, "submit",
-        {Bin("reenact"), "jobs", "submit", "--server", address_, "--take", take_id, "--method",
-         "body", "--model", "procedural", "--option", "live=true", "--json"});
+    submit = RunCommand(dir_, "submit",
+                        {Bin("reenact"), "jobs", "submit", "--server", address_, "--take", take_id,
+                         "--method", "body", "--model", "procedural", "--live", "--json"});
     if (submit.exit_code == 0 || submit.err.find("being opened") == std::string::npos) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }

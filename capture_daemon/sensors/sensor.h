@@ -1,6 +1,6 @@
 // The sensor interface of reenactd: a Sensor streams CapturedFrames from its
 // own thread until it is stopped or its source ends. Backends: playback of
-// MCAP takes (capture_daemon/playback_sensor.h), Kinect v1 through
+// MCAP takes (capture_daemon/sensors/playback_sensor.h), Kinect v1 through
 // libfreenect, OpenNI2 devices, Kinect v2 through libfreenect2 when it was
 // found at build time (capture_daemon/sensors/backends.h).
 #pragma once

@@ -10,7 +10,7 @@
 // reason as its detail, and calls the EndCallback with the error. After
 // Stop() nothing is reported (sensor.h).
 //
-// Playback (capture_daemon/playback_sensor.h) is not a ThreadedSensor: the
+// Playback (capture_daemon/sensors/playback_sensor.h) is not a ThreadedSensor: the
 // sensors of one take share one player thread.
 #pragma once
 

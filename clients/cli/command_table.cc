@@ -194,13 +194,13 @@ std::vector<Command> BuildCommandTable() {
       {{"capture", "stop"}, "[--daemon HOST:PORT]", "stop the take being recorded", RunCaptureStop},
       {{"jobs", "submit"},
        "--take ID --method NAME [--model procedural|makehuman:NAME] "
-       "[--option KEY=VALUE ...] [--segments N] [--server HOST:PORT] [--wait [--logs] "
+       "[--option KEY=VALUE ...] [--segments N | --live] [--server HOST:PORT] [--wait [--logs] "
        "[--quiet]] [--json]",
        "queue a reconstruction of a stored take by a method of `jobs methods` (rigid parts, "
        "thesis ch. 3, or the body model, ch. 4; --model is --option model=); --segments N "
        "splits the take across N workers (methods marked segmentable); --wait follows it "
-       "with a progress bar; a live method with --option live=true follows a take still "
-       "recording (reenactments follow)",
+       "with a progress bar; --live follows a take still recording, with a method that can "
+       "(reenactments follow)",
        RunJobsSubmit},
       {{"jobs", "methods"},
        "[--server HOST:PORT] [--json]",
@@ -239,7 +239,7 @@ std::vector<Command> BuildCommandTable() {
        RunReenactmentsDelete},
       {{"reenactments", "follow"},
        "--job ID [--server HOST:PORT] [--json]",
-       "follow a live job's preview (jobs submit --method body --option live=true) while its "
+       "follow a live job's preview (jobs submit --method body --live) while its "
        "take is recorded: one line per fitted frame (latency: published - arrived at the "
        "server, and received here - arrived), then p50/p95/max",
        RunReenactmentsFollow},

@@ -100,6 +100,7 @@ nlohmann::json JobJson(const v1::Job& job) {
           {"attempts", job.attempts()},
           {"attempt_history", history},
           {"segments", job.segments()},
+          {"live", job.live()},
           {"parts", parts}};
 }
 
@@ -246,11 +247,16 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   if (!options.ok()) return ReportError(options.status(), err);
   auto flags = Flags::Parse(
       args, {"server", "timeout", "tls-ca", "token-file", "take", "method", "model", "segments"},
-      {"wait", "json", "logs", "quiet"});
+      {"wait", "json", "logs", "quiet", "live"});
   if (!flags.ok()) return ReportError(flags.status(), err);
   if (!flags->positional().empty()) {
     return ReportError(absl::InvalidArgumentError(
                            absl::StrCat("unexpected argument \"", flags->positional()[0], "\"")),
+                       err);
+  }
+  if (options->contains("live")) {
+    return ReportError(absl::InvalidArgumentError(
+                           "live is not an option: follow a take while it is recorded with --live"),
                        err);
   }
   auto take = flags->Required("take");
@@ -267,7 +273,7 @@ int RunJobsSubmit(const std::vector<std::string>& raw_args, std::ostream& out, s
   if (!segments.ok() || *segments < 0) {
     return ReportError(absl::InvalidArgumentError("--segments takes a count of workers >= 0"), err);
   }
-  auto job = jobs.Submit(*take, *method, *options, *segments);
+  auto job = jobs.Submit(*take, *method, *options, *segments, flags->Has("live"));
   if (!job.ok()) return ReportRemoteError(job.status(), err);
   const bool json = flags->Has("json");
   if (!flags->Has("wait")) {
@@ -399,7 +405,7 @@ int RunJobsMethods(const std::vector<std::string>& args, std::ostream& out, std:
     const nlohmann::json j = MethodJson(method);
     out << method.name() << ": " << method.summary() << "\n"
         << "  thesis " << method.thesis() << "; textures " << j["texture_mode"].get<std::string>()
-        << "; " << (method.live() ? "can follow a take live (live=true)" : "offline only")
+        << "; " << (method.live() ? "can follow a take live (--live)" : "offline only")
         << (method.segmentable() ? "; can split a take across workers (--segments N)" : "") << "\n";
     for (const v1::MethodOption& option : method.options()) {
       const char* scope = option.common() ? " (every method)" : option.live_only() ? " (live)" : "";
@@ -458,6 +464,7 @@ int RunJobsShow(const std::vector<std::string>& args, std::ostream& out, std::os
         << (a.ended_unix_ns() == 0 ? "running" : UtcTime(a.ended_unix_ns()))
         << (a.outcome().empty() ? "" : ": " + a.outcome()) << ReadBytes(a) << "\n";
   }
+  if (job->live()) out << "live         follows its take while it is recorded\n";
   if (job->segments() > 0) out << "segments     " << job->segments() << "\n";
   for (const v1::JobPart& part : job->parts()) {
     out << "  part " << part.name() << "  "

@@ -1,5 +1,10 @@
 // `reenact jobs ...` against a fake Jobs service on 127.0.0.1:0: flags,
 // options, progress bar, JSON output and exit codes.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -8,6 +13,7 @@
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -16,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "clients/cli/commands.h"
+#include "clients/cli/remote_flags.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 
@@ -271,8 +278,8 @@ TEST(RemoteErrors, AnUnreachableServerSaysWhatToTryNext) {
               std::string::npos)
         << err.str();
   }
-  for (const std::string address :
-       {"localhost", "localhost:", ":50051", "localhost:0", "localhost:99999", "::1:50051"}) {
+  for (const std::string address : {"localhost", "localhost:", ":50051", "localhost:0",
+                                    "localhost:99999", "::1:50051", "[]:50051", "[::1:50051"}) {
     std::ostringstream out, err;
     EXPECT_EQ(Dispatch({"jobs", "list", "--server", address}, out, err), kExitUsage) << address;
     EXPECT_NE(err.str().find("give HOST:PORT, e.g. 127.0.0.1:50051"), std::string::npos)
@@ -285,8 +292,90 @@ TEST(RemoteErrors, AnUnreachableServerSaysWhatToTryNext) {
   ::setenv("REENACT_SERVER", "no-port", 1);
   std::ostringstream out2, err2;
   EXPECT_EQ(Dispatch({"jobs", "list"}, out2, err2), kExitUsage);
-  EXPECT_NE(err2.str().find("--server \"no-port\": no port"), std::string::npos) << err2.str();
+  EXPECT_NE(err2.str().find("--server \"no-port\" is not HOST:PORT: no port"), std::string::npos)
+      << err2.str();
   ::unsetenv("REENACT_SERVER");
+}
+
+// A port that speaks something other than gRPC (the server's --http port,
+// say): every connection gets an HTTP error and is closed.
+class NotGrpcListener {
+ public:
+  NotGrpcListener() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t size = sizeof(address);
+    if (fd_ < 0 || ::bind(fd_, reinterpret_cast<sockaddr*>(&address), size) != 0 ||
+        ::listen(fd_, 8) != 0 ||
+        ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size) != 0) {
+      return;
+    }
+    port_ = ntohs(address.sin_port);
+    thread_ = std::thread([this] {
+      for (;;) {
+        const int client = ::accept(fd_, nullptr, nullptr);
+        if (client < 0) return;
+        constexpr char kReply[] = "HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n";
+        (void)!::write(client, kReply, sizeof(kReply) - 1);
+        ::close(client);
+      }
+    });
+  }
+  ~NotGrpcListener() {
+    ::shutdown(fd_, SHUT_RDWR);
+    ::close(fd_);
+    if (thread_.joinable()) thread_.join();
+  }
+  int port() const { return port_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+  std::thread thread_;
+};
+
+TEST(RemoteErrors, APortThatIsNotGrpcSaysWhichPortToUse) {
+  NotGrpcListener http;
+  ASSERT_NE(http.port(), 0);
+  std::ostringstream out, err;
+  EXPECT_EQ(Dispatch({"jobs", "list", "--server", "127.0.0.1:" + std::to_string(http.port()),
+                      "--timeout", "5"},
+                     out, err),
+            kExitFailure);
+  EXPECT_NE(err.str().find("UNAVAILABLE"), std::string::npos) << err.str();
+  EXPECT_NE(err.str().find("hint: something answered there but not in gRPC"), std::string::npos)
+      << err.str();
+}
+
+TEST(RemoteErrors, EachKindOfFailureHasItsOwnHint) {
+  // Messages as gRPC writes them; the hint follows the code first.
+  const std::vector<std::pair<absl::Status, std::string>> cases = {
+      {absl::UnavailableError("DNS resolution failed for nowhere.invalid:50051: C-ares status "
+                              "is not ARES_SUCCESS qtype=A name=nowhere.invalid: Domain name "
+                              "not found"),
+       "the host name does not resolve"},
+      {absl::UnavailableError("failed to connect to all addresses; last error: UNKNOWN: "
+                              "ipv4:127.0.0.1:1: Failed to connect to remote host: Connection "
+                              "refused"),
+       "nothing answers there"},
+      {absl::DeadlineExceededError("Deadline Exceeded"), "no answer within --timeout"},
+      {absl::UnauthenticatedError("a token is required"), "this server wants a token"},
+      {absl::PermissionDeniedError("role viewer may not submit jobs"),
+       "your token's role may not do this"},
+  };
+  for (const auto& [status, hint] : cases) {
+    std::ostringstream err;
+    EXPECT_EQ(ReportRemoteError(status, err), kExitFailure);
+    EXPECT_NE(err.str().find("hint: " + hint), std::string::npos) << err.str();
+    EXPECT_EQ(err.str().rfind("reenact: " + absl::StatusCodeToString(status.code()) + ": ", 0), 0u)
+        << err.str();
+  }
+  // A precise answer from the server needs no hint.
+  std::ostringstream err;
+  ReportRemoteError(absl::NotFoundError("no job 7"), err);
+  EXPECT_EQ(err.str(), "reenact: NOT_FOUND: no job 7\n");
 }
 
 TEST_F(JobCommands, SubmitWaitJsonPrintsTheJobAndTheReenactment) {
@@ -358,6 +447,17 @@ TEST_F(JobCommands, SubmitModelIsTheBodyMethodsModelOption) {
       << err_.str();
   EXPECT_EQ(service_.last_submit.options().at("model"), "procedural");
   EXPECT_EQ(service_.last_submit.options().size(), 1u);
+  EXPECT_FALSE(service_.last_submit.live());
+}
+
+TEST_F(JobCommands, SubmitLiveIsTheRequestsFieldNotAnOption) {
+  ASSERT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--live"}), kExitOk)
+      << err_.str();
+  EXPECT_TRUE(service_.last_submit.live());
+  EXPECT_FALSE(service_.last_submit.options().contains("live"));
+  EXPECT_EQ(Run({"jobs", "submit", "--take", "good", "--method", "body", "--option", "live=true"}),
+            kExitUsage);
+  EXPECT_NE(err_.str().find("live is not an option"), std::string::npos) << err_.str();
 }
 
 TEST_F(JobCommands, SubmitModelErrors) {

@@ -24,23 +24,17 @@ namespace {
 // otherwise, before anything dials a port 0 or a name with no port.
 absl::Status CheckAddress(const std::string& address, const std::string& flag) {
   if (absl::StartsWith(address, "unix:") && address.size() > 5) return absl::OkStatus();
-  const size_t colon = address.rfind(':');
   const std::string example = flag == "daemon" ? kDefaultDaemon : kDefaultServer;
-  const auto bad = [&](absl::string_view why) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--", flag, " \"", address, "\": ", why, "; give HOST:PORT, e.g. ", example));
-  };
-  if (colon == std::string::npos) return bad("no port");
-  const std::string host = address.substr(0, colon);
-  if (host.empty()) return bad("no host");
-  if (host.front() == '[' ? host.back() != ']' : host.find(':') != std::string::npos) {
-    return bad("an IPv6 address goes in brackets, [::1]:PORT");
-  }
+  std::string host;
   int port = 0;
-  if (!absl::SimpleAtoi(address.substr(colon + 1), &port) || port < 1 || port > 65535) {
-    return bad("the port must be a number from 1 to 65535");
+  absl::Status split = SplitHostPort(absl::StrCat("--", flag), address, &host, &port);
+  if (split.ok() && port == 0) {
+    split = absl::InvalidArgumentError(
+        absl::StrCat("--", flag, " \"", address, "\": port 0 names no server"));
   }
-  return absl::OkStatus();
+  if (split.ok()) return split;
+  return absl::InvalidArgumentError(
+      absl::StrCat(split.message(), "; give HOST:PORT, e.g. ", example));
 }
 
 // What to try next after a failed RPC with `status` (empty: nothing to add
@@ -55,7 +49,7 @@ std::string Hint(const absl::Status& status) {
       }
       if (absl::StrContains(message, "socket closed") ||
           absl::StrContains(message, "connection reset") ||
-          absl::StrContains(message, "handshake")) {
+          absl::StrContains(message, "handshake") || absl::StrContains(message, "http1")) {
         return "something answered there but not in gRPC: is that the server's --listen port "
                "(not its --http or --metrics port)? A server with TLS needs --tls-ca CA.pem "
                "(or REENACT_TLS_CA)";

@@ -31,13 +31,14 @@ JobsClient::JobsClient(std::shared_ptr<grpc::Channel> channel, const ConnectionO
 
 absl::StatusOr<v1::Job> JobsClient::Submit(const std::string& take_id, const std::string& method,
                                            const std::map<std::string, std::string>& options,
-                                           int segments) const {
+                                           int segments, bool live) const {
   grpc::ClientContext context;
   SetDeadline(context, options_.timeout_s);
   v1::SubmitJobRequest request;
   request.set_take_id(take_id);
   request.set_method(method);
   request.set_segments(segments);
+  request.set_live(live);
   for (const auto& [key, value] : options) (*request.mutable_options())[key] = value;
   v1::Job job;
   const grpc::Status status = stub_->Submit(&context, request, &job);

@@ -30,12 +30,14 @@ class JobsClient {
   JobsClient(std::shared_ptr<grpc::Channel> channel, const ConnectionOptions& options);
 
   // Queues a job of `method` on the stored take, split across `segments`
-  // workers when > 1. InvalidArgument (unknown method, bad options, a method
-  // that cannot be segmented), NotFound (unknown take), FailedPrecondition
-  // (a take still recording), as the server answers.
+  // workers when > 1; `live`: follow the take while it is recorded
+  // (SubmitJobRequest.live). InvalidArgument (unknown method, bad options, a
+  // method that cannot be segmented or follow a take), NotFound (unknown
+  // take), FailedPrecondition (a take still recording, for a job that is
+  // not live), as the server answers.
   absl::StatusOr<v1::Job> Submit(const std::string& take_id, const std::string& method,
                                  const std::map<std::string, std::string>& options = {},
-                                 int segments = 0) const;
+                                 int segments = 0, bool live = false) const;
   // Calls `on_event` with the job now and on every change until it ends;
   // returns the last job seen (finished unless the stream broke).
   // Unavailable when the server went away or shut down before the end.

@@ -13,6 +13,7 @@
 #include "clients/sdk/call_util.h"
 #include "common/base/status_macros.h"
 #include "common/io/reenactment_convert.h"
+#include "common/io/reenactment_fetch.h"
 #include "proto/grpc_status.h"
 
 namespace reenact::client {
@@ -21,56 +22,6 @@ namespace {
 using internal::ForEachPage;
 using internal::SetDeadline;
 using internal::WithAddress;
-
-// Puts one streamed message into `data`, checking the order the service
-// promises: info, the body mesh (body-model reenactments) and the pieces of
-// its appearance video, part meshes, frame batches, keyframes.
-absl::Status Accept(v1::FetchReenactmentChunk& chunk, ReenactmentData* data, int* stage) {
-  const int kind = static_cast<int>(chunk.chunk_case());
-  if (kind == 0) return absl::DataLossError("the server sent an empty Fetch message");
-  // Rank of each kind in the promised order (the body mesh's field number is
-  // the newest, but it comes second).
-  const auto rank = [](int k) {
-    if (k == v1::FetchReenactmentChunk::kBodyMesh) return 3;
-    if (k == v1::FetchReenactmentChunk::kAppearanceMp4Piece) return 3;
-    return 2 * k;
-  };
-  const int info_rank = rank(v1::FetchReenactmentChunk::kInfo);
-  if (rank(kind) < *stage || (rank(kind) != info_rank && *stage == 0) ||
-      (rank(kind) == info_rank && *stage != 0)) {
-    return absl::DataLossError(
-        absl::StrCat("the server sent Fetch message kind ", kind, " out of order"));
-  }
-  *stage = rank(kind);
-  switch (chunk.chunk_case()) {
-    case v1::FetchReenactmentChunk::kInfo:
-      data->info = std::move(*chunk.mutable_info());
-      break;
-    case v1::FetchReenactmentChunk::kBodyMesh:
-      data->body.push_back(std::move(*chunk.mutable_body_mesh()));
-      break;
-    case v1::FetchReenactmentChunk::kAppearanceMp4Piece:
-      if (data->body.empty()) {
-        return absl::DataLossError("the server sent a piece of an appearance video with no body");
-      }
-      data->body.back().mutable_appearance()->mutable_mp4()->append(chunk.appearance_mp4_piece());
-      break;
-    case v1::FetchReenactmentChunk::kPartMesh:
-      data->parts.push_back(std::move(*chunk.mutable_part_mesh()));
-      break;
-    case v1::FetchReenactmentChunk::kFrames:
-      for (v1::PartFrame& frame : *chunk.mutable_frames()->mutable_frames()) {
-        data->frames.push_back(std::move(frame));
-      }
-      break;
-    case v1::FetchReenactmentChunk::kKeyframe:
-      data->keyframes.push_back(std::move(*chunk.mutable_keyframe()));
-      break;
-    default:
-      break;
-  }
-  return absl::OkStatus();
-}
 
 // Starts a Fetch of `reenactment_id` on `context`.
 std::unique_ptr<grpc::ClientReader<v1::FetchReenactmentChunk>> StartFetch(
@@ -141,7 +92,7 @@ absl::StatusOr<Reenactment> ReenactmentsClient::Fetch(const std::string& reenact
   int stage = 0;
   absl::Status failure;
   while (reader->Read(&chunk)) {
-    failure = Accept(chunk, &data, &stage);
+    failure = AppendFetchChunk(chunk, &data, &stage);
     if (failure.ok() && progress) {
       Progress p;
       p.stage = "fetch";
@@ -191,7 +142,7 @@ absl::StatusOr<v1::BodyMesh> ReenactmentsClient::FetchBodyMesh(
         kind != v1::FetchReenactmentChunk::kAppearanceMp4Piece) {
       break;
     }
-    failure = Accept(chunk, &data, &stage);
+    failure = AppendFetchChunk(chunk, &data, &stage);
   }
   if (!ended) context.TryCancel();  // Leaves the frames on the server.
   const grpc::Status status = reader->Finish();

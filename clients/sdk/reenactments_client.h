@@ -53,8 +53,8 @@ class ReenactmentsClient {
   absl::StatusOr<v1::BodyMesh> FetchBodyMesh(const std::string& reenactment_id) const;
   // NotFound for an unknown id.
   absl::Status Delete(const std::string& reenactment_id) const;
-  // The live preview of a job that follows its take (method body, option
-  // live=true): calls `on_event` with each event as it arrives (the body
+  // The live preview of a job that follows its take (a live job, Job.live):
+  // calls `on_event` with each event as it arrives (the body
   // mesh first, one frame per fitted FrameSet, the FollowEnd last) and
   // returns the FollowEnd. No deadline: it lasts as long as the take. A job
   // that follows nothing gets only a FollowEnd (NOT_FOLLOWING). NotFound

@@ -85,17 +85,23 @@ absl::StatusOr<double> Flags::GetDouble(const std::string& name, double fallback
 
 absl::Status SplitHostPort(absl::string_view what, const std::string& address, std::string* host,
                            int* port) {
-  const size_t colon = address.rfind(':');
-  int value = -1;
-  if (colon == std::string::npos || colon == 0 ||
-      !absl::SimpleAtoi(address.substr(colon + 1), &value) || value < 0 || value > 65535) {
+  const auto bad = [&](absl::string_view why) {
     return absl::InvalidArgumentError(
-        absl::StrCat(what, " \"", address, "\" is not HOST:PORT (port 0..65535)"));
+        absl::StrCat(what, " \"", address, "\" is not HOST:PORT: ", why));
+  };
+  const size_t colon = address.rfind(':');
+  if (colon == std::string::npos) return bad("no port");
+  if (colon == 0) return bad("no host");
+  int value = -1;
+  if (!absl::SimpleAtoi(address.substr(colon + 1), &value) || value < 0 || value > 65535) {
+    return bad("the port must be a number from 0 to 65535");
   }
-  *host = address.substr(0, colon);
-  if (host->size() >= 2 && host->front() == '[' && host->back() == ']') {
-    *host = host->substr(1, host->size() - 2);
+  std::string name = address.substr(0, colon);
+  const bool bracketed = name.front() == '[';
+  if (bracketed ? name.size() < 3 || name.back() != ']' : name.find(':') != std::string::npos) {
+    return bad("an IPv6 address goes in brackets, [::1]:PORT");
   }
+  *host = bracketed ? name.substr(1, name.size() - 2) : std::move(name);
   *port = value;
   return absl::OkStatus();
 }

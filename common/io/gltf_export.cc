@@ -105,11 +105,22 @@ class GlbBuilder {
     return static_cast<int>(model_.accessors.size()) - 1;
   }
 
+  // Triangle indices, as 16-bit integers when every index fits (65535 is
+  // glTF's primitive restart value, so not an index), else 32-bit.
   int AddIndices(const std::vector<uint32_t>& indices) {
     tinygltf::Accessor accessor;
-    accessor.bufferView = AddView(indices.data(), indices.size() * sizeof(uint32_t),
-                                  TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-    accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    const bool short_indices =
+        std::all_of(indices.begin(), indices.end(), [](uint32_t i) { return i < 65535; });
+    if (short_indices) {
+      const std::vector<uint16_t> narrow(indices.begin(), indices.end());
+      accessor.bufferView = AddView(narrow.data(), narrow.size() * sizeof(uint16_t),
+                                    TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+      accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+    } else {
+      accessor.bufferView = AddView(indices.data(), indices.size() * sizeof(uint32_t),
+                                    TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+      accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    }
     accessor.count = indices.size();
     accessor.type = TINYGLTF_TYPE_SCALAR;
     model_.accessors.push_back(std::move(accessor));

@@ -32,7 +32,7 @@ struct OptionSpec {
   std::string doc;
   // Read by every method before its own options (loading the take).
   bool common = false;
-  // Read only when a job follows its take while it is recorded (live=true);
+  // Read only when a job follows its take while it is recorded (a live job);
   // the worker that runs the method on the whole take never gets it.
   bool live_only = false;
 };
@@ -50,7 +50,9 @@ struct MethodSpec {
   std::string name;     // What a job names: "rigid-carved".
   std::string summary;  // One line.
   std::string thesis;   // Sections and equations it implements.
-  bool live = false;    // Whether a job may follow its take (live=true).
+  // Whether a job may follow its take while it is recorded (the method
+  // makes its own live follower).
+  bool live = false;
   TextureMode texture = TextureMode::kRotationClosest;
   std::vector<OptionSpec> options;
   // Whether one take may be split across several workers (a job's

@@ -60,10 +60,13 @@ absl::Status OptionReader::Bool(const std::string& key, bool* value, const std::
   const std::string* text =
       Visit({key, OptionType::kBool, *value ? "true" : "false", false, 0.0, 0.0, doc});
   if (text == nullptr) return absl::OkStatus();
-  if (!absl::SimpleAtob(*text, value)) {
+  // Exactly "true" or "false": absl::SimpleAtob would also take "yes", "y",
+  // "t" and "1", which read as a typo as easily as a choice.
+  if (*text != "true" && *text != "false") {
     return absl::InvalidArgumentError(
         absl::StrCat("option ", key, ": \"", *text, "\" is not true or false"));
   }
+  *value = *text == "true";
   return absl::OkStatus();
 }
 

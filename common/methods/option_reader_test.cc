@@ -36,6 +36,23 @@ TEST(OptionReader, ReadsTypedValuesAndRejectsUnknownKeys) {
   EXPECT_NE(finish.message().find("mystery"), std::string::npos) << finish;
 }
 
+TEST(OptionReader, ABoolIsExactlyTrueOrFalse) {
+  for (const std::string word : {"yes", "y", "t", "1", "True", "no", "0", ""}) {
+    const std::map<std::string, std::string> options = {{"bake", word}};
+    OptionReader reader(options);
+    bool bake = true;
+    const absl::Status status = reader.Bool("bake", &bake);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << word;
+    EXPECT_NE(status.message().find("is not true or false"), std::string::npos) << status;
+    EXPECT_TRUE(bake) << word;  // Left as it was.
+  }
+  const std::map<std::string, std::string> options = {{"bake", "true"}};
+  OptionReader reader(options);
+  bool bake = false;
+  EXPECT_TRUE(reader.Bool("bake", &bake).ok());
+  EXPECT_TRUE(bake);
+}
+
 struct Example {
   double lambda = 0.5;
   int segments = 24;
@@ -107,13 +124,14 @@ TEST(MethodSpec, UnknownMethodsAreNamedWithTheKnownOnes) {
 
 TEST(MethodSpec, CheckOptionsGoesByTheListedTypesAndBounds) {
   MethodSpec spec{"m", "", "", false, TextureMode::kRotationClosest, DescribeOptions<Example>()};
-  EXPECT_TRUE(CheckOptions(spec, {{"lambda", "10"}, {"segments", "3"}, {"bake", "no"}}).ok());
+  EXPECT_TRUE(CheckOptions(spec, {{"lambda", "10"}, {"segments", "3"}, {"bake", "false"}}).ok());
   for (const auto& [key, value] :
        std::vector<std::pair<std::string, std::string>>{{"lambda", "10.5"},
                                                         {"lambda", "nan"},
                                                         {"segments", "2"},
                                                         {"segments", "3.5"},
                                                         {"bake", "maybe"},
+                                                        {"bake", "no"},
                                                         {"colour", "red"}}) {
     const absl::Status status = CheckOptions(spec, {{key, value}});
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << key << "=" << value;

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <string>
 #include <thread>
@@ -50,6 +51,45 @@ TEST(Metrics, ExpositionParsesWithEscapedLabelsAndHelp) {
   EXPECT_THAT(text, ::testing::Not(HasSubstr("bad-name")));
 }
 
+TEST(Metrics, HistogramsExposeCumulativeBucketsSumAndCount) {
+  Registry registry;
+  Histogram& latency = registry.GetHistogram("reenact_test_seconds", "Test latencies.",
+                                             {{"method", "/a.B/C"}}, {0.01, 0.1, 1});
+  EXPECT_EQ(&latency, &registry.GetHistogram("reenact_test_seconds", "Test latencies.",
+                                             {{"method", "/a.B/C"}}, {5}));
+  for (const double seconds : {0.005, 0.01, 0.05, 0.5, 0.7, 3.0, std::nan("")}) {
+    latency.Observe(seconds);
+  }
+  const std::string text = registry.Expose();
+  auto samples = ParseExposition(text);
+  ASSERT_TRUE(samples.ok()) << samples.status() << "\n" << text;
+  const std::string method = "method=\"/a.B/C\"";
+  EXPECT_EQ(samples->at("reenact_test_seconds_bucket{" + method + ",le=\"0.01\"}"), 2);
+  EXPECT_EQ(samples->at("reenact_test_seconds_bucket{" + method + ",le=\"0.1\"}"), 3);
+  EXPECT_EQ(samples->at("reenact_test_seconds_bucket{" + method + ",le=\"1\"}"), 5);
+  EXPECT_EQ(samples->at("reenact_test_seconds_bucket{" + method + ",le=\"+Inf\"}"), 6);
+  EXPECT_EQ(samples->at("reenact_test_seconds_count{" + method + "}"), 6);
+  EXPECT_NEAR(samples->at("reenact_test_seconds_sum{" + method + "}"), 4.265, 1e-9);
+  EXPECT_EQ(samples->size(), 6u) << text;
+  EXPECT_THAT(text, HasSubstr("# TYPE reenact_test_seconds histogram\n"));
+}
+
+TEST(Metrics, ConcurrentObservationsAreAllCounted) {
+  Registry registry;
+  Histogram& histogram = registry.GetHistogram("h_seconds", "H.", {}, RequestSecondsBounds());
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&histogram, t] {
+      for (int i = 0; i < 10000; ++i) histogram.Observe(0.001 * (t + 1));
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  const Histogram::Counts counts = histogram.Read();
+  EXPECT_EQ(counts.cumulative.back(), 40000u);
+  EXPECT_NEAR(counts.sum, 10000 * (0.001 + 0.002 + 0.003 + 0.004), 1e-6);
+  EXPECT_EQ(counts.cumulative.front(), 10000u);  // Those <= 1 ms.
+}
+
 TEST(Metrics, SameNameAndLabelsIsTheSameCounter) {
   Registry registry;
   Counter& a = registry.GetCounter("x_total", "X.", {{"k", "v"}});
@@ -93,6 +133,36 @@ TEST(Metrics, ProcessFiguresAreThere) {
   ASSERT_TRUE(samples.ok()) << samples.status();
   EXPECT_GT(samples->at("process_resident_memory_bytes"), 1 << 20);
   EXPECT_GT(samples->at("process_start_time_seconds"), 1.6e9);
+  EXPECT_NEAR(
+      samples->at("process_start_time_seconds"),
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(),
+      3600.0);
+  // Spin a little so that the CPU time is measurably above zero.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(50);
+  volatile double spin = 0;
+  while (std::chrono::steady_clock::now() < until) spin = spin + 1;
+  Snapshot later;
+  AddProcessMetrics(later);
+  auto after = ParseExposition(later.Expose());
+  ASSERT_TRUE(after.ok()) << after.status();
+  EXPECT_GT(after->at("process_cpu_seconds_total"), 0.0);
+  EXPECT_GE(after->at("process_cpu_seconds_total"), samples->at("process_cpu_seconds_total"));
+  // Three more descriptors open are three more counted.
+  const double open_before = after->at("process_open_fds");
+  EXPECT_GE(open_before, 3);  // stdin, stdout, stderr at least.
+  int pipes[2];
+  ASSERT_EQ(::pipe(pipes), 0);
+  const int third = ::dup(pipes[0]);
+  Snapshot with_pipes;
+  AddProcessMetrics(with_pipes);
+  auto opened = ParseExposition(with_pipes.Expose());
+  ::close(pipes[0]);
+  ::close(pipes[1]);
+  ::close(third);
+  ASSERT_TRUE(opened.ok()) << opened.status();
+  EXPECT_EQ(opened->at("process_open_fds"), open_before + 3);
+  EXPECT_GE(opened->at("process_max_fds"), opened->at("process_open_fds"));
+  EXPECT_EQ(opened->at("reenact_build_info{version=\"" REENACT_VERSION "\"}"), 1);
   EXPECT_GT(FreeDiskBytes("/tmp"), 0);
   EXPECT_EQ(FreeDiskBytes("/no/such/folder"), -1);
 }

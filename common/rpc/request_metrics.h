@@ -1,7 +1,10 @@
-// reenact_rpc_requests_total{method,code}: every call a server finishes,
-// counted by a gRPC server interceptor, so that no handler has to remember
-// to count (and refusals, which end before a handler does anything, are
-// counted too).
+// reenact_rpc_requests_total{method,code} and the latency histogram
+// reenact_rpc_duration_seconds{method}: every call a server finishes,
+// counted and timed (arrival to status) by a gRPC server interceptor, so
+// that no handler has to remember to count (and refusals, which end before
+// a handler does anything, are counted too). A call to a method the server
+// does not have gets UNIMPLEMENTED with a message saying so, where gRPC's
+// own answer has none.
 //
 // Only the methods given are named in the label; any other method (a client
 // calling one this server does not have) is counted as "other", so that

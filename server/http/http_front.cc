@@ -184,7 +184,7 @@ std::string FindWebRoot(const std::string& program_path) {
 
 struct HttpFront::Impl {
   HttpFrontOptions options;
-  Server* server = nullptr;
+  bool auth = false;
   std::unique_ptr<WebApi> api;
   std::string web_root;  // Canonical; empty: no app.
   // The --http host in lower case when it names one address (not 0.0.0.0
@@ -463,7 +463,7 @@ void HttpFront::Impl::FollowSocket(Stream& stream, Connection& connection,
 
 std::optional<WebResponse> HttpFront::Impl::RefuseHost(
     const bhttp::request<bhttp::empty_body>& request) const {
-  if (server->auth_enabled()) return std::nullopt;  // Tokens decide.
+  if (auth) return std::nullopt;  // Tokens decide.
   const std::string host = HostOf(HeaderOf(request, bhttp::field::host));
   if (IsLoopbackHost(host) || IsAddressLiteral(host) ||
       (!bound_host.empty() && host == bound_host)) {
@@ -572,7 +572,7 @@ WebResponse HttpFront::Impl::StaticFile(const WebRequest& request) const {
 }
 
 absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptions& options,
-                                                            Server* server) {
+                                                            HttpBackend backend) {
   RETURN_IF_ERROR(options.Validate());
   std::string host;
   int port = 0;
@@ -581,7 +581,7 @@ absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptio
   front->impl_ = std::make_unique<Impl>();
   Impl& impl = *front->impl_;
   impl.options = options;
-  impl.server = server;
+  impl.auth = backend.auth;
   if (!options.web_root.empty()) {
     std::error_code error;
     const std::filesystem::path root = std::filesystem::canonical(options.web_root, error);
@@ -620,18 +620,11 @@ absl::StatusOr<std::unique_ptr<HttpFront>> HttpFront::Start(const HttpFrontOptio
     }
   }
   WebApiOptions api_options;
-  api_options.auth = server->auth_enabled();
+  api_options.auth = backend.auth;
   api_options.tls = options.tls.enabled();
-  api_options.derived_path = [server](const std::string& id, const std::string& extension) {
-    return server->reenactments().DerivedPathFor(id, extension);
-  };
-  api_options.still_stored = [server](const std::string& id) {
-    return server->reenactments().Get(id).ok();
-  };
-  impl.api = std::make_unique<WebApi>(
-      std::move(api_options), [server](const std::string& token, const std::string& client) {
-        return server->InProcessChannel(token, client);
-      });
+  api_options.derived_path = std::move(backend.derived_path);
+  api_options.still_stored = std::move(backend.still_stored);
+  impl.api = std::make_unique<WebApi>(std::move(api_options), std::move(backend.channel));
 
   beast::error_code error;
   tcp::resolver resolver(impl.io);

@@ -18,11 +18,14 @@
 // or the client goes.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 
+#include <grpcpp/channel.h>
+
 #include "absl/status/statusor.h"
-#include "server/server.h"
+#include "common/rpc/channel.h"
 
 namespace reenact::server::http {
 
@@ -47,6 +50,22 @@ struct HttpFrontOptions {
   absl::Status Validate() const;
 };
 
+// What the front needs of the server it serves (reenact-server fills it from
+// its Server, server/server.h HttpBackendOf; the front includes nothing of
+// the server above it).
+struct HttpBackend {
+  // The server wants tokens: requests are judged by them, not by their Host.
+  bool auth = false;
+  // An in-process channel to the services that carries `token`, for the web
+  // client at address `client`.
+  std::function<std::shared_ptr<grpc::Channel>(const std::string& token, const std::string& client)>
+      channel;
+  // Where a reenactment's derived file with `extension` is kept, and whether
+  // the reenactment is still stored.
+  std::function<std::string(const std::string& id, const std::string& extension)> derived_path;
+  std::function<bool(const std::string& id)> still_stored;
+};
+
 // The web app's folder for a program at `program_path`: the first of
 // PREFIX/share/reenact/web (installed: PREFIX/bin/reenact-server) and
 // BUILD/web (the build tree: BUILD/bin/reenact-server) that holds an
@@ -55,13 +74,13 @@ std::string FindWebRoot(const std::string& program_path);
 
 class HttpFront {
  public:
-  // Listens on options.address and serves `server` (which must outlive it;
-  // Stop() before the server is destroyed). InvalidArgument for bad
+  // Listens on options.address and serves `backend`'s server (which must
+  // outlive it; Stop() before the server is destroyed). InvalidArgument for bad
   // options or unreadable TLS files, Unavailable when the address cannot be
   // bound. A missing web app is not an error: "/" then says how to build
   // it, and the API still answers.
   static absl::StatusOr<std::unique_ptr<HttpFront>> Start(const HttpFrontOptions& options,
-                                                          Server* server);
+                                                          HttpBackend backend);
   // Stop().
   ~HttpFront();
   HttpFront(const HttpFront&) = delete;

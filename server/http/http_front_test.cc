@@ -36,6 +36,7 @@
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "server/live/live_hub.h"
+#include "server/server.h"
 #include "server/testing/test_server.h"
 
 namespace reenact::server::http {
@@ -200,7 +201,8 @@ class HttpFrontTest : public ::testing::Test {
     options.jobs.methods = FakeWorkerMethods();
     options.jobs.concurrency = 1;
     options.jobs.poll_period_s = 0.02;
-    options.live.factory = [](const v1::TakeInfo&, const std::vector<v1::SensorCalibration>&,
+    options.live.factory = [](const std::string&, const v1::TakeInfo&,
+                              const std::vector<v1::SensorCalibration>&,
                               const std::map<std::string, std::string>&)
         -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
       return std::make_unique<BodyFollower>();
@@ -209,7 +211,7 @@ class HttpFrontTest : public ::testing::Test {
     ASSERT_NE(t_, nullptr);
     front.address = "127.0.0.1:0";
     front.tls = options.tls;
-    auto started = HttpFront::Start(front, t_->server.get());
+    auto started = HttpFront::Start(front, HttpBackendOf(t_->server.get()));
     ASSERT_TRUE(started.ok()) << started.status();
     front_ = std::move(*started);
     port_ = front_->port();
@@ -567,7 +569,7 @@ TEST_F(HttpFrontTest, FollowRelaysALiveJobOverAWebSocket) {
   v1::SubmitJobRequest submit;
   submit.set_take_id("take-1");
   submit.set_method("body");
-  (*submit.mutable_options())["live"] = "true";
+  submit.set_live(true);
   v1::Job job;
   ASSERT_TRUE(v1::Jobs::NewStub(t_->channel)->Submit(&context, submit, &job).ok());
 

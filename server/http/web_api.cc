@@ -21,7 +21,6 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "clients/sdk/reenactments_client.h"
 #include "common/base/files.h"
 #include "common/base/json_text.h"
 #include "common/base/status_macros.h"
@@ -30,11 +29,11 @@
 #include "common/io/gltf_export.h"
 #include "common/log/log.h"
 #include "common/rpc/auth.h"
-#include "proto/grpc_status.h"
 #include "proto/state_names.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
 #include "reenact/v1/reenactments_service.grpc.pb.h"
 #include "reenact/v1/takes_service.grpc.pb.h"
+#include "server/http/service_client.h"
 #include "server/http/web_request.h"
 
 #ifndef REENACT_VERSION
@@ -67,11 +66,6 @@ WebResponse JsonResponse(const json& value, int status = 200) {
   response.body = JsonText(value);
   response.headers.emplace_back("Cache-Control", "no-store");
   return response;
-}
-
-void SetDeadline(grpc::ClientContext& context, double seconds) {
-  context.set_deadline(std::chrono::system_clock::now() +
-                       std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
 }
 
 // Page size from the query: absent 0 (the service's default); a number the
@@ -111,12 +105,8 @@ json ReenactmentJson(const v1::ReenactmentSummary& summary, const std::string& t
   };
 }
 
-// A job that follows its take while it records (method body, live=true).
-bool IsLive(const v1::Job& job) {
-  const auto it = job.options().find("live");
-  return (it != job.options().end() && (it->second == "true" || it->second == "1")) ||
-         job.progress().stage() == "following";
-}
+// A job that follows its take while it records (Job.live).
+bool IsLive(const v1::Job& job) { return job.live() || job.progress().stage() == "following"; }
 
 json JobJson(const v1::Job& job) {
   return json{
@@ -265,12 +255,9 @@ WebResponse WebApi::Handle(const WebRequest& request) {
 std::string WebApi::TakeName(const std::shared_ptr<grpc::Channel>& channel,
                              const std::string& take_id) const {
   if (take_id.empty()) return "";
-  grpc::ClientContext context;
-  SetDeadline(context, options_.call_timeout_s);
-  v1::GetTakeRequest request;
-  request.set_take_id(take_id);
-  v1::Take take;
-  return v1::Takes::NewStub(channel)->Get(&context, request, &take).ok() ? take.name() : "";
+  const absl::StatusOr<v1::Take> take =
+      ServiceClient(channel, options_.call_timeout_s).GetTake(take_id);
+  return take.ok() ? take->name() : "";
 }
 
 WebResponse WebApi::Info() const {
@@ -294,13 +281,10 @@ WebResponse WebApi::ListReenactments(const WebRequest& request) {
     list.set_take_id(it->second);
   }
   const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token, request.client);
-  auto reenactments = v1::Reenactments::NewStub(channel);
-  grpc::ClientContext context;
-  SetDeadline(context, options_.call_timeout_s);
-  v1::ListReenactmentsResponse listed;
-  if (grpc::Status status = reenactments->List(&context, list, &listed); !status.ok()) {
-    return ErrorResponse(FromGrpcStatus(status));
-  }
+  const absl::StatusOr<v1::ListReenactmentsResponse> page =
+      ServiceClient(channel, options_.call_timeout_s).ListReenactments(list);
+  if (!page.ok()) return ErrorResponse(page.status());
+  const v1::ListReenactmentsResponse& listed = *page;
   // Take names, once per take of the page.
   std::map<std::string, std::string> names;
   for (const v1::ReenactmentSummary& summary : listed.reenactments()) {
@@ -320,16 +304,10 @@ WebResponse WebApi::ListReenactments(const WebRequest& request) {
 
 WebResponse WebApi::GetReenactment(const WebRequest& request, const std::string& id) {
   const std::shared_ptr<grpc::Channel> channel = channel_for_(request.token, request.client);
-  grpc::ClientContext context;
-  SetDeadline(context, options_.call_timeout_s);
-  v1::GetReenactmentRequest get;
-  get.set_reenactment_id(id);
-  v1::ReenactmentSummary summary;
-  if (grpc::Status status = v1::Reenactments::NewStub(channel)->Get(&context, get, &summary);
-      !status.ok()) {
-    return ErrorResponse(FromGrpcStatus(status));
-  }
-  return JsonResponse(ReenactmentJson(summary, TakeName(channel, summary.info().take_id())));
+  const absl::StatusOr<v1::ReenactmentSummary> summary =
+      ServiceClient(channel, options_.call_timeout_s).GetReenactment(id);
+  if (!summary.ok()) return ErrorResponse(summary.status());
+  return JsonResponse(ReenactmentJson(*summary, TakeName(channel, summary->info().take_id())));
 }
 
 const char* WebApi::AssetExtension(Asset asset) {
@@ -342,14 +320,10 @@ absl::Status WebApi::EnsureAsset(const std::string& id, Asset asset, const WebRe
   // Existence and the caller's right to read it, every time: a cached file
   // is served only to whom the service would give the reenactment.
   {
-    grpc::ClientContext context;
-    SetDeadline(context, options_.call_timeout_s);
-    v1::GetReenactmentRequest get;
-    get.set_reenactment_id(id);
-    v1::ReenactmentSummary summary;
-    if (grpc::Status status = v1::Reenactments::NewStub(channel)->Get(&context, get, &summary);
-        !status.ok()) {
-      if (status.error_code() == grpc::StatusCode::NOT_FOUND) {
+    const absl::StatusOr<v1::ReenactmentSummary> summary =
+        ServiceClient(channel, options_.call_timeout_s).GetReenactment(id);
+    if (!summary.ok()) {
+      if (absl::IsNotFound(summary.status())) {
         std::lock_guard<std::mutex> lock(mutex_);
         for (const Asset a : {Asset::kGlb, Asset::kAppearance}) {
           etags_.erase(options_.derived_path(id, AssetExtension(a)));
@@ -357,7 +331,7 @@ absl::Status WebApi::EnsureAsset(const std::string& id, Asset asset, const WebRe
         build_locks_.erase(id);
         without_appearance_.erase(id);
       }
-      return FromGrpcStatus(status);
+      return summary.status();
     }
   }
   std::shared_ptr<std::mutex> build_lock;
@@ -401,11 +375,8 @@ absl::Status WebApi::EnsureAsset(const std::string& id, Asset asset, const WebRe
   // from it (the glb with the static atlas, and the body's appearance video
   // when it has one).
   const auto started = std::chrono::steady_clock::now();
-  client::ConnectionOptions connection;
-  connection.timeout_s = options_.call_timeout_s;
-  ASSIGN_OR_RETURN(
-      const Reenactment data,
-      client::ReenactmentsClient(channel, connection).Fetch(id, /*skip_keyframes=*/true));
+  ASSIGN_OR_RETURN(const Reenactment data, ServiceClient(channel, options_.call_timeout_s)
+                                               .FetchReenactment(id, /*skip_keyframes=*/true));
   GltfExportSummary summary;
   ASSIGN_OR_RETURN(const std::string glb,
                    ExportReenactmentGlb(data, GltfExportOptions{}, &summary));
@@ -509,14 +480,11 @@ WebResponse WebApi::ListJobs(const WebRequest& request) {
   list.set_page_size(page_size);
   list.set_page_token(page_token);
   if (live_only) list.set_state(v1::JOB_STATE_RUNNING);
-  grpc::ClientContext context;
-  SetDeadline(context, options_.call_timeout_s);
-  v1::ListJobsResponse listed;
-  if (grpc::Status status = v1::Jobs::NewStub(channel_for_(request.token, request.client))
-                                ->List(&context, list, &listed);
-      !status.ok()) {
-    return ErrorResponse(FromGrpcStatus(status));
-  }
+  const absl::StatusOr<v1::ListJobsResponse> page =
+      ServiceClient(channel_for_(request.token, request.client), options_.call_timeout_s)
+          .ListJobs(list);
+  if (!page.ok()) return ErrorResponse(page.status());
+  const v1::ListJobsResponse& listed = *page;
   json items = json::array();
   for (const v1::Job& job : listed.jobs()) {
     if (!live_only || IsLive(job)) items.push_back(JobJson(job));
@@ -530,14 +498,9 @@ WebResponse WebApi::ListJobs(const WebRequest& request) {
 
 absl::Status WebApi::CheckFollow(const std::string& job_id, const std::string& token,
                                  const std::string& client) {
-  grpc::ClientContext context;
-  SetDeadline(context, options_.call_timeout_s);
-  v1::GetJobRequest request;
-  request.set_job_id(job_id);
-  v1::Job job;
-  const grpc::Status status =
-      v1::Jobs::NewStub(channel_for_(token, client))->Get(&context, request, &job);
-  return status.ok() ? absl::OkStatus() : FromGrpcStatus(status);
+  return ServiceClient(channel_for_(token, client), options_.call_timeout_s)
+      .GetJob(job_id)
+      .status();
 }
 
 int WebApi::Follow(const std::string& job_id, const std::string& token,
@@ -610,10 +573,8 @@ int WebApi::Follow(const std::string& job_id, const std::string& token,
         return true;
     }
   };
-  client::ConnectionOptions connection;
-  connection.timeout_s = options_.call_timeout_s;
   const absl::StatusOr<v1::FollowEnd> end =
-      client::ReenactmentsClient(channel_for_(token, web_client), connection)
+      ServiceClient(channel_for_(token, web_client), options_.call_timeout_s)
           .Follow(job_id, on_event);
   if (client_gone) return 1001;
   if (!end.ok()) {

@@ -20,7 +20,7 @@
 #include "common/base/time.h"
 #include "common/log/log.h"
 #include "server/jobs/job_scheduler.h"
-#include "server/jobs/worker_protocol.h"
+#include "server/worker/worker_protocol.h"
 
 namespace reenact::server {
 namespace fs = std::filesystem;

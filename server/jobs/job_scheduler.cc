@@ -13,12 +13,11 @@
 #include "common/base/memory_limit.h"
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
-#include "common/body/model_spec.h"
 #include "common/log/log.h"
 #include "common/metrics/metrics.h"
-#include "server/jobs/worker_protocol.h"
-#include "server/server_metrics.h"
+#include "server/metrics/server_metrics.h"
 #include "server/store/frame_set_validation.h"
+#include "server/worker/worker_protocol.h"
 
 namespace reenact::server {
 namespace fs = std::filesystem;
@@ -71,30 +70,52 @@ absl::Status ValidateOptions(const google::protobuf::Map<std::string, std::strin
   return absl::OkStatus();
 }
 
-// Whether the job asks to follow its take (option live=true). InvalidArgument
-// for another value, or live=true with a method that cannot follow a take.
-absl::StatusOr<bool> LiveOption(const v1::SubmitJobRequest& request,
-                                const methods::MethodSpec& spec) {
-  const auto it = request.options().find("live");
-  if (it == request.options().end() || it->second == "false") return false;
-  if (it->second != "true") {
+// Whether the job asks to follow its take (SubmitJobRequest.live).
+// InvalidArgument for live with a method that cannot follow a take, or for
+// "live" among the options (it is the request's own field).
+absl::StatusOr<bool> LiveRequest(const v1::SubmitJobRequest& request,
+                                 const methods::MethodSpec& spec) {
+  if (request.options().contains("live")) {
     return absl::InvalidArgumentError(
-        absl::StrCat("option live takes true or false, not \"", Truncate(it->second, 80), "\""));
+        "live is not an option: ask with SubmitJobRequest.live (reenact jobs submit --live)");
   }
-  if (!spec.live) {
+  if (request.live() && !spec.live) {
     return absl::InvalidArgumentError(
-        absl::StrCat("method ", spec.name, " cannot follow a take live (option live)"));
+        absl::StrCat("method ", spec.name, " cannot follow a take while it is recorded (live)"));
   }
-  return true;
+  return request.live();
 }
 
 // One line for the end of a job: job_finished, job_failed or
-// job_cancelled.
+// job_cancelled; and its times in the reenact_job_duration_seconds and
+// reenact_job_wait_seconds histograms.
 void LogJobEnd(const v1::Job& job) {
   const double seconds =
       job.started_unix_ns() > 0 && job.finished_unix_ns() >= job.started_unix_ns()
           ? NsToSeconds(job.finished_unix_ns() - job.started_unix_ns())
           : 0.0;
+  const std::string outcome = job.state() == v1::JOB_STATE_SUCCEEDED   ? "succeeded"
+                              : job.state() == v1::JOB_STATE_CANCELLED ? "cancelled"
+                                                                       : "failed";
+  metrics::Registry& registry = metrics::DefaultRegistry();
+  if (job.started_unix_ns() > 0) {
+    registry
+        .GetHistogram("reenact_job_duration_seconds",
+                      "Time from a job's start on a worker to its end, by method and outcome.",
+                      {{"method", job.method()}, {"outcome", outcome}}, metrics::JobSecondsBounds())
+        .Observe(seconds);
+  }
+  // A job cancelled in the queue waited until then.
+  const int64_t waited_until_ns =
+      job.started_unix_ns() > 0 ? job.started_unix_ns() : job.finished_unix_ns();
+  if (job.submitted_unix_ns() > 0 && waited_until_ns >= job.submitted_unix_ns()) {
+    registry
+        .GetHistogram("reenact_job_wait_seconds",
+                      "Time from a job's submission to its start (or end, if it never started), "
+                      "by method.",
+                      {{"method", job.method()}}, metrics::JobSecondsBounds())
+        .Observe(NsToSeconds(waited_until_ns - job.submitted_unix_ns()));
+  }
   const log::Field fields[] = {{"job_id", job.job_id()}, {"take_id", job.take_id()},
                                {"method", job.method()}, {"attempts", job.attempts()},
                                {"seconds", seconds},     {"reenactment_id", job.reenactment_id()},
@@ -223,7 +244,7 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   const methods::MethodSpec* spec = methods::FindMethod(options_.methods, request.method());
   if (spec == nullptr) return methods::UnknownMethodError(options_.methods, request.method());
   RETURN_IF_ERROR(ValidateOptions(request.options()));
-  ASSIGN_OR_RETURN(const bool live, LiveOption(request, *spec));
+  ASSIGN_OR_RETURN(const bool live, LiveRequest(request, *spec));
   if (request.segments() < 0 || request.segments() > kMaxSegments) {
     return absl::InvalidArgumentError(
         absl::StrCat("segments must be 0 to ", kMaxSegments, ", got ", request.segments()));
@@ -246,10 +267,6 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   RETURN_IF_ERROR(methods::CheckOptions(*spec, all_options));
   if (options_.check_job) {
     RETURN_IF_ERROR(options_.check_job(request.method(), WorkerOptions(spec, request.options())));
-  }
-  if (const auto model = request.options().find("model"); model != request.options().end()) {
-    // A model the workers could not find fails now, not after the queue.
-    RETURN_IF_ERROR(body::ResolveAssetModelSpec(model->second, options_.asset_roots).status());
   }
   ASSIGN_OR_RETURN(const v1::Take take, takes_->GetTake(request.take_id()));
   const bool recording = take.state() == v1::TAKE_STATE_RECORDING;
@@ -280,6 +297,7 @@ absl::StatusOr<v1::Job> JobScheduler::Submit(const v1::SubmitJobRequest& request
   job.set_method(request.method());
   *job.mutable_options() = request.options();
   job.set_submitted_by(submitter);
+  job.set_live(live && recording);
   if (segmented) {
     job.set_segments(request.segments());
     for (v1::JobPart& part : NewParts(request.segments())) *job.add_parts() = std::move(part);

@@ -31,7 +31,8 @@
 // the store, so that the next start queues them again (JobStore::
 // RequeueUnfinished, attempts kept); network workers find their leases gone.
 //
-// Live jobs (method body, option live=true) on a take still RECORDING: the
+// Live jobs (SubmitJobRequest.live, a method whose spec says live) on a
+// take still RECORDING: the
 // job becomes RUNNING at once, in stage "following", and the live hub
 // (server/live/live_hub.h) follows the take for it; its progress counts the
 // frame sets followed (frames_done). When the take stops recording the
@@ -82,13 +83,13 @@
 #include "common/methods/method_spec.h"
 #include "reenact/v1/jobs_service.pb.h"
 #include "reenact/v1/work_service.pb.h"
-#include "server/jobs/eta.h"
 #include "server/jobs/job_store.h"
 #include "server/jobs/live_jobs.h"
 #include "server/jobs/worker_launcher.h"
 #include "server/live/live_hub.h"
 #include "server/store/reenactment_store.h"
 #include "server/store/take_store.h"
+#include "server/worker/eta.h"
 
 namespace reenact::server {
 
@@ -103,7 +104,9 @@ struct JobSchedulerOptions {
   // against them (names, types, bounds). Empty: no job is accepted.
   std::vector<methods::MethodSpec> methods;
   // A deeper check of a job that Submit runs after the spec's (reenact-
-  // server: recon::CheckJob, the method's Validate()); empty: none.
+  // server: recon::CheckJob, the method's Validate() and its CheckAssets
+  // against the server's --assets, so that a model no worker could find
+  // fails now, not after the queue); empty: none.
   std::function<absl::Status(const std::string& method,
                              const std::map<std::string, std::string>& options)>
       check_job;
@@ -126,7 +129,7 @@ struct JobSchedulerOptions {
   JobStoreOptions store;
   // Folders of body-model assets (reenact-server --assets): the option
   // model=makehuman:NAME names a folder in one of them. Passed on to the
-  // workers; checked at Submit.
+  // workers (check_job checks a job's options against them at Submit).
   std::vector<std::string> asset_roots;
   // Submit refuses a job (RESOURCE_EXHAUSTED, "disk is full") while the
   // jobs folder's file system has fewer free bytes than this: a job needs
@@ -212,8 +215,8 @@ class JobScheduler {
 
   // Queues a job (a live job of a recording take starts following it).
   // InvalidArgument for a malformed take id, an unknown method or bad
-  // options (live other than true/false, live=true with a method other than
-  // body); NotFound for an unknown take; FailedPrecondition for a take still
+  // options (an option "live", or live with a method that cannot follow a
+  // take); NotFound for an unknown take; FailedPrecondition for a take still
   // recording, unless the job is live and the server has a live hub;
   // Unavailable after Shutdown, or while the take is being opened.
   // `submitter`: the caller's token name (Job.submitted_by; empty: the

@@ -16,8 +16,8 @@ absl::Status LiveJobs::CheckFollowable(const std::string& take_id, bool live) co
   if (!live) {
     return absl::FailedPreconditionError(absl::StrCat(
         "take ", take_id,
-        " is still being recorded; submit the job once it is complete (or, for the body "
-        "model, with option live=true to follow it now)"));
+        " is still being recorded; submit the job once it is complete (or, with a method "
+        "that can follow a take, as a live job to follow it now: reenact jobs submit --live)"));
   }
   if (hub_ == nullptr || !hub_->enabled()) {
     return absl::FailedPreconditionError(
@@ -38,8 +38,9 @@ absl::StatusOr<v1::Job> LiveJobs::FollowLocked(const v1::Job& job) {
   LiveJobCallbacks callbacks;
   callbacks.progress = [this, job_id](int64_t frames) { Progress(job_id, frames); };
   callbacks.ended = [this, job_id](const LiveFollowSummary& summary) { Ended(job_id, summary); };
-  const absl::Status followed = hub_->Follow(
-      job_id, job.take_id(), {job.options().begin(), job.options().end()}, std::move(callbacks));
+  const absl::Status followed =
+      hub_->Follow(job_id, job.take_id(), job.method(),
+                   {job.options().begin(), job.options().end()}, std::move(callbacks));
   if (!followed.ok()) {
     if (absl::IsFailedPrecondition(followed)) return followed;
     // The job was stored: it fails with the reason rather than vanish.

@@ -22,6 +22,7 @@ struct LiveHub::Take {
 struct LiveHub::Job {
   std::string job_id;
   std::string take_id;
+  std::string method;
   v1::TakeInfo info;
   std::vector<v1::SensorCalibration> sensors;
   std::map<std::string, std::string> options;
@@ -131,6 +132,7 @@ void LiveHub::TakeEnded(const std::string& take_id, v1::TakeState state) {
 }
 
 absl::Status LiveHub::Follow(const std::string& job_id, const std::string& take_id,
+                             const std::string& method,
                              const std::map<std::string, std::string>& options,
                              LiveJobCallbacks callbacks) {
   if (!enabled()) {
@@ -151,6 +153,7 @@ absl::Status LiveHub::Follow(const std::string& job_id, const std::string& take_
   job->take_id = take_id;
   job->info = it->second->info;
   job->sensors = it->second->sensors;
+  job->method = method;
   job->options = options;
   job->callbacks = std::move(callbacks);
   it->second->followers.push_back(job);
@@ -165,7 +168,7 @@ absl::Status LiveHub::Follow(const std::string& job_id, const std::string& take_
 
 void LiveHub::Run(Job& job) {
   absl::StatusOr<std::unique_ptr<LiveFollower>> follower =
-      options_.factory(job.info, job.sensors, job.options);
+      options_.factory(job.method, job.info, job.sensors, job.options);
   if (!follower.ok()) {
     EndFromThread(job, v1::FOLLOW_END_REASON_FAILED,
                   absl::StrCat("the live fit could not start: ", follower.status().message()),

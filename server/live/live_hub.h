@@ -1,6 +1,6 @@
 // The live hub of reenact-server: follows takes while they are recorded and
 // publishes each fitted FrameSet to the Follow subscribers of the job that
-// asked for it (a job of method "body" with option live=true).
+// asked for it (a live job of a method that can follow takes).
 //
 // Ingest tells the hub of every recording take: its opening (info and
 // calibrations), each accepted FrameSet with the wall-clock time it reached
@@ -9,8 +9,9 @@
 // follower's queue and ingest goes on: the fit runs on the follower's own
 // thread (one per live job), never on the ingest path.
 //
-// The follower thread creates its LiveFollower (LiveFollowerFactory: the
-// server's main plugs in recon::LiveBodyFollower; the hub itself has no
+// The follower thread creates its LiveFollower (LiveFollowerFactory, given
+// the job's method: the server's main plugs in the method registry's
+// followers, server/live/live_method_follower.h; the hub itself has no
 // reconstruction code), then fits FrameSets as they come. When the fit falls
 // behind, it skips to the newest queued FrameSet; the skipped ones are
 // counted. Each result goes to the job's subscribers as FollowEvents
@@ -68,10 +69,12 @@ class LiveFollower {
   virtual absl::StatusOr<LiveFit> Push(const v1::FrameSet& set) = 0;
 };
 
-// Makes the follower of a take from its info, its sensors' calibrations and
-// the job's options ("live" removed). Its errors end the follow (FAILED).
+// Makes the follower of a take for a job of `method` from the take's info,
+// its sensors' calibrations and the job's options. Its errors end the follow
+// (FAILED).
 using LiveFollowerFactory = std::function<absl::StatusOr<std::unique_ptr<LiveFollower>>(
-    const v1::TakeInfo& info, const std::vector<v1::SensorCalibration>& sensors,
+    const std::string& method, const v1::TakeInfo& info,
+    const std::vector<v1::SensorCalibration>& sensors,
     const std::map<std::string, std::string>& options)>;
 
 struct LiveHubOptions {
@@ -138,12 +141,12 @@ class LiveHub {
   // the store has its final row). Its followers fit what is queued, then end.
   void TakeEnded(const std::string& take_id, v1::TakeState state);
 
-  // Jobs: starts following `take_id` for `job_id` with the method's
+  // Jobs: starts following `take_id` for `job_id`, a job of `method` with
   // `options`. Unimplemented when the hub is not enabled; FailedPrecondition
   // when the take is not recording (as far as ingest told the hub);
   // AlreadyExists when the job follows already; Unavailable after Shutdown.
   absl::Status Follow(const std::string& job_id, const std::string& take_id,
-                      const std::map<std::string, std::string>& options,
+                      const std::string& method, const std::map<std::string, std::string>& options,
                       LiveJobCallbacks callbacks);
   // Jobs: ends the job's follow at once (subscribers get `reason` and
   // `message`; the follower thread stops after the FrameSet it is fitting).

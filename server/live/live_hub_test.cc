@@ -65,9 +65,14 @@ class ScriptedFollower final : public LiveFollower {
 
 LiveHubOptions ScriptedOptions(Script script = {}) {
   LiveHubOptions options;
-  options.factory = [script](const v1::TakeInfo&, const std::vector<v1::SensorCalibration>&,
+  options.factory = [script](const std::string& method, const v1::TakeInfo&,
+                             const std::vector<v1::SensorCalibration>&,
                              const std::map<std::string, std::string>& job_options)
       -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
+    // The method's own follower: this one follows for "body" only.
+    if (method != "body") {
+      return absl::UnimplementedError("method " + method + " cannot follow a take");
+    }
     if (job_options.contains("bad")) return absl::InvalidArgumentError("unknown option bad");
     return std::make_unique<ScriptedFollower>(script);
   };
@@ -145,18 +150,19 @@ struct JobLog {
 TEST(LiveHub, FollowsOnlyTakesIngestCallsRecording) {
   LiveHub hub(ScriptedOptions());
   JobLog log;
-  EXPECT_EQ(hub.Follow("j1", "t1", {}, log.Callbacks()).code(),
+  EXPECT_EQ(hub.Follow("j1", "t1", "body", {}, log.Callbacks()).code(),
             absl::StatusCode::kFailedPrecondition);
   hub.TakeOpened("t1", {}, {});
   EXPECT_TRUE(hub.Recording("t1"));
   EXPECT_FALSE(hub.Follows("t1"));
-  ASSERT_TRUE(hub.Follow("j1", "t1", {}, log.Callbacks()).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {}, log.Callbacks()).ok());
   EXPECT_TRUE(hub.Follows("t1"));
-  EXPECT_EQ(hub.Follow("j1", "t1", {}, log.Callbacks()).code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_EQ(hub.Follow("j1", "t1", "body", {}, log.Callbacks()).code(),
+            absl::StatusCode::kAlreadyExists);
   hub.TakeEnded("t1", v1::TAKE_STATE_COMPLETE);
   EXPECT_FALSE(hub.Recording("t1"));
   EXPECT_EQ(log.WaitEnd().reason, v1::FOLLOW_END_REASON_TAKE_COMPLETE);
-  EXPECT_EQ(hub.Follow("j2", "t1", {}, log.Callbacks()).code(),
+  EXPECT_EQ(hub.Follow("j2", "t1", "body", {}, log.Callbacks()).code(),
             absl::StatusCode::kFailedPrecondition);
 }
 
@@ -164,7 +170,7 @@ TEST(LiveHub, WithoutFactoryFollowsNothing) {
   LiveHub hub(LiveHubOptions{});
   EXPECT_FALSE(hub.enabled());
   hub.TakeOpened("t1", {}, {});
-  EXPECT_EQ(hub.Follow("j1", "t1", {}, {}).code(), absl::StatusCode::kUnimplemented);
+  EXPECT_EQ(hub.Follow("j1", "t1", "body", {}, {}).code(), absl::StatusCode::kUnimplemented);
 }
 
 TEST(LiveHub, MeshFirstThenFramesInOrderThenTheEnd) {
@@ -175,7 +181,7 @@ TEST(LiveHub, MeshFirstThenFramesInOrderThenTheEnd) {
   LiveHub hub(ScriptedOptions(script));
   hub.TakeOpened("t1", {}, {});
   JobLog log;
-  ASSERT_TRUE(hub.Follow("j1", "t1", {}, log.Callbacks()).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {}, log.Callbacks()).ok());
   Subscriber subscriber;
   ASSERT_TRUE(hub.Subscribe("j1", subscriber.Callback()).ok());
   for (uint64_t s = 1; s <= 6; ++s) {
@@ -215,7 +221,7 @@ TEST(LiveHub, SkipsToTheNewestSetWhenTheFitIsBehind) {
   LiveHub hub(ScriptedOptions(script));
   hub.TakeOpened("t1", {}, {});
   JobLog log;
-  ASSERT_TRUE(hub.Follow("j1", "t1", {}, log.Callbacks()).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {}, log.Callbacks()).ok());
   Subscriber subscriber;
   ASSERT_TRUE(hub.Subscribe("j1", subscriber.Callback()).ok());
   for (uint64_t s = 1; s <= 20; ++s) hub.FrameSetArrived("t1", Set(s), 0);
@@ -242,7 +248,7 @@ TEST(LiveHub, SkipsToTheNewestSetWhenTheFitIsBehind) {
 TEST(LiveHub, LateSubscriberGetsTheNewestMeshFirst) {
   LiveHub hub(ScriptedOptions());
   hub.TakeOpened("t1", {}, {});
-  ASSERT_TRUE(hub.Follow("j1", "t1", {}, {}).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {}, {}).ok());
   Subscriber early;
   ASSERT_TRUE(hub.Subscribe("j1", early.Callback()).ok());
   hub.FrameSetArrived("t1", Set(1), 0);
@@ -263,7 +269,7 @@ TEST(LiveHub, StopEndsTheFollowWithoutTheEndedCallback) {
   LiveHub hub(ScriptedOptions());
   hub.TakeOpened("t1", {}, {});
   JobLog log;
-  ASSERT_TRUE(hub.Follow("j1", "t1", {}, log.Callbacks()).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {}, log.Callbacks()).ok());
   Subscriber subscriber;
   ASSERT_TRUE(hub.Subscribe("j1", subscriber.Callback()).ok());
   hub.Stop("j1", v1::FOLLOW_END_REASON_CANCELLED, "the job was cancelled");
@@ -283,30 +289,42 @@ TEST(LiveHub, FactoryErrorEndsTheFollowAsFailed) {
   LiveHub hub(ScriptedOptions());
   hub.TakeOpened("t1", {}, {});
   JobLog log;
-  ASSERT_TRUE(hub.Follow("j1", "t1", {{"bad", "1"}}, log.Callbacks()).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {{"bad", "1"}}, log.Callbacks()).ok());
   const LiveFollowSummary summary = log.WaitEnd();
   EXPECT_EQ(summary.reason, v1::FOLLOW_END_REASON_FAILED);
   EXPECT_EQ(summary.error.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(summary.message.find("unknown option bad"), std::string::npos) << summary.message;
 }
 
+TEST(LiveHub, TheJobsMethodChoosesTheFollower) {
+  LiveHub hub(ScriptedOptions());
+  hub.TakeOpened("t1", {}, {});
+  JobLog log;
+  ASSERT_TRUE(hub.Follow("j1", "t1", "rigid-carved", {}, log.Callbacks()).ok());
+  const LiveFollowSummary summary = log.WaitEnd();
+  EXPECT_EQ(summary.reason, v1::FOLLOW_END_REASON_FAILED);
+  EXPECT_EQ(summary.error.code(), absl::StatusCode::kUnimplemented);
+  EXPECT_NE(summary.message.find("method rigid-carved cannot follow"), std::string::npos)
+      << summary.message;
+}
+
 TEST(LiveHub, ShutdownEndsEveryFollow) {
   auto hub = std::make_unique<LiveHub>(ScriptedOptions());
   hub->TakeOpened("t1", {}, {});
-  ASSERT_TRUE(hub->Follow("j1", "t1", {}, {}).ok());
+  ASSERT_TRUE(hub->Follow("j1", "t1", "body", {}, {}).ok());
   Subscriber subscriber;
   ASSERT_TRUE(hub->Subscribe("j1", subscriber.Callback()).ok());
   hub->Shutdown();
   EXPECT_EQ(subscriber.WaitEnd().back().end().reason(), v1::FOLLOW_END_REASON_SHUTDOWN);
-  EXPECT_EQ(hub->Follow("j2", "t1", {}, {}).code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(hub->Follow("j2", "t1", "body", {}, {}).code(), absl::StatusCode::kUnavailable);
   hub.reset();
 }
 
 TEST(LiveHub, TwoJobsFollowOneTake) {
   LiveHub hub(ScriptedOptions());
   hub.TakeOpened("t1", {}, {});
-  ASSERT_TRUE(hub.Follow("j1", "t1", {}, {}).ok());
-  ASSERT_TRUE(hub.Follow("j2", "t1", {}, {}).ok());
+  ASSERT_TRUE(hub.Follow("j1", "t1", "body", {}, {}).ok());
+  ASSERT_TRUE(hub.Follow("j2", "t1", "body", {}, {}).ok());
   Subscriber a, b;
   ASSERT_TRUE(hub.Subscribe("j1", a.Callback()).ok());
   ASSERT_TRUE(hub.Subscribe("j2", b.Callback()).ok());

@@ -118,8 +118,10 @@ absl::StatusOr<ParsedJob> ParseJob(const std::string& method, const OptionMap& o
 
 }  // namespace
 
-absl::Status CheckJob(const std::string& method, const OptionMap& options) {
-  return ParseJob(method, options).status();
+absl::Status CheckJob(const std::string& method, const OptionMap& options,
+                      const std::vector<std::string>& asset_roots) {
+  ASSIGN_OR_RETURN(const ParsedJob job, ParseJob(method, options));
+  return job.method->CheckAssets(job.method_options, asset_roots);
 }
 
 absl::StatusOr<int64_t> JobMemoryBytes(const std::string& method, const OptionMap& options,

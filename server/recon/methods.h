@@ -37,8 +37,11 @@ struct LoadOptions {
 
 // Checks a job as the worker will run it: InvalidArgument for an unknown
 // method (naming the known ones) or options that the load or the method
-// reject (naming the key, or the known keys for an unknown one).
-absl::Status CheckJob(const std::string& method, const OptionMap& options);
+// reject (naming the key, or the known keys for an unknown one); then the
+// method's CheckAssets against `asset_roots` (the server's --assets), so
+// that a model no worker could find fails at Submit.
+absl::Status CheckJob(const std::string& method, const OptionMap& options,
+                      const std::vector<std::string>& asset_roots = {});
 
 // What a job of `method` with `options` is estimated to take of its
 // worker's memory on a take of `take`'s size, bytes (memory_estimate.h):

@@ -50,6 +50,18 @@ absl::StatusOr<TakeNeeds> ReconstructionMethod::Needs(const TakeFrames& take, co
   return TakeNeeds::All(take);
 }
 
+absl::Status ReconstructionMethod::CheckAssets(const OptionMap& options,
+                                               const std::vector<std::string>& /*roots*/) const {
+  return CheckOptions(options);
+}
+
+absl::StatusOr<std::unique_ptr<LiveFollower>> ReconstructionMethod::MakeLiveFollower(
+    const TakeInfo&, const std::vector<SensorCalibration>&, const OptionMap&,
+    const std::vector<std::string>&) const {
+  return absl::UnimplementedError(
+      absl::StrCat("method ", spec().name, " cannot follow a take while it is recorded"));
+}
+
 absl::StatusOr<int64_t> ReconstructionMethod::MemoryBytes(const OptionMap& options,
                                                           const TakeSize& /*take*/) const {
   if (absl::Status status = CheckOptions(options); !status.ok()) return status;

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -30,6 +31,9 @@
 #include "common/methods/method_spec.h"
 #include "common/methods/option_reader.h"
 #include "common/model/reenactment.h"
+#include "common/model/sensor_calibration.h"
+#include "common/model/take.h"
+#include "server/recon/live_follower.h"
 #include "server/recon/memory_estimate.h"
 #include "server/recon/take_frames.h"
 
@@ -134,6 +138,21 @@ class ReconstructionMethod {
                                              const std::string& prepared,
                                              const std::vector<std::string>& segments) const;
 
+  // Checks what `options` name among the server's assets (`asset_roots`:
+  // its --assets folders), e.g. a body model, so that a job the workers
+  // could not run fails at Submit rather than after the queue. NotFound or
+  // InvalidArgument naming the option. By default OK: nothing to look up.
+  virtual absl::Status CheckAssets(const OptionMap& options,
+                                   const std::vector<std::string>& asset_roots) const;
+
+  // The follower of a take while it is recorded, for a live job of this
+  // method (spec().live): fitted FrameSet by FrameSet on the live hub's
+  // thread. `options` are the job's, live-only ones included. Unimplemented
+  // for a method that cannot follow a take (the default).
+  virtual absl::StatusOr<std::unique_ptr<LiveFollower>> MakeLiveFollower(
+      const TakeInfo& info, const std::vector<SensorCalibration>& sensors, const OptionMap& options,
+      const std::vector<std::string>& asset_roots) const;
+
   // The images phase `phase` (segment `index` of `count`) decodes from
   // `take`, which may be the take without any image bytes (it groups into
   // the same instants). By default every instant's depth and colour; a
@@ -160,6 +179,19 @@ struct SegmentFunctions {
                                      MethodPhase phase, int index, int count) = nullptr;
 };
 
+// A method's live follow and asset check (ReconstructionMethod::
+// MakeLiveFollower, CheckAssets), each optional.
+template <typename Options>
+struct LiveAndAssetFunctions {
+  // Null: the method cannot follow a take live (and its spec says so).
+  absl::StatusOr<std::unique_ptr<LiveFollower>> (*make_live_follower)(
+      const TakeInfo& info, const std::vector<SensorCalibration>& sensors, const OptionMap& options,
+      const std::vector<std::string>& asset_roots) = nullptr;
+  // Null: its options name no assets.
+  absl::Status (*check_assets)(const Options& options,
+                               const std::vector<std::string>& asset_roots) = nullptr;
+};
+
 // A method whose options are the struct `Options`: default-constructible,
 // with `absl::Status Read(methods::OptionReader&)` and
 // `absl::Status Validate() const`, and, when the method holds memory that
@@ -176,12 +208,15 @@ class TypedMethod final : public ReconstructionMethod {
   // live_only; the worker never gets them).
   // `segments`: the phases of a run split across workers (all three, or
   // none: the method is not segmentable).
+  // `extra`: its live follower (then spec().live is true) and its check of
+  // the server's assets.
   TypedMethod(methods::MethodSpec spec, RunFunction run,
               std::vector<methods::OptionSpec> live_options = {},
-              SegmentFunctions<Options> segments = {})
-      : spec_(std::move(spec)), run_(run), segments_(segments) {
+              SegmentFunctions<Options> segments = {}, LiveAndAssetFunctions<Options> extra = {})
+      : spec_(std::move(spec)), run_(run), segments_(segments), extra_(extra) {
     spec_.segmentable =
         segments_.prepare != nullptr && segments_.segment != nullptr && segments_.stitch != nullptr;
+    spec_.live = extra_.make_live_follower != nullptr;
     spec_.options = methods::DescribeOptions<Options>();
     for (methods::OptionSpec& option : live_options) {
       option.live_only = true;
@@ -255,6 +290,25 @@ class TypedMethod final : public ReconstructionMethod {
     return segments_.stitch(take, parsed, context, prepared, segments);
   }
 
+  absl::Status CheckAssets(const OptionMap& options,
+                           const std::vector<std::string>& asset_roots) const override {
+    Options parsed;
+    if (absl::Status status = methods::ParseOptions(options, &parsed); !status.ok()) {
+      return status;
+    }
+    if (extra_.check_assets == nullptr) return absl::OkStatus();
+    return extra_.check_assets(parsed, asset_roots);
+  }
+
+  absl::StatusOr<std::unique_ptr<LiveFollower>> MakeLiveFollower(
+      const TakeInfo& info, const std::vector<SensorCalibration>& sensors, const OptionMap& options,
+      const std::vector<std::string>& asset_roots) const override {
+    if (extra_.make_live_follower == nullptr) {
+      return ReconstructionMethod::MakeLiveFollower(info, sensors, options, asset_roots);
+    }
+    return extra_.make_live_follower(info, sensors, options, asset_roots);
+  }
+
   absl::StatusOr<TakeNeeds> Needs(const TakeFrames& take, const OptionMap& options,
                                   MethodPhase phase, int index, int count) const override {
     Options parsed;
@@ -269,6 +323,7 @@ class TypedMethod final : public ReconstructionMethod {
   methods::MethodSpec spec_;
   RunFunction run_;
   SegmentFunctions<Options> segments_;
+  LiveAndAssetFunctions<Options> extra_;
 };
 
 }  // namespace reenact::recon

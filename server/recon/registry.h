@@ -17,8 +17,8 @@ const std::vector<const ReconstructionMethod*>& Methods();
 // The method named `name`, or null.
 const ReconstructionMethod* FindMethod(const std::string& name);
 
-// Their specs, each with the options every method shares (loading; and for
-// live methods "live") after its own.
+// Their specs, each with the options every method shares (loading) after
+// its own.
 std::vector<methods::MethodSpec> MethodSpecs();
 
 // Names of the methods RunMethod accepts, in registry order.

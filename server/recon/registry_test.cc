@@ -26,12 +26,37 @@ TEST(Registry, ListsEachMethodOnceWithWhatTheOtherProcessesNeed) {
       EXPECT_FALSE(option.doc.empty()) << option.name << " has no documentation";
     }
     EXPECT_TRUE(names.count("threads") && names.count("max_frames"));
-    EXPECT_EQ(names.count("live"), spec.live ? 1u : 0u);
+    // "live" is the request's own field (SubmitJobRequest.live), never an
+    // option.
+    EXPECT_EQ(names.count("live"), 0u);
   }
   EXPECT_EQ(FindMethod("rigid-cylinders")->spec().texture, methods::TextureMode::kPoseClosest);
   EXPECT_EQ(FindMethod("rigid-carved")->spec().texture, methods::TextureMode::kRotationClosest);
   EXPECT_EQ(FindMethod("body")->spec().texture, methods::TextureMode::kBodyAtlas);
   EXPECT_EQ(FindMethod("nope"), nullptr);
+}
+
+// A method that says it can follow a take live makes its own follower; the
+// others say they cannot. A method checks the models it names against the
+// server's assets itself.
+TEST(Registry, MethodsMakeTheirOwnLiveFollowersAndCheckTheirOwnAssets) {
+  TakeInfo info;
+  info.fps = 30;
+  for (const ReconstructionMethod* method : Methods()) {
+    SCOPED_TRACE(method->spec().name);
+    // No sensors: a follower that exists still refuses them, with its own
+    // error rather than Unimplemented.
+    const absl::StatusOr<std::unique_ptr<LiveFollower>> follower =
+        method->MakeLiveFollower(info, {}, {}, {});
+    EXPECT_EQ(absl::IsUnimplemented(follower.status()), !method->spec().live) << follower.status();
+    EXPECT_TRUE(method->CheckAssets({}, {}).ok());
+  }
+  EXPECT_TRUE(FindMethod("body")->spec().live);
+  const absl::Status unknown = CheckJob("body", {{"model", "makehuman:nobody"}}, {"/no/such/root"});
+  EXPECT_TRUE(absl::IsNotFound(unknown)) << unknown;
+  const absl::Status path = CheckJob("body", {{"model", "makehuman:/etc"}}, {"/no/such/root"});
+  EXPECT_TRUE(absl::IsInvalidArgument(path)) << path;
+  EXPECT_TRUE(CheckJob("body", {{"model", "procedural"}}, {}).ok());
 }
 
 // What `reenact jobs methods` lists is what the method parses: every default

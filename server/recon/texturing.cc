@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <map>
+#include <unordered_map>
 #include <utility>
 
 #include <opencv2/core.hpp>
@@ -610,41 +612,125 @@ absl::Status CheckKeyframeCoversPart(const BakeKeyframe& keyframe, int part, int
   return absl::OkStatus();
 }
 
-// Atlas layout: one square cell of `cell_px` per pair of triangles on a
-// `grid` x `grid` lattice; triangle 2k takes the upper-left half of cell k
-// (in image rows, y down), 2k + 1 the lower-right half. Corners sit
-// `inset_px` inside the cell's edges and `2 inset_px` from the diagonal
-// side, so that the two long sides are sqrt(2) inset_px apart; every texel of
-// a cell belongs to the triangle on its side of the diagonal (gutters
-// included), so bilinear lookups near an edge stay on the triangle's colours.
+// Which triangles share an atlas cell. Two neighbours across an edge (one
+// that both traverse, in opposite directions) share one, that edge on the
+// cell's diagonal and its two vertices shared by both; the rest take a half
+// cell each, two to a cell. Greedy over the triangles in order, so a
+// function of the mesh alone.
+struct CellLayout {
+  // Per triangle: 2 k + h for half h of cell k (0 upper-left, 1
+  // lower-right).
+  std::vector<int> slot;
+  // Per triangle: its corner off the shared diagonal; -1 for a triangle on
+  // its own.
+  std::vector<int> apex;
+  int cells = 0;
+};
+
+CellLayout PairTriangles(const PartMesh& part) {
+  const int n = static_cast<int>(part.triangles.size());
+  const auto edge_key = [](int from, int to) {
+    return (static_cast<uint64_t>(static_cast<uint32_t>(from)) << 32) | static_cast<uint32_t>(to);
+  };
+  // A directed edge traversed twice (a non-manifold or flipped mesh) keeps
+  // its first triangle.
+  std::unordered_map<uint64_t, int> triangle_of_edge;
+  triangle_of_edge.reserve(static_cast<size_t>(n) * 3);
+  for (int t = 0; t < n; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      triangle_of_edge.emplace(edge_key(part.triangles[t][k], part.triangles[t][(k + 1) % 3]), t);
+    }
+  }
+  CellLayout layout;
+  layout.slot.assign(n, -1);
+  layout.apex.assign(n, -1);
+  for (int t = 0; t < n; ++t) {
+    if (layout.slot[t] >= 0) continue;
+    const Eigen::Vector3i& a = part.triangles[t];
+    for (int k = 0; k < 3 && layout.slot[t] < 0; ++k) {
+      const auto it = triangle_of_edge.find(edge_key(a[(k + 1) % 3], a[k]));
+      if (it == triangle_of_edge.end() || it->second == t || layout.slot[it->second] >= 0) {
+        continue;
+      }
+      const int u = it->second;
+      const Eigen::Vector3i& b = part.triangles[u];
+      int apex_u = -1;
+      for (int m = 0; m < 3; ++m) {
+        if (b[m] != a[k] && b[m] != a[(k + 1) % 3]) apex_u = m;
+      }
+      if (apex_u < 0) continue;  // Degenerate: all three corners on the edge.
+      layout.slot[t] = 2 * layout.cells;
+      layout.slot[u] = 2 * layout.cells + 1;
+      layout.apex[t] = (k + 2) % 3;
+      layout.apex[u] = apex_u;
+      ++layout.cells;
+    }
+  }
+  int half = 0;
+  for (int t = 0; t < n; ++t) {
+    if (layout.slot[t] >= 0) continue;
+    layout.slot[t] = 2 * layout.cells + half;
+    if (half == 1) ++layout.cells;
+    half = 1 - half;
+  }
+  if (half == 1) ++layout.cells;
+  return layout;
+}
+
+// Atlas layout: one square cell of `cell_px` per CellLayout cell on a
+// `grid` x `grid` lattice; slot 2k takes the upper-left half of cell k (in
+// image rows, y down), 2k + 1 the lower-right half. Corners sit `inset_px`
+// inside the cell's edges. A pair of neighbours meets on the diagonal; a
+// triangle on its own keeps `2 inset_px` from the diagonal side, so that the
+// two long sides of a cell of two are sqrt(2) inset_px apart. Every texel
+// of a cell belongs to the triangle on its side of the diagonal (gutters
+// included), so bilinear lookups near an edge stay on the triangle's
+// colours, or on its neighbour's across a shared diagonal.
 struct Atlas {
   int size_px = 0;
   int grid = 0;
   int cell_px = 0;
   double inset_px = 1.5;
+  CellLayout layout;
 
   Eigen::Vector2i CellOrigin(int t) const {
-    const int cell = t / 2;
+    const int cell = layout.slot[t] / 2;
     return Eigen::Vector2i((cell % grid) * cell_px, (cell / grid) * cell_px);
   }
+  bool UpperHalf(int t) const { return layout.slot[t] % 2 == 0; }
 
   // Corners of triangle `t` in texture pixels (x right, y down, 0 = the
-  // image's top-left edge).
+  // image's top-left edge), corner k of the triangle first.
   std::array<Eigen::Vector2d, 3> Corners(int t) const {
     const Eigen::Vector2d o = CellOrigin(t).cast<double>();
     const double c = cell_px, p = inset_px, q = 2 * inset_px;
-    if (t % 2 == 0) {
-      return {o + Eigen::Vector2d(p, p), o + Eigen::Vector2d(c - q, p),
-              o + Eigen::Vector2d(p, c - q)};
+    const int apex = layout.apex[t];
+    if (apex < 0) {
+      if (UpperHalf(t)) {
+        return {o + Eigen::Vector2d(p, p), o + Eigen::Vector2d(c - q, p),
+                o + Eigen::Vector2d(p, c - q)};
+      }
+      return {o + Eigen::Vector2d(c - p, c - p), o + Eigen::Vector2d(q, c - p),
+              o + Eigen::Vector2d(c - p, q)};
     }
-    return {o + Eigen::Vector2d(c - p, c - p), o + Eigen::Vector2d(q, c - p),
-            o + Eigen::Vector2d(c - p, q)};
+    // The apex in the cell's corner, the shared edge on the diagonal: the
+    // upper triangle's edge runs top-right to bottom-left, the lower one's
+    // back, so both name the same two points.
+    std::array<Eigen::Vector2d, 3> corners;
+    const Eigen::Vector2d top_right = o + Eigen::Vector2d(c - p, p);
+    const Eigen::Vector2d bottom_left = o + Eigen::Vector2d(p, c - p);
+    const bool upper = UpperHalf(t);
+    corners[apex] = o + (upper ? Eigen::Vector2d(p, p) : Eigen::Vector2d(c - p, c - p));
+    corners[(apex + 1) % 3] = upper ? top_right : bottom_left;
+    corners[(apex + 2) % 3] = upper ? bottom_left : top_right;
+    return corners;
   }
 };
 
-absl::StatusOr<Atlas> LayOutAtlas(int triangles, int size_px, int part) {
+absl::StatusOr<Atlas> LayOutAtlas(const PartMesh& part, int size_px) {
   Atlas atlas;
-  const int cells = std::max(1, (triangles + 1) / 2);
+  atlas.layout = PairTriangles(part);
+  const int cells = std::max(1, atlas.layout.cells);
   atlas.grid = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(cells))));
   // Grow the texture (doubling, up to kMaxGrownTexturePx) until cells are
   // at least 4 px.
@@ -654,12 +740,46 @@ absl::StatusOr<Atlas> LayOutAtlas(int triangles, int size_px, int part) {
   atlas.size_px = size_px;
   atlas.cell_px = size_px / atlas.grid;
   if (atlas.cell_px < 4) {
-    return Invalid(absl::StrCat("part ", part, ": ", triangles, " triangles do not fit a ", size_px,
-                                " px texture (cells of ", atlas.cell_px,
-                                " px); lower the mesh resolution"));
+    return Invalid(absl::StrCat("part ", part.part, ": ", part.triangles.size(),
+                                " triangles do not fit a ", size_px, " px texture (cells of ",
+                                atlas.cell_px, " px); lower the mesh resolution"));
   }
   atlas.inset_px = std::clamp(atlas.cell_px / 8.0, 0.5, 1.5);
   return atlas;
+}
+
+// The vertices of a part once baked: per triangle corner one vertex, except
+// that the two triangles of a cell share the two on their diagonal.
+// `source`: per baked vertex, the vertex of `part` it copies; `triangles`:
+// the baked triangles, in `part`'s order.
+struct BakedVertices {
+  std::vector<int> source;
+  std::vector<Eigen::Vector3i> triangles;
+};
+
+BakedVertices SplitVertices(const PartMesh& part, const CellLayout& layout) {
+  BakedVertices out;
+  out.source.reserve(part.triangles.size() * 2);
+  out.triangles.reserve(part.triangles.size());
+  // (cell, vertex of `part`) -> baked vertex, for the shared diagonals.
+  std::map<std::pair<int, int>, int> on_diagonal;
+  for (size_t t = 0; t < part.triangles.size(); ++t) {
+    Eigen::Vector3i triangle;
+    for (int k = 0; k < 3; ++k) {
+      const int v = part.triangles[t][k];
+      const int next = static_cast<int>(out.source.size());
+      if (layout.apex[t] >= 0 && k != layout.apex[t]) {
+        const auto [it, added] = on_diagonal.emplace(std::make_pair(layout.slot[t] / 2, v), next);
+        triangle[k] = it->second;
+        if (!added) continue;
+      } else {
+        triangle[k] = next;
+      }
+      out.source.push_back(v);
+    }
+    out.triangles.push_back(triangle);
+  }
+  return out;
 }
 
 // Barycentric coordinates of `p` in triangle `c`, clamped onto the triangle
@@ -683,7 +803,7 @@ void ForEachTexel(const Atlas& atlas, int t, F&& f) {
   for (int ly = 0; ly < atlas.cell_px; ++ly) {
     for (int lx = 0; lx < atlas.cell_px; ++lx) {
       const bool first_half = lx + ly + 1 < atlas.cell_px;  // Texel centre before the diagonal.
-      if (first_half != (t % 2 == 0)) continue;
+      if (first_half != atlas.UpperHalf(t)) continue;
       const Eigen::Vector2d centre(o.x() + lx + 0.5, o.y() + ly + 0.5);
       f(o.x() + lx, o.y() + ly, ClampedBarycentric(corners, centre));
     }
@@ -827,29 +947,28 @@ RgbImage FinishTexture(const PartBake& bake) {
   return texture;
 }
 
-// `part` with one vertex per triangle corner and its uv (the shape, name,
-// id and other fields unchanged).
+// `part` with its vertices split as SplitVertices says and their uvs (the
+// shape, name, id and other fields unchanged).
 PartMesh SplitMesh(const PartMesh& part, const Atlas& atlas) {
-  const auto corners = static_cast<Eigen::Index>(part.triangles.size() * 3);
+  BakedVertices split = SplitVertices(part, atlas.layout);
+  const auto vertices = static_cast<Eigen::Index>(split.source.size());
   PartMesh mesh = part;
-  mesh.positions_in_part_m.resize(3, corners);
-  mesh.normals_in_part.resize(3, corners);
-  mesh.uvs.resize(2, corners);
-  mesh.triangles.clear();
+  mesh.positions_in_part_m.resize(3, vertices);
+  mesh.normals_in_part.resize(3, vertices);
+  mesh.uvs.resize(2, vertices);
+  for (Eigen::Index v = 0; v < vertices; ++v) {
+    mesh.positions_in_part_m.col(v) = part.positions_in_part_m.col(split.source[v]);
+    mesh.normals_in_part.col(v) = part.normals_in_part.col(split.source[v]);
+  }
   for (size_t t = 0; t < part.triangles.size(); ++t) {
     const std::array<Eigen::Vector2d, 3> uv_px = atlas.Corners(static_cast<int>(t));
     for (int k = 0; k < 3; ++k) {
-      const int v = part.triangles[t][k];
-      const auto corner = static_cast<Eigen::Index>(t * 3 + k);
-      mesh.positions_in_part_m.col(corner) = part.positions_in_part_m.col(v);
-      mesh.normals_in_part.col(corner) = part.normals_in_part.col(v);
-      mesh.uvs.col(corner) =
+      mesh.uvs.col(split.triangles[t][k]) =
           Eigen::Vector2f(static_cast<float>(uv_px[k].x() / atlas.size_px),
                           static_cast<float>(1.0 - uv_px[k].y() / atlas.size_px));  // Bottom-left.
     }
-    const int first = static_cast<int>(t * 3);
-    mesh.triangles.emplace_back(first, first + 1, first + 2);
   }
+  mesh.triangles = std::move(split.triangles);
   return mesh;
 }
 
@@ -869,7 +988,7 @@ absl::StatusOr<std::vector<PartBake>> PlanParts(const std::vector<PartMesh>& par
     bake.part_id = mesh.part;
     bake.geometry = &mesh;
     const int triangles = static_cast<int>(bake.geometry->triangles.size());
-    ASSIGN_OR_RETURN(bake.atlas, LayOutAtlas(triangles, options.texture_size_px, mesh.part));
+    ASSIGN_OR_RETURN(bake.atlas, LayOutAtlas(mesh, options.texture_size_px));
     const size_t texels = static_cast<size_t>(bake.atlas.size_px) * bake.atlas.size_px;
     bake.colour_sum.assign(texels * 3, 0.0f);
     bake.weight_sum.assign(texels, 0.0f);
@@ -963,6 +1082,7 @@ absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<PartMesh>& befor
     RETURN_IF_ERROR(ValidateGeometry(geometry, geometry.part));
     const int part = geometry.part;
     const size_t vertices = static_cast<size_t>(geometry.positions_in_part_m.cols());
+    const std::vector<int> source = SplitVertices(geometry, PairTriangles(geometry)).source;
     for (TextureKeyframe& keyframe : remapped) {
       if (part < 0 || part >= static_cast<int>(keyframe.vertex_visible_bits.size()) ||
           keyframe.vertex_visible_bits[part].size() != (vertices + 7) / 8) {
@@ -970,13 +1090,9 @@ absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<PartMesh>& befor
                                     ": visibility bits do not match the mesh"));
       }
       const std::string& old_bits = keyframe.vertex_visible_bits[part];
-      std::string bits((geometry.triangles.size() * 3 + 7) / 8, '\0');
-      for (size_t t = 0; t < geometry.triangles.size(); ++t) {
-        for (int k = 0; k < 3; ++k) {
-          if (VertexVisible(old_bits, geometry.triangles[t][k])) {
-            SetBit(&bits, static_cast<int>(t * 3 + k));
-          }
-        }
+      std::string bits((source.size() + 7) / 8, '\0');
+      for (size_t v = 0; v < source.size(); ++v) {
+        if (VertexVisible(old_bits, source[v])) SetBit(&bits, static_cast<int>(v));
       }
       keyframe.vertex_visible_bits[part] = std::move(bits);
     }

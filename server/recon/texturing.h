@@ -30,7 +30,9 @@
 //    -normal . view direction); the best few are blended by frontality, and
 //    a texel whose point lands off the keyframe's actor mask is not taken
 //    from it. The atlas maps each triangle to a right triangle, so texel
-//    density varies with the triangle's shape.
+//    density varies with the triangle's shape; two neighbours across an edge
+//    share a square cell, that edge its diagonal, so that they share its
+//    two vertices and a lookup across it finds the neighbour's colours.
 #pragma once
 
 #include <optional>
@@ -166,10 +168,15 @@ struct BakeSummary {
 // Bakes one texture per part from `keyframes` (from MakeTextureKeyframe) and
 // rewrites `parts` (PartMesh with positions, normals, triangles in; part id
 // = PartMesh.part) to carry it: an atlas of one square cell per pair of
-// triangles (each triangle a right triangle in one half, 1.5-3 px gutters,
-// every texel of a cell filled), vertices split so that each triangle corner
-// has its own uv (positions, normals and triangles rewritten; the shape is
-// unchanged), uvs ((0, 0) bottom-left) and baked_texture_jpeg. Keyframe
+// triangles (each triangle a right triangle in one half, 1.5 px gutters
+// along the cell's edges, every texel of a cell filled). Neighbours across
+// an edge are paired where they can be (greedily, in triangle order), that
+// edge the cell's diagonal; two triangles that are not neighbours keep
+// 1.5-3 px gutters about the diagonal too. Vertices are split so that each
+// corner has its own uv, except that a pair shares the two vertices of its
+// diagonal: about 2 vertices per triangle instead of 3 (positions, normals
+// and vertex indices rewritten; the triangles keep their order and the
+// shape is unchanged), uvs ((0, 0) bottom-left) and baked_texture_jpeg. Keyframe
 // poses come from `frames` (by frame_index), cameras from
 // `sensors` (by sensor_id). Texels that no keyframe sees take the part's
 // mean observed colour (mid grey when the part is seen nowhere). Crops are
@@ -186,9 +193,10 @@ absl::Status BakePartTextures(const std::vector<TextureKeyframe>& keyframes,
                               BakeSummary* summary = nullptr);
 
 // Keyframes made before BakePartTextures carry bits in the old vertex order;
-// this rewrites them for the baked meshes, whose vertex 3 t + k is corner k
-// of triangle t of the mesh before baking (`before_bake`: the PartMesh list
-// as it was passed to BakePartTextures; bits indexed by PartMesh.part).
+// this rewrites them for the baked meshes, each of whose vertices copies a
+// vertex of the mesh before baking (`before_bake`: the PartMesh list as it
+// was passed to BakePartTextures; bits indexed by PartMesh.part). The split
+// is a function of each mesh alone, so it is made again here.
 // InvalidArgument (keyframes unchanged) when a mesh is malformed or a
 // keyframe's bits for a part disagree with its vertex count.
 absl::Status RemapVisibilityBitsToBakedMeshes(const std::vector<PartMesh>& before_bake,

@@ -516,7 +516,13 @@ TEST(BakePartTextures, ReproducesPaintedColoursAndSkipsOccluders) {
   EXPECT_LT(summary.triangles_unobserved, summary.triangles);
   for (int p = 0; p < 2; ++p) {
     EXPECT_EQ(parts[p].triangles.size(), static_cast<size_t>(6 * 8 * 8 * 2));
-    EXPECT_EQ(parts[p].num_vertices(), 6 * 8 * 8 * 2 * 3);
+    // Neighbours share a cell and its diagonal's two vertices: on a grid of
+    // squares nearly every triangle has one, 2 vertices per triangle instead
+    // of 3.
+    EXPECT_LE(parts[p].num_vertices(), 6 * 8 * 8 * 2 * 2 + 6 * 8 * 2) << "part " << p;
+    std::printf("part %d: %d triangles on %d vertices once baked (%d before)\n", p,
+                static_cast<int>(parts[p].triangles.size()), parts[p].num_vertices(),
+                PartMeshes(scene)[p].num_vertices());
   }
   const BakeError error = MeasureBake(scene, parts);
   EXPECT_GT(error.texels, 20000);
@@ -545,13 +551,16 @@ TEST(RemapVisibilityBitsToBakedMeshes, FollowsTheVertexSplit) {
   for (int p = 0; p < 2; ++p) {
     const std::string& old_bits = before_keyframes[0].vertex_visible_bits[p];
     const std::string& new_bits = keyframes[0].vertex_visible_bits[p];
-    const int corners = static_cast<int>(3 * parts[p].triangles.size());
-    ASSERT_EQ(new_bits.size(), static_cast<size_t>((corners + 7) / 8));
-    for (int i = 0; i < corners; ++i) {
-      const int old_vertex = before[p].triangles[i / 3][i % 3];
-      EXPECT_EQ(VertexVisible(new_bits, i), VertexVisible(old_bits, old_vertex));
-      set_after += VertexVisible(new_bits, i);
+    ASSERT_EQ(new_bits.size(), static_cast<size_t>((parts[p].num_vertices() + 7) / 8));
+    ASSERT_EQ(parts[p].triangles.size(), before[p].triangles.size());
+    // Triangles keep their order; each corner's bit is its old vertex's.
+    for (size_t t = 0; t < parts[p].triangles.size(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_EQ(VertexVisible(new_bits, parts[p].triangles[t][k]),
+                  VertexVisible(old_bits, before[p].triangles[t][k]));
+      }
     }
+    for (int v = 0; v < parts[p].num_vertices(); ++v) set_after += VertexVisible(new_bits, v);
     for (int v = 0; v < static_cast<int>(old_bits.size()) * 8; ++v) {
       set_before += VertexVisible(old_bits, v);
     }

@@ -16,10 +16,10 @@ namespace {
 
 // Why `job` follows nothing, for people.
 std::string NotFollowingMessage(const v1::Job& job) {
-  const auto live = job.options().find("live");
-  if (live == job.options().end() || live->second != "true") {
+  if (!job.live()) {
     return absl::StrCat("job ", job.job_id(),
-                        " is not live (submit it with --option live=true to follow its take)");
+                        " is not live (submit it with --live while its take records to follow "
+                        "the take)");
   }
   if (IsFinished(job.state())) {
     return absl::StrCat("job ", job.job_id(), " has ended (", v1::JobState_Name(job.state()), ")");

@@ -66,7 +66,8 @@ ServerOptions LiveServerOptions(const std::string& worker = REENACT_FAKE_WORKER)
   options.jobs.methods = FakeWorkerMethods();
   options.jobs.concurrency = 2;
   options.jobs.poll_period_s = 0.02;
-  options.live.factory = [](const v1::TakeInfo&, const std::vector<v1::SensorCalibration>&,
+  options.live.factory = [](const std::string&, const v1::TakeInfo&,
+                            const std::vector<v1::SensorCalibration>&,
                             const std::map<std::string, std::string>& job_options)
       -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
     if (const auto it = job_options.find("texture_scale");
@@ -155,12 +156,15 @@ class FollowStreamTest : public ::testing::Test {
     ASSERT_TRUE(ingest.ReadOpened().has_value());
   }
 
+  // `live`: SubmitJobRequest.live.
   grpc::Status Submit(const std::string& take_id, const std::string& method,
-                      const std::map<std::string, std::string>& options, v1::Job* job) {
+                      const std::map<std::string, std::string>& options, v1::Job* job,
+                      bool live = false) {
     grpc::ClientContext context;
     v1::SubmitJobRequest request;
     request.set_take_id(take_id);
     request.set_method(method);
+    request.set_live(live);
     for (const auto& [k, v] : options) (*request.mutable_options())[k] = v;
     return jobs_->Submit(&context, request, job);
   }
@@ -170,7 +174,7 @@ class FollowStreamTest : public ::testing::Test {
   std::unique_ptr<FollowReader> StartFollowing(IngestClient& ingest, v1::Job* job) {
     Open(ingest, "take-1");
     const grpc::Status submitted =
-        Submit("take-1", "body", {{"live", "true"}, {"model", "procedural"}}, job);
+        Submit("take-1", "body", {{"model", "procedural"}}, job, /*live=*/true);
     EXPECT_TRUE(submitted.ok()) << submitted.error_message();
     auto follow = std::make_unique<FollowReader>(*reenactments_, job->job_id());
     EXPECT_TRUE(ingest.SendSet(MakeFrameSet(1, SensorIds(1))));
@@ -264,10 +268,16 @@ TEST_F(FollowStreamTest, SubmitOfARecordingTakeNeedsALiveBodyJob) {
   Open(ingest, "take-1");
   v1::Job job;
   EXPECT_EQ(Submit("take-1", "body", {}, &job).error_code(), grpc::FAILED_PRECONDITION);
-  EXPECT_EQ(Submit("take-1", "rigid-cylinders", {{"live", "true"}}, &job).error_code(),
-            grpc::INVALID_ARGUMENT);
-  EXPECT_EQ(Submit("take-1", "body", {{"live", "yes"}}, &job).error_code(), grpc::INVALID_ARGUMENT);
-  EXPECT_EQ(Submit("take-1", "body", {{"live", "false"}}, &job).error_code(),
+  const grpc::Status cannot = Submit("take-1", "rigid-cylinders", {}, &job, /*live=*/true);
+  EXPECT_EQ(cannot.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_NE(cannot.error_message().find("method rigid-cylinders cannot follow"), std::string::npos)
+      << cannot.error_message();
+  // "live" is the request's field, not an option.
+  const grpc::Status option = Submit("take-1", "body", {{"live", "true"}}, &job);
+  EXPECT_EQ(option.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_NE(option.error_message().find("live is not an option"), std::string::npos)
+      << option.error_message();
+  EXPECT_EQ(Submit("take-1", "body", {}, &job, /*live=*/false).error_code(),
             grpc::FAILED_PRECONDITION);
   ASSERT_TRUE(ingest.Close(0));
   ASSERT_TRUE(ingest.Finish().ok());
@@ -277,11 +287,11 @@ TEST_F(FollowStreamTest, LiveJobsTakeJobSlotsAndAreRefusedWhenNoneIsFree) {
   // The fixture's server runs 2 jobs at once (--jobs 2).
   IngestClient ingest(*t_->ingest);
   Open(ingest, "take-1");
-  const std::map<std::string, std::string> live = {{"live", "true"}, {"model", "procedural"}};
+  const std::map<std::string, std::string> procedural = {{"model", "procedural"}};
   v1::Job first, second, third;
-  ASSERT_TRUE(Submit("take-1", "body", live, &first).ok());
-  ASSERT_TRUE(Submit("take-1", "body", live, &second).ok());
-  const grpc::Status refused = Submit("take-1", "body", live, &third);
+  ASSERT_TRUE(Submit("take-1", "body", procedural, &first, /*live=*/true).ok());
+  ASSERT_TRUE(Submit("take-1", "body", procedural, &second, /*live=*/true).ok());
+  const grpc::Status refused = Submit("take-1", "body", procedural, &third, /*live=*/true);
   EXPECT_EQ(refused.error_code(), grpc::RESOURCE_EXHAUSTED) << refused.error_message();
   EXPECT_NE(refused.error_message().find("--jobs"), std::string::npos);
   // An offline job waits for a slot while both follow.
@@ -317,7 +327,7 @@ TEST_F(FollowStreamTest, WithoutALiveFollowerRecordingTakesAreRefused) {
   IngestClient ingest(*t_->ingest);
   Open(ingest, "take-1");
   v1::Job job;
-  const grpc::Status status = Submit("take-1", "body", {{"live", "true"}}, &job);
+  const grpc::Status status = Submit("take-1", "body", {}, &job, /*live=*/true);
   EXPECT_EQ(status.error_code(), grpc::FAILED_PRECONDITION);
   EXPECT_NE(status.error_message().find("cannot follow"), std::string::npos);
   ASSERT_TRUE(ingest.Close(0));
@@ -334,7 +344,8 @@ TEST_F(FollowStreamTest, JobsThatFollowNothingGetOneEnd) {
   }
   // A live job of a complete take runs offline.
   v1::Job live;
-  ASSERT_TRUE(Submit("take-1", "body", {{"live", "true"}}, &live).ok());
+  ASSERT_TRUE(Submit("take-1", "body", {}, &live, /*live=*/true).ok());
+  EXPECT_FALSE(live.live());  // Its take had ended.
   v1::Job offline;
   ASSERT_TRUE(Submit("take-1", "body", {}, &offline).ok());
   for (const v1::Job& job : {live, offline}) {
@@ -393,8 +404,8 @@ TEST_F(FollowStreamTest, TheWorkerGetsNoLiveOnlyOptions) {
   IngestClient ingest(*t_->ingest);
   Open(ingest, "take-1");
   v1::Job job;
-  ASSERT_TRUE(Submit("take-1", "body",
-                     {{"live", "true"}, {"shape_spacing", "3"}, {"model", "procedural"}}, &job)
+  ASSERT_TRUE(Submit("take-1", "body", {{"shape_spacing", "3"}, {"model", "procedural"}}, &job,
+                     /*live=*/true)
                   .ok());
   ASSERT_TRUE(ingest.SendSets(1, 2, 1));
   ASSERT_TRUE(ingest.Close(2));
@@ -415,7 +426,7 @@ TEST_F(FollowStreamTest, ALiveFitThatCannotStartFailsTheJob) {
   v1::Job job;
   // Within the option's listed bounds, so Submit takes it (this server has
   // no deeper check); the follower refuses it.
-  ASSERT_TRUE(Submit("take-1", "body", {{"live", "true"}, {"texture_scale", "3"}}, &job).ok());
+  ASSERT_TRUE(Submit("take-1", "body", {{"texture_scale", "3"}}, &job, /*live=*/true).ok());
   const v1::Job finished = WaitFinished(job.job_id());
   EXPECT_EQ(finished.state(), v1::JOB_STATE_FAILED);
   EXPECT_NE(finished.error().find("colour denominator"), std::string::npos) << finished.error();

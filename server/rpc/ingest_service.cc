@@ -13,8 +13,8 @@
 #include "common/base/time.h"
 #include "proto/grpc_status.h"
 #include "server/live/live_hub.h"
+#include "server/metrics/server_metrics.h"
 #include "server/rpc/rpc_auth.h"
-#include "server/server_metrics.h"
 #include "server/store/frame_set_validation.h"
 
 namespace reenact::server {

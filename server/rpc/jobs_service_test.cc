@@ -27,6 +27,7 @@
 #include "common/rpc/channel.h"
 #include "reenact/v1/ingest_service.grpc.pb.h"
 #include "reenact/v1/jobs_service.grpc.pb.h"
+#include "server/recon/methods.h"
 #include "server/server_flags.h"
 #include "server/testing/test_server.h"
 #include "server/testing/test_takes.h"
@@ -210,6 +211,12 @@ TEST(JobsService, BodyModelsAreAssetNamesNeverServerPaths) {
   std::filesystem::create_directories(assets + "/teacher");
   ServerOptions options = JobOptions(REENACT_FAKE_WORKER);
   options.jobs.asset_roots = {assets};
+  // As reenact-server's main: the method checks its options against the
+  // server's assets.
+  options.jobs.check_job = [assets](const std::string& method,
+                                    const std::map<std::string, std::string>& job_options) {
+    return recon::CheckJob(method, job_options, {assets});
+  };
   auto t = TestServer::Start(dir + "/data", options);
   ASSERT_NE(t, nullptr);
   RecordTake(*t, "take1");

@@ -3,7 +3,7 @@
 #include <set>
 
 #include "common/base/status_macros.h"
-#include "server/server_metrics.h"
+#include "server/metrics/server_metrics.h"
 
 namespace reenact::server {
 

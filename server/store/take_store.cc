@@ -19,7 +19,7 @@
 #include "common/base/status_macros.h"
 #include "common/base/time.h"
 #include "common/log/log.h"
-#include "server/server_metrics.h"
+#include "server/metrics/server_metrics.h"
 #include "server/store/take_file.h"
 
 namespace reenact::server {

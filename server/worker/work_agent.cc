@@ -22,8 +22,8 @@
 #include "common/log/log.h"
 #include "proto/grpc_status.h"
 #include "reenact/v1/work_service.grpc.pb.h"
-#include "server/jobs/worker_process.h"
-#include "server/jobs/worker_protocol.h"
+#include "server/worker/worker_process.h"
+#include "server/worker/worker_protocol.h"
 
 namespace reenact::server {
 namespace fs = std::filesystem;

@@ -2,7 +2,7 @@
 // leases jobs from a server's Work service (proto/reenact/v1/
 // work_service.proto), fetches each job's take into a scratch folder of its
 // own, runs the job there as a child process that speaks the worker
-// protocol on stdout (server/jobs/worker_protocol.h; the child is
+// protocol on stdout (server/worker/worker_protocol.h; the child is
 // reenact-worker itself in its one-job mode), relays its progress and log
 // lines by heartbeat, and uploads the reenactment or says why the job
 // failed. The scratch folder is deleted after each job; nothing is shared

@@ -336,7 +336,7 @@ async function startLiveJob(name, seconds) {
   for (let attempt = 0; attempt < 40; ++attempt) {
     const r = await run(
       bin('reenact'),
-      ['jobs', 'submit', '--server', server.grpc, '--take', takeId, '--method', 'body', '--model', 'procedural', '--option', 'live=true', '--json'],
+      ['jobs', 'submit', '--server', server.grpc, '--take', takeId, '--method', 'body', '--model', 'procedural', '--live', '--json'],
       { name: `submit-${name}` },
     );
     if (r.code === 0) {

@@ -1,18 +1,12 @@
 // The server's HTTP API (/api/v1): authenticated fetches, JSON errors, the
 // access token (URL fragment #token=..., kept in localStorage).
 
-const TOKEN_KEY = 'reenact.token';
+import { ApiError, errorSentence } from './lib/errors.js';
+import { checkGlb, joinChunks } from './lib/glb.js';
 
-export class ApiError extends Error {
-  // status: HTTP status (0: the server could not be reached); code: the
-  // server's error code (gRPC status name) when it sent one.
-  constructor(status, code, message) {
-    super(message);
-    this.name = 'ApiError';
-    this.status = status;
-    this.code = code;
-  }
-}
+export { ApiError };
+
+const TOKEN_KEY = 'reenact.token';
 
 // Moves a token from the address bar's fragment (#token=...) into
 // localStorage and removes it from the address bar and the history entry.
@@ -122,54 +116,32 @@ export async function apiJsonAllPages(path, params = {}, maxPages = 100) {
   return items;
 }
 
+// The body of a response as an ArrayBuffer, read in chunks with
+// onProgress(received, total) after each (total: Content-Length, 0 when
+// unknown).
+async function readWithProgress(response, onProgress) {
+  const total = Number(response.headers.get('Content-Length')) || 0;
+  const reader = response.body.getReader();
+  const chunks = [];
+  let received = 0;
+  for (;;) {
+    const { done, value } = await reader.read();
+    if (done) break;
+    chunks.push(value);
+    received += value.byteLength;
+    onProgress(received, total);
+  }
+  return joinChunks(chunks);
+}
+
 // The body of a reenactment's model.glb, checked against its own length
 // field (a cut-off download is an error here, not a half-drawn body).
 export async function fetchGlb(id, onProgress) {
   const response = await apiFetch(`/api/v1/reenactments/${encodeURIComponent(id)}/model.glb`);
-  const total = Number(response.headers.get('Content-Length')) || 0;
-  let buffer;
-  if (response.body && onProgress) {
-    const reader = response.body.getReader();
-    const chunks = [];
-    let received = 0;
-    for (;;) {
-      const { done, value } = await reader.read();
-      if (done) break;
-      chunks.push(value);
-      received += value.byteLength;
-      onProgress(received, total);
-    }
-    const bytes = new Uint8Array(received);
-    let at = 0;
-    for (const c of chunks) {
-      bytes.set(c, at);
-      at += c.byteLength;
-    }
-    buffer = bytes.buffer;
-  } else {
-    buffer = await response.arrayBuffer();
-  }
+  const buffer =
+    response.body && onProgress ? await readWithProgress(response, onProgress) : await response.arrayBuffer();
   checkGlb(buffer);
   return buffer;
-}
-
-// Throws ApiError when `buffer` is not a whole binary glTF.
-export function checkGlb(buffer) {
-  if (buffer.byteLength < 20) {
-    throw new ApiError(200, 'DATA_LOSS', `The model is ${buffer.byteLength} bytes: too short to be a glTF file.`);
-  }
-  const view = new DataView(buffer);
-  if (view.getUint32(0, true) !== 0x46546c67) {
-    throw new ApiError(200, 'DATA_LOSS', 'The model is not a binary glTF file (bad magic).');
-  }
-  const declared = view.getUint32(8, true);
-  if (declared !== buffer.byteLength) {
-    throw new ApiError(
-      200,
-      'DATA_LOSS',
-      `The model is truncated or damaged: ${buffer.byteLength} bytes received, the file says ${declared}.`,
-    );
-  }
 }
 
 // The WebSocket URL of a path on this server, with the token as a query.
@@ -182,19 +154,5 @@ export function webSocketUrl(path) {
 
 // A sentence for an error, with what the user can do about it.
 export function describeError(e) {
-  if (e instanceof ApiError) {
-    if (e.status === 401) {
-      // The server's own words name the command line's flags; a browser
-      // user needs to know what a token is and who has one.
-      return getToken()
-        ? 'The access token this browser has is not one the server knows (mistyped, or withdrawn). ' +
-            'Ask whoever runs the Reenact server for a new one.'
-        : 'This Reenact server lets in only people with an access token.';
-    }
-    if (e.status === 403) return `This token's role may not do this (${e.message}).`;
-    if (e.status === 404) return `Not found: ${e.message}`;
-    if (e.status === 0) return e.message;
-    return e.message;
-  }
-  return (e && e.message) || String(e);
+  return errorSentence(e, !!getToken());
 }

@@ -14,39 +14,19 @@
 
 import { LinearFilter, SRGBColorSpace, VideoTexture } from 'three';
 import { apiFetch, describeError, getToken } from './api.js';
+import {
+  catchUpRate,
+  frameOfVideoTime,
+  lengthMismatch,
+  loopOffset,
+  needsSeek,
+  nextLead,
+  seekFrameAhead,
+  videoTimeOfFrame,
+} from './lib/appearance-sync.js';
 
 // H.264 High profile in MP4: what the server's encoder writes.
 export const APPEARANCE_TYPE = 'video/mp4; codecs="avc1.640028"';
-
-// The video time that shows instant `frame` (its frames are 1/fps long and
-// start at frame / fps): the middle of the frame, clear of rounding.
-export function videoTimeOfFrame(frame, fps) {
-  return (frame + 0.5) / fps;
-}
-
-// The video frame shown at media time `seconds` (a frame's start time).
-export function frameOfVideoTime(seconds, fps) {
-  return Math.max(0, Math.round(seconds * fps));
-}
-
-// Why a video of `duration` seconds cannot be the appearance of `frames`
-// instants at `fps`, or '' when it can (within half a frame).
-export function lengthMismatch(duration, frames, fps) {
-  if (!(fps > 0) || !(frames > 0)) return 'the animation has no frame rate';
-  if (!Number.isFinite(duration) || duration <= 0) return 'the video has no length';
-  const videoFrames = duration * fps;
-  if (Math.abs(videoFrames - frames) <= 0.5) return '';
-  return `the video has ${Math.round(videoFrames)} frames for the animation's ${frames}`;
-}
-
-// The signed offset of the video frame `shown` from the animation's `frame`
-// on a loop of `frames` (the shorter way round).
-export function loopOffset(shown, frame, frames) {
-  let d = shown - frame;
-  if (d > frames / 2) d -= frames;
-  if (d < -frames / 2) d += frames;
-  return d;
-}
 
 // Meshes whose material shows the static atlas (the body's skinned mesh).
 function atlasMaterials(model) {
@@ -100,43 +80,15 @@ export class Appearance {
     if (!this.applies) return;
     this.mode = 'loading';
     const path = `/api/v1/reenactments/${encodeURIComponent(this.id)}/appearance.mp4`;
-    const probe = document.createElement('video');
-    if (!probe.canPlayType(APPEARANCE_TYPE)) {
-      this.fallBack('this browser cannot decode H.264 video');
+    const unavailable = await this.unavailableReason(path);
+    if (unavailable) {
+      this.fallBack(unavailable);
       return;
     }
-    try {
-      // Its existence and the server's reason when it has none, before the
-      // media element (which reports no reasons) streams it.
-      await apiFetch(path, { headers: { Range: 'bytes=0-0' } });
-    } catch (e) {
-      this.fallBack(e.status === 404 ? 'this reenactment has no appearance video' : describeError(e));
-      return;
-    }
-    const video = document.createElement('video');
-    video.muted = true;
-    video.playsInline = true;
-    video.preload = 'auto';
-    video.crossOrigin = 'anonymous';
-    // In the document (unseen), so that the browser presents its frames
-    // (requestVideoFrameCallback) as it does for a visible one.
-    video.className = 'appearance-video';
-    video.setAttribute('aria-hidden', 'true');
-    document.body.append(video);
-    const token = getToken();
-    // The media element cannot send headers: the token goes as
-    // access_token (RFC 6750 2.3), as on the live preview's WebSocket.
-    video.src = token ? `${path}?access_token=${encodeURIComponent(token)}` : path;
+    const video = createVideo(path);
     this.video = video;
     try {
-      await new Promise((resolve, reject) => {
-        video.addEventListener('loadeddata', resolve, { once: true });
-        video.addEventListener(
-          'error',
-          () => reject(new Error(video.error ? video.error.message || `media error ${video.error.code}` : 'media error')),
-          { once: true },
-        );
-      });
+      await firstFrame(video);
     } catch (e) {
       this.fallBack(`the video does not play (${e.message})`);
       return;
@@ -146,6 +98,28 @@ export class Appearance {
       this.fallBack(mismatch);
       return;
     }
+    this.watchVideo(video);
+    this.useVideo(video);
+  }
+
+  // Why the video cannot be shown here (the browser cannot decode it, the
+  // server has none), or '' when it can be tried.
+  async unavailableReason(path) {
+    const probe = document.createElement('video');
+    if (!probe.canPlayType(APPEARANCE_TYPE)) return 'this browser cannot decode H.264 video';
+    try {
+      // Its existence and the server's reason when it has none, before the
+      // media element (which reports no reasons) streams it.
+      await apiFetch(path, { headers: { Range: 'bytes=0-0' } });
+    } catch (e) {
+      return e.status === 404 ? 'this reenactment has no appearance video' : describeError(e);
+    }
+    return '';
+  }
+
+  // Falls back when the video stops decoding; follows the animation after
+  // a seek.
+  watchVideo(video) {
     video.addEventListener('error', () => {
       const error = video.error;
       this.fallBack(`the video stopped decoding (${(error && error.message) || 'media error'})`);
@@ -155,6 +129,10 @@ export class Appearance {
       // The animation moved on while it sought: follow it.
       if (video.paused && this.requestedFrame !== this.wantedFrame) this.seek(this.wantedFrame);
     });
+  }
+
+  // Draws `video` on the body in place of the static atlas.
+  useVideo(video) {
     const texture = new VideoTexture(video);
     const atlas = this.atlases[0];
     texture.flipY = atlas.flipY;
@@ -204,14 +182,22 @@ export class Appearance {
     this.wantedFrame = frame;
     const video = this.video;
     if (this.mode !== 'video' || !video) return;
-    if (!playing) {
-      if (!video.paused) {
-        video.pause();
-        this.requestedFrame = -1;
-      }
-      if (!video.seeking && frame !== this.requestedFrame) this.seek(frame);
-      return;
+    if (playing) this.follow(video, time, frame, speed);
+    else this.hold(video, frame);
+  }
+
+  // Paused: the video paused on the animation's frame.
+  hold(video, frame) {
+    if (!video.paused) {
+      video.pause();
+      this.requestedFrame = -1;
     }
+    if (!video.seeking && frame !== this.requestedFrame) this.seek(frame);
+  }
+
+  // Playing: the video plays along, its drift caught up by its rate, a
+  // jump by a seek.
+  follow(video, time, frame, speed) {
     // What is drawn now: the animation's frame and the video's last
     // presented one.
     ++this.ticks;
@@ -220,30 +206,30 @@ export class Appearance {
     this.offsetSum += Math.abs(offset);
     if (video.paused) video.play().catch(() => {});
     if (video.seeking) return;
-    // The frame on screen trails the video's clock by the browser's
-    // presentation delay (media seconds: wall delay x speed), so the video is
-    // aimed ahead of the animation by `lead`, which integrates the offset
-    // between the frame drawn and the animation's until it averages zero.
+    this.updateLead(offset, speed);
+    const wanted = time + 0.5 / this.fps + this.lead;
+    const error = wanted - video.currentTime;
+    if (needsSeek(error, speed)) {
+      // A jump (a loop, a seek, a stall): seek, aimed ahead by the seek's
+      // own time.
+      this.seek(seekFrameAhead(wanted, this.seekMs, speed, this.fps, this.frames));
+      return;
+    }
+    // Small drift: caught up by the rate, without a seek's stall.
+    const rate = catchUpRate(speed, error);
+    if (Math.abs(video.playbackRate - rate) > 0.01) video.playbackRate = rate;
+  }
+
+  // The frame on screen trails the video's clock by the browser's
+  // presentation delay (media seconds: wall delay x speed), so the video is
+  // aimed ahead of the animation by `lead`, which integrates the offset
+  // between the frame drawn and the animation's until it averages zero.
+  updateLead(offset, speed) {
     if (speed !== this.leadSpeed) {
       this.lead *= speed / this.leadSpeed;
       this.leadSpeed = speed;
     }
-    if (this.shownFrame >= 0) {
-      const step = Math.min(1, Math.max(-1, -offset));
-      this.lead = Math.min(0.5 * speed, Math.max(0, this.lead + (0.05 * step) / this.fps));
-    }
-    const wanted = time + 0.5 / this.fps + this.lead;
-    const error = wanted - video.currentTime;
-    if (Math.abs(error) > 0.1 + 0.25 * speed) {
-      // A jump (a loop, a seek, a stall): seek, aimed ahead by the seek's
-      // own time.
-      const ahead = Math.min(0.25, this.seekMs / 1000) * speed;
-      this.seek(Math.min(this.frames - 1, Math.round((wanted + ahead) * this.fps - 0.5)));
-      return;
-    }
-    // Small drift: caught up by the rate, without a seek's stall.
-    const rate = speed * Math.min(1.5, Math.max(0.5, 1 + 2 * error));
-    if (Math.abs(video.playbackRate - rate) > 0.01) video.playbackRate = rate;
+    if (this.shownFrame >= 0) this.lead = nextLead(this.lead, offset, speed, this.fps);
   }
 
   // The static atlas again, saying why.
@@ -286,4 +272,36 @@ export class Appearance {
     }
     this.video = null;
   }
+}
+
+// A hidden, muted video element for `path`, in the document (unseen), so
+// that the browser presents its frames (requestVideoFrameCallback) as it
+// does for a visible one.
+function createVideo(path) {
+  const video = document.createElement('video');
+  video.muted = true;
+  video.playsInline = true;
+  video.preload = 'auto';
+  video.crossOrigin = 'anonymous';
+  video.className = 'appearance-video';
+  video.setAttribute('aria-hidden', 'true');
+  document.body.append(video);
+  const token = getToken();
+  // The media element cannot send headers: the token goes as
+  // access_token (RFC 6750 2.3), as on the live preview's WebSocket.
+  video.src = token ? `${path}?access_token=${encodeURIComponent(token)}` : path;
+  return video;
+}
+
+// Resolves when `video` has decoded its first frame; rejects on a media
+// error.
+function firstFrame(video) {
+  return new Promise((resolve, reject) => {
+    video.addEventListener('loadeddata', resolve, { once: true });
+    video.addEventListener(
+      'error',
+      () => reject(new Error(video.error ? video.error.message || `media error ${video.error.code}` : 'media error')),
+      { once: true },
+    );
+  });
 }

@@ -3,7 +3,7 @@
 // at real scale, feet on the floor. The page's controls stay usable in the
 // overlay.
 
-import { Mesh, MeshBasicMaterial, RingGeometry, Matrix4, Quaternion, Vector3 } from 'three';
+import { Mesh, MeshBasicMaterial, RingGeometry, Vector3 } from 'three';
 
 // Why AR cannot start here, or '' when it can be tried.
 export async function arUnavailableReason() {
@@ -17,6 +17,10 @@ export async function arUnavailableReason() {
   }
 }
 
+// Offers AR placement on `button` (its state in `note`) where the browser
+// has it: the session's DOM overlay is `overlay`; `motion` (analyseMotion's)
+// puts the feet on the floor; onPlaced() after a placement,
+// onSessionChange(active) when the session starts or ends.
 export async function setupAr({ stage, button, note, overlay, motion, onSessionChange, onPlaced }) {
   const reason = await arUnavailableReason();
   if (reason) {
@@ -27,105 +31,121 @@ export async function setupAr({ stage, button, note, overlay, motion, onSessionC
   }
   button.disabled = false;
   note.textContent = '';
+  const ar = new ArPlacement({ stage, button, note, overlay, motion, onSessionChange, onPlaced });
+  button.addEventListener('click', () => ar.toggle());
+}
 
-  const renderer = stage.renderer;
-  renderer.xr.enabled = true;
+// A ring on the floor where a tap would place the teacher.
+function createReticle() {
   const reticle = new Mesh(
     new RingGeometry(0.12, 0.16, 40).rotateX(-Math.PI / 2),
     new MeshBasicMaterial({ color: 0x4fd1c5 }),
   );
   reticle.matrixAutoUpdate = false;
   reticle.visible = false;
-  stage.scene.add(reticle);
+  return reticle;
+}
 
-  let session = null;
-  let hitSource = null;
-  const saved = { background: null, position: new Vector3(), yaw: 0 };
-  const hitMatrix = new Matrix4();
-  const hitPosition = new Vector3();
-  const hitQuaternion = new Quaternion();
-  const hitScale = new Vector3();
+class ArPlacement {
+  constructor({ stage, button, note, overlay, motion, onSessionChange, onPlaced }) {
+    Object.assign(this, { stage, button, note, overlay, motion, onSessionChange, onPlaced });
+    this.renderer = stage.renderer;
+    this.renderer.xr.enabled = true;
+    this.reticle = createReticle();
+    stage.scene.add(this.reticle);
+    this.session = null;
+    this.hitSource = null;
+    this.saved = { background: null, position: new Vector3(), yaw: 0 };
+    this.hitPosition = new Vector3();
+    // Taps on the controls are not placements.
+    overlay.addEventListener('beforexrselect', (e) => {
+      if (e.target.closest('button, input, select, label, a, .hud')) e.preventDefault();
+    });
+    const previousOnFrame = stage.onFrame;
+    stage.onFrame = (dt, xrFrame) => {
+      if (previousOnFrame) previousOnFrame(dt, xrFrame);
+      this.followFloor(xrFrame);
+    };
+  }
 
-  // Taps on the controls are not placements.
-  overlay.addEventListener('beforexrselect', (e) => {
-    if (e.target.closest('button, input, select, label, a, .hud')) e.preventDefault();
-  });
+  toggle() {
+    if (this.session) this.session.end();
+    else this.start();
+  }
 
-  async function start() {
+  async start() {
+    const { stage, renderer, note } = this;
+    let session;
     try {
       session = await navigator.xr.requestSession('immersive-ar', {
         requiredFeatures: ['hit-test'],
         optionalFeatures: ['dom-overlay', 'local-floor'],
-        domOverlay: { root: overlay },
+        domOverlay: { root: this.overlay },
       });
     } catch (e) {
       note.textContent = `AR could not start: ${(e && e.message) || e}`;
       return;
     }
-    saved.background = stage.scene.background;
-    saved.position.copy(stage.placement.position);
-    saved.yaw = stage.placement.rotation.y;
+    this.session = session;
+    this.saved.background = stage.scene.background;
+    this.saved.position.copy(stage.placement.position);
+    this.saved.yaw = stage.placement.rotation.y;
     stage.scene.background = null;
     stage.placement.visible = false;
     renderer.xr.setReferenceSpaceType('local');
     await renderer.xr.setSession(session);
     const viewerSpace = await session.requestReferenceSpace('viewer');
-    hitSource = await session.requestHitTestSource({ space: viewerSpace });
-    session.addEventListener('select', onSelect);
-    session.addEventListener('end', onEnd);
-    button.textContent = 'Exit AR';
+    this.hitSource = await session.requestHitTestSource({ space: viewerSpace });
+    session.addEventListener('select', () => this.place());
+    session.addEventListener('end', () => this.end());
+    this.button.textContent = 'Exit AR';
     note.textContent = 'Point at the floor, then tap to place the teacher.';
-    onSessionChange(true);
+    this.onSessionChange(true);
   }
 
-  function onSelect() {
+  // A tap: the pivot (actor's mean, on the floor) goes to the hit.
+  place() {
+    const { stage, reticle } = this;
     if (!reticle.visible) return;
-    hitMatrix.copy(reticle.matrix);
-    hitMatrix.decompose(hitPosition, hitQuaternion, hitScale);
-    // The pivot (actor's mean, on the floor) goes to the hit.
+    this.hitPosition.setFromMatrixPosition(reticle.matrix);
     stage.placement.position.set(
-      hitPosition.x - stage.pivot.x,
-      hitPosition.y - motion.floorY,
-      hitPosition.z - stage.pivot.z,
+      this.hitPosition.x - stage.pivot.x,
+      this.hitPosition.y - this.motion.floorY,
+      this.hitPosition.z - stage.pivot.z,
     );
     stage.placement.visible = true;
     // Turned to face whoever placed it.
-    if (onPlaced) onPlaced();
-    note.textContent = 'Placed. Tap elsewhere on the floor to move the teacher.';
+    if (this.onPlaced) this.onPlaced();
+    this.note.textContent = 'Placed. Tap elsewhere on the floor to move the teacher.';
   }
 
-  function onEnd() {
-    if (hitSource) hitSource.cancel();
-    hitSource = null;
-    session = null;
-    reticle.visible = false;
+  end() {
+    const { stage, saved } = this;
+    if (this.hitSource) this.hitSource.cancel();
+    this.hitSource = null;
+    this.session = null;
+    this.reticle.visible = false;
     stage.scene.background = saved.background;
     stage.placement.position.copy(saved.position);
     stage.placement.rotation.y = saved.yaw;
     stage.placement.visible = true;
-    button.textContent = 'Place (AR)';
-    note.textContent = '';
-    onSessionChange(false);
+    this.button.textContent = 'Place (AR)';
+    this.note.textContent = '';
+    this.onSessionChange(false);
     stage.invalidate();
   }
 
-  const previousOnFrame = stage.onFrame;
-  stage.onFrame = (dt, xrFrame) => {
-    if (previousOnFrame) previousOnFrame(dt, xrFrame);
-    if (!xrFrame || !hitSource) return;
-    const space = renderer.xr.getReferenceSpace();
-    const hits = xrFrame.getHitTestResults(hitSource);
+  // Each XR frame: the ring on the floor under the screen's centre.
+  followFloor(xrFrame) {
+    if (!xrFrame || !this.hitSource) return;
+    const space = this.renderer.xr.getReferenceSpace();
+    const hits = xrFrame.getHitTestResults(this.hitSource);
     if (hits.length > 0) {
       const pose = hits[0].getPose(space);
-      reticle.visible = true;
-      reticle.matrix.fromArray(pose.transform.matrix);
+      this.reticle.visible = true;
+      this.reticle.matrix.fromArray(pose.transform.matrix);
     } else {
-      reticle.visible = false;
+      this.reticle.visible = false;
     }
-  };
-
-  button.addEventListener('click', () => {
-    if (session) session.end();
-    else start();
-  });
+  }
 }

@@ -1,9 +1,9 @@
-// Reenactment glTF files: parsing, the root's extras, the frame times, and
-// where the actor is (mean position, extent over time, facing).
+// Reenactment glTF files: parsing, the root's extras, and where the actor
+// is (mean position, extent over time, facing).
 
 import { AnimationMixer, Box3, Vector3 } from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
-import { ApiError } from './api.js';
+import { ApiError } from './lib/errors.js';
 
 const loader = new GLTFLoader();
 
@@ -28,45 +28,6 @@ export async function parseGlb(buffer) {
     frame_count: Number(extras.frame_count) || 0,
   };
   return { gltf, info };
-}
-
-// The frame instants (seconds): the input times of a track with exactly
-// frame_count keys; without one, the densest track's, else frame_count
-// instants at fps.
-export function frameTimes(clip, info) {
-  const tracks = clip ? clip.tracks : [];
-  let best = null;
-  for (const t of tracks) {
-    if (info.frame_count > 0 && t.times.length === info.frame_count) {
-      best = t.times;
-      break;
-    }
-  }
-  if (!best) {
-    for (const t of tracks) if (!best || t.times.length > best.length) best = t.times;
-  }
-  if (best && best.length > 0 && !(info.frame_count > 0 && best.length !== info.frame_count)) {
-    return Float64Array.from(best);
-  }
-  const n = info.frame_count || (best ? best.length : 1);
-  const fps = info.fps || 30;
-  return Float64Array.from({ length: n }, (_, i) => i / fps);
-}
-
-// Index of the instant in sorted `times` nearest to `t`.
-export function nearestFrame(times, t) {
-  const n = times.length;
-  if (n === 0) return 0;
-  let lo = 0;
-  let hi = n - 1;
-  if (t <= times[0]) return 0;
-  if (t >= times[hi]) return hi;
-  while (hi - lo > 1) {
-    const mid = (lo + hi) >> 1;
-    if (times[mid] <= t) lo = mid;
-    else hi = mid;
-  }
-  return t - times[lo] <= times[hi] - t ? lo : hi;
 }
 
 const v = new Vector3();

@@ -18,15 +18,18 @@ import {
   WebGLRenderer,
 } from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import {
+  faceCameraYawDeg,
+  framingOf,
+  orbitDegPerPx,
+  orbitRotateSpeed,
+  roundMicro,
+  verticalFovDeg,
+  wrapYawDeg,
+} from './lib/geometry.js';
 import { showError } from './ui.js';
 
 export const DEFAULT_HFOV_DEG = 50;
-
-// Orbiting: degrees the view turns per pixel dragged. A drag across the
-// whole canvas turns about 180 degrees, within these bounds (a phone's
-// narrow screen still turns gently, a wide one not sluggishly).
-export const ORBIT_DEG_PER_PX_MIN = 0.2;
-export const ORBIT_DEG_PER_PX_MAX = 0.4;
 
 // The floor grid: 6 m square, 0.5 m cells, lines faint against the
 // background so the teacher stays what the eye goes to.
@@ -38,6 +41,34 @@ export class Stage {
   constructor(container, { background = '#1b1f24', hfovDeg = DEFAULT_HFOV_DEG, antialias = true, floor = true } = {}) {
     this.container = container;
     this.hfovDeg = hfovDeg;
+    this.createRenderer(antialias);
+    this.createScene(background);
+    this.createControls();
+    this.createRig();
+    this.createFloor(floor);
+
+    this.model = null;
+    this.pivot = new Vector3();
+    this.facing = new Vector3(0, 0, 1);
+    this.yawDeg = 0;
+    this.mirror = false;
+    this.dirty = true;
+    this.width = 1;
+    this.height = 1;
+    this.renderTimes = [];
+    this.onFrame = null; // (dtSeconds) => void, before each render
+    this.homeView = null;
+
+    this.resizeObserver = new ResizeObserver(() => this.resize());
+    this.resizeObserver.observe(container);
+    this.resize();
+    this.lastTick = performance.now();
+    this.renderer.setAnimationLoop((time, xrFrame) => this.tick(time, xrFrame));
+  }
+
+  // The renderer and its canvas (#view), first in the container; a lost
+  // graphics context is an error with a reload button.
+  createRenderer(antialias) {
     this.renderer = new WebGLRenderer({ antialias, alpha: true });
     this.renderer.outputColorSpace = SRGBColorSpace;
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
@@ -45,7 +76,7 @@ export class Stage {
     this.canvas.id = 'view';
     this.canvas.setAttribute('role', 'img');
     this.canvas.setAttribute('aria-label', '3D view of the teacher');
-    container.prepend(this.canvas);
+    this.container.prepend(this.canvas);
     this.canvas.addEventListener('webglcontextlost', (e) => {
       e.preventDefault();
       showError('The 3D view was lost (the graphics context was reset).', {
@@ -53,7 +84,10 @@ export class Stage {
         retryLabel: 'Reload',
       });
     });
+  }
 
+  // The scene, its background, lights and the camera.
+  createScene(background) {
     this.scene = new Scene();
     this.background = new Color(background);
     this.scene.background = this.background;
@@ -65,7 +99,10 @@ export class Stage {
     this.scene.add(key);
     this.camera = new PerspectiveCamera(40, 16 / 9, 0.05, 100);
     this.camera.position.set(0, 1.2, 4);
+  }
 
+  // Orbit, pinch-zoom and pan about the actor.
+  createControls() {
     this.controls = new OrbitControls(this.camera, this.canvas);
     // Damped: a drag glides to a stop rather than halting under the finger
     // (tick() calls update() every frame while it glides).
@@ -89,18 +126,22 @@ export class Stage {
     this.controls.addEventListener('start', () => {
       this.atHome = false;
     });
+  }
 
-    // placement (AR: the hit pose) > rig (turn about the vertical through
-    // the actor's mean) > offset (back to the model's own frame) > model.
+  // placement (AR: the hit pose) > rig (turn about the vertical through
+  // the actor's mean) > offset (back to the model's own frame) > model.
+  createRig() {
     this.placement = new Group();
     this.rig = new Group();
     this.offset = new Group();
     this.placement.add(this.rig);
     this.rig.add(this.offset);
     this.scene.add(this.placement);
+  }
 
-    // The floor: y = 0 of the reenactment's frame, under the actor's mean
-    // position; it turns with the AR placement, not with the teacher.
+  // The floor: y = 0 of the reenactment's frame, under the actor's mean
+  // position; it turns with the AR placement, not with the teacher.
+  createFloor(visible) {
     this.floor = new GridHelper(FLOOR_SIZE_M, FLOOR_CELLS, 0x8a96a3, 0x56606b);
     for (const m of Array.isArray(this.floor.material) ? this.floor.material : [this.floor.material]) {
       m.transparent = true;
@@ -108,26 +149,8 @@ export class Stage {
       m.depthWrite = false;
     }
     this.floor.renderOrder = -1;
-    this.floor.visible = !!floor;
+    this.floor.visible = !!visible;
     this.placement.add(this.floor);
-
-    this.model = null;
-    this.pivot = new Vector3();
-    this.facing = new Vector3(0, 0, 1);
-    this.yawDeg = 0;
-    this.mirror = false;
-    this.dirty = true;
-    this.width = 1;
-    this.height = 1;
-    this.renderTimes = [];
-    this.onFrame = null; // (dtSeconds) => void, before each render
-    this.homeView = null;
-
-    this.resizeObserver = new ResizeObserver(() => this.resize());
-    this.resizeObserver.observe(container);
-    this.resize();
-    this.lastTick = performance.now();
-    this.renderer.setAnimationLoop((time, xrFrame) => this.tick(time, xrFrame));
   }
 
   setBackground(hex) {
@@ -183,20 +206,22 @@ export class Stage {
 
   resetView() {
     if (!this.homeView) return;
-    // A glide still under way would carry the view off home again.
-    if (this.controls._sphericalDelta) this.controls._sphericalDelta.set(0, 0, 0);
-    if (this.controls._panOffset) this.controls._panOffset.set(0, 0, 0);
+    // A glide still under way would carry the view off home again: with
+    // damping off, one update spends what is left of it at once.
+    const damping = this.controls.enableDamping;
+    this.controls.enableDamping = false;
+    this.controls.update();
     this.camera.position.copy(this.homeView.eye);
     this.controls.target.copy(this.homeView.target);
     this.camera.lookAt(this.homeView.target);
     this.controls.update();
+    this.controls.enableDamping = damping;
     this.atHome = true;
     this.invalidate();
   }
 
   setYaw(deg) {
-    let d = ((((deg + 180) % 360) + 360) % 360) - 180;
-    if (Object.is(d, -0)) d = 0;
+    const d = wrapYawDeg(deg);
     this.yawDeg = d;
     this.rig.rotation.y = MathUtils.degToRad(d);
     this.invalidate();
@@ -211,10 +236,7 @@ export class Stage {
       const xrCamera = this.renderer.xr.getCamera();
       toCamera.copy(new Vector3().setFromMatrixPosition(xrCamera.matrixWorld)).sub(pivotWorld);
     }
-    const placementYaw = this.placement.rotation.y;
-    const wanted = Math.atan2(toCamera.x, toCamera.z);
-    const facing = Math.atan2(this.facing.x, this.facing.z);
-    return MathUtils.radToDeg(wanted - facing - placementYaw);
+    return faceCameraYawDeg(toCamera, this.facing, this.placement.rotation.y);
   }
 
   setFloor(on) {
@@ -253,10 +275,9 @@ export class Stage {
   cameraInfo() {
     const e = this.camera.position;
     const t = this.controls.target;
-    const r = (x) => Math.round(x * 1e6) / 1e6;
     return {
-      eye: [r(e.x), r(e.y), r(e.z)],
-      target: [r(t.x), r(t.y), r(t.z)],
+      eye: [e.x, e.y, e.z].map(roundMicro),
+      target: [t.x, t.y, t.z].map(roundMicro),
       hfov_deg: this.hfovDeg,
       width: this.width,
       height: this.height,
@@ -272,37 +293,8 @@ export class Stage {
 // bounds over the whole motion): {eye, target} (Vector3).
 export function framing(motion, hfovDeg, aspect) {
   const { extent, mean, facing } = motion;
-  const size = extent.getSize(new Vector3());
-  const centre = extent.getCenter(new Vector3());
-  const target = new Vector3(mean.x, centre.y, mean.z);
-  const hfov = MathUtils.degToRad(hfovDeg);
-  const vfov = MathUtils.degToRad(verticalFovDeg(hfovDeg, aspect));
-  const depth = Math.max(size.x, size.z);
-  const halfWidth = 0.5 * depth * 1.15 + 0.05;
-  const halfHeight = 0.5 * size.y * 1.12 + 0.05;
-  const distance =
-    Math.max(halfWidth / Math.tan(hfov / 2), halfHeight / Math.tan(vfov / 2)) + 0.5 * depth;
-  const eye = target
-    .clone()
-    .addScaledVector(facing, distance)
-    .add(new Vector3(0, 0.12 * distance, 0));
-  return { eye, target };
-}
-
-// Degrees turned per pixel dragged on a canvas `width` pixels wide.
-export function orbitDegPerPx(width) {
-  return MathUtils.clamp(180 / Math.max(1, width), ORBIT_DEG_PER_PX_MIN, ORBIT_DEG_PER_PX_MAX);
-}
-
-// OrbitControls turns 2 pi x rotateSpeed / (the canvas height) radians per
-// pixel: the rotateSpeed that turns orbitDegPerPx(width) degrees.
-function orbitRotateSpeed(width, height) {
-  return (orbitDegPerPx(width) * Math.max(1, height)) / 360;
-}
-
-export function verticalFovDeg(hfovDeg, aspect) {
-  const h = MathUtils.degToRad(hfovDeg);
-  return MathUtils.radToDeg(2 * Math.atan(Math.tan(h / 2) / aspect));
+  const { eye, target } = framingOf(extent, mean, facing, hfovDeg, aspect);
+  return { eye: new Vector3(eye.x, eye.y, eye.z), target: new Vector3(target.x, target.y, target.z) };
 }
 
 export function disposeObject(object) {

@@ -4,7 +4,8 @@
 import { AnimationMixer, Color, PerspectiveCamera, Scene, SRGBColorSpace, WebGLRenderer } from 'three';
 import { fetchGlb } from './api.js';
 import { analyseMotion, parseGlb } from './model.js';
-import { disposeObject, framing, verticalFovDeg } from './stage.js';
+import { verticalFovDeg } from './lib/geometry.js';
+import { disposeObject, framing } from './stage.js';
 
 const WIDTH = 480;
 const HEIGHT = 360;

@@ -137,7 +137,15 @@ inline absl::StatusOr<std::map<std::string, double>> ParseExposition(const std::
     } else if (!absl::SimpleAtod(value_text, &value)) {
       return absl::InvalidArgumentError(absl::StrCat("line ", number, ": bad value: ", line));
     }
-    if (!types.contains(match[1])) {
+    // A histogram's series are its name plus _bucket, _sum or _count.
+    std::string family = match[1];
+    for (const std::string suffix : {"_bucket", "_sum", "_count"}) {
+      const std::string name = match[1];
+      if (name.size() <= suffix.size() || !name.ends_with(suffix)) continue;
+      const auto type = types.find(name.substr(0, name.size() - suffix.size()));
+      if (type != types.end() && type->second == "histogram") family = type->first;
+    }
+    if (!types.contains(family)) {
       return absl::InvalidArgumentError(
           absl::StrCat("line ", number, ": no # TYPE line before: ", line));
     }

@@ -998,6 +998,21 @@ absl::StatusOr<TakeNeeds> BodyNeeds(const TakeFrames& take, const BodyMethodOpti
   return needs;
 }
 
+// A live job's follower: the fit FrameSet by FrameSet (live_body.h).
+absl::StatusOr<std::unique_ptr<LiveFollower>> MakeLiveBodyFollower(
+    const TakeInfo& info, const std::vector<SensorCalibration>& sensors, const OptionMap& options,
+    const std::vector<std::string>& asset_roots) {
+  ASSIGN_OR_RETURN(std::unique_ptr<LiveBodyFollower> follower,
+                   LiveBodyFollower::Create(info, sensors, options, asset_roots));
+  return std::unique_ptr<LiveFollower>(std::move(follower));
+}
+
+// A model the workers could not find fails at Submit, not after the queue.
+absl::Status CheckBodyAssets(const BodyMethodOptions& options,
+                             const std::vector<std::string>& asset_roots) {
+  return body::ResolveAssetModelSpec(options.model, asset_roots).status();
+}
+
 const ReconstructionMethod& BodyMethod() {
   static const TypedMethod<BodyMethodOptions> method(
       {"body",
@@ -1007,7 +1022,8 @@ const ReconstructionMethod& BodyMethod() {
        methods::TextureMode::kBodyAtlas,
        {}},
       &RunBody, methods::DescribeOptions<LiveBodyOptions>(),
-      SegmentFunctions<BodyMethodOptions>{&PrepareBody, &FitBodySegment, &StitchBody, &BodyNeeds});
+      SegmentFunctions<BodyMethodOptions>{&PrepareBody, &FitBodySegment, &StitchBody, &BodyNeeds},
+      LiveAndAssetFunctions<BodyMethodOptions>{&MakeLiveBodyFollower, &CheckBodyAssets});
   return method;
 }
 

@@ -35,7 +35,6 @@ struct LiveBodyFollower::State {
 };
 
 absl::Status LiveBodyOptions::Read(methods::OptionReader& reader) {
-  RETURN_IF_ERROR(reader.Bool("live", &live, "follow the take while it is recorded"));
   return reader.Int("shape_spacing", &shape_spacing, 1, 10000,
                     "live: frame sets between the samples the shape is fitted on");
 }

@@ -27,6 +27,7 @@
 #include "common/model/reenactment.h"
 #include "common/model/sensor_calibration.h"
 #include "common/model/take.h"
+#include "server/recon/live_follower.h"
 
 namespace reenact::recon {
 
@@ -34,7 +35,6 @@ namespace reenact::recon {
 // (body_method.h); the worker that runs the method on the whole take never
 // gets them.
 struct LiveBodyOptions {
-  bool live = false;      // The job asks to follow its take ("live").
   int shape_spacing = 5;  // FrameSets between shape samples.
   absl::Status Read(methods::OptionReader& reader);
   absl::Status Validate() const { return absl::OkStatus(); }
@@ -47,18 +47,7 @@ struct LiveBodyOptions {
 // job's options still override each.
 bodyfit::BodyFitOptions LiveFitOptions();
 
-// What one FrameSet produced.
-struct LiveUpdate {
-  // A new mesh (the first FrameSet's, and once the shape has settled).
-  std::optional<BodyMesh> mesh;
-  // The fitted instant (frame_index counts the FrameSets pushed, from 0);
-  // unset when the FrameSet could not be fitted (no skeleton or no points
-  // before the first fit).
-  std::optional<ReenactmentFrame> frame;
-  double fit_ms = 0.0;  // Decode, cloud and fit of this FrameSet.
-};
-
-class LiveBodyFollower {
+class LiveBodyFollower final : public LiveFollower {
  public:
   // `options`: the method body's options (body_method.h) and
   // LiveBodyOptions'; `asset_roots`: the server's --assets folders.
@@ -67,11 +56,11 @@ class LiveBodyFollower {
       const TakeInfo& info, const std::vector<SensorCalibration>& sensors,
       const std::map<std::string, std::string>& options,
       const std::vector<std::string>& asset_roots = {});
-  ~LiveBodyFollower();
+  ~LiveBodyFollower() override;
 
   // Fits the next FrameSet (its encoded bytes are moved from). DataLoss for
   // frames that do not decode; frames of unknown sensors are skipped.
-  absl::StatusOr<LiveUpdate> Push(FrameSet set);
+  absl::StatusOr<LiveUpdate> Push(FrameSet set) override;
 
   int frames_pushed() const;
   bool shape_settled() const;

@@ -65,8 +65,7 @@ TEST(LiveBodyFollower, FollowsASyntheticTakeFrameSetByFrameSet) {
   auto truth = (*take)->ReadAll<v1::GroundTruthJoints>(kGroundTruthJointsTopic);
   ASSERT_TRUE(truth.ok());
 
-  auto follower =
-      LiveBodyFollower::Create(info, sensors, {{"live", "true"}, {"shape_spacing", "2"}});
+  auto follower = LiveBodyFollower::Create(info, sensors, {{"shape_spacing", "2"}});
   ASSERT_TRUE(follower.ok()) << follower.status();
   // Two passes over the take (the second after the background shape fit
   // has finished); the joints are measured in the second.

@@ -12,8 +12,8 @@
 #include "absl/status/statusor.h"
 #include "common/base/subprocess.h"
 #include "reenact/v1/jobs_service.pb.h"
-#include "server/jobs/eta.h"
-#include "server/jobs/worker_protocol.h"
+#include "server/worker/eta.h"
+#include "server/worker/worker_protocol.h"
 
 namespace reenact::server {
 

@@ -1,4 +1,4 @@
-#include "server/jobs/eta.h"
+#include "server/worker/eta.h"
 
 #include "common/base/time.h"
 

@@ -1,4 +1,4 @@
-#include "capture_daemon/playback_sensor.h"
+#include "capture_daemon/sensors/playback_sensor.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,4 +1,4 @@
-#include "server/jobs/worker_protocol.h"
+#include "server/worker/worker_protocol.h"
 
 #include <algorithm>
 #include <cmath>

@@ -67,7 +67,7 @@ std::vector<std::string> WorkerArgs(const v1::Job& job, const methods::MethodSpe
 struct WorkerReport {
   // Stage, fraction (clamped to 0..1) and frames as the worker gave them;
   // the other fields are left as they were (the ETA is the scheduler's,
-  // server/jobs/eta.h).
+  // server/worker/eta.h).
   v1::JobProgress progress;
   // Its {"error"} message, at most kMaxWorkerLogLineChars.
   std::string error;

@@ -1,4 +1,4 @@
-#include "server/jobs/worker_protocol.h"
+#include "server/worker/worker_protocol.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -11,7 +11,7 @@
 
 #include "common/base/time.h"
 #include "common/testing/test_data.h"
-#include "server/jobs/eta.h"
+#include "server/worker/eta.h"
 
 namespace reenact::server {
 namespace {
@@ -164,7 +164,7 @@ TEST(WorkerProtocol, ArgsCarryTheJobWithoutLiveOnlyOptions) {
   job.set_method("body");
   (*job.mutable_options())["atlas_px"] = "256";
   (*job.mutable_options())["live_every"] = "2";
-  (*job.mutable_options())["live"] = "true";
+  (*job.mutable_options())["note"] = "x";
   WorkerInvocation invocation;
   invocation.worker_path = "/bin/reenact-worker";
   invocation.take_path = "/data/takes/T1.mcap";
@@ -172,14 +172,14 @@ TEST(WorkerProtocol, ArgsCarryTheJobWithoutLiveOnlyOptions) {
   invocation.reenactment_id = "R1";
   EXPECT_THAT(WorkerArgs(job, &spec, invocation),
               ElementsAre("/bin/reenact-worker", "--take", "/data/takes/T1.mcap", "--method",
-                          "body", "--options-json", R"({"atlas_px":"256","live":"true"})", "--out",
+                          "body", "--options-json", R"({"atlas_px":"256","note":"x"})", "--out",
                           "/data/reenactments/R1.reen", "--reenactment-id", "R1", "--take-id", "T1",
                           "--job-id", "J1"));
   // Without a spec nothing is left out; asset roots join with commas.
   invocation.asset_roots = {"/assets/a", "/assets/b"};
   const std::vector<std::string> args = WorkerArgs(job, nullptr, invocation);
   ASSERT_EQ(args.size(), 17u);
-  EXPECT_EQ(args[6], R"({"atlas_px":"256","live":"true","live_every":"2"})");
+  EXPECT_EQ(args[6], R"({"atlas_px":"256","live_every":"2","note":"x"})");
   EXPECT_EQ(args[15], "--assets");
   EXPECT_EQ(args[16], "/assets/a,/assets/b");
 }

@@ -1,18 +1,20 @@
-#include "server/live/live_body_follower.h"
+#include "server/live/live_method_follower.h"
 
 #include <memory>
 #include <utility>
 
+#include "absl/strings/str_cat.h"
 #include "common/io/reenactment_convert.h"
 #include "common/io/take_convert.h"
-#include "server/recon/body/live_body.h"
+#include "server/recon/registry.h"
 
 namespace reenact::server {
 namespace {
 
-class BodyFollower final : public LiveFollower {
+// A method's recon::LiveFollower in the hub's protos.
+class MethodFollower final : public LiveFollower {
  public:
-  explicit BodyFollower(std::unique_ptr<recon::LiveBodyFollower> follower)
+  explicit MethodFollower(std::unique_ptr<recon::LiveFollower> follower)
       : follower_(std::move(follower)) {}
 
   absl::StatusOr<LiveFit> Push(const v1::FrameSet& set) override {
@@ -26,16 +28,21 @@ class BodyFollower final : public LiveFollower {
   }
 
  private:
-  std::unique_ptr<recon::LiveBodyFollower> follower_;
+  std::unique_ptr<recon::LiveFollower> follower_;
 };
 
 }  // namespace
 
-LiveFollowerFactory MakeLiveBodyFollowerFactory(std::vector<std::string> asset_roots) {
-  return [asset_roots = std::move(asset_roots)](const v1::TakeInfo& info,
+LiveFollowerFactory MakeLiveMethodFollowerFactory(std::vector<std::string> asset_roots) {
+  return [asset_roots = std::move(asset_roots)](const std::string& method_name,
+                                                const v1::TakeInfo& info,
                                                 const std::vector<v1::SensorCalibration>& sensors,
                                                 const std::map<std::string, std::string>& options)
              -> absl::StatusOr<std::unique_ptr<LiveFollower>> {
+    const recon::ReconstructionMethod* method = recon::FindMethod(method_name);
+    if (method == nullptr) {
+      return absl::InvalidArgumentError(absl::StrCat("no method ", method_name));
+    }
     std::vector<SensorCalibration> calibrations;
     calibrations.reserve(sensors.size());
     for (const v1::SensorCalibration& sensor : sensors) {
@@ -43,11 +50,10 @@ LiveFollowerFactory MakeLiveBodyFollowerFactory(std::vector<std::string> asset_r
       if (!calibration.ok()) return calibration.status();
       calibrations.push_back(*std::move(calibration));
     }
-    absl::StatusOr<std::unique_ptr<recon::LiveBodyFollower>> follower =
-        recon::LiveBodyFollower::Create(TakeInfoFromProto(info), calibrations, options,
-                                        asset_roots);
+    absl::StatusOr<std::unique_ptr<recon::LiveFollower>> follower =
+        method->MakeLiveFollower(TakeInfoFromProto(info), calibrations, options, asset_roots);
     if (!follower.ok()) return follower.status();
-    return std::make_unique<BodyFollower>(std::move(*follower));
+    return std::make_unique<MethodFollower>(std::move(*follower));
   };
 }
 

@@ -1,4 +1,4 @@
-#include "server/jobs/worker_process.h"
+#include "server/worker/worker_process.h"
 
 #include <signal.h>
 #include <string.h>

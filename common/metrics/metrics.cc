@@ -90,7 +90,7 @@ const char* TypeName(Type type) {
   return "gauge";
 }
 
-std::vector<double> IncreasingFinite(std::vector<double> bounds) {
+std::vector<double> IncreasingFinite(const std::vector<double>& bounds) {
   std::vector<double> out;
   for (const double bound : bounds) {
     if (std::isfinite(bound) && (out.empty() || bound > out.back())) out.push_back(bound);
@@ -107,8 +107,8 @@ void Counter::Increment(double by) {
 
 void Gauge::Add(double delta) { value_.fetch_add(delta, std::memory_order_relaxed); }
 
-Histogram::Histogram(std::vector<double> upper_bounds)
-    : upper_bounds_(IncreasingFinite(std::move(upper_bounds))),
+Histogram::Histogram(const std::vector<double>& upper_bounds)
+    : upper_bounds_(IncreasingFinite(upper_bounds)),
       buckets_(std::make_unique<std::atomic<uint64_t>[]>(upper_bounds_.size() + 1)) {}
 
 void Histogram::Observe(double value) {

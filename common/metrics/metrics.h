@@ -65,7 +65,7 @@ class Gauge {
 class Histogram {
  public:
   // `upper_bounds`: finite, strictly increasing (others are dropped).
-  explicit Histogram(std::vector<double> upper_bounds);
+  explicit Histogram(const std::vector<double>& upper_bounds);
 
   // NaN is dropped.
   void Observe(double value);

@@ -13,7 +13,7 @@
 
 namespace reenact::server {
 
-ServiceClient::ServiceClient(std::shared_ptr<grpc::Channel> channel, double timeout_s)
+ServiceClient::ServiceClient(const std::shared_ptr<grpc::Channel>& channel, double timeout_s)
     : timeout_s_(timeout_s),
       takes_(v1::Takes::NewStub(channel)),
       reenactments_(v1::Reenactments::NewStub(channel)),

@@ -22,7 +22,7 @@ namespace reenact::server {
 
 class ServiceClient {
  public:
-  ServiceClient(std::shared_ptr<grpc::Channel> channel, double timeout_s);
+  ServiceClient(const std::shared_ptr<grpc::Channel>& channel, double timeout_s);
 
   absl::StatusOr<v1::Take> GetTake(const std::string& take_id) const;
   absl::StatusOr<v1::ListReenactmentsResponse> ListReenactments(
